@@ -1,0 +1,2 @@
+"""tudorvision.catch"""
+__all__: list[str] = []

@@ -1,0 +1,73 @@
+"""The ``tudorvision`` command.
+
+Each subpackage that offers commands has a ``cli`` module with a function
+``register(subparsers)`` that adds its subcommands; every subcommand sets
+``func`` to a callable taking the parsed ``argparse.Namespace`` and returning
+an exit code. User mistakes raise :class:`TudorVisionError` (or ``ValueError``
+/ ``OSError``) and are printed as one line with exit code 2.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from . import __version__
+from ._checks import TudorVisionError
+
+__all__ = ["main", "build_parser"]
+
+# Modules providing subcommands, in --help order.
+COMMAND_MODULES = (
+    "tudorvision.sim.cli",
+    "tudorvision.io.cli",
+    "tudorvision.calib_cli",
+    "tudorvision.stereo.cli",
+    "tudorvision.rgbd.cli",
+    "tudorvision.servo.cli",
+    "tudorvision.catch.cli",
+    "tudorvision.joint.cli",
+    "tudorvision.demo",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="tudorvision",
+        description="Perception for the elastic-link arm TUDOR: stereo tracking, RGB-D calibration, "
+                    "visual servoing, ball catching, and a virtual lab to test them on.")
+    parser.add_argument("--version", action="version", version=f"tudorvision {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMAND_MODULES:
+        try:
+            mod = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name == name:   # command module not part of this build
+                continue
+            raise
+        mod.register(sub)
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2 if args.command is None else 0
+    try:
+        return int(args.func(args) or 0)
+    except KeyboardInterrupt:
+        print("tudorvision: interrupted", file=sys.stderr)
+        return 130
+    except (TudorVisionError, ValueError, FileNotFoundError, IsADirectoryError,
+            NotADirectoryError, PermissionError) as exc:
+        msg = str(exc)
+        if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in msg:
+            msg = f"{exc.filename}: {exc.strerror or msg}"
+        print(f"tudorvision {args.command}: error: {msg}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

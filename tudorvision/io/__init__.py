@@ -1,0 +1,2 @@
+"""tudorvision.io"""
+__all__: list[str] = []

@@ -1,0 +1,2 @@
+"""tudorvision.joint"""
+__all__: list[str] = []

@@ -1,0 +1,2 @@
+"""tudorvision.rgbd"""
+__all__: list[str] = []

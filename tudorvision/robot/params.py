@@ -1,0 +1,162 @@
+"""TUDOR robot parameters loaded from the single data file ``data/tudor.yaml``."""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .._checks import TudorVisionError
+
+__all__ = ["RobotParams", "LinkParams", "load_robot_params", "DEFAULT_PARAMS_PATH"]
+
+DEFAULT_PARAMS_PATH = Path(str(resources.files("tudorvision.robot").joinpath("data/tudor.yaml")))
+
+
+@dataclass(frozen=True, kw_only=True)
+class LinkParams:
+    """An elastic spring-steel blade (appendix A.1). SI units."""
+
+    length_m: float
+    width_m: float
+    height_m: float
+    density_kg_m3: float
+    youngs_modulus_Pa: float
+
+    @property
+    def area_m2(self) -> float:
+        return self.width_m * self.height_m
+
+    @property
+    def mass_per_length_kg_m(self) -> float:
+        """Beam density per unit length, the seed's rho_b."""
+        return self.density_kg_m3 * self.area_m2
+
+    @property
+    def mass_kg(self) -> float:
+        return self.mass_per_length_kg_m * self.length_m
+
+    @property
+    def second_moment_m4(self) -> float:
+        """Area moment of inertia for bending in the arm's vertical plane (b h^3 / 12)."""
+        return self.width_m * self.height_m**3 / 12.0
+
+    @property
+    def flexural_rigidity_Nm2(self) -> float:
+        return self.youngs_modulus_Pa * self.second_moment_m4
+
+
+@dataclass(frozen=True, kw_only=True)
+class RobotParams:
+    """All TUDOR parameters. Angles in radians, lengths in metres.
+
+    Build with :func:`load_robot_params`; override single values with
+    ``dataclasses.replace(params, link1_height_m=0.4)``.
+    """
+
+    gravity_m_s2: float
+    link1_height_m: float
+    link2_length_m: float
+    link3_length_m: float
+    sphere_radius_m: float
+    sphere_offsets_ee_m: dict
+    joint_limits_rad: np.ndarray            # (3, 2)
+    max_speed_rad_s: np.ndarray             # (3,)
+    max_accel_rad_s2: np.ndarray            # (3,)
+    experiment_speed_rad_s: float
+    experiment_accel_rad_s2: float
+    gear_ratio: np.ndarray
+    rotor_inertia_kg_m2: np.ndarray
+    viscous_pos_Nms_rad: np.ndarray
+    viscous_neg_Nms_rad: np.ndarray
+    coulomb_pos_Nm: np.ndarray
+    coulomb_neg_Nm: np.ndarray
+    torque_constant_Nm_A: np.ndarray
+    amplifier_gain_A_V: np.ndarray
+    amplifier_cutoff_hz: np.ndarray
+    max_intermittent_torque_Nm: np.ndarray
+    actuator_mass_kg: np.ndarray
+    link2: LinkParams
+    link3: LinkParams
+    gauge_positions_m: dict
+    modal_damping_ratio: np.ndarray
+    plate_mass_kg: float
+    camera_and_spheres_mass_kg: float
+    end_effector_mount_mass_kg: float
+    ball_mass_kg: float
+    extra: dict = field(default_factory=dict)
+
+    def replace(self, **changes) -> "RobotParams":
+        """Return a copy with some fields changed."""
+        return dataclasses.replace(self, **changes)
+
+
+def _arr(x) -> np.ndarray:
+    a = np.asarray(x, dtype=np.float64)
+    a.setflags(write=False)
+    return a
+
+
+def load_robot_params(path: str | Path | None = None) -> RobotParams:
+    """Load robot parameters from a YAML file (default: the packaged ``tudor.yaml``).
+
+    Raises
+    ------
+    TudorVisionError
+        If the file is missing, malformed or lacks a key; the message names the file.
+
+    Examples
+    --------
+    >>> p = load_robot_params()
+    >>> round(p.link2_length_m, 3)
+    0.43
+    """
+    path = Path(path) if path is not None else DEFAULT_PARAMS_PATH
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except FileNotFoundError:
+        raise TudorVisionError(f"{path}: robot parameter file not found") from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = f" line {mark.line + 1}" if mark is not None else ""
+        raise TudorVisionError(f"{path}:{line} malformed YAML") from None
+    try:
+        kin, jnt, lnk, pay = doc["kinematics"], doc["joints"], doc["links"], doc["payload"]
+        deg = np.pi / 180.0
+        return RobotParams(
+            gravity_m_s2=float(doc["gravity_m_s2"]),
+            link1_height_m=float(kin["link1_height_m"]),
+            link2_length_m=float(kin["link2_length_m"]),
+            link3_length_m=float(kin["link3_length_m"]),
+            sphere_radius_m=float(kin["sphere_radius_m"]),
+            sphere_offsets_ee_m={k: _arr(v) for k, v in kin["sphere_offsets_ee_m"].items()},
+            joint_limits_rad=_arr(np.asarray(jnt["range_deg"], float) * deg),
+            max_speed_rad_s=_arr(np.asarray(jnt["max_speed_deg_s"], float) * deg),
+            max_accel_rad_s2=_arr(np.asarray(jnt["max_accel_deg_s2"], float) * deg),
+            experiment_speed_rad_s=float(jnt["experiment_speed_deg_s"]) * deg,
+            experiment_accel_rad_s2=float(jnt["experiment_accel_deg_s2"]) * deg,
+            gear_ratio=_arr(jnt["gear_ratio"]),
+            rotor_inertia_kg_m2=_arr(jnt["rotor_inertia_kg_m2"]),
+            viscous_pos_Nms_rad=_arr(jnt["viscous_pos_Nms_rad"]),
+            viscous_neg_Nms_rad=_arr(jnt["viscous_neg_Nms_rad"]),
+            coulomb_pos_Nm=_arr(jnt["coulomb_pos_Nm"]),
+            coulomb_neg_Nm=_arr(jnt["coulomb_neg_Nm"]),
+            torque_constant_Nm_A=_arr(jnt["torque_constant_Nm_A"]),
+            amplifier_gain_A_V=_arr(jnt["amplifier_gain_A_V"]),
+            amplifier_cutoff_hz=_arr(jnt["amplifier_cutoff_hz"]),
+            max_intermittent_torque_Nm=_arr(jnt["max_intermittent_torque_Nm"]),
+            actuator_mass_kg=_arr(jnt["actuator_mass_kg"]),
+            link2=LinkParams(**lnk["link2"]),
+            link3=LinkParams(**lnk["link3"]),
+            gauge_positions_m={k: _arr(v) for k, v in lnk["gauge_positions_m"].items()},
+            modal_damping_ratio=_arr(lnk["modal_damping_ratio"]),
+            plate_mass_kg=float(pay["plate_mass_kg"]),
+            camera_and_spheres_mass_kg=float(pay["camera_and_spheres_mass_kg"]),
+            end_effector_mount_mass_kg=float(pay["end_effector_mount_mass_kg"]),
+            ball_mass_kg=float(pay["ball_mass_kg"]),
+        )
+    except (KeyError, TypeError) as exc:
+        raise TudorVisionError(f"{path}: missing or invalid robot parameter {exc}") from None

@@ -1,0 +1,2 @@
+"""tudorvision.servo"""
+__all__: list[str] = []

@@ -1,0 +1,2 @@
+"""tudorvision.sim"""
+__all__: list[str] = []

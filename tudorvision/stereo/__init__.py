@@ -1,0 +1,2 @@
+"""tudorvision.stereo"""
+__all__: list[str] = []
