@@ -1,0 +1,649 @@
+"""The project's calibration file: cameras, stereo extrinsics, transforms, depth model.
+
+File format (YAML, SI units, named frames)::
+
+    format: tudorvision-calibration
+    version: 1
+    cameras:
+      left:                      # any name: left, right, rgbd, hand, ...
+        width: 640               # pixels
+        height: 480
+        K: [[700.0, 0.0, 319.5], [0.0, 700.0, 239.5], [0.0, 0.0, 1.0]]
+        dist: [k1, k2, p1, p2, k3]        # OpenCV / plumb_bob order
+        line_time_s: 3.0e-05              # optional, rolling shutter row time
+        T_ref_cam: [[...], ...]           # optional 4x4, camera -> rig reference
+    stereo:                      # optional
+      left: left                 # camera names
+      right: right
+      R: [[...], ...]            # x_right = R @ x_left + T  (OpenCV convention)
+      T: [tx, ty, tz]            # metres
+      rectification: {R1: ..., R2: ..., P1: ..., P2: ..., Q: ...}   # optional
+    transforms:                  # optional, 4x4, name T_<to>_<from>
+      T_base_left: [[...], ...]  # p_base = T_base_left @ p_left
+      T_ee_cam: [[...], ...]     # hand-eye
+    depth_model:                 # optional: sigma_z(z) polynomial, highest power first
+      sigma_z_poly: [0.51, -2.1, 5.12, -2.18]
+      z_unit: m
+      sigma_unit: cm
+      valid_range_m: [0.6, 6.0]
+    circle_rmse_m: 0.0482        # optional
+    metadata: {}                 # free
+
+``load_calibration`` / ``save_calibration`` round-trip this exactly (to float
+precision). :meth:`Calibration.with_updates` and :meth:`Calibration.merge`
+make partial updates easy (a calibration command adding ``T_base_left``).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+
+import numpy as np
+import yaml
+
+from .._checks import TudorVisionError, check_array, check_transform
+
+__all__ = ["CameraModel", "StereoExtrinsics", "DepthModel", "Calibration",
+           "load_calibration", "save_calibration", "read_yaml"]
+
+FORMAT_NAME = "tudorvision-calibration"
+_UNITS_TO_M = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+
+
+# ----------------------------------------------------------------------------- YAML helpers
+def read_yaml(path: Path):
+    """Load a YAML file; errors name the file and the line.
+
+    Returns
+    -------
+    data : object
+        The parsed document.
+    line_of : callable
+        ``line_of(keys) -> int or None``: 1-based line of the value at the
+        key path ``keys`` (strings for mappings, ints for lists), or of its
+        deepest existing ancestor. Used to point semantic errors at a line.
+
+    Raises
+    ------
+    TudorVisionError
+        If the file is absent, unreadable or not valid YAML.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise TudorVisionError(f"{path}: file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise TudorVisionError(f"{path}: cannot read ({exc})") from None
+    try:
+        data = yaml.safe_load(text)
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+        where = f"{path}:{mark.line + 1}" if mark is not None else str(path)
+        what = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise TudorVisionError(f"{where}: malformed YAML: {what}") from None
+
+    def line_of(keys) -> int | None:
+        node = root
+        line = node.start_mark.line + 1 if node is not None else None
+        for key in keys:
+            nxt = None
+            if isinstance(node, yaml.MappingNode):
+                for k, v in node.value:
+                    if getattr(k, "value", None) == str(key):
+                        nxt = v
+                        break
+            elif isinstance(node, yaml.SequenceNode) and isinstance(key, int) \
+                    and 0 <= key < len(node.value):
+                nxt = node.value[key]
+            if nxt is None:
+                break
+            node = nxt
+            line = node.start_mark.line + 1
+        return line
+
+    return data, line_of
+
+
+class _Ctx:
+    """Builds errors of the form ``file:line: key.path: message``."""
+
+    def __init__(self, path, line_of):
+        self.path = path
+        self.line_of = line_of
+
+    def error(self, keys, msg) -> TudorVisionError:
+        line = self.line_of(keys) if self.line_of else None
+        where = f"{self.path}:{line}" if line else str(self.path)
+        name = ".".join(str(k) for k in keys)
+        return TudorVisionError(f"{where}: {name}: {msg}" if name else f"{where}: {msg}")
+
+    def array(self, value, keys, shape):
+        try:
+            return check_array(value, ".".join(map(str, keys)), shape)
+        except (ValueError, TypeError) as exc:
+            raise self.error(keys, str(exc).split(": ", 1)[-1]) from None
+
+    def transform(self, value, keys):
+        T = self.array(value, keys, (4, 4))
+        try:
+            return check_transform(T, "T")
+        except ValueError as exc:
+            raise self.error(keys, str(exc).split(": ", 1)[-1]) from None
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, dtype=np.float64)
+    a.setflags(write=False)
+    return a
+
+
+def _opt_close(a, b, atol) -> bool:
+    if a is None or b is None:
+        return a is None and b is None
+    return np.shape(a) == np.shape(b) and bool(np.allclose(a, b, atol=atol, rtol=0))
+
+
+# ----------------------------------------------------------------------------- dataclasses
+@dataclass(frozen=True, kw_only=True, eq=False)
+class CameraModel:
+    """Pinhole camera with Brown–Conrady (OpenCV plumb_bob) distortion.
+
+    Parameters
+    ----------
+    K : array_like, shape (3, 3)
+        Intrinsic matrix in pixels (u right, v down, origin at the centre of
+        the top-left pixel as in OpenCV).
+    dist : array_like, shape (5,)
+        ``[k1, k2, p1, p2, k3]``.
+    width, height : int
+        Image size in pixels.
+    line_time_s : float, optional
+        Rolling-shutter time between consecutive rows in seconds.
+    T_ref_cam : array_like, shape (4, 4), optional
+        Camera pose in a rig reference frame, ``p_ref = T_ref_cam @ p_cam``.
+
+    Examples
+    --------
+    >>> cam = CameraModel(K=[[500, 0, 320], [0, 500, 240], [0, 0, 1]], width=640, height=480)
+    >>> cam.fx, cam.cx
+    (500.0, 320.0)
+    """
+
+    K: np.ndarray
+    dist: np.ndarray = field(default_factory=lambda: np.zeros(5))
+    width: int
+    height: int
+    line_time_s: float | None = None
+    T_ref_cam: np.ndarray | None = None
+
+    def __post_init__(self):
+        K = check_array(self.K, "K", (3, 3))
+        if K[0, 0] <= 0 or K[1, 1] <= 0 or not np.allclose(K[2], [0, 0, 1]):
+            raise ValueError(f"K: expected [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0, "
+                             f"got {K.tolist()}")
+        object.__setattr__(self, "K", _frozen(K))
+        object.__setattr__(self, "dist", _frozen(check_array(self.dist, "dist", (5,))))
+        for name in ("width", "height"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or int(v) != v or int(v) <= 0:
+                raise ValueError(f"{name}: expected a positive integer, got {v!r}")
+            object.__setattr__(self, name, int(v))
+        if self.line_time_s is not None:
+            lt = float(self.line_time_s)
+            if not math.isfinite(lt) or lt < 0:
+                raise ValueError(f"line_time_s: expected a non-negative number, got {lt}")
+            object.__setattr__(self, "line_time_s", lt)
+        if self.T_ref_cam is not None:
+            object.__setattr__(self, "T_ref_cam", _frozen(check_transform(self.T_ref_cam, "T_ref_cam")))
+
+    fx = property(lambda self: float(self.K[0, 0]), doc="Focal length along u, pixels.")
+    fy = property(lambda self: float(self.K[1, 1]), doc="Focal length along v, pixels.")
+    cx = property(lambda self: float(self.K[0, 2]), doc="Principal point u, pixels.")
+    cy = property(lambda self: float(self.K[1, 2]), doc="Principal point v, pixels.")
+    size = property(lambda self: (self.width, self.height), doc="``(width, height)`` in pixels.")
+
+    def replace(self, **changes) -> "CameraModel":
+        """A copy with some fields changed."""
+        return dataclasses.replace(self, **changes)
+
+    def allclose(self, other: "CameraModel", atol: float = 1e-9) -> bool:
+        """Field-wise comparison with absolute tolerance."""
+        return (isinstance(other, CameraModel) and self.size == other.size
+                and _opt_close(self.K, other.K, atol) and _opt_close(self.dist, other.dist, atol)
+                and _opt_close(self.line_time_s, other.line_time_s, atol)
+                and _opt_close(self.T_ref_cam, other.T_ref_cam, atol))
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class StereoExtrinsics:
+    """Stereo pair geometry, OpenCV convention ``x_right = R @ x_left + T``.
+
+    Parameters
+    ----------
+    R : array_like, shape (3, 3)
+        Rotation from the left to the right camera frame.
+    T : array_like, shape (3,)
+        Translation in metres (the left camera centre in the right frame).
+    left, right : str
+        Names of the two cameras in :attr:`Calibration.cameras`.
+    R1, R2 : array_like, shape (3, 3), optional
+        Rectifying rotations (``cv2.stereoRectify``).
+    P1, P2 : array_like, shape (3, 4), optional
+        Rectified projection matrices; ``P2[0, 3] = fx' * Tx`` in pixel·metres.
+    Q : array_like, shape (4, 4), optional
+        Disparity-to-depth matrix, metres.
+    """
+
+    R: np.ndarray
+    T: np.ndarray
+    left: str = "left"
+    right: str = "right"
+    R1: np.ndarray | None = None
+    R2: np.ndarray | None = None
+    P1: np.ndarray | None = None
+    P2: np.ndarray | None = None
+    Q: np.ndarray | None = None
+
+    _SHAPES = {"R1": (3, 3), "R2": (3, 3), "P1": (3, 4), "P2": (3, 4), "Q": (4, 4)}
+
+    def __post_init__(self):
+        R = check_array(self.R, "R", (3, 3))
+        T4 = np.eye(4)
+        T4[:3, :3] = R
+        check_transform(T4, "R")
+        object.__setattr__(self, "R", _frozen(R))
+        object.__setattr__(self, "T", _frozen(check_array(self.T, "T", (3,))))
+        for name, shape in self._SHAPES.items():
+            v = getattr(self, name)
+            if v is not None:
+                object.__setattr__(self, name, _frozen(check_array(v, name, shape)))
+
+    @property
+    def baseline_m(self) -> float:
+        """Distance between the camera centres in metres."""
+        return float(np.linalg.norm(self.T))
+
+    @property
+    def T_right_left(self) -> np.ndarray:
+        """4x4 transform with ``p_right = T_right_left @ p_left``."""
+        T = np.eye(4)
+        T[:3, :3] = self.R
+        T[:3, 3] = self.T
+        return T
+
+    @property
+    def has_rectification(self) -> bool:
+        return all(getattr(self, n) is not None for n in self._SHAPES)
+
+    def allclose(self, other: "StereoExtrinsics", atol: float = 1e-9) -> bool:
+        return (isinstance(other, StereoExtrinsics) and (self.left, self.right) == (other.left, other.right)
+                and all(_opt_close(getattr(self, n), getattr(other, n), atol)
+                        for n in ("R", "T", *self._SHAPES)))
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class DepthModel:
+    """Depth noise model ``sigma_z(z)`` as a polynomial (highest power first).
+
+    Parameters
+    ----------
+    sigma_z_poly : array_like, shape (K,)
+        Coefficients for ``np.polyval`` with z in ``z_unit`` giving sigma in
+        ``sigma_unit``.
+    z_unit, sigma_unit : str
+        ``"m"``, ``"cm"`` or ``"mm"``.
+    valid_range_m : tuple of float, optional
+        Usable depth range in metres.
+
+    Examples
+    --------
+    >>> dm = DepthModel(sigma_z_poly=[0.51, -2.1, 5.12, -2.18], sigma_unit="cm")
+    >>> round(float(dm.sigma_m(2.0)), 4)
+    0.0198
+    """
+
+    sigma_z_poly: np.ndarray
+    z_unit: str = "m"
+    sigma_unit: str = "m"
+    valid_range_m: tuple[float, float] | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "sigma_z_poly",
+                           _frozen(check_array(self.sigma_z_poly, "sigma_z_poly", (None,))))
+        for name in ("z_unit", "sigma_unit"):
+            if getattr(self, name) not in _UNITS_TO_M:
+                raise ValueError(f"{name}: expected one of {sorted(_UNITS_TO_M)}, "
+                                 f"got {getattr(self, name)!r}")
+        if self.valid_range_m is not None:
+            lo, hi = check_array(self.valid_range_m, "valid_range_m", (2,))
+            if not 0 <= lo < hi:
+                raise ValueError(f"valid_range_m: expected 0 <= min < max, got {[lo, hi]}")
+            object.__setattr__(self, "valid_range_m", (float(lo), float(hi)))
+
+    def sigma_m(self, z_m):
+        """Depth standard deviation in metres at depth ``z_m`` (metres, any shape)."""
+        z = np.asarray(z_m, dtype=np.float64) / _UNITS_TO_M[self.z_unit]
+        return np.polyval(self.sigma_z_poly, z) * _UNITS_TO_M[self.sigma_unit]
+
+    def allclose(self, other: "DepthModel", atol: float = 1e-9) -> bool:
+        return (isinstance(other, DepthModel) and (self.z_unit, self.sigma_unit) == (other.z_unit, other.sigma_unit)
+                and _opt_close(self.sigma_z_poly, other.sigma_z_poly, atol)
+                and _opt_close(self.valid_range_m, other.valid_range_m, atol))
+
+
+_T_NAME = re.compile(r"^T_[A-Za-z0-9]+(?:_[A-Za-z0-9]+)+$")
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class Calibration:
+    """Everything calibrated about the lab's cameras, in SI units.
+
+    Parameters
+    ----------
+    cameras : mapping of str to CameraModel
+        Cameras by name (``left``, ``right``, ``rgbd``, ``hand``, ...).
+    stereo : StereoExtrinsics, optional
+        Stereo pair geometry.
+    transforms : mapping of str to ndarray (4, 4)
+        Named rigid transforms ``T_<to>_<from>``, e.g. ``T_base_left``
+        (``p_base = T_base_left @ p_left``) or ``T_ee_cam`` (hand-eye).
+    depth_model : DepthModel, optional
+        RGB-D depth noise model.
+    circle_rmse_m : float, optional
+        RMSE of the base-frame circle fit, metres.
+    metadata : mapping
+        Free information (date, source, notes); must be YAML-serialisable.
+
+    Examples
+    --------
+    >>> cam = CameraModel(K=np.diag([500.0, 500.0, 1.0]), width=64, height=48)
+    >>> cal = Calibration(cameras={"rgbd": cam})
+    >>> cal2 = cal.with_updates(transforms={"T_base_rgbd": np.eye(4)})
+    >>> sorted(cal2.transforms), sorted(cal.transforms)
+    (['T_base_rgbd'], [])
+    """
+
+    cameras: Mapping[str, CameraModel] = field(default_factory=dict)
+    stereo: StereoExtrinsics | None = None
+    transforms: Mapping[str, np.ndarray] = field(default_factory=dict)
+    depth_model: DepthModel | None = None
+    circle_rmse_m: float | None = None
+    metadata: Mapping = field(default_factory=dict)
+
+    def __post_init__(self):
+        cams = dict(self.cameras)
+        for name, cam in cams.items():
+            if not isinstance(cam, CameraModel):
+                raise ValueError(f"cameras[{name!r}]: expected a CameraModel, got {type(cam).__name__}")
+        object.__setattr__(self, "cameras", MappingProxyType(cams))
+        if self.stereo is not None:
+            if not isinstance(self.stereo, StereoExtrinsics):
+                raise ValueError("stereo: expected a StereoExtrinsics")
+            for side in (self.stereo.left, self.stereo.right):
+                if side not in cams:
+                    raise ValueError(f"stereo: camera {side!r} is not in cameras {sorted(cams)}")
+        trans = {}
+        for name, T in dict(self.transforms).items():
+            if not _T_NAME.match(str(name)):
+                raise ValueError(f"transforms: name {name!r} must read T_<to>_<from>, e.g. T_base_left")
+            trans[str(name)] = _frozen(check_transform(T, name))
+        object.__setattr__(self, "transforms", MappingProxyType(trans))
+        if self.depth_model is not None and not isinstance(self.depth_model, DepthModel):
+            raise ValueError("depth_model: expected a DepthModel")
+        if self.circle_rmse_m is not None:
+            object.__setattr__(self, "circle_rmse_m", float(self.circle_rmse_m))
+        object.__setattr__(self, "metadata", MappingProxyType(dict(self.metadata)))
+
+    def camera(self, name: str) -> CameraModel:
+        """The camera called ``name``; ``TudorVisionError`` listing the known names otherwise."""
+        try:
+            return self.cameras[name]
+        except KeyError:
+            raise TudorVisionError(f"no camera {name!r} in calibration (have {sorted(self.cameras)})") from None
+
+    def transform(self, name: str) -> np.ndarray:
+        """The transform called ``name`` (e.g. ``"T_base_left"``), shape (4, 4)."""
+        try:
+            return np.array(self.transforms[name])
+        except KeyError:
+            raise TudorVisionError(f"no transform {name!r} in calibration "
+                                   f"(have {sorted(self.transforms)})") from None
+
+    def with_updates(self, *, cameras=None, stereo=None, transforms=None, depth_model=None,
+                     circle_rmse_m=None, metadata=None) -> "Calibration":
+        """A copy with entries added or replaced; ``None`` keeps the current value.
+
+        ``cameras``, ``transforms`` and ``metadata`` are merged key by key
+        (new keys win); ``stereo``, ``depth_model`` and ``circle_rmse_m``
+        replace the old value.
+        """
+        return Calibration(
+            cameras={**self.cameras, **(cameras or {})},
+            stereo=stereo if stereo is not None else self.stereo,
+            transforms={**self.transforms, **(transforms or {})},
+            depth_model=depth_model if depth_model is not None else self.depth_model,
+            circle_rmse_m=circle_rmse_m if circle_rmse_m is not None else self.circle_rmse_m,
+            metadata={**self.metadata, **(metadata or {})})
+
+    def merge(self, other: "Calibration") -> "Calibration":
+        """Combine two calibrations; entries present in ``other`` win."""
+        return self.with_updates(cameras=other.cameras, stereo=other.stereo,
+                                 transforms=other.transforms, depth_model=other.depth_model,
+                                 circle_rmse_m=other.circle_rmse_m, metadata=other.metadata)
+
+    def allclose(self, other: "Calibration", atol: float = 1e-9) -> bool:
+        """Compare all numeric content with absolute tolerance ``atol``."""
+        if not isinstance(other, Calibration):
+            return False
+        if sorted(self.cameras) != sorted(other.cameras) or sorted(self.transforms) != sorted(other.transforms):
+            return False
+        pairs = [(self.stereo, other.stereo), (self.depth_model, other.depth_model)]
+        for a, b in pairs:
+            if (a is None) != (b is None) or (a is not None and not a.allclose(b, atol)):
+                return False
+        return (all(self.cameras[n].allclose(other.cameras[n], atol) for n in self.cameras)
+                and all(_opt_close(self.transforms[n], other.transforms[n], atol) for n in self.transforms)
+                and _opt_close(self.circle_rmse_m, other.circle_rmse_m, atol)
+                and dict(self.metadata) == dict(other.metadata))
+
+    # ------------------------------------------------------------------ dict form
+    def to_dict(self) -> dict:
+        """Plain-Python form of the file format (lists, floats, strings)."""
+        out: dict = {"format": FORMAT_NAME, "version": 1, "units": {"length": "m", "angle": "rad"},
+                     "cameras": {}}
+        for name, cam in self.cameras.items():
+            c = {"width": cam.width, "height": cam.height, "K": cam.K.tolist(), "dist": cam.dist.tolist()}
+            if cam.line_time_s is not None:
+                c["line_time_s"] = cam.line_time_s
+            if cam.T_ref_cam is not None:
+                c["T_ref_cam"] = cam.T_ref_cam.tolist()
+            out["cameras"][name] = c
+        if self.stereo is not None:
+            s = self.stereo
+            d = {"left": s.left, "right": s.right, "R": s.R.tolist(), "T": s.T.tolist()}
+            rect = {n: getattr(s, n).tolist() for n in StereoExtrinsics._SHAPES if getattr(s, n) is not None}
+            if rect:
+                d["rectification"] = rect
+            out["stereo"] = d
+        if self.transforms:
+            out["transforms"] = {n: T.tolist() for n, T in self.transforms.items()}
+        if self.depth_model is not None:
+            dm = self.depth_model
+            d = {"sigma_z_poly": dm.sigma_z_poly.tolist(), "z_unit": dm.z_unit, "sigma_unit": dm.sigma_unit}
+            if dm.valid_range_m is not None:
+                d["valid_range_m"] = list(dm.valid_range_m)
+            out["depth_model"] = d
+        if self.circle_rmse_m is not None:
+            out["circle_rmse_m"] = self.circle_rmse_m
+        if self.metadata:
+            out["metadata"] = dict(self.metadata)
+        return out
+
+    @classmethod
+    def from_dict(cls, data, *, source="<calibration>", line_of=None) -> "Calibration":
+        """Build from the plain-Python file form; errors name ``source`` and the line."""
+        ctx = _Ctx(source, line_of)
+        if not isinstance(data, dict):
+            raise ctx.error((), "expected a mapping at the top level")
+        fmt = data.get("format", FORMAT_NAME)
+        if fmt != FORMAT_NAME:
+            raise ctx.error(("format",), f"expected {FORMAT_NAME!r}, got {fmt!r}")
+        known = {"format", "version", "units", "cameras", "stereo", "transforms", "depth_model",
+                 "circle_rmse_m", "metadata"}
+        for key in data:
+            if key not in known:
+                raise ctx.error((key,), f"unknown key (known: {', '.join(sorted(known))})")
+        units = data.get("units") or {}
+        if units.get("length", "m") != "m" or units.get("angle", "rad") != "rad":
+            raise ctx.error(("units",), "only SI units (length: m, angle: rad) are supported")
+        cams = {}
+        raw_cams = data.get("cameras") or {}
+        if not isinstance(raw_cams, dict):
+            raise ctx.error(("cameras",), "expected a mapping of camera name to camera")
+        for name, c in raw_cams.items():
+            keys = ("cameras", name)
+            if not isinstance(c, dict):
+                raise ctx.error(keys, "expected a mapping with width, height, K, dist")
+            for req in ("width", "height", "K"):
+                if req not in c:
+                    raise ctx.error(keys, f"missing {req!r}")
+            try:
+                cams[str(name)] = CameraModel(
+                    K=ctx.array(c["K"], keys + ("K",), (3, 3)),
+                    dist=ctx.array(c.get("dist", [0.0] * 5), keys + ("dist",), (5,)),
+                    width=c["width"], height=c["height"], line_time_s=c.get("line_time_s"),
+                    T_ref_cam=None if c.get("T_ref_cam") is None
+                    else ctx.transform(c["T_ref_cam"], keys + ("T_ref_cam",)))
+            except (ValueError, TypeError) as exc:
+                if isinstance(exc, TudorVisionError):
+                    raise
+                raise ctx.error(keys, str(exc)) from None
+        stereo = None
+        if data.get("stereo") is not None:
+            s = data["stereo"]
+            if not isinstance(s, dict) or "R" not in s or "T" not in s:
+                raise ctx.error(("stereo",), "expected a mapping with R and T")
+            rect = s.get("rectification") or {}
+            kw = {n: ctx.array(rect[n], ("stereo", "rectification", n), shp)
+                  for n, shp in StereoExtrinsics._SHAPES.items() if n in rect}
+            try:
+                stereo = StereoExtrinsics(R=ctx.array(s["R"], ("stereo", "R"), (3, 3)),
+                                          T=ctx.array(s["T"], ("stereo", "T"), (3,)),
+                                          left=str(s.get("left", "left")),
+                                          right=str(s.get("right", "right")), **kw)
+            except ValueError as exc:
+                if isinstance(exc, TudorVisionError):
+                    raise
+                raise ctx.error(("stereo",), str(exc)) from None
+        trans = {}
+        raw_t = data.get("transforms") or {}
+        if not isinstance(raw_t, dict):
+            raise ctx.error(("transforms",), "expected a mapping of name to 4x4 matrix")
+        for name, T in raw_t.items():
+            trans[str(name)] = ctx.transform(T, ("transforms", name))
+        dm = None
+        if data.get("depth_model") is not None:
+            d = data["depth_model"]
+            if not isinstance(d, dict) or "sigma_z_poly" not in d:
+                raise ctx.error(("depth_model",), "expected a mapping with sigma_z_poly")
+            try:
+                dm = DepthModel(sigma_z_poly=ctx.array(d["sigma_z_poly"], ("depth_model", "sigma_z_poly"),
+                                                       (None,)),
+                                z_unit=d.get("z_unit", "m"), sigma_unit=d.get("sigma_unit", "m"),
+                                valid_range_m=d.get("valid_range_m"))
+            except ValueError as exc:
+                if isinstance(exc, TudorVisionError):
+                    raise
+                raise ctx.error(("depth_model",), str(exc)) from None
+        rmse = data.get("circle_rmse_m")
+        if rmse is not None and (isinstance(rmse, bool) or not isinstance(rmse, (int, float))):
+            raise ctx.error(("circle_rmse_m",), f"expected a number in metres, got {rmse!r}")
+        meta = data.get("metadata") or {}
+        if not isinstance(meta, dict):
+            raise ctx.error(("metadata",), "expected a mapping")
+        try:
+            return cls(cameras=cams, stereo=stereo, transforms=trans, depth_model=dm,
+                       circle_rmse_m=rmse, metadata=meta)
+        except ValueError as exc:
+            if isinstance(exc, TudorVisionError):
+                raise
+            raise ctx.error((), str(exc)) from None
+
+
+def load_calibration(path) -> Calibration:
+    """Read a calibration file in the project's YAML format.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.yaml`` file.
+
+    Returns
+    -------
+    Calibration
+
+    Raises
+    ------
+    TudorVisionError
+        If the file is absent, not valid YAML, or has wrong content; the
+        message names the file, the line and the key.
+    """
+    data, line_of = read_yaml(Path(path))
+    return Calibration.from_dict(data, source=Path(path), line_of=line_of)
+
+
+class _FlowDumper(yaml.SafeDumper):
+    """Writes number lists (rows of K, dist, T) on one line for readability."""
+
+    def ignore_aliases(self, data):
+        return True
+
+
+def _repr_list(dumper, data):
+    flow = all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in data)
+    return dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=flow)
+
+
+_FlowDumper.add_representer(list, _repr_list)
+_FlowDumper.add_representer(tuple, _repr_list)
+
+
+def dump_yaml(data) -> str:
+    """YAML text with numeric lists in flow style and keys in insertion order."""
+    return yaml.dump(data, Dumper=_FlowDumper, sort_keys=False, default_flow_style=False,
+                     allow_unicode=True)
+
+
+def save_calibration(calibration: Calibration, path, *, header: str | None = None) -> Path:
+    """Write ``calibration`` to ``path`` in the project's YAML format.
+
+    Parameters
+    ----------
+    calibration : Calibration
+    path : str or Path
+        Output file; parent directories are created.
+    header : str, optional
+        Comment lines written at the top of the file.
+
+    Returns
+    -------
+    Path
+        The written file.
+    """
+    if not isinstance(calibration, Calibration):
+        raise TypeError("calibration: expected a Calibration")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    text = "# tudorvision calibration (SI units: metres, radians)\n"
+    if header:
+        text += "".join(f"# {line}\n" for line in header.splitlines())
+    text += dump_yaml(calibration.to_dict())
+    path.write_text(text, encoding="utf-8")
+    return path
