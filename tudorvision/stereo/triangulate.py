@@ -1,0 +1,508 @@
+"""Stereo triangulation of the tracking spheres, with rolling-shutter compensation.
+
+Conventions
+-----------
+- Pixels: ``uv`` rows ``(u, v)``, u right, v down, OpenCV origin (centre of
+  the top-left pixel). A missing detection is a NaN row.
+- Camera optical frames: x right, y down, z forward. Stereo extrinsics follow
+  OpenCV: ``x_right = R @ x_left + T`` (``T`` in metres).
+- Triangulated points are in the **left** camera's optical frame unless a
+  ``T_base_left`` (``p_base = T_base_left @ p_left``) is given.
+- A point is triangulated only when it is seen in both cameras; a point
+  missing in either camera gives a NaN row and ``valid = False``: never a 3D
+  point from a single view.
+
+Two triangulation routes are offered (section 2.4 of the seed triangulates
+after rectification, Hartley and Zisserman p. 318):
+
+``"normalized"``
+    undistort each camera's pixels to normalised coordinates and triangulate
+    with ``P_left = [I | 0]``, ``P_right = [R | T]``;
+``"rectified"``
+    undistort *and* rectify (``R1, P1, R2, P2`` from ``cv2.stereoRectify``),
+    triangulate with ``P1, P2`` and rotate back with ``R1^T``.
+
+Both use :func:`cv2.triangulatePoints` on float64 ``2 x N`` arrays and divide
+by w. :func:`triangulate_dlt` is an independent pure-numpy linear
+triangulation used as the test oracle.
+
+Rolling shutter
+---------------
+Row ``v`` of a frame stamped ``t_frame`` is read out at
+``t_frame + v * line_time_s``; a sphere centroid at row ``v`` therefore
+belongs to that time, and the two cameras see a moving sphere at different
+instants. :func:`compensate_rolling_shutter` moves each camera's image track
+to common target times by interpolating between neighbouring frames'
+detections (quadratic through three samples where available, else linear)
+before triangulation.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .._checks import check_array, check_points
+from ..geometry import transform_points
+
+__all__ = [
+    "undistort_points", "projection_matrices", "triangulate_points", "triangulate_dlt",
+    "triangulate_stereo", "SphereTriangulation", "triangulate_spheres",
+    "rolling_shutter_times", "compensate_rolling_shutter",
+]
+
+
+def _uv(value, name: str) -> np.ndarray:
+    return check_points(value, name, dim=2, finite=False)
+
+
+def _valid_rows(*arrays) -> np.ndarray:
+    ok = np.ones(len(arrays[0]), bool)
+    for a in arrays:
+        ok &= np.all(np.isfinite(a), axis=1)
+    return ok
+
+
+def undistort_points(uv, K, dist, *, R=None, P=None) -> np.ndarray:
+    """Remove lens distortion from pixel positions (NaN rows pass through).
+
+    Parameters
+    ----------
+    uv : array_like, shape (N, 2)
+        Distorted pixel positions (u right, v down).
+    K : array_like, shape (3, 3)
+        Camera matrix, pixels.
+    dist : array_like, shape (5,) or (K,)
+        OpenCV distortion coefficients.
+    R : array_like, shape (3, 3), optional
+        Rectifying rotation applied after undistortion.
+    P : array_like, shape (3, 3) or (3, 4), optional
+        New projection matrix. Without it the result is in normalised image
+        coordinates (x/z, y/z); with ``P = K`` it is in ideal pixels.
+
+    Returns
+    -------
+    ndarray, shape (N, 2)
+        Undistorted points.
+
+    Examples
+    --------
+    >>> K = np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]])
+    >>> undistort_points([[320.0, 240.0], [np.nan, np.nan], [820.0, 240.0]], K, np.zeros(5))
+    array([[ 0.,  0.],
+           [nan, nan],
+           [ 1.,  0.]])
+    """
+    pts = _uv(uv, "uv")
+    K = check_array(K, "K", (3, 3))
+    d = np.asarray(dist, dtype=np.float64).ravel()
+    out = np.full_like(pts, np.nan)
+    ok = _valid_rows(pts)
+    if ok.any():
+        kw = {}
+        if R is not None:
+            kw["R"] = check_array(R, "R", (3, 3))
+        if P is not None:
+            kw["P"] = np.asarray(P, dtype=np.float64)
+        und = cv2.undistortPoints(pts[ok].reshape(-1, 1, 2), K, d, **kw)
+        out[ok] = und.reshape(-1, 2)
+    return out
+
+
+def projection_matrices(K_left, K_right, R, T) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel projection matrices of a stereo pair, reference = left camera frame.
+
+    Parameters
+    ----------
+    K_left, K_right : array_like, shape (3, 3)
+        Camera matrices (pixels).
+    R : array_like, shape (3, 3)
+        Rotation, ``x_right = R @ x_left + T``.
+    T : array_like, shape (3,)
+        Translation in metres.
+
+    Returns
+    -------
+    P_left, P_right : ndarray, shape (3, 4)
+        ``K_left [I | 0]`` and ``K_right [R | T]``; pass ``np.eye(3)`` as both
+        K for normalised coordinates.
+
+    Examples
+    --------
+    >>> P1, P2 = projection_matrices(np.eye(3), np.eye(3), np.eye(3), [-0.1, 0, 0])
+    >>> P2[:, 3].tolist()
+    [-0.1, 0.0, 0.0]
+    """
+    Kl = check_array(K_left, "K_left", (3, 3))
+    Kr = check_array(K_right, "K_right", (3, 3))
+    R = check_array(R, "R", (3, 3))
+    T = check_array(T, "T", (3,))
+    return Kl @ np.hstack([np.eye(3), np.zeros((3, 1))]), Kr @ np.hstack([R, T[:, None]])
+
+
+def triangulate_points(uv_left, uv_right, P_left, P_right) -> np.ndarray:
+    """Linear triangulation with :func:`cv2.triangulatePoints` (float64, 2 x N, divide by w).
+
+    Parameters
+    ----------
+    uv_left, uv_right : array_like, shape (N, 2)
+        Corresponding *undistorted* image points in the coordinates that
+        ``P_left`` / ``P_right`` project to. NaN rows mark missing points.
+    P_left, P_right : array_like, shape (3, 4)
+        Projection matrices sharing one reference frame.
+
+    Returns
+    -------
+    points : ndarray, shape (N, 3)
+        Points in the reference frame of the P matrices; NaN where either
+        view is missing or the point is at infinity.
+
+    Raises
+    ------
+    ValueError
+        If the shapes do not match.
+
+    Examples
+    --------
+    >>> P1, P2 = projection_matrices(np.eye(3), np.eye(3), np.eye(3), [-0.2, 0, 0])
+    >>> triangulate_points([[0.1, 0.05]], [[0.0, 0.05]], P1, P2).round(9).tolist()
+    [[0.2, 0.1, 2.0]]
+    """
+    a = _uv(uv_left, "uv_left")
+    b = _uv(uv_right, "uv_right")
+    if a.shape != b.shape:
+        raise ValueError(f"uv_right: expected shape {a.shape} like uv_left, got {b.shape}")
+    P1 = check_array(P_left, "P_left", (3, 4))
+    P2 = check_array(P_right, "P_right", (3, 4))
+    out = np.full((len(a), 3), np.nan)
+    ok = _valid_rows(a, b)
+    if ok.any():
+        X = cv2.triangulatePoints(P1, P2, np.ascontiguousarray(a[ok].T), np.ascontiguousarray(b[ok].T))
+        w = X[3]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pts = (X[:3] / w).T
+        pts[np.abs(w) < 1e-300] = np.nan
+        out[ok] = pts
+    return out
+
+
+def triangulate_dlt(uv_left, uv_right, P_left, P_right) -> np.ndarray:
+    """Pure-numpy linear (DLT) triangulation, the independent oracle.
+
+    For each point the homogeneous X minimising ``|A X|`` subject to
+    ``|X| = 1``, with ``A = [u P3 - P1; v P3 - P2]`` stacked for both views,
+    is the last right singular vector of A (Hartley and Zisserman, section
+    12.2). This is the same algebraic estimator as
+    :func:`cv2.triangulatePoints`, computed independently (batched
+    ``numpy.linalg.svd``), so the two agree to rounding on noisy data.
+
+    Parameters
+    ----------
+    uv_left, uv_right : array_like, shape (N, 2)
+        Corresponding undistorted image points; NaN rows are missing.
+    P_left, P_right : array_like, shape (3, 4)
+        Projection matrices.
+
+    Returns
+    -------
+    points : ndarray, shape (N, 3)
+        NaN where either view is missing.
+
+    Examples
+    --------
+    >>> P1, P2 = projection_matrices(np.eye(3), np.eye(3), np.eye(3), [-0.2, 0, 0])
+    >>> triangulate_dlt([[0.1, 0.05]], [[0.0, 0.05]], P1, P2).round(9).tolist()
+    [[0.2, 0.1, 2.0]]
+    """
+    a = _uv(uv_left, "uv_left")
+    b = _uv(uv_right, "uv_right")
+    if a.shape != b.shape:
+        raise ValueError(f"uv_right: expected shape {a.shape} like uv_left, got {b.shape}")
+    P1 = check_array(P_left, "P_left", (3, 4))
+    P2 = check_array(P_right, "P_right", (3, 4))
+    out = np.full((len(a), 3), np.nan)
+    ok = _valid_rows(a, b)
+    if not ok.any():
+        return out
+    a, b = a[ok], b[ok]
+    A = np.stack([a[:, :1] * P1[2] - P1[0], a[:, 1:] * P1[2] - P1[1],
+                  b[:, :1] * P2[2] - P2[0], b[:, 1:] * P2[2] - P2[1]], axis=1)
+    _, _, vt = np.linalg.svd(A)
+    X = vt[:, -1, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out[ok] = X[:, :3] / X[:, 3:]
+    return out
+
+
+def _rig(calibration):
+    """(left CameraModel, right CameraModel, StereoExtrinsics) from a Calibration."""
+    stereo = getattr(calibration, "stereo", None)
+    if stereo is None:
+        raise ValueError("calibration: has no stereo extrinsics (run 'tudorvision calib stereo')")
+    return calibration.camera(stereo.left), calibration.camera(stereo.right), stereo
+
+
+def _rectification(left, right, stereo):
+    if stereo.has_rectification:
+        return stereo.R1, stereo.R2, stereo.P1, stereo.P2
+    R1, R2, P1, P2, *_ = cv2.stereoRectify(left.K, left.dist, right.K, right.dist,
+                                           (left.width, left.height), stereo.R,
+                                           stereo.T.reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY,
+                                           alpha=-1)
+    return R1, R2, P1, P2
+
+
+def triangulate_stereo(uv_left, uv_right, calibration, *, method: str = "normalized") -> np.ndarray:
+    """Triangulate raw (distorted) pixel detections of a calibrated stereo pair.
+
+    Parameters
+    ----------
+    uv_left, uv_right : array_like, shape (N, 2)
+        Raw pixel positions in the left and right image; NaN rows are missing.
+    calibration : tudorvision.io.calibration.Calibration
+        Must contain the two cameras and ``stereo`` extrinsics.
+    method : {"normalized", "rectified"}
+        Triangulation route (see the module docstring).
+
+    Returns
+    -------
+    points_left : ndarray, shape (N, 3)
+        Metres, left camera optical frame; NaN where either view is missing.
+
+    Raises
+    ------
+    ValueError
+        If ``method`` is unknown, the calibration has no stereo part, or the
+        shapes differ.
+    """
+    left, right, stereo = _rig(calibration)
+    a = _uv(uv_left, "uv_left")
+    b = _uv(uv_right, "uv_right")
+    if a.shape != b.shape:
+        raise ValueError(f"uv_right: expected shape {a.shape} like uv_left, got {b.shape}")
+    if method == "normalized":
+        na = undistort_points(a, left.K, left.dist)
+        nb = undistort_points(b, right.K, right.dist)
+        P1, P2 = projection_matrices(np.eye(3), np.eye(3), stereo.R, stereo.T)
+        return triangulate_points(na, nb, P1, P2)
+    if method == "rectified":
+        R1, R2, P1, P2 = _rectification(left, right, stereo)
+        ra = undistort_points(a, left.K, left.dist, R=R1, P=P1)
+        rb = undistort_points(b, right.K, right.dist, R=R2, P=P2)
+        points_rect = triangulate_points(ra, rb, P1, P2)
+        return points_rect @ np.asarray(R1)   # p_left = R1^T p_rect, as rows
+    raise ValueError(f"method: expected 'normalized' or 'rectified', got {method!r}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SphereTriangulation:
+    """Triangulated tracking spheres and the end effector.
+
+    Attributes
+    ----------
+    spheres : dict of str to ndarray, shape (N, 3)
+        Sphere centres in metres, frame ``frame``; NaN rows where missing.
+    sphere_valid : dict of str to ndarray of bool, shape (N,)
+        True where the sphere was seen in both cameras.
+    ee : ndarray, shape (N, 3)
+        End effector, the midpoint of the sphere centres; NaN unless every
+        sphere is valid.
+    ee_valid : ndarray of bool, shape (N,)
+    frame : str
+        ``"left"`` (left camera optical frame: x right, y down, z forward) or
+        ``"base"`` (robot base frame, z up).
+    """
+
+    spheres: dict
+    sphere_valid: dict
+    ee: np.ndarray
+    ee_valid: np.ndarray
+    frame: str
+
+
+def triangulate_spheres(uv_left: Mapping, uv_right: Mapping, calibration, *, T_base_left=None,
+                        method: str = "normalized", t_left=None, t_right=None,
+                        t_target=None) -> SphereTriangulation:
+    """Triangulate every tracking sphere and the end-effector midpoint.
+
+    Parameters
+    ----------
+    uv_left, uv_right : mapping of str to array_like, shape (N, 2)
+        Raw pixel centroids per sphere name (e.g. ``"red"``, ``"green"``),
+        NaN rows where the sphere was not found. Both mappings need the same
+        names.
+    calibration : tudorvision.io.calibration.Calibration
+        Stereo calibration.
+    T_base_left : array_like, shape (4, 4), optional
+        Robot base pose of the left camera; the output is then in the base frame.
+    method : {"normalized", "rectified"}
+        Triangulation route.
+    t_left, t_right : array_like, shape (N,), optional
+        Frame timestamps (seconds) of each camera. When both are given and
+        the camera models have ``line_time_s``, every track is moved to the
+        times ``t_target`` (default ``t_left``) with
+        :func:`compensate_rolling_shutter` before triangulation.
+    t_target : array_like, shape (N,), optional
+        Common time of each output sample.
+
+    Returns
+    -------
+    SphereTriangulation
+
+    Raises
+    ------
+    ValueError
+        If the sphere names differ, shapes differ, or arguments are invalid.
+    """
+    if set(uv_left) != set(uv_right) or not uv_left:
+        raise ValueError(f"uv_right: expected the same non-empty sphere names as uv_left "
+                         f"({sorted(uv_left)}), got {sorted(uv_right)}")
+    left, right, _ = _rig(calibration)
+    rs = t_left is not None and t_right is not None and \
+        bool(left.line_time_s) and bool(right.line_time_s)
+    spheres, valid = {}, {}
+    for name in uv_left:
+        a = _uv(uv_left[name], f"uv_left[{name!r}]")
+        b = _uv(uv_right[name], f"uv_right[{name!r}]")
+        if rs:
+            tt = t_left if t_target is None else t_target
+            a, _ = compensate_rolling_shutter(t_left, a, left.line_time_s, t_target=tt)
+            b, _ = compensate_rolling_shutter(t_right, b, right.line_time_s, t_target=tt)
+        p = triangulate_stereo(a, b, calibration, method=method)
+        if T_base_left is not None:
+            p = transform_points(T_base_left, p)
+        spheres[name] = p
+        valid[name] = np.all(np.isfinite(p), axis=1)
+    stack = np.stack(list(spheres.values()))
+    ee_valid = np.all(np.stack(list(valid.values())), axis=0)
+    ee = np.full(stack.shape[1:], np.nan)
+    ee[ee_valid] = stack[:, ee_valid].mean(axis=0)
+    return SphereTriangulation(spheres=spheres, sphere_valid=valid, ee=ee, ee_valid=ee_valid,
+                               frame="base" if T_base_left is not None else "left")
+
+
+def rolling_shutter_times(t_frame, v, line_time_s: float) -> np.ndarray:
+    """Read-out time of the row holding each detection: ``t_frame + v * line_time_s``.
+
+    Parameters
+    ----------
+    t_frame : array_like, shape (N,)
+        Frame timestamps (time of row 0), seconds.
+    v : array_like, shape (N,)
+        Image row of each detection (pixels, may be fractional or NaN).
+    line_time_s : float
+        Time between consecutive rows, seconds.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+
+    Examples
+    --------
+    >>> rolling_shutter_times([0.0, 0.02], [100.0, 200.0], 3e-5).round(6).tolist()
+    [0.003, 0.026]
+    """
+    t = check_array(t_frame, "t_frame", (None,))
+    vv = check_array(v, "v", (len(t),), finite=False)
+    if not np.isfinite(line_time_s) or line_time_s < 0:
+        raise ValueError(f"line_time_s: expected a non-negative number, got {line_time_s}")
+    return t + vv * float(line_time_s)
+
+
+def compensate_rolling_shutter(t_frame, uv, line_time_s: float, *, t_target=None,
+                               max_gap_s: float | None = None,
+                               order: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """Move a rolling-shutter image track to common target times.
+
+    Each detection ``uv[k]`` was captured at ``t_frame[k] + v_k * line_time_s``.
+    The track is interpolated to ``t_target[k]`` using the neighbouring
+    frames' detections: a Lagrange polynomial of degree up to ``order``
+    through the ``order + 1`` valid samples nearest to the target time that
+    lie within ``max_gap_s`` of it (fewer near gaps, at least two: a line).
+    Where fewer than two valid samples are close enough the detection is
+    returned unchanged and flagged.
+
+    Parameters
+    ----------
+    t_frame : array_like, shape (N,)
+        Frame timestamps (row 0), seconds, increasing.
+    uv : array_like, shape (N, 2)
+        Raw pixel track of one sphere in one camera; NaN rows are missing
+        (they stay missing).
+    line_time_s : float
+        Row read-out interval, seconds.
+    t_target : array_like, shape (N,), optional
+        Output times; default ``t_frame`` (the row-0 time of each frame).
+    max_gap_s : float, optional
+        Largest distance in time between the target and a sample used for it;
+        default 2.5 x the median frame interval (enough for the two samples
+        either side of the target).
+    order : int
+        Highest polynomial degree, 1 (linear) to 3 (cubic, default). On a
+        5.5 m/s synthetic motion at 50 Hz the cubic leaves about 0.01 mm of
+        3D error, the quadratic 0.1 mm, the linear 2 mm.
+
+    Returns
+    -------
+    uv_comp : ndarray, shape (N, 2)
+        Track at the target times (NaN where ``uv`` is NaN).
+    compensated : ndarray of bool, shape (N,)
+        True where the row was interpolated, False where it was left as
+        measured (isolated detection) or missing.
+
+    Raises
+    ------
+    ValueError
+        If shapes differ or timestamps do not increase.
+
+    Examples
+    --------
+    >>> t = np.arange(5) * 0.02
+    >>> uv = np.column_stack([100 + 1000 * (t + 240 * 1e-5), np.full(5, 240.0)])  # u moves 1000 px/s
+    >>> out, ok = compensate_rolling_shutter(t, uv, 1e-5)
+    >>> np.round(out[:, 0], 6).tolist(), ok.tolist()
+    ([100.0, 120.0, 140.0, 160.0, 180.0], [True, True, True, True, True])
+    """
+    t = check_array(t_frame, "t_frame", (None,))
+    pts = _uv(uv, "uv")
+    if len(pts) != len(t):
+        raise ValueError(f"uv: expected {len(t)} rows like t_frame, got {len(pts)}")
+    if len(t) > 1 and np.any(np.diff(t) <= 0):
+        raise ValueError("t_frame: timestamps must increase")
+    tt = t if t_target is None else check_array(t_target, "t_target", (len(t),))
+    out = pts.copy()
+    done = np.zeros(len(t), bool)
+    ok = _valid_rows(pts)
+    if order not in (1, 2, 3):
+        raise ValueError(f"order: expected 1, 2 or 3, got {order!r}")
+    if ok.sum() < 2:
+        return out, done
+    if max_gap_s is None:
+        max_gap_s = 2.5 * float(np.median(np.diff(t)))
+    ts = rolling_shutter_times(t, pts[:, 1], line_time_s)[ok]
+    vals = pts[ok]
+    idx = np.argsort(ts, kind="stable")
+    ts, vals = ts[idx], vals[idx]
+    n = len(ts)
+    for k in np.flatnonzero(ok):
+        tau = tt[k]
+        i = int(np.searchsorted(ts, tau))
+        # nearest valid samples around tau, nearest first
+        cand = [j for j in range(i - order - 1, i + order + 1) if 0 <= j < n]
+        cand.sort(key=lambda j: abs(ts[j] - tau))
+        near = [j for j in cand if abs(ts[j] - tau) <= max_gap_s][:order + 1]
+        if len(near) < 2:
+            continue
+        sel = sorted(near)
+        x = ts[sel]
+        y = vals[sel]
+        w = np.ones(len(sel))
+        for a_ in range(len(sel)):
+            for b_ in range(len(sel)):
+                if a_ != b_:
+                    w[a_] *= (tau - x[b_]) / (x[a_] - x[b_])
+        out[k] = w @ y
+        done[k] = True
+    return out, done
