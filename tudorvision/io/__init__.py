@@ -1,2 +1,26 @@
-"""tudorvision.io"""
-__all__: list[str] = []
+"""Recorded sequences and calibration files.
+
+Reading: :func:`open_sequence` (own directory format, TUM RGB-D, videos,
+image folders), lazy :class:`Sequence` with :class:`StereoFrame`,
+:class:`RGBDFrame`, :class:`MonoFrame`; :meth:`Sequence.play` for live-rate
+playback. Writing: :class:`SequenceWriter`. Calibration: :class:`Calibration`
+with :func:`load_calibration` / :func:`save_calibration`, ROS camera_info and
+OpenCV stereo files in :mod:`tudorvision.io.formats`.
+"""
+from ._index import Problem, associate
+from .calibration import (Calibration, CameraModel, DepthModel, StereoExtrinsics, load_calibration,
+                          save_calibration)
+from .formats import (CameraInfo, calibration_from_ros, load_opencv_stereo, load_ros_camera_info,
+                      save_opencv_stereo, save_ros_camera_info)
+from .playback import Playback, Played
+from .sequence import (JointLog, MonoFrame, RGBDFrame, Sequence, StereoFrame, depth_m_from_raw,
+                       open_sequence, raw_from_depth_m)
+from .writer import SequenceWriter
+
+__all__ = [
+    "open_sequence", "Sequence", "StereoFrame", "RGBDFrame", "MonoFrame", "JointLog", "Problem",
+    "Playback", "Played", "SequenceWriter", "depth_m_from_raw", "raw_from_depth_m", "associate",
+    "Calibration", "CameraModel", "StereoExtrinsics", "DepthModel", "load_calibration",
+    "save_calibration", "CameraInfo", "load_ros_camera_info", "save_ros_camera_info",
+    "calibration_from_ros", "load_opencv_stereo", "save_opencv_stereo",
+]

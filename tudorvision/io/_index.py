@@ -16,7 +16,7 @@ import numpy as np
 from .._checks import TudorVisionError
 
 __all__ = ["Problem", "IndexEntry", "parse_index", "parse_table", "associate", "read_image",
-           "ImageProblem"]
+           "ImageProblem", "read_columns"]
 
 
 @dataclass(frozen=True)
@@ -303,3 +303,52 @@ def read_image(path: Path, *, depth: bool = False) -> np.ndarray:
     if img.ndim == 3 and img.shape[2] == 4:
         img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
     return img
+
+
+def read_columns(path: Path, names: list[str] | None = None) -> dict[str, np.ndarray]:
+    """Read a numeric table with named columns.
+
+    The file is CSV (``,``) or whitespace separated; ``#`` lines are
+    comments. Without ``names`` the first non-comment line is the header of
+    column names (the ground-truth files the writer produces).
+
+    Returns
+    -------
+    dict of str to ndarray, shape (N,)
+        One float64 array per column, in file order.
+
+    Raises
+    ------
+    TudorVisionError
+        Unreadable file, or a row with the wrong number of values (names
+        ``file:line``).
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise TudorVisionError(f"{path}: ground-truth file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise TudorVisionError(f"{path}: cannot read ({exc})") from None
+    rows: list[list[float]] = []
+    header = list(names) if names is not None else None
+    for lineno, raw in enumerate(text.splitlines(), 1):
+        line = raw.strip()
+        if not line or line.startswith("#"):
+            continue
+        parts = [p.strip() for p in (line.split(",") if "," in line else line.split())]
+        if header is None:
+            header = parts
+            continue
+        try:
+            values = [float(p) for p in parts]
+        except ValueError:
+            raise TudorVisionError(f"{path}:{lineno}: malformed row {raw!r}: expected numbers") from None
+        if len(values) != len(header):
+            raise TudorVisionError(f"{path}:{lineno}: expected {len(header)} values "
+                                   f"({', '.join(header)}), got {len(values)}")
+        rows.append(values)
+    if header is None:
+        raise TudorVisionError(f"{path}: no header line with column names")
+    arr = np.asarray(rows, dtype=np.float64).reshape(len(rows), len(header))
+    return {name: arr[:, k].copy() for k, name in enumerate(header)}

@@ -306,7 +306,7 @@ class DepthModel:
     --------
     >>> dm = DepthModel(sigma_z_poly=[0.51, -2.1, 5.12, -2.18], sigma_unit="cm")
     >>> round(float(dm.sigma_m(2.0)), 4)
-    0.0198
+    0.0374
     """
 
     sigma_z_poly: np.ndarray

@@ -1,0 +1,637 @@
+"""Recorded sequences: a lazy, timestamped reader for stereo, RGB-D and mono recordings.
+
+Sequence directory format (``kind`` stereo | rgbd | mono)::
+
+    myseq/
+      sequence.yaml      kind, rate_hz, streams, depth_scale, size, calibration, ...
+      left.txt           stereo: "timestamp path" per line, '#' comments
+      right.txt
+      rgb.txt            rgbd: colour (8-bit BGR PNG/JPEG)
+      depth.txt          rgbd: depth (16-bit PNG, raw units; metres = raw / depth_scale, 0 = invalid)
+      image.txt          mono (or ``video: clip.mp4`` in sequence.yaml)
+      joints.txt         optional: "timestamp theta1 theta2 theta3" in radians
+      calibration.yaml   optional (see :mod:`tudorvision.io.calibration`)
+      groundtruth/*.csv  optional: '#' comments, one header line of column names, CSV rows
+
+``sequence.yaml`` keys: ``kind``; ``rate_hz`` (nominal frame rate, Hz);
+``streams`` (list, e.g. ``[left, right, joints]``); ``depth_scale`` (raw
+depth units per metre, required for rgbd: 1000 for mm, 5000 for TUM);
+``size`` (``[width, height]`` for every image stream, or a mapping stream ->
+``[w, h]``); ``calibration`` (path relative to the sequence); ``groundtruth``
+(list of files relative to the sequence); ``description`` (free text);
+``sync_tolerance_s`` (pairing tolerance of the two image streams, default a
+quarter frame period). Other keys are kept in :attr:`Sequence.meta`.
+
+:func:`open_sequence` also opens, read-only:
+
+* a TUM RGB-D benchmark directory (``rgb.txt`` + ``depth.txt``, depth scale
+  5000, colour and depth associated by nearest timestamp within 0.02 s);
+* a video file (mono; frame ``index`` is the 0-based decode index, ``t``
+  from ``CAP_PROP_POS_MSEC``, falling back to index / fps);
+* ``color/N.png`` + ``depth/N.pgm`` folders (Kinect, default depth scale
+  1000) and ``N.png`` + ``N_depth.png`` folders (default 5000); frames in the
+  order of N at ``rate_hz`` (default 30 Hz);
+* a plain folder of images (mono).
+
+For folder layouts a sidecar ``sequence.yaml`` with ``layout:``
+(``tum``, ``kinect_folders``, ``numbered_pairs``, ``image_folder``) and any
+of ``rate_hz``, ``depth_scale``, ``calibration``, ``intrinsics`` (``{fx, fy,
+cx, cy}``), ``size`` supplies what the folder lacks; keyword arguments of
+:func:`open_sequence` override both.
+
+Depth convention: :attr:`RGBDFrame.depth_m` is float32 metres with **NaN for
+invalid pixels** (raw value 0), so means and fits cannot silently include
+zeros; :attr:`RGBDFrame.depth_raw` keeps the uint16 values.
+
+Strict and lenient reading: with ``strict=True`` (default) the first defect
+raises :class:`~tudorvision._checks.TudorVisionError` naming the file and
+line (malformed or out-of-order index lines, absent files, undecodable
+images, sizes that differ from ``size``). With ``strict=False`` defective
+index lines are left out when opening and defective images are skipped
+while iterating; each is recorded in :attr:`Sequence.report`. Indexing one
+frame (``seq[i]``) always raises for a defective frame.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from .._checks import TudorVisionError, check_array
+from ._index import ImageProblem, Problem, parse_table, read_columns, read_image
+from ._layouts import (FRAME_STREAMS, LAYOUTS, VIDEO_SUFFIXES, Record, Spec, detect_layout,
+                       parse_sequence_yaml, spec_image_folder, spec_kinect_folders,
+                       spec_numbered_pairs, spec_tudorvision, spec_tum)
+from .calibration import Calibration, CameraModel, load_calibration
+
+__all__ = ["StereoFrame", "RGBDFrame", "MonoFrame", "JointLog", "Sequence", "open_sequence",
+           "depth_m_from_raw", "raw_from_depth_m", "Problem"]
+
+
+# ----------------------------------------------------------------------------- frames
+@dataclass(frozen=True, eq=False)
+class StereoFrame:
+    """A stereo pair. ``left``, ``right``: (H, W, 3) uint8 BGR (or (H, W) grey) images."""
+
+    t: float
+    index: int
+    left: np.ndarray
+    right: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class RGBDFrame:
+    """A registered colour + depth frame.
+
+    Attributes
+    ----------
+    t : float
+        Colour timestamp, seconds.
+    index : int
+        0-based frame index in the sequence.
+    rgb : ndarray, shape (H, W, 3), uint8
+        Colour image in OpenCV **BGR** channel order (named after the
+        stream; :attr:`bgr` is the same array).
+    depth_raw : ndarray, shape (H, W), uint16
+        Raw depth, 0 = invalid.
+    depth_m : ndarray, shape (H, W), float32
+        Depth along the optical axis in metres, NaN where invalid.
+    t_depth : float
+        Depth timestamp, seconds (differs from ``t`` in TUM recordings).
+    """
+
+    t: float
+    index: int
+    rgb: np.ndarray
+    depth_raw: np.ndarray
+    depth_m: np.ndarray
+    t_depth: float
+
+    @property
+    def bgr(self) -> np.ndarray:
+        return self.rgb
+
+    @property
+    def valid(self) -> np.ndarray:
+        """(H, W) bool mask of pixels with a depth measurement."""
+        return self.depth_raw > 0
+
+
+@dataclass(frozen=True, eq=False)
+class MonoFrame:
+    """One image: (H, W, 3) uint8 BGR or (H, W) grey."""
+
+    t: float
+    index: int
+    image: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class JointLog:
+    """Joint angles as the joint-control layer logs them.
+
+    Attributes
+    ----------
+    t : ndarray, shape (N,)
+        Timestamps, seconds, increasing.
+    theta_rad : ndarray, shape (N, 3)
+        ``[theta1, theta2, theta3]`` in radians.
+    """
+
+    t: np.ndarray
+    theta_rad: np.ndarray
+
+    def at(self, t) -> np.ndarray:
+        """Joint angles linearly interpolated at time(s) ``t``; shape ``(3,)`` or ``(M, 3)``."""
+        tq = np.asarray(t, dtype=np.float64)
+        out = np.stack([np.interp(tq, self.t, self.theta_rad[:, k]) for k in range(3)], axis=-1)
+        return out
+
+
+# ----------------------------------------------------------------------------- depth units
+def depth_m_from_raw(depth_raw, depth_scale: float) -> np.ndarray:
+    """Metres from raw 16-bit depth; 0 (invalid) becomes NaN.
+
+    Parameters
+    ----------
+    depth_raw : array_like, shape (H, W), integer
+        Raw depth values.
+    depth_scale : float
+        Raw units per metre (1000 for millimetres, 5000 for TUM).
+
+    Returns
+    -------
+    ndarray, shape (H, W), float32
+
+    Examples
+    --------
+    >>> depth_m_from_raw(np.array([[0, 1500]], np.uint16), 1000.0)
+    array([[nan, 1.5]], dtype=float32)
+    """
+    if not (isinstance(depth_scale, (int, float)) and math.isfinite(depth_scale) and depth_scale > 0):
+        raise ValueError(f"depth_scale: expected a positive number of units per metre, got {depth_scale!r}")
+    raw = np.asarray(depth_raw)
+    out = raw.astype(np.float32) / np.float32(depth_scale)
+    out[raw == 0] = np.nan
+    return out
+
+
+def raw_from_depth_m(depth_m, depth_scale: float) -> np.ndarray:
+    """Raw uint16 depth from metres; NaN, non-positive and out-of-range values become 0.
+
+    Examples
+    --------
+    >>> raw_from_depth_m(np.array([[np.nan, 1.5, 70.0]]), 1000.0)
+    array([[   0, 1500,    0]], dtype=uint16)
+    """
+    if not (isinstance(depth_scale, (int, float)) and math.isfinite(depth_scale) and depth_scale > 0):
+        raise ValueError(f"depth_scale: expected a positive number of units per metre, got {depth_scale!r}")
+    d = np.asarray(depth_m, dtype=np.float64) * depth_scale
+    with np.errstate(invalid="ignore"):
+        ok = np.isfinite(d) & (d >= 0.5) & (d < 65535.5)
+    out = np.zeros(d.shape, np.uint16)
+    out[ok] = np.rint(d[ok]).astype(np.uint16)
+    return out
+
+
+# ----------------------------------------------------------------------------- video backend
+class _Video:
+    """An open ``cv2.VideoCapture`` with sequential reads and seeking."""
+
+    def __init__(self, path: Path):
+        self.path = Path(path)
+        if not self.path.is_file():
+            raise TudorVisionError(f"{self.path}: video file not found")
+        self.cap = cv2.VideoCapture(str(self.path))
+        if not self.cap.isOpened():
+            raise TudorVisionError(f"{self.path}: cannot open as a video")
+        fps = self.cap.get(cv2.CAP_PROP_FPS)
+        self.fps = float(fps) if fps and math.isfinite(fps) and fps > 0 else None
+        self.count = max(int(self.cap.get(cv2.CAP_PROP_FRAME_COUNT)), 0)
+        self.size = (int(self.cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(self.cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
+        self.next = 0
+
+    def nominal_t(self, i: int) -> float:
+        return i / self.fps if self.fps else float(i)
+
+    def read(self, i: int):
+        if self.cap is None:
+            raise TudorVisionError(f"{self.path}: sequence is closed")
+        if i != self.next:
+            self.cap.set(cv2.CAP_PROP_POS_FRAMES, i)
+        ok, img = self.cap.read()
+        self.next = i + 1 if ok else -1
+        if not ok or img is None:
+            raise ImageProblem(f"cannot decode video frame {i}")
+        t_ms = self.cap.get(cv2.CAP_PROP_POS_MSEC)
+        t = t_ms / 1000.0 if (t_ms > 0 or i == 0) else self.nominal_t(i)
+        return img, t
+
+    def close(self):
+        if self.cap is not None:
+            self.cap.release()
+            self.cap = None
+
+
+# ----------------------------------------------------------------------------- the reader
+class Sequence:
+    """A lazily loaded recording; build it with :func:`open_sequence`.
+
+    Frames are decoded only when indexed or iterated. ``len(seq)`` is the
+    number of frames listed; iterating yields :class:`StereoFrame`,
+    :class:`RGBDFrame` or :class:`MonoFrame` according to :attr:`kind`.
+
+    Attributes
+    ----------
+    path : Path
+        The directory or video file.
+    layout : str
+        ``tudorvision``, ``tum``, ``kinect_folders``, ``numbered_pairs``,
+        ``image_folder`` or ``video``.
+    kind : str
+        ``stereo``, ``rgbd`` or ``mono``.
+    rate_hz : float or None
+        Nominal frame rate.
+    depth_scale : float or None
+        Raw depth units per metre (rgbd).
+    size : dict or None
+        Expected ``(width, height)`` per image stream.
+    streams : tuple of str
+        Streams present (image streams and e.g. ``joints``).
+    strict : bool
+        Raise on the first defect (True) or skip and report (False).
+    report : list of Problem
+        Defects found so far (lenient mode): index lines left out at open,
+        frames skipped while iterating.
+    notes : list of str
+        Non-defects worth knowing (e.g. TUM frames without a partner).
+    """
+
+    def __init__(self, spec: Spec, *, strict: bool = True, calibration: Calibration | None = None):
+        self._spec = spec
+        self.path = spec.path
+        self.layout = spec.layout
+        self.kind = spec.kind
+        self.rate_hz = spec.rate_hz
+        self.depth_scale = spec.depth_scale
+        self.size = spec.size
+        self.streams = spec.streams
+        self.description = spec.description
+        self.meta = spec.meta
+        self.strict = bool(strict)
+        self.notes = list(spec.notes)
+        self.report: list[Problem] = []
+        self._seen: set = set()
+        self._calibration = calibration
+        self._calibration_done = False
+        self._video = _Video(spec.video) if spec.video is not None else None
+        if self._video is not None and self.rate_hz is None:
+            self.rate_hz = self._video.fps
+        for p in spec.problems:
+            if self.strict:
+                self.close()
+                raise p.error()
+            self._record(p)
+
+    # -------------------------------------------------------------- basics
+    def __repr__(self) -> str:
+        return (f"Sequence({str(self.path)!r}, layout={self.layout!r}, kind={self.kind!r}, "
+                f"frames={len(self)}, rate_hz={self.rate_hz})")
+
+    def __len__(self) -> int:
+        if self._video is not None:
+            return self._video.count
+        return len(self._spec.records)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def close(self) -> None:
+        """Release the video capture, if any."""
+        if self._video is not None:
+            self._video.close()
+
+    @property
+    def timestamps(self) -> np.ndarray:
+        """(N,) frame timestamps in seconds (videos: index / fps)."""
+        if self._video is not None:
+            return np.array([self._video.nominal_t(i) for i in range(len(self))])
+        return np.array([r.t for r in self._spec.records], dtype=np.float64)
+
+    @property
+    def duration_s(self) -> float:
+        """Time from the first to the last frame, seconds."""
+        ts = self.timestamps
+        return float(ts[-1] - ts[0]) if ts.size else 0.0
+
+    def _record(self, problem: Problem) -> None:
+        key = (problem.where, problem.reason)
+        if key not in self._seen:
+            self._seen.add(key)
+            self.report.append(problem)
+
+    # -------------------------------------------------------------- frames
+    def __getitem__(self, index: int):
+        """Frame ``index`` (negative counts from the end).
+
+        Raises
+        ------
+        IndexError
+            Index out of range.
+        TudorVisionError
+            The frame is defective (in both modes).
+        """
+        n = len(self)
+        if not isinstance(index, (int, np.integer)):
+            raise TypeError(f"frame index must be an integer, got {type(index).__name__}")
+        i = int(index) + n if index < 0 else int(index)
+        if not 0 <= i < n:
+            raise IndexError(f"frame {index} out of range for {n} frames")
+        try:
+            return self._load(i)
+        except _FrameProblem as fp:
+            raise fp.problem.error() from None
+
+    def __iter__(self):
+        for i in range(len(self)):
+            frame = self.load_or_report(i)
+            if frame is not None:
+                yield frame
+
+    def load_or_report(self, i: int):
+        """Frame ``i``, or ``None`` after recording the defect (lenient); strict mode raises."""
+        try:
+            return self._load(i)
+        except _FrameProblem as fp:
+            if self.strict:
+                raise fp.problem.error() from None
+            self._record(fp.problem)
+            return None
+
+    def _check_size(self, img, stream, where, i):
+        if self.size and stream in self.size:
+            w, h = self.size[stream]
+            if img.shape[1] != w or img.shape[0] != h:
+                raise _FrameProblem(Problem(where, f"{stream} image is {img.shape[1]}x{img.shape[0]}, "
+                                                   f"expected {w}x{h} (size)", i))
+
+    def _load(self, i: int):
+        if self._video is not None:
+            try:
+                img, t = self._video.read(i)
+            except ImageProblem as exc:
+                raise _FrameProblem(Problem(f"{self.path}", str(exc), i)) from None
+            self._check_size(img, "image", f"{self.path} frame {i}", i)
+            return MonoFrame(t=t, index=i, image=img)
+        rec: Record = self._spec.records[i]
+        imgs = {}
+        for slot in rec.slots:
+            depth = slot.stream == "depth"
+            where = slot.where if slot.where == str(slot.path) else f"{slot.where} ({slot.path.name})"
+            try:
+                img = read_image(slot.path, depth=depth)
+            except ImageProblem as exc:
+                raise _FrameProblem(Problem(where, str(exc), i)) from None
+            self._check_size(img, slot.stream, where, i)
+            imgs[slot.stream] = (img, slot)
+        if self.kind == "stereo":
+            return StereoFrame(t=rec.t, index=i, left=imgs["left"][0], right=imgs["right"][0])
+        if self.kind == "mono":
+            return MonoFrame(t=rec.t, index=i, image=imgs["image"][0])
+        rgb, rslot = imgs["rgb"]
+        raw, dslot = imgs["depth"]
+        if rgb.ndim == 2:
+            rgb = cv2.cvtColor(rgb, cv2.COLOR_GRAY2BGR)
+        if rgb.shape[:2] != raw.shape:
+            raise _FrameProblem(Problem(rslot.where, f"colour {rgb.shape[1]}x{rgb.shape[0]} and depth "
+                                                     f"{raw.shape[1]}x{raw.shape[0]} sizes differ", i))
+        return RGBDFrame(t=rec.t, index=i, rgb=rgb, depth_raw=raw,
+                         depth_m=depth_m_from_raw(raw, self.depth_scale), t_depth=dslot.t)
+
+    # -------------------------------------------------------------- side data
+    @property
+    def calibration(self) -> Calibration | None:
+        """The sequence's calibration (loaded on first use), or ``None``."""
+        if not self._calibration_done:
+            spec = self._spec
+            if self._calibration is None and spec.calibration_path is not None:
+                self._calibration = load_calibration(spec.calibration_path)
+            if spec.intrinsics is not None:
+                cam = self._camera_from_intrinsics(spec.intrinsics)
+                base = self._calibration or Calibration()
+                self._calibration = base.with_updates(cameras={_camera_name(self.kind): cam})
+            self._calibration_done = True
+        return self._calibration
+
+    def _camera_from_intrinsics(self, K) -> CameraModel:
+        stream = FRAME_STREAMS[self.kind][0]
+        if self.size and stream in self.size:
+            w, h = self.size[stream]
+        elif self._video is not None:
+            w, h = self._video.size
+        elif len(self):
+            try:
+                shape = read_image(self._spec.records[0].slots[0].path).shape
+            except ImageProblem as exc:
+                raise TudorVisionError(f"{self._spec.records[0].slots[0].path}: {exc}") from None
+            w, h = shape[1], shape[0]
+        else:
+            raise TudorVisionError(f"{self.path}: no frames to take the image size from; pass size=")
+        return CameraModel(K=K, width=w, height=h)
+
+    def joints(self) -> JointLog:
+        """The joint log (``joints.txt``).
+
+        Raises
+        ------
+        TudorVisionError
+            No joint log, or (strict) a malformed or out-of-order line.
+        """
+        path = self._spec.joints_path
+        if path is None:
+            raise TudorVisionError(f"{self.path}: no joints.txt in this sequence")
+        rows, _, problems = parse_table(path, 4)
+        for p in problems:
+            if self.strict:
+                raise p.error()
+            self._record(p)
+        return JointLog(t=rows[:, 0].copy(), theta_rad=rows[:, 1:].copy())
+
+    @property
+    def groundtruth_names(self) -> list[str]:
+        """Names accepted by :meth:`groundtruth`."""
+        return sorted(self._spec.groundtruth)
+
+    def groundtruth(self, name: str) -> dict[str, np.ndarray]:
+        """Ground-truth table ``name`` as ``{column: (N,) array}``.
+
+        Trackers never need this; it is for evaluation.
+        """
+        try:
+            path, cols = self._spec.groundtruth[name]
+        except KeyError:
+            raise TudorVisionError(f"{self.path}: no ground truth {name!r} "
+                                   f"(have {self.groundtruth_names})") from None
+        return read_columns(path, cols)
+
+    def play(self, *, speed: float = 1.0, clock=None, sleep=None):
+        """Play back at the recorded rate, dropping frames the consumer is too slow for.
+
+        See :class:`tudorvision.io.playback.Playback`.
+        """
+        from .playback import Playback
+        return Playback(self, speed=speed, clock=clock, sleep=sleep)
+
+
+class _FrameProblem(Exception):
+    def __init__(self, problem: Problem):
+        super().__init__(str(problem))
+        self.problem = problem
+
+
+def _camera_name(kind: str) -> str:
+    return {"rgbd": "rgbd", "mono": "camera", "stereo": "left"}[kind]
+
+
+# ----------------------------------------------------------------------------- opening
+def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
+                  depth_scale: float | None = None, K=None, calibration=None, size=None,
+                  max_dt_s: float | None = None) -> Sequence:
+    """Open a recorded sequence (directory, sequence.yaml, or video file).
+
+    Parameters
+    ----------
+    path : str or Path
+        Sequence directory (any layout in the module docstring), its
+        ``sequence.yaml``, or a video file.
+    strict : bool
+        Raise on the first defect (default) or skip and report.
+    rate_hz : float, optional
+        Frame rate; sets the timestamps of folder layouts that have none
+        (default 30 Hz) and overrides the nominal rate elsewhere.
+    depth_scale : float, optional
+        Raw depth units per metre, overriding the file's / layout's value.
+    K : array_like, shape (3, 3), optional
+        Intrinsics of the (first) camera, added to :attr:`Sequence.calibration`
+        as camera ``rgbd`` (rgbd) or ``camera`` (mono) with zero distortion.
+    calibration : Calibration or path, optional
+        Replaces the sequence's calibration.
+    size : tuple of int, optional
+        Expected ``(width, height)`` of every image stream.
+    max_dt_s : float, optional
+        Pairing tolerance of the two image streams (TUM: 0.02 s).
+
+    Returns
+    -------
+    Sequence
+
+    Raises
+    ------
+    TudorVisionError
+        Not a sequence, malformed sequence.yaml (file and line), missing
+        index files, or (strict) any defective index line.
+
+    Examples
+    --------
+    >>> import tempfile, numpy as np
+    >>> from tudorvision.io import SequenceWriter
+    >>> d = tempfile.mkdtemp()
+    >>> with SequenceWriter(d, kind="mono", rate_hz=10.0, image_ext=".png") as w:
+    ...     w.add_mono(0.0, np.zeros((4, 6), np.uint8))
+    ...     w.add_mono(0.1, np.ones((4, 6), np.uint8))
+    >>> seq = open_sequence(d)
+    >>> len(seq), seq.kind, [round(f.t, 2) for f in seq]
+    (2, 'mono', [0.0, 0.1])
+    """
+    path = Path(path)
+    if not path.exists():
+        raise TudorVisionError(f"{path}: no such file or directory")
+    if path.is_file() and path.name == "sequence.yaml":
+        path = path.parent
+    if rate_hz is not None and not (isinstance(rate_hz, (int, float)) and rate_hz > 0):
+        raise ValueError(f"rate_hz: expected a positive number, got {rate_hz!r}")
+    if path.is_file():
+        if path.suffix.lower() not in VIDEO_SUFFIXES:
+            raise TudorVisionError(f"{path}: not a sequence directory or a video file "
+                                   f"({', '.join(sorted(VIDEO_SUFFIXES))})")
+        spec = Spec(path=path, layout="video", kind="mono", rate_hz=None, streams=("image",), video=path)
+        data, line_of = {}, None
+    else:
+        layout = detect_layout(path)
+        data, line_of = ({}, None)
+        if layout == "tudorvision":
+            data, line_of = parse_sequence_yaml(path / "sequence.yaml")
+            layout = data.get("layout", "tudorvision")
+            if layout not in LAYOUTS or layout == "video":
+                raise TudorVisionError(f"{path / 'sequence.yaml'}:{line_of(('layout',))}: layout: expected one "
+                                       f"of {', '.join(x for x in LAYOUTS if x != 'video')}, got {layout!r}")
+        side_rate = data.get("rate_hz") if layout != "tudorvision" else None
+        folder_rate = float(rate_hz or side_rate or 30.0)
+        if layout == "tudorvision":
+            spec = spec_tudorvision(path, data, line_of, max_dt_s=max_dt_s)
+        elif layout == "tum":
+            spec = spec_tum(path, max_dt_s=max_dt_s)
+        elif layout == "kinect_folders":
+            spec = spec_kinect_folders(path, rate_hz=folder_rate)
+            spec.depth_scale = 1000.0
+        elif layout == "numbered_pairs":
+            spec = spec_numbered_pairs(path, rate_hz=folder_rate)
+            spec.depth_scale = 5000.0
+        else:
+            spec = spec_image_folder(path, rate_hz=folder_rate)
+        if layout != "tudorvision":
+            _apply_sidecar(spec, data, line_of, path / "sequence.yaml")
+            if spec.kind == "rgbd" and depth_scale is None and "depth_scale" not in data \
+                    and layout != "tum":
+                spec.notes.append(f"depth_scale not given: assuming {spec.depth_scale:g} units per metre "
+                                  f"for layout {layout}")
+    if rate_hz is not None:
+        spec.rate_hz = float(rate_hz)
+    if depth_scale is not None:
+        if not (isinstance(depth_scale, (int, float)) and depth_scale > 0):
+            raise ValueError(f"depth_scale: expected a positive number, got {depth_scale!r}")
+        spec.depth_scale = float(depth_scale)
+    if size is not None:
+        w, h = (int(v) for v in size)
+        spec.size = {s: (w, h) for s in FRAME_STREAMS[spec.kind]}
+    if K is not None:
+        if spec.kind == "stereo":
+            raise ValueError("K: stereo sequences take a calibration file, not a single K")
+        spec.intrinsics = check_array(K, "K", (3, 3))
+    cal = None
+    if calibration is not None:
+        cal = calibration if isinstance(calibration, Calibration) else load_calibration(calibration)
+        spec.calibration_path = None
+    return Sequence(spec, strict=strict, calibration=cal)
+
+
+def _apply_sidecar(spec: Spec, data: dict, line_of, ypath: Path) -> None:
+    """Sidecar sequence.yaml of a folder layout: rate, depth scale, calibration, intrinsics, size."""
+    if not data:
+        return
+    from ._layouts import _parse_size, _positive
+    ds = _positive(data, "depth_scale", ypath, line_of, required=False)
+    if ds is not None:
+        spec.depth_scale = ds
+    if data.get("calibration") is not None:
+        spec.calibration_path = ypath.parent / str(data["calibration"])
+    spec.size = _parse_size(data.get("size"), FRAME_STREAMS[spec.kind], ypath, line_of) or spec.size
+    intr = data.get("intrinsics")
+    if intr is not None:
+        if not isinstance(intr, dict) or not all(k in intr for k in ("fx", "fy", "cx", "cy")):
+            raise TudorVisionError(f"{ypath}:{line_of(('intrinsics',))}: intrinsics: expected "
+                                   "{fx, fy, cx, cy} in pixels")
+        try:
+            fx, fy, cx, cy = (float(intr[k]) for k in ("fx", "fy", "cx", "cy"))
+        except (TypeError, ValueError):
+            raise TudorVisionError(f"{ypath}:{line_of(('intrinsics',))}: intrinsics: values must be "
+                                   "numbers") from None
+        spec.intrinsics = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
+    spec.description = str(data.get("description", "") or "")
+    spec.meta = dict(data)
