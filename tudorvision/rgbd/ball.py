@@ -1,0 +1,500 @@
+"""Ball detection by background subtraction (section 9.3).
+
+RGB-D mode
+----------
+The ball (9 cm diameter) is the only moving object within 4.5 m of the wall
+camera. A background model (per-pixel temporal median depth of the first
+frames) is compared with each frame in two stages:
+
+1. coarse search on block-averaged depth (``downsample`` x ``downsample``
+   blocks; averaging divides the depth noise by ``downsample``): foreground
+   blocks are nearer than the background by more than ``n_sigma`` block noise
+   sigmas (from ``sigma_z`` at the background depth) and nearer than
+   ``max_range_m``;
+2. per coarse blob, local refinement at full resolution: pixels within a
+   depth band around the blob depth and inside the expected silhouette
+   (radius ``f R / z``) give the pixel centroid and the pixel count, which must
+   fit the ball's image area at that depth.
+
+The 3D centre lies on the viewing ray through the silhouette centroid. Its
+depth is the visible surface depth plus the sphere's depth offset at each
+pixel (``sqrt(R^2 - rho^2)`` with ``rho`` the pixel's lateral distance from the
+centre), averaged over the pixels: for the central pixel this is "surface depth
+plus radius along the viewing ray"; using every pixel averages the noise and
+stays unbiased when the limb pixels are invalid.
+
+Measurement covariance: along the ray ``sigma_z(z)^2 / n_eff`` with
+``n_eff = n_pixels / noise_correlation_px``; across the ray
+``(pixel_sigma_px z / f)^2``.
+
+Colour mode
+-----------
+For colour-only input (videos): a background from the median of the first
+frames, updated as a running average where no foreground is seen;
+foreground = largest absolute channel difference above a threshold;
+opening; blobs whose radius and compactness fit a ball give pixel detections.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._checks import TudorVisionError
+from .depth_model import SEED_DEPTH_MODEL, DepthNoiseModel
+from .frames import Intrinsics
+
+__all__ = ["BallDetectorOptions", "BallDetection", "DepthBackground", "detect_balls", "BallDetector",
+           "ball_center_cam_from_pixels", "ColorBallOptions", "ColorBallDetector", "PixelDetection"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class BallDetectorOptions:
+    """Options of the RGB-D ball detector (SI units).
+
+    Parameters
+    ----------
+    ball_radius_m : float
+        Ball radius (the seed's ball: 9 cm diameter).
+    max_range_m, min_range_m : float
+        Depth interval searched (the seed: ball within 4.5 m of the sensor).
+    downsample : int
+        Block size of the coarse search.
+    n_sigma : float
+        Coarse foreground threshold in block-noise sigmas.
+    min_depth_diff_m : float
+        Minimum depth difference to the background.
+    area_ratio : tuple of float
+        Accepted range of (valid silhouette pixels) / (expected area pi r^2).
+    pixel_sigma_px : float
+        Standard deviation of the silhouette centroid, pixels.
+    noise_correlation_px : float
+        Pixels per independent depth sample (1: independent pixel noise).
+    max_candidates : int
+        Coarse blobs refined per frame (largest first).
+    depth_model : DepthNoiseModel
+        ``sigma_z(z)``.
+    """
+
+    ball_radius_m: float = 0.045
+    max_range_m: float = 4.5
+    min_range_m: float = 0.4
+    downsample: int = 4
+    n_sigma: float = 4.0
+    min_depth_diff_m: float = 0.1
+    area_ratio: tuple = (0.3, 2.0)
+    pixel_sigma_px: float = 1.0
+    noise_correlation_px: float = 1.0
+    max_candidates: int = 5
+    depth_model: DepthNoiseModel = field(default=SEED_DEPTH_MODEL)
+
+    def __post_init__(self):
+        if not self.ball_radius_m > 0:
+            raise ValueError(f"ball_radius_m: expected > 0, got {self.ball_radius_m}")
+        if not 0 <= self.min_range_m < self.max_range_m:
+            raise ValueError("min_range_m, max_range_m: expected 0 <= min_range_m < max_range_m")
+        if int(self.downsample) != self.downsample or self.downsample < 1:
+            raise ValueError(f"downsample: expected a positive integer, got {self.downsample}")
+        if not 0 < self.area_ratio[0] < self.area_ratio[1]:
+            raise ValueError(f"area_ratio: expected 0 < low < high, got {self.area_ratio}")
+
+
+@dataclass(frozen=True)
+class BallDetection:
+    """One detected ball.
+
+    ``uv`` (2,): silhouette centroid, pixels (u right, v down);
+    ``p_cam`` (3,): ball centre, metres, camera optical frame;
+    ``cov_cam`` (3, 3): its covariance, m^2; ``n_pixels``: valid silhouette
+    pixels; ``area_ratio``: n_pixels / expected area; ``radius_px``: expected
+    image radius at the detected depth.
+    """
+
+    uv: np.ndarray
+    p_cam: np.ndarray
+    cov_cam: np.ndarray
+    n_pixels: int
+    area_ratio: float
+    radius_px: float
+
+
+def _as_depth32(depth, shape) -> np.ndarray:
+    d = np.asarray(depth)
+    if d.shape != shape:
+        raise ValueError(f"depth_m: expected shape {shape}, got {d.shape}")
+    if d.dtype != np.float32:
+        d = d.astype(np.float32)
+    return d
+
+
+def _block_mean(d: np.ndarray, n: int, min_valid: float = 0.25) -> np.ndarray:
+    """Block mean over valid (> 0, finite) pixels; NaN where too few are valid."""
+    import cv2
+
+    h, w = d.shape
+    hc, wc = h // n, w // n
+    d = d[: hc * n, : wc * n]
+    valid = d > 0                                 # NaN compares False
+    dz = np.where(valid, d, np.float32(0.0))
+    s = cv2.resize(dz, (wc, hc), interpolation=cv2.INTER_AREA)
+    c = cv2.resize(valid.view(np.uint8).astype(np.float32), (wc, hc), interpolation=cv2.INTER_AREA)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = s / c
+    out[c < min_valid] = np.nan
+    return out
+
+
+class DepthBackground:
+    """Per-pixel background depth from static frames, with precomputed thresholds.
+
+    Parameters
+    ----------
+    frames : sequence of array_like, each shape (H, W)
+        Depth in metres (NaN or 0 invalid) without the ball.
+    intrinsics : Intrinsics
+    options : BallDetectorOptions
+
+    Raises
+    ------
+    TudorVisionError
+        No frames, or no valid depth in any of them.
+    """
+
+    def __init__(self, frames, intrinsics: Intrinsics, options: BallDetectorOptions = BallDetectorOptions()):
+        stack = [_as_depth32(f, intrinsics.shape) for f in frames]
+        if not stack:
+            raise TudorVisionError("background: need at least one depth frame")
+        s = np.stack(stack).astype(np.float32)
+        s[~(s > 0)] = np.nan
+        if not np.any(np.isfinite(s)):
+            raise TudorVisionError("background: no valid depth in the background frames")
+        import warnings
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            bg = np.nanmedian(s, axis=0).astype(np.float32)
+        self.intrinsics = intrinsics
+        self.options = options
+        self.n_frames = len(stack)
+        self.depth_m = bg
+        o = options
+        # noise of a frame minus the background median (median of N: ~1.25 sigma / sqrt(N))
+        k = float(np.sqrt(1.0 + 1.57 / self.n_frames))
+        with np.errstate(invalid="ignore"):
+            sig = o.depth_model.sigma(np.nan_to_num(bg, nan=o.max_range_m)).astype(np.float32) * k
+            thr = np.maximum(o.min_depth_diff_m, o.n_sigma * sig)
+            # full-resolution limit: a foreground pixel is nearer than this
+            lim = np.where(np.isfinite(bg), bg - np.maximum(o.min_depth_diff_m, sig), np.inf)
+            self.limit_full = np.minimum(lim, o.max_range_m).astype(np.float32)
+            n = int(o.downsample)
+            bg_c = _block_mean(bg, n)
+            sig_c = o.depth_model.sigma(np.nan_to_num(bg_c, nan=o.max_range_m)) * k / n
+            thr_c = np.maximum(o.min_depth_diff_m, o.n_sigma * sig_c)
+            lim_c = np.where(np.isfinite(bg_c), bg_c - thr_c, np.inf)
+            self.limit_coarse = np.minimum(lim_c, o.max_range_m).astype(np.float32)
+        self._thr = thr
+
+
+def ball_center_cam_from_pixels(u, v, z, intrinsics: Intrinsics, radius_m: float, *, iterations: int = 2):
+    """Ball centre from the depths of its visible pixels.
+
+    Parameters
+    ----------
+    u, v : ndarray, shape (N,)
+        Pixel coordinates of valid silhouette pixels.
+    z : ndarray, shape (N,)
+        Their depths, metres.
+    radius_m : float
+        Ball radius.
+
+    Returns
+    -------
+    p_cam : ndarray, shape (3,)
+        Centre, metres, camera optical frame.
+    uv : ndarray, shape (2,)
+        Pixel centroid.
+
+    Examples
+    --------
+    >>> K = Intrinsics(500.0, 500.0, 50.0, 50.0, 100, 100)
+    >>> vv, uu = np.mgrid[40:61, 40:61].reshape(2, -1)
+    >>> rho = np.hypot(uu - 50.0, vv - 50.0) * 2.0 / 500.0
+    >>> keep = rho < 0.1
+    >>> zz = 2.0 - np.sqrt(0.1 ** 2 - rho[keep] ** 2)
+    >>> p, uv = ball_center_cam_from_pixels(uu[keep], vv[keep], zz, K, 0.1)
+    >>> np.round(p, 3).tolist()
+    [0.0, 0.0, 2.0]
+    """
+    u = np.asarray(u, np.float64)
+    v = np.asarray(v, np.float64)
+    z = np.asarray(z, np.float64)
+    uc, vc = float(u.mean()), float(v.mean())
+    f = np.sqrt(intrinsics.fx * intrinsics.fy)
+    rho_px2 = (u - uc) ** 2 + (v - vc) ** 2
+    zc = float(z.mean()) + 2.0 * radius_m / 3.0
+    for _ in range(iterations):
+        rho2 = rho_px2 * (zc / f) ** 2
+        zc = float(np.mean(z + np.sqrt(np.maximum(radius_m ** 2 - rho2, 0.0))))
+    x = (uc - intrinsics.cx) / intrinsics.fx * zc
+    y = (vc - intrinsics.cy) / intrinsics.fy * zc
+    return np.array([x, y, zc]), np.array([uc, vc])
+
+
+def _covariance(p: np.ndarray, n: int, intrinsics: Intrinsics, o: BallDetectorOptions) -> np.ndarray:
+    r = p / np.linalg.norm(p)
+    z = p[2]
+    n_eff = max(1.0, n / o.noise_correlation_px)
+    s_along = float(o.depth_model.sigma(z)) / np.sqrt(n_eff) / max(r[2], 1e-6)
+    s_lat = o.pixel_sigma_px * z / np.sqrt(intrinsics.fx * intrinsics.fy)
+    P = np.outer(r, r)
+    return s_along ** 2 * P + s_lat ** 2 * (np.eye(3) - P)
+
+
+def detect_balls(depth_m, background: DepthBackground) -> list[BallDetection]:
+    """Detect balls in one depth frame against a background model.
+
+    Parameters
+    ----------
+    depth_m : array_like, shape (H, W)
+        Depth in metres (float32 fastest), NaN or 0 = invalid.
+    background : DepthBackground
+
+    Returns
+    -------
+    list of BallDetection
+        Plausible detections, best (area ratio nearest 1) first; empty if none.
+    """
+    import cv2
+
+    bg = background
+    o, K = bg.options, bg.intrinsics
+    d = _as_depth32(depth_m, K.shape)
+    n = int(o.downsample)
+    d_c = _block_mean(d, n)
+    with np.errstate(invalid="ignore"):
+        fg = (d_c < bg.limit_coarse) & (d_c > o.min_range_m)
+    if not fg.any():
+        return []
+    nl, labels, stats, cents = cv2.connectedComponentsWithStats(fg.view(np.uint8), connectivity=8)
+    f = float(np.sqrt(K.fx * K.fy))
+    R = o.ball_radius_m
+    order = 1 + np.argsort(-stats[1:, cv2.CC_STAT_AREA])
+    out = []
+    for lab in order[: o.max_candidates]:
+        x0, y0, w, h, area = stats[lab]
+        blk = labels[y0:y0 + h, x0:x0 + w] == lab
+        z0 = float(np.nanmedian(d_c[y0:y0 + h, x0:x0 + w][blk]))
+        r_px = f * R / z0
+        expected_c = np.pi * (r_px / n) ** 2
+        if area > 4.0 * expected_c + 4 or area < 0.1 * expected_c:
+            continue
+        uc = (cents[lab, 0] + 0.5) * n - 0.5
+        vc = (cents[lab, 1] + 0.5) * n - 0.5
+        det = _refine(d, bg, uc, vc, z0, f)
+        if det is not None:
+            out.append(det)
+    out.sort(key=lambda b: abs(np.log(b.area_ratio)))
+    return out
+
+
+def _refine(d: np.ndarray, bg: DepthBackground, uc: float, vc: float, z0: float, f: float):
+    o, K = bg.options, bg.intrinsics
+    R = o.ball_radius_m
+    n_px = 0
+    p = None
+    for it in range(3):
+        r_px = f * R / z0
+        half = int(np.ceil(1.6 * r_px + 2))
+        u0, u1 = max(0, int(uc) - half), min(K.width, int(uc) + half + 2)
+        v0, v1 = max(0, int(vc) - half), min(K.height, int(vc) + half + 2)
+        if u1 <= u0 or v1 <= v0:
+            return None
+        win = d[v0:v1, u0:u1]
+        band = max(3.0 * float(o.depth_model.sigma(z0)), 2.0 * R)
+        vv, uu = np.mgrid[v0:v1, u0:u1]
+        rad = 1.3 * r_px + 1.0 if it else 1.6 * r_px + 2.0
+        with np.errstate(invalid="ignore"):
+            sel = ((np.abs(win - z0) < band) & (win < bg.limit_full[v0:v1, u0:u1])
+                   & ((uu - uc) ** 2 + (vv - vc) ** 2 <= rad * rad))
+        n_px = int(sel.sum())
+        if n_px < 3:
+            return None
+        p, uv = ball_center_cam_from_pixels(uu[sel], vv[sel], win[sel], K, R)
+        uc, vc = float(uv[0]), float(uv[1])
+        z_new = p[2] - 2.0 * R / 3.0      # mean visible surface depth
+        if abs(z_new - z0) < 1e-3 and it:
+            z0 = z_new
+            break
+        z0 = z_new
+    if not (o.min_range_m < p[2] < o.max_range_m + R):
+        return None
+    r_px = f * R / p[2]
+    ratio = n_px / (np.pi * r_px ** 2)
+    if not o.area_ratio[0] <= ratio <= o.area_ratio[1]:
+        return None
+    return BallDetection(np.array([uc, vc]), p, _covariance(p, n_px, K, o), n_px, float(ratio), float(r_px))
+
+
+class BallDetector:
+    """Stateful RGB-D ball detector: learns the background from the first frames.
+
+    Parameters
+    ----------
+    intrinsics : Intrinsics
+    options : BallDetectorOptions
+    n_background : int
+        Number of initial frames used for the background (no detections then).
+
+    Examples
+    --------
+    >>> K = Intrinsics(525.0, 525.0, 319.5, 239.5, 640, 480)
+    >>> det = BallDetector(K, n_background=2)
+    >>> wall = np.full((480, 640), 5.0, np.float32)
+    >>> det.update(wall) is None and det.update(wall) is None
+    True
+    >>> frame = wall.copy(); vv, uu = np.mgrid[:480, :640]
+    >>> rho2 = ((uu - 400) ** 2 + (vv - 200) ** 2) * (3.0 / 525.0) ** 2
+    >>> frame[rho2 < 0.045 ** 2] = 3.0 - np.sqrt(0.045 ** 2 - rho2[rho2 < 0.045 ** 2])
+    >>> np.round(det.update(frame).p_cam, 2).tolist()
+    [0.46, -0.23, 3.0]
+    """
+
+    def __init__(self, intrinsics: Intrinsics, options: BallDetectorOptions = BallDetectorOptions(), *,
+                 n_background: int = 10):
+        if n_background < 1:
+            raise ValueError(f"n_background: expected >= 1, got {n_background}")
+        self.intrinsics = intrinsics
+        self.options = options
+        self.n_background = int(n_background)
+        self._frames: list[np.ndarray] = []
+        self.background: DepthBackground | None = None
+
+    def update(self, depth_m) -> BallDetection | None:
+        """Feed the next frame; returns the best detection (None while learning or if none)."""
+        if self.background is None:
+            self._frames.append(_as_depth32(depth_m, self.intrinsics.shape).copy())
+            if len(self._frames) >= self.n_background:
+                self.background = DepthBackground(self._frames, self.intrinsics, self.options)
+                self._frames = []
+            return None
+        dets = detect_balls(depth_m, self.background)
+        return dets[0] if dets else None
+
+
+# ----------------------------------------------------------------------------- colour mode
+
+@dataclass(frozen=True, kw_only=True)
+class ColorBallOptions:
+    """Options of the colour-only detector (pixels, 8-bit intensities).
+
+    Parameters
+    ----------
+    min_radius_px, max_radius_px : float
+        Plausible ball radius in the full-resolution image.
+    diff_threshold : int
+        Foreground when the largest channel difference to the background exceeds it.
+    min_fill : float
+        Blob area / area of its enclosing circle (compactness; motion blur
+        elongates the ball).
+    learning_rate : float
+        Running-average rate of the background where no foreground is seen.
+    n_background : int
+        Initial frames whose median is the first background.
+    downsample : int
+        Processing scale (2: half resolution).
+    """
+
+    min_radius_px: float = 4.0
+    max_radius_px: float = 40.0
+    diff_threshold: int = 25
+    min_fill: float = 0.35
+    learning_rate: float = 0.05
+    n_background: int = 5
+    downsample: int = 2
+
+
+@dataclass(frozen=True)
+class PixelDetection:
+    """A colour-only detection: ``uv`` (2,) centre in full-resolution pixels,
+    ``radius_px`` enclosing radius, ``fill`` compactness."""
+
+    uv: np.ndarray
+    radius_px: float
+    fill: float
+
+
+class ColorBallDetector:
+    """Ball detection in colour-only video by background subtraction.
+
+    Examples
+    --------
+    >>> det = ColorBallDetector(ColorBallOptions(n_background=1, downsample=1))
+    >>> wall = np.full((120, 160, 3), 200, np.uint8)
+    >>> det.update(wall) is None
+    True
+    >>> f = wall.copy(); vv, uu = np.mgrid[:120, :160]
+    >>> f[(uu - 50) ** 2 + (vv - 60) ** 2 <= 64] = (40, 160, 40)
+    >>> np.round(det.update(f).uv).tolist()
+    [50.0, 60.0]
+    """
+
+    def __init__(self, options: ColorBallOptions = ColorBallOptions()):
+        self.options = options
+        self._init: list[np.ndarray] = []
+        self.background: np.ndarray | None = None
+        self.last_uv: np.ndarray | None = None
+
+    def _prep(self, frame) -> np.ndarray:
+        import cv2
+
+        img = np.asarray(frame)
+        if img.ndim == 2:
+            img = img[:, :, None]
+        if img.ndim != 3 or img.dtype != np.uint8:
+            raise ValueError(f"frame: expected a uint8 image (H, W) or (H, W, C), got {img.dtype} {img.shape}")
+        n = self.options.downsample
+        if n > 1:
+            img = cv2.resize(img, (img.shape[1] // n, img.shape[0] // n), interpolation=cv2.INTER_AREA)
+            if img.ndim == 2:
+                img = img[:, :, None]
+        return cv2.GaussianBlur(img, (3, 3), 0).reshape(img.shape).astype(np.float32)
+
+    def update(self, frame) -> PixelDetection | None:
+        """Feed the next frame; returns the best ball candidate or None."""
+        import cv2
+
+        o = self.options
+        img = self._prep(frame)
+        if self.background is None:
+            self._init.append(img)
+            if len(self._init) >= o.n_background:
+                self.background = np.median(np.stack(self._init), axis=0).astype(np.float32)
+                self._init = []
+            return None
+        diff = np.abs(img - self.background).max(axis=2)
+        fg = (diff > o.diff_threshold).astype(np.uint8)
+        fg = cv2.morphologyEx(fg, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3)))
+        # update the background where nothing moves
+        still = cv2.dilate(fg, np.ones((5, 5), np.uint8)) == 0
+        a = o.learning_rate
+        self.background[still] = (1 - a) * self.background[still] + a * img[still]
+        n = o.downsample
+        contours, _ = cv2.findContours(fg, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        best, best_score = None, -np.inf
+        for c in contours:
+            area = cv2.contourArea(c) + 0.5 * cv2.arcLength(c, True)   # pixel area incl. boundary
+            (x, y), r = cv2.minEnclosingCircle(c)
+            r_full = (r + 0.5) * n
+            if not o.min_radius_px <= r_full <= o.max_radius_px:
+                continue
+            fill = area / (np.pi * (r + 0.5) ** 2)
+            if fill < o.min_fill:
+                continue
+            score = fill
+            if self.last_uv is not None:
+                score -= 0.002 * float(np.hypot(x * n - self.last_uv[0], y * n - self.last_uv[1])) / n
+            if score > best_score:
+                best_score = score
+                best = PixelDetection(np.array([(x + 0.5) * n - 0.5, (y + 0.5) * n - 0.5]), float(r_full),
+                                      float(min(fill, 1.0)))
+        self.last_uv = None if best is None else best.uv
+        return best

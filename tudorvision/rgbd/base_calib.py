@@ -1,0 +1,181 @@
+"""Wall camera to robot base calibration from a theta2 sweep (section 9.3).
+
+With theta1 = theta3 = 0 the robot sweeps theta2; the disc in the net moves on
+a circle about the joint-2 axis. The seed builds the base frame from the fitted
+circle and the end effector in the vertical posture [0, 90, 0] deg:
+
+- origin = circle centre;
+- z = unit vector from the centre to the vertical-posture end effector;
+- initial y = circle-plane normal; x = y x z; y = z x x.
+
+Normal sign: the robot's base y axis is the joint-2 axis direction for which
+increasing theta2 turns the arm from +x (theta2 = 0, zero configuration)
+toward +z, i.e. increasing theta2 is a rotation about -y. The normal is
+oriented accordingly (from the sweep order, or from the given theta2 values),
+so x points toward the end effector at theta2 = 0.
+
+Frame origin: the circle centre lies on the joint-2 axis, which is
+``link1_height_m`` above the base plate origin of :mod:`tudorvision.robot`.
+By default (``origin="base"``) the returned ``T_base_cam`` is shifted down
+along z by ``link1_height_m`` so that it matches ``tudorvision.robot.fk_ee``;
+``origin="joint2"`` gives the seed's frame (origin at the circle centre).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .._checks import TudorVisionError, check_array, check_points
+from ..geometry import fit_circle_3d, invert_transform
+
+__all__ = ["base_frame_from_sweep"]
+
+
+def _rotation_axis(points: np.ndarray, centre: np.ndarray, normal: np.ndarray, theta2) -> np.ndarray:
+    """Normal oriented as the rotation axis of increasing theta2."""
+    d = points - centre
+    cr = np.cross(d[:-1], d[1:]) @ normal
+    if theta2 is None:
+        step = np.ones(len(cr))
+    else:
+        step = np.diff(theta2)
+    s = float(np.sum(np.sign(step) * cr))
+    if s == 0.0:
+        raise TudorVisionError("cannot tell the sweep direction: the points do not progress along the circle")
+    return normal if s > 0 else -normal
+
+
+def base_frame_from_sweep(points_cam, vertical_cam, *, theta2_rad=None, link1_height_m: float | None = None,
+                          origin: str = "base", project_vertical: bool = False, min_points: int = 6,
+                          loss: str = "soft_l1", max_rejected_fraction: float = 0.3):
+    """Robot base frame in the camera frame from disc centroids of a theta2 sweep.
+
+    Parameters
+    ----------
+    points_cam : array_like, shape (N, 3)
+        Disc centroids per sweep step, metres, camera optical frame, in sweep
+        order. Rows with NaN (lost samples) are skipped and reported.
+    vertical_cam : array_like, shape (3,) or (M, 3)
+        End-effector (disc) position(s) in the vertical posture [0, 90, 0] deg;
+        several rows are averaged.
+    theta2_rad : array_like, shape (N,), optional
+        theta2 per sample; gives the sweep direction. Without it the samples
+        are taken to be in increasing theta2.
+    link1_height_m : float, optional
+        Height of the joint-2 axis above the base plate (default: the robot
+        parameter file). Only used with ``origin="base"``.
+    origin : {"base", "joint2"}
+        ``"base"``: base-plate origin of :mod:`tudorvision.robot`;
+        ``"joint2"``: the circle centre (the seed's origin).
+    project_vertical : bool
+        Replace the vertical point by its nearest point on the fitted circle
+        before taking z (reduces depth noise; the seed uses the raw point).
+    min_points : int
+        Minimum number of valid inlier samples.
+    loss : str
+        Robust loss of the circle refinement (see :func:`tudorvision.geometry.fit_circle_3d`).
+    max_rejected_fraction : float
+        Raise when more of the valid samples than this are outliers.
+
+    Returns
+    -------
+    T_base_cam : ndarray, shape (4, 4)
+        Maps camera-frame points into the base frame (``p_base = T_base_cam @ p_cam``).
+    report : dict
+        ``circle_rmse_m`` (inliers), ``circle_rmse_all_m``, ``circle_radius_m``,
+        ``circle_centre_cam``, ``normal_cam`` (the oriented base y axis),
+        ``vertical_cam``, ``points_used`` (indices), ``rejected`` (list of
+        ``{"index", "reason"}``), ``origin``, ``link1_height_m``,
+        ``z_tilt_from_plane_deg`` (how far the measured z leaves the circle plane).
+
+    Raises
+    ------
+    TudorVisionError
+        Too few valid points, too many outliers, degenerate sweep or a vertical
+        point at the circle centre.
+    """
+    if origin not in ("base", "joint2"):
+        raise ValueError(f"origin: expected 'base' or 'joint2', got {origin!r}")
+    pts_all = check_points(points_cam, "points_cam", finite=False)
+    n_all = len(pts_all)
+    th_all = None
+    if theta2_rad is not None:
+        th_all = check_array(theta2_rad, "theta2_rad", (n_all,), finite=False)
+    finite = np.all(np.isfinite(pts_all), axis=1)
+    if th_all is not None:
+        finite &= np.isfinite(th_all)
+    rejected = [{"index": int(i), "reason": "invalid (lost disc or missing value)"} for i in np.nonzero(~finite)[0]]
+    idx = np.nonzero(finite)[0]
+    if len(idx) < max(3, min_points):
+        raise TudorVisionError(f"circle fit needs at least {max(3, min_points)} valid points, got {len(idx)} "
+                               f"of {n_all}")
+    pts = pts_all[idx]
+    try:
+        fit = fit_circle_3d(pts, loss=loss)
+    except ValueError as exc:
+        raise TudorVisionError(f"circle fit failed: {exc}") from None
+    inl = fit.inliers
+    for i in np.nonzero(~inl)[0]:
+        rejected.append({"index": int(idx[i]), "reason": "outlier", "distance_m": float(fit.distances[i])})
+    if (~inl).sum() > max_rejected_fraction * len(idx):
+        raise TudorVisionError(f"{int((~inl).sum())} of {len(idx)} sweep points are circle outliers "
+                               f"(more than {max_rejected_fraction:.0%}): check the disc segmentation")
+    if inl.sum() < max(3, min_points):
+        raise TudorVisionError(f"circle fit needs at least {max(3, min_points)} inlier points, got {int(inl.sum())}")
+    if not np.all(inl):
+        fit = fit_circle_3d(pts[inl], loss="linear")
+        used = idx[inl]
+    else:
+        used = idx
+    pts_used = pts_all[used]
+    th_used = None if th_all is None else th_all[used]
+    omega = _rotation_axis(pts_used, fit.centre, fit.normal, th_used)
+    y_hat = -omega
+    c = fit.centre
+
+    pv = check_points(vertical_cam, "vertical_cam").mean(axis=0)
+    if project_vertical:
+        d = pv - c
+        d_in = d - (d @ omega) * omega
+        if np.linalg.norm(d_in) < 1e-9:
+            raise TudorVisionError("vertical_cam: the vertical point projects onto the circle centre")
+        pv = c + fit.radius * d_in / np.linalg.norm(d_in)
+    dz = pv - c
+    nz = float(np.linalg.norm(dz))
+    if nz < 0.1 * fit.radius:
+        raise TudorVisionError(f"vertical_cam: the vertical-posture point is {nz:.3f} m from the circle centre "
+                               f"(radius {fit.radius:.3f} m); expected about one radius")
+    z = dz / nz
+    x = np.cross(y_hat, z)
+    nx = np.linalg.norm(x)
+    if nx < 1e-6:
+        raise TudorVisionError("vertical_cam: the direction to the vertical point is parallel to the circle normal")
+    x /= nx
+    y = np.cross(z, x)
+
+    if link1_height_m is None:
+        from ..robot import load_robot_params
+        link1_height_m = load_robot_params().link1_height_m
+    h = float(link1_height_m) if origin == "base" else 0.0
+    T_cam_base = np.eye(4)
+    T_cam_base[:3, 0], T_cam_base[:3, 1], T_cam_base[:3, 2] = x, y, z
+    T_cam_base[:3, 3] = c - h * z
+    T_base_cam = invert_transform(T_cam_base)
+    rejected.sort(key=lambda r: r["index"])
+    report = {
+        "circle_rmse_m": float(fit.rmse),
+        "circle_rmse_all_m": float(fit.rmse_all),
+        "circle_radius_m": float(fit.radius),
+        "circle_centre_cam": c.tolist(),
+        "normal_cam": y_hat.tolist(),
+        "vertical_cam": pv.tolist(),
+        "vertical_distance_m": nz,
+        "z_tilt_from_plane_deg": float(np.degrees(np.arcsin(np.clip(abs(z @ y_hat), 0.0, 1.0)))),
+        "n_samples": n_all,
+        "points_used": [int(i) for i in used],
+        "rejected": rejected,
+        "origin": ("base plate: link1_height_m below the circle centre along z" if origin == "base"
+                   else "joint 2: the circle centre"),
+        "link1_height_m": h,
+        "T_base_cam": T_base_cam.tolist(),
+    }
+    return T_base_cam, report

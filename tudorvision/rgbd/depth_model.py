@@ -1,0 +1,367 @@
+"""Depth uncertainty model sigma_z(z) and its calibration (sections 2.3, 9.3).
+
+A planar target perpendicular to the optical axis is recorded at stepped
+distances, about 100 frames per distance. Per distance, sigma is the mean over
+the planar region of the per-pixel temporal standard deviation; the bias is the
+depth of a plane fitted to the per-pixel mean depths minus the nominal target
+distance. ``sigma_z(z)`` is fitted as the seed's cubic polynomial.
+
+The seed's fit (figure 2.5) is
+``sigma_z(z) = 0.51 z^3 - 2.1 z^2 + 5.12 z - 2.18`` with z in metres and
+sigma in centimetres; :data:`SEED_DEPTH_MODEL` holds it in SI units
+(sigma in metres). The cubic turns negative below about 0.52 m, so
+evaluations are floored at ``floor_m``.
+"""
+from __future__ import annotations
+
+import csv
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .._checks import TudorVisionError, check_array
+from .frames import Intrinsics, check_depth
+
+__all__ = [
+    "DepthNoiseModel", "SEED_DEPTH_MODEL", "DepthStepStats", "planar_region_mask",
+    "depth_step_stats", "fit_depth_model", "calibrate_depth_model",
+    "write_depth_table_csv", "read_depth_table_csv", "plot_depth_model",
+]
+
+TABLE_COLUMNS = ("distance_m", "sigma_m", "bias_m", "n_pixels")
+
+
+@dataclass(frozen=True, kw_only=True)
+class DepthNoiseModel:
+    """Polynomial depth noise model ``sigma_z(z)``.
+
+    Parameters
+    ----------
+    coeffs : tuple of float
+        Polynomial coefficients, highest power first (``np.polyval``);
+        z in metres, sigma in metres.
+    z_range_m : tuple of float
+        Range the model was fitted on (informative; evaluation is not clipped).
+    floor_m : float
+        Lower bound of the returned sigma (the cubic goes negative near 0.5 m).
+
+    Examples
+    --------
+    >>> round(float(SEED_DEPTH_MODEL.sigma(1.0)), 4)
+    0.0135
+    """
+
+    coeffs: tuple = (0.0051, -0.021, 0.0512, -0.0218)
+    z_range_m: tuple = (0.6, 6.0)
+    floor_m: float = 1e-3
+    extra: dict = field(default_factory=dict, compare=False)
+
+    def __post_init__(self):
+        c = tuple(float(x) for x in self.coeffs)
+        if not c or not all(np.isfinite(c)):
+            raise ValueError(f"coeffs: expected finite polynomial coefficients, got {self.coeffs}")
+        object.__setattr__(self, "coeffs", c)
+        object.__setattr__(self, "z_range_m", tuple(float(x) for x in self.z_range_m))
+        if not self.floor_m > 0:
+            raise ValueError(f"floor_m: expected a positive value, got {self.floor_m}")
+
+    def sigma(self, z_m):
+        """Depth standard deviation in metres at depth ``z_m`` (metres), floored."""
+        return np.maximum(np.polyval(self.coeffs, np.asarray(z_m, dtype=np.float64)), self.floor_m)
+
+    def as_dict(self) -> dict:
+        """Plain dict for calibration files (``sigma_z_coeffs_m``: highest power first)."""
+        return {"sigma_z_coeffs_m": list(self.coeffs), "z_range_m": list(self.z_range_m),
+                "floor_m": self.floor_m, "units": "z in m, sigma in m, highest power first"}
+
+    @classmethod
+    def from_dict(cls, doc: dict) -> "DepthNoiseModel":
+        """Inverse of :meth:`as_dict`.
+
+        Examples
+        --------
+        >>> DepthNoiseModel.from_dict(SEED_DEPTH_MODEL.as_dict()) == SEED_DEPTH_MODEL
+        True
+        """
+        try:
+            return cls(coeffs=tuple(doc["sigma_z_coeffs_m"]),
+                       z_range_m=tuple(doc.get("z_range_m", (0.6, 6.0))),
+                       floor_m=float(doc.get("floor_m", 1e-3)))
+        except (KeyError, TypeError) as exc:
+            raise TudorVisionError(f"depth model: missing or invalid entry {exc}") from None
+
+
+#: The seed's fit, converted to metres.
+SEED_DEPTH_MODEL = DepthNoiseModel()
+
+
+@dataclass(frozen=True)
+class DepthStepStats:
+    """Depth statistics of one target distance (one row of the calibration table).
+
+    ``distance_m``: nominal distance if given, else the fitted plane's depth;
+    ``sigma_m``: mean per-pixel temporal std; ``bias_m``: plane depth minus
+    nominal distance (NaN without a nominal distance); ``n_pixels``: pixels in
+    the planar region; ``plane_rms_m``: RMS of the mean depths about the plane.
+    """
+
+    distance_m: float
+    sigma_m: float
+    bias_m: float
+    n_pixels: int
+    plane_rms_m: float = float("nan")
+
+
+def _check_stack(stack, intrinsics: Intrinsics | None) -> np.ndarray:
+    s = np.array(stack, dtype=np.float64)
+    if s.ndim != 3:
+        raise ValueError(f"depth_stack: expected shape (F, H, W), got {s.shape}")
+    if s.shape[0] < 2:
+        raise TudorVisionError(f"depth_stack: need at least 2 frames for a temporal std, got {s.shape[0]}")
+    if intrinsics is not None and s.shape[1:] != intrinsics.shape:
+        raise ValueError(f"depth_stack: frame shape {s.shape[1:]} does not match intrinsics {intrinsics.shape}")
+    with np.errstate(invalid="ignore"):
+        s[~(s > 0) | ~np.isfinite(s)] = np.nan
+    if not np.any(np.isfinite(s)):
+        raise TudorVisionError("depth_stack: no valid depth in any frame (all zero or invalid)")
+    return s
+
+
+def planar_region_mask(mean_depth_m, *, roi=None, rel_tol: float = 0.05,
+                       min_pixels: int = 100) -> np.ndarray:
+    """Planar evaluation region in a (temporal mean) depth image.
+
+    Parameters
+    ----------
+    mean_depth_m : array_like, shape (H, W)
+        Per-pixel mean depth, metres, NaN = invalid.
+    roi : tuple (u0, v0, u1, v1), optional
+        Pixel box (u right, v down; end exclusive). When given, the region is
+        the valid pixels of the box. Otherwise automatic: the largest connected
+        region of valid pixels within ``rel_tol`` of the median depth.
+    rel_tol : float
+        Relative depth tolerance of the automatic region.
+    min_pixels : int
+        Minimum region size.
+
+    Returns
+    -------
+    mask : ndarray of bool, shape (H, W)
+
+    Raises
+    ------
+    TudorVisionError
+        If the region has fewer than ``min_pixels`` pixels.
+    """
+    import cv2
+
+    d = check_depth(mean_depth_m, "mean_depth_m")
+    valid = np.isfinite(d)
+    if roi is not None:
+        u0, v0, u1, v1 = (int(x) for x in roi)
+        if not (0 <= u0 < u1 <= d.shape[1] and 0 <= v0 < v1 <= d.shape[0]):
+            raise ValueError(f"roi: expected (u0, v0, u1, v1) inside the {d.shape[1]}x{d.shape[0]} image, got {roi}")
+        mask = np.zeros_like(valid)
+        mask[v0:v1, u0:u1] = valid[v0:v1, u0:u1]
+    else:
+        med = float(np.nanmedian(d))
+        with np.errstate(invalid="ignore"):
+            cand = valid & (np.abs(d - med) <= rel_tol * med)
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(cand.astype(np.uint8), connectivity=4)
+        if n <= 1:
+            mask = cand
+        else:
+            best = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+            mask = labels == best
+    if int(mask.sum()) < min_pixels:
+        raise TudorVisionError(f"planar region has {int(mask.sum())} valid pixels, need at least {min_pixels}")
+    return mask
+
+
+def _fit_plane_depth(u, v, z):
+    """Least-squares plane in (x, y, z) expressed as depth; returns predicted z at the pixels."""
+    # a plane not through the camera centre: 1/z is affine in the normalised coordinates
+    A = np.stack([u, v, np.ones_like(u)], axis=1)
+    coef, *_ = np.linalg.lstsq(A, 1.0 / z, rcond=None)
+    return 1.0 / (A @ coef)
+
+
+def depth_step_stats(depth_stack_m, intrinsics: Intrinsics, *, nominal_distance_m: float | None = None,
+                     roi=None, min_valid_fraction: float = 0.9, rel_tol: float = 0.05,
+                     min_pixels: int = 100) -> DepthStepStats:
+    """Noise and bias of one target distance from a stack of depth frames.
+
+    Parameters
+    ----------
+    depth_stack_m : array_like, shape (F, H, W)
+        Depth frames in metres (NaN or 0 = invalid) of a static planar target.
+    intrinsics : Intrinsics
+    nominal_distance_m : float, optional
+        True target distance along the optical axis; gives the bias.
+    roi : tuple (u0, v0, u1, v1), optional
+        Planar region; automatic when omitted (see :func:`planar_region_mask`).
+    min_valid_fraction : float
+        Pixels valid in fewer frames than this fraction are left out.
+
+    Returns
+    -------
+    DepthStepStats
+
+    Raises
+    ------
+    TudorVisionError
+        Fewer than 2 frames, no valid depth, or a too small planar region.
+    """
+    s = _check_stack(depth_stack_m, intrinsics)
+    n_valid = np.sum(np.isfinite(s), axis=0)
+    steady = n_valid >= max(2, int(np.ceil(min_valid_fraction * s.shape[0])))
+    if not np.any(steady):
+        raise TudorVisionError("depth_stack: no pixel is valid in enough frames "
+                               f"(min_valid_fraction={min_valid_fraction:g})")
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        mean = np.where(steady, np.nanmean(s, axis=0), np.nan)
+        std = np.nanstd(s, axis=0, ddof=1)
+    mask = planar_region_mask(mean, roi=roi, rel_tol=rel_tol, min_pixels=min_pixels) & steady
+    if int(mask.sum()) < min_pixels:
+        raise TudorVisionError(f"planar region has {int(mask.sum())} steady pixels, need at least {min_pixels}")
+    v, u = np.nonzero(mask)
+    xn = (u - intrinsics.cx) / intrinsics.fx
+    yn = (v - intrinsics.cy) / intrinsics.fy
+    z = mean[v, u]
+    z_plane = _fit_plane_depth(xn, yn, z)
+    plane_rms = float(np.sqrt(np.mean((z - z_plane) ** 2)))
+    z_fit = float(np.mean(z_plane))
+    sigma = float(np.mean(std[v, u]))
+    if nominal_distance_m is None:
+        return DepthStepStats(z_fit, sigma, float("nan"), int(mask.sum()), plane_rms)
+    nominal = float(nominal_distance_m)
+    return DepthStepStats(nominal, sigma, z_fit - nominal, int(mask.sum()), plane_rms)
+
+
+def fit_depth_model(distances_m, sigmas_m, *, degree: int = 3) -> DepthNoiseModel:
+    """Fit ``sigma_z(z)`` as a polynomial (the seed's cubic by default).
+
+    Weighted least squares with weights ``1 / sigma`` so that the relative
+    error is balanced over the range (sigma grows by two orders of magnitude
+    from 0.6 to 6 m).
+
+    Parameters
+    ----------
+    distances_m, sigmas_m : array_like, shape (N,)
+        N >= degree + 1 distinct distances, positive sigmas; metres.
+
+    Returns
+    -------
+    DepthNoiseModel
+
+    Raises
+    ------
+    TudorVisionError
+        Too few distances for the degree.
+
+    Examples
+    --------
+    >>> z = np.linspace(0.6, 6.0, 10)
+    >>> m = fit_depth_model(z, SEED_DEPTH_MODEL.sigma(z))
+    >>> np.allclose(m.coeffs, SEED_DEPTH_MODEL.coeffs)
+    True
+    """
+    z = check_array(distances_m, "distances_m", (None,))
+    s = check_array(sigmas_m, "sigmas_m", (len(z),))
+    if len(np.unique(z)) < degree + 1:
+        raise TudorVisionError(f"need at least {degree + 1} distinct distances for a degree-{degree} fit, "
+                               f"got {len(np.unique(z))}")
+    if np.any(s <= 0):
+        raise ValueError("sigmas_m: expected positive values")
+    coeffs = np.polyfit(z, s, degree, w=1.0 / s)
+    return DepthNoiseModel(coeffs=tuple(coeffs), z_range_m=(float(z.min()), float(z.max())))
+
+
+def calibrate_depth_model(stacks, intrinsics: Intrinsics, *, nominal_distances_m=None, rois=None,
+                          degree: int = 3, **step_options) -> tuple[DepthNoiseModel, list[DepthStepStats]]:
+    """Full depth calibration: statistics per distance, then the polynomial fit.
+
+    Parameters
+    ----------
+    stacks : sequence of array_like, each shape (F, H, W)
+        One depth stack (metres) per target distance.
+    nominal_distances_m : sequence of float, optional
+        True distances (for the bias column).
+    rois : sequence of (u0, v0, u1, v1) or None, optional
+        Planar region per stack.
+
+    Returns
+    -------
+    model : DepthNoiseModel
+    table : list of DepthStepStats
+        Sorted by distance.
+    """
+    n = len(stacks)
+    nominal = [None] * n if nominal_distances_m is None else list(nominal_distances_m)
+    rr = [None] * n if rois is None else list(rois)
+    if len(nominal) != n or len(rr) != n:
+        raise ValueError(f"nominal_distances_m / rois: expected {n} entries, one per stack")
+    table = [depth_step_stats(s, intrinsics, nominal_distance_m=d, roi=r, **step_options)
+             for s, d, r in zip(stacks, nominal, rr)]
+    table.sort(key=lambda row: row.distance_m)
+    model = fit_depth_model([r.distance_m for r in table], [r.sigma_m for r in table], degree=degree)
+    return model, table
+
+
+def write_depth_table_csv(path, table) -> Path:
+    """Write the calibration table (columns distance_m, sigma_m, bias_m, n_pixels)."""
+    path = Path(path)
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(TABLE_COLUMNS)
+        for r in table:
+            w.writerow([f"{r.distance_m:.6f}", f"{r.sigma_m:.6g}", f"{r.bias_m:.6g}", int(r.n_pixels)])
+    return path
+
+
+def read_depth_table_csv(path) -> list[DepthStepStats]:
+    """Read a table written by :func:`write_depth_table_csv`.
+
+    Raises
+    ------
+    TudorVisionError
+        Missing columns (the message names the file).
+    """
+    path = Path(path)
+    with path.open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    try:
+        return [DepthStepStats(float(r["distance_m"]), float(r["sigma_m"]), float(r["bias_m"]),
+                               int(r["n_pixels"])) for r in rows]
+    except (KeyError, ValueError) as exc:
+        raise TudorVisionError(f"{path}: invalid depth table ({exc})") from None
+
+
+def plot_depth_model(path, table, model: DepthNoiseModel, *, reference: DepthNoiseModel | None = SEED_DEPTH_MODEL) -> Path:
+    """PNG plot of measured sigma per distance and the fitted ``sigma_z(z)`` (centimetres)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    d = np.array([r.distance_m for r in table])
+    s = np.array([r.sigma_m for r in table])
+    lo, hi = min(model.z_range_m[0], d.min(initial=np.inf)), max(model.z_range_m[1], d.max(initial=-np.inf))
+    z = np.linspace(lo, hi, 200)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot(d, s * 100, "o", label="measured (mean per-pixel std)")
+    c = model.coeffs
+    ax.plot(z, model.sigma(z) * 100, "-", label="fit: " + " ".join(f"{100 * a:+.3g}" for a in c) + " (cm, z in m)")
+    if reference is not None:
+        ax.plot(z, reference.sigma(z) * 100, "--", label="seed: 0.51z³−2.1z²+5.12z−2.18")
+    ax.set_xlabel("distance z [m]")
+    ax.set_ylabel("σz [cm]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path

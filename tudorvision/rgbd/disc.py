@@ -1,0 +1,323 @@
+"""Disc segmentation by uniform-depth region growing, and tracking (section 9.3).
+
+For the wall-camera calibration a solid disc sits in the catching net. The
+camera sees it as a region of uniform depth. From a seed pixel, the region is
+the connected set of pixels (4- or 8-connected) whose depth lies within a
+tolerance of the seed neighbourhood's median depth (a fixed-range flood fill);
+the tolerance scales with the depth noise ``sigma_z(z)``. The region's 3D
+centroid is the end-effector sample. Between sweep steps the seed follows the
+disc: the next seed is the previous centroid's pixel.
+
+Depth noise at 5 m is tens of centimetres per pixel (seed model), so growing
+runs on a median-filtered depth image (``smooth_px``); the centroid uses the
+raw depths of the region, which averages the noise down.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._checks import TudorVisionError, check_array
+from .depth_model import SEED_DEPTH_MODEL, DepthNoiseModel
+from .frames import Intrinsics, check_depth
+
+__all__ = ["DiscOptions", "DiscObservation", "segment_uniform_depth", "observe_disc",
+           "DiscTracker", "track_disc"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class DiscOptions:
+    """Options of the disc segmentation.
+
+    Parameters
+    ----------
+    neighbourhood_px : int
+        Side of the square seed neighbourhood whose median depth is the
+        reference depth (odd).
+    n_sigma : float
+        Tolerance in units of the (smoothed) depth noise at the seed depth.
+    min_tol_m, max_tol_m : float
+        Bounds of the depth tolerance, metres.
+    smooth_px : int
+        Median filter size (1, 3 or 5) applied before growing; 1 = none.
+    connectivity : int
+        4 or 8.
+    min_pixels, max_pixels : int
+        Plausible region size; outside it the disc counts as lost.
+    disc_radius_m : float, optional
+        Disc radius; when given, the region must also cover between
+        ``area_ratio[0]`` and ``area_ratio[1]`` times the disc's
+        fronto-parallel image area at its depth.
+    depth_model : DepthNoiseModel
+        ``sigma_z(z)`` used for the tolerance.
+    """
+
+    neighbourhood_px: int = 5
+    n_sigma: float = 3.0
+    min_tol_m: float = 0.03
+    max_tol_m: float = 0.5
+    smooth_px: int = 5
+    connectivity: int = 8
+    min_pixels: int = 15
+    max_pixels: int = 40000
+    disc_radius_m: float | None = None
+    area_ratio: tuple = (0.25, 2.5)
+    depth_model: DepthNoiseModel = field(default=SEED_DEPTH_MODEL)
+
+    def __post_init__(self):
+        if self.neighbourhood_px < 1 or self.neighbourhood_px % 2 == 0:
+            raise ValueError(f"neighbourhood_px: expected an odd positive size, got {self.neighbourhood_px}")
+        if self.smooth_px not in (1, 3, 5):
+            raise ValueError(f"smooth_px: expected 1, 3 or 5, got {self.smooth_px}")
+        if self.connectivity not in (4, 8):
+            raise ValueError(f"connectivity: expected 4 or 8, got {self.connectivity}")
+        if not 0 < self.min_tol_m <= self.max_tol_m:
+            raise ValueError("min_tol_m, max_tol_m: expected 0 < min_tol_m <= max_tol_m")
+        if not 0 < self.min_pixels <= self.max_pixels:
+            raise ValueError("min_pixels, max_pixels: expected 0 < min_pixels <= max_pixels")
+
+
+@dataclass(frozen=True)
+class DiscObservation:
+    """One disc sample.
+
+    ``centroid_cam`` (3,): metres, camera optical frame (NaN when lost);
+    ``centroid_uv`` (2,): pixel centroid (u right, v down);
+    ``seed_uv``: the seed used; ``depth_m``: reference depth at the seed;
+    ``n_pixels``: region size; ``valid``: False when lost, ``reason`` says why.
+    """
+
+    valid: bool
+    centroid_cam: np.ndarray
+    centroid_uv: np.ndarray
+    seed_uv: tuple
+    depth_m: float
+    n_pixels: int
+    reason: str = ""
+
+
+def _smooth(d: np.ndarray, k: int) -> np.ndarray:
+    if k == 1:
+        return d
+    import cv2
+
+    f = np.where(np.isfinite(d), d, 0.0).astype(np.float32)
+    m = cv2.medianBlur(f, k).astype(np.float64)
+    m[m <= 0] = np.nan
+    return m
+
+
+def _seed_pixel(seed_uv, shape) -> tuple[int, int]:
+    s = check_array(seed_uv, "seed_uv", (2,))
+    u, v = int(round(s[0])), int(round(s[1]))
+    if not (0 <= u < shape[1] and 0 <= v < shape[0]):
+        raise TudorVisionError(f"seed_uv: ({u}, {v}) lies outside the {shape[1]}x{shape[0]} image")
+    return u, v
+
+
+def segment_uniform_depth(depth_m, seed_uv, options: DiscOptions = DiscOptions()):
+    """Region of uniform depth grown from a seed pixel.
+
+    Parameters
+    ----------
+    depth_m : array_like, shape (H, W)
+        Depth in metres, NaN or 0 = invalid.
+    seed_uv : array_like, shape (2,)
+        Seed pixel (u right, v down).
+    options : DiscOptions
+
+    Returns
+    -------
+    mask : ndarray of bool, shape (H, W)
+        The connected region containing the seed (or the nearest region pixel
+        in the seed neighbourhood).
+    z_ref : float
+        Reference depth (median of the smoothed seed neighbourhood), metres.
+    tol : float
+        Depth tolerance used, metres.
+
+    Raises
+    ------
+    TudorVisionError
+        If the seed is outside the image or its neighbourhood has no valid depth.
+
+    Examples
+    --------
+    >>> d = np.full((20, 20), 3.0); d[5:12, 5:12] = 2.0
+    >>> mask, z, tol = segment_uniform_depth(d, (8, 8), DiscOptions(smooth_px=1))
+    >>> int(mask.sum()), z
+    (49, 2.0)
+    """
+    import cv2
+
+    d = check_depth(depth_m, require_valid=False)
+    u, v = _seed_pixel(seed_uv, d.shape)
+    ds = _smooth(d, options.smooth_px)
+    h = options.neighbourhood_px // 2
+    v0, v1, u0, u1 = max(0, v - h), min(d.shape[0], v + h + 1), max(0, u - h), min(d.shape[1], u + h + 1)
+    patch = ds[v0:v1, u0:u1]
+    if not np.any(np.isfinite(patch)):
+        raise TudorVisionError(f"seed pixel ({u}, {v}) has no valid depth in its "
+                               f"{options.neighbourhood_px}x{options.neighbourhood_px} neighbourhood")
+    z_ref = float(np.nanmedian(patch))
+    # median of k*k samples has about 1.25 sigma / k noise
+    noise = float(options.depth_model.sigma(z_ref)) * (1.0 if options.smooth_px == 1 else 1.25 / options.smooth_px)
+    tol = float(np.clip(options.n_sigma * noise, options.min_tol_m, options.max_tol_m))
+    with np.errstate(invalid="ignore"):
+        cand = np.abs(ds - z_ref) <= tol
+    _, labels = cv2.connectedComponents(cand.astype(np.uint8), connectivity=options.connectivity)
+    lab = labels[v, u]
+    if lab == 0:
+        sub = labels[v0:v1, u0:u1]
+        vv, uu = np.nonzero(sub)
+        if len(vv) == 0:
+            return np.zeros(d.shape, bool), z_ref, tol
+        k = int(np.argmin((vv + v0 - v) ** 2 + (uu + u0 - u) ** 2))
+        lab = sub[vv[k], uu[k]]
+    return labels == lab, z_ref, tol
+
+
+def observe_disc(depth_m, intrinsics: Intrinsics, seed_uv, options: DiscOptions = DiscOptions(), *,
+                 strict: bool = True) -> DiscObservation:
+    """Segment the disc and compute its 3D centroid.
+
+    Parameters
+    ----------
+    depth_m : array_like, shape (H, W)
+        Depth in metres.
+    intrinsics : Intrinsics
+    seed_uv : array_like, shape (2,)
+        Seed pixel on the disc.
+    options : DiscOptions
+    strict : bool
+        Raise when the disc is lost; otherwise return an invalid observation
+        with the reason.
+
+    Returns
+    -------
+    DiscObservation
+
+    Raises
+    ------
+    TudorVisionError
+        Seed without valid depth, or (``strict``) a region of implausible size.
+    """
+    d = check_depth(depth_m, intrinsics=intrinsics)
+    u, v = _seed_pixel(seed_uv, d.shape)
+    try:
+        mask, z_ref, tol = segment_uniform_depth(d, (u, v), options)
+    except TudorVisionError as exc:
+        if strict:
+            raise
+        return _lost((u, v), float("nan"), 0, str(exc))
+    n = int(mask.sum())
+    lo, hi = options.min_pixels, options.max_pixels
+    if options.disc_radius_m is not None:
+        r_px = np.sqrt(intrinsics.fx * intrinsics.fy) * options.disc_radius_m / z_ref
+        expected = np.pi * r_px ** 2
+        lo = max(lo, int(np.floor(options.area_ratio[0] * expected)))
+        hi = min(hi, int(np.ceil(options.area_ratio[1] * expected)))
+    reason = ""
+    if n < lo:
+        reason = f"disc region too small at seed ({u}, {v}): {n} pixels < {lo}"
+    elif n > hi:
+        reason = f"disc region too large at seed ({u}, {v}): {n} pixels > {hi} (leaked into the background?)"
+    if reason:
+        if strict:
+            raise TudorVisionError(reason)
+        return _lost((u, v), z_ref, n, reason)
+    vv, uu = np.nonzero(mask)
+    z = d[vv, uu]
+    # raw depths, without pixels whose raw value belongs to another surface
+    raw_tol = max(3.0 * float(options.depth_model.sigma(z_ref)), tol)
+    with np.errstate(invalid="ignore"):
+        keep = np.isfinite(z) & (np.abs(z - z_ref) <= raw_tol)
+    if keep.sum() < 3:
+        reason = f"disc region at seed ({u}, {v}) has only {int(keep.sum())} valid raw depths"
+        if strict:
+            raise TudorVisionError(reason)
+        return _lost((u, v), z_ref, n, reason)
+    uu, vv, z = uu[keep], vv[keep], z[keep]
+    pts = np.stack([(uu - intrinsics.cx) * z / intrinsics.fx, (vv - intrinsics.cy) * z / intrinsics.fy, z], axis=1)
+    c = pts.mean(axis=0)
+    uv = np.array([intrinsics.fx * c[0] / c[2] + intrinsics.cx, intrinsics.fy * c[1] / c[2] + intrinsics.cy])
+    return DiscObservation(True, c, uv, (u, v), z_ref, n)
+
+
+def _lost(seed, z, n, reason) -> DiscObservation:
+    return DiscObservation(False, np.full(3, np.nan), np.full(2, np.nan), tuple(seed), z, n, reason)
+
+
+class DiscTracker:
+    """Follow the disc through a sweep: each seed is the previous centroid's pixel.
+
+    Parameters
+    ----------
+    intrinsics : Intrinsics
+    seed_uv : array_like, shape (2,)
+        Seed pixel on the disc in the first frame.
+    options : DiscOptions
+    max_consecutive_lost : int
+        Raise once the disc has been lost this many frames in a row.
+
+    Examples
+    --------
+    >>> K = Intrinsics(500.0, 500.0, 20.0, 20.0, 40, 40)
+    >>> d = np.full((40, 40), 4.0); d[10:21, 10:21] = 3.0
+    >>> tr = DiscTracker(K, (12, 12), DiscOptions(smooth_px=1))
+    >>> obs = tr.update(d)
+    >>> obs.valid, np.round(obs.centroid_uv, 1).tolist(), tr.seed_uv
+    (True, [15.0, 15.0], (15, 15))
+    """
+
+    def __init__(self, intrinsics: Intrinsics, seed_uv, options: DiscOptions = DiscOptions(), *,
+                 max_consecutive_lost: int = 3):
+        self.intrinsics = intrinsics
+        self.options = options
+        self.max_consecutive_lost = int(max_consecutive_lost)
+        u, v = _seed_pixel(seed_uv, intrinsics.shape)
+        self.seed_uv = (u, v)
+        self.n_lost = 0
+        self.frame = 0
+
+    def update(self, depth_m) -> DiscObservation:
+        """Observe the disc in the next frame; returns the (possibly invalid) observation.
+
+        Raises
+        ------
+        TudorVisionError
+            When the disc has been lost ``max_consecutive_lost`` frames in a row,
+            or the depth frame has no valid pixel.
+        """
+        obs = observe_disc(depth_m, self.intrinsics, self.seed_uv, self.options, strict=False)
+        self.frame += 1
+        if obs.valid:
+            self.n_lost = 0
+            u, v = (int(round(x)) for x in obs.centroid_uv)
+            if 0 <= u < self.intrinsics.width and 0 <= v < self.intrinsics.height:
+                self.seed_uv = (u, v)
+        else:
+            self.n_lost += 1
+            if self.n_lost >= self.max_consecutive_lost:
+                raise TudorVisionError(f"disc lost in {self.n_lost} consecutive frames up to frame "
+                                       f"{self.frame - 1}: {obs.reason}")
+        return obs
+
+
+def track_disc(depth_frames, intrinsics: Intrinsics, seed_uv, options: DiscOptions = DiscOptions(), *,
+               max_consecutive_lost: int = 3) -> list[DiscObservation]:
+    """Track the disc over a sequence of depth frames (see :class:`DiscTracker`).
+
+    Parameters
+    ----------
+    depth_frames : iterable of array_like, each shape (H, W)
+        Depth in metres, one frame per sweep step.
+
+    Returns
+    -------
+    list of DiscObservation
+        One per frame; lost samples have ``valid=False``.
+    """
+    tr = DiscTracker(intrinsics, seed_uv, options, max_consecutive_lost=max_consecutive_lost)
+    return [tr.update(d) for d in depth_frames]
