@@ -1,0 +1,568 @@
+"""Per-sphere colour models: a Gaussian per channel of RGB and HSV (section 2.4).
+
+A colour model is fitted once per sequence, camera and sphere from one frame:
+a picked centre pixel and a picked edge pixel define a circle on the sphere
+image; the pixels inside (shrunk a little, so that the rim and the background
+stay out) give one Gaussian per channel of R, G, B, H, S, V. Pixels far
+outside the circle give a per-channel background histogram. Together they
+define the naive Bayes log-likelihood ratio per channel, tabulated once per
+model so that segmenting a frame costs table look-ups and additions
+(:mod:`tudorvision.stereo.segment`).
+
+Conventions
+-----------
+- Frames are OpenCV BGR ``uint8`` arrays of shape (H, W, 3); image
+  coordinates are ``u`` right (column) and ``v`` down (row) with pixel centres
+  at integer coordinates.
+- Channel order in a model is always ``R, G, B, H, S, V``. H is OpenCV's
+  8-bit hue, 0..179 (two degrees per level); it is circular, so its mean and
+  standard deviation are the circular ones and hue differences are taken on
+  the circle (179 and 0 are one level apart).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass, field
+from types import MappingProxyType
+from typing import Mapping
+
+import cv2
+import numpy as np
+
+from tudorvision._checks import TudorVisionError
+
+__all__ = [
+    "CHANNELS",
+    "HUE_LEVELS",
+    "ColorModel",
+    "ColorModelSet",
+    "fit_color_model",
+    "save_color_models",
+    "load_color_models",
+    "circular_hue_stats",
+]
+
+#: Channel order of every model array.
+CHANNELS = ("R", "G", "B", "H", "S", "V")
+#: Number of levels of OpenCV's 8-bit hue.
+HUE_LEVELS = 180
+_LEVELS = (256, 256, 256, HUE_LEVELS, 256, 256)
+_HUE = 3
+_CAMERAS = ("left", "right", "mono")
+_FORMAT = "tudorvision.colormodel"
+_VERSION = 1
+
+
+def circular_hue_stats(hue) -> tuple[float, float]:
+    """Circular mean and standard deviation of OpenCV hue values (0..179).
+
+    Parameters
+    ----------
+    hue : array_like, shape (N,)
+        Hue levels, two degrees per level; 179 and 0 are neighbours.
+
+    Returns
+    -------
+    mean : float
+        Circular mean in levels, in [0, 180).
+    std : float
+        Circular standard deviation ``sqrt(-2 ln R)`` in levels, where ``R``
+        is the mean resultant length.
+
+    Examples
+    --------
+    >>> m, s = circular_hue_stats([178, 179, 0, 1])
+    >>> round(m, 3), round(s, 2)     # not the linear mean 89.5
+    (179.5, 1.12)
+    """
+    ang = np.asarray(hue, dtype=np.float64).ravel() * (2.0 * np.pi / HUE_LEVELS)
+    if ang.size == 0:
+        raise ValueError("hue: needs at least one value")
+    c, s = np.cos(ang).mean(), np.sin(ang).mean()
+    r = min(math.hypot(c, s), 1.0)
+    mean = (math.atan2(s, c) % (2.0 * np.pi)) * HUE_LEVELS / (2.0 * np.pi)
+    std = math.sqrt(-2.0 * math.log(max(r, 1e-300))) * HUE_LEVELS / (2.0 * np.pi)
+    return float(mean % HUE_LEVELS), float(std)
+
+
+def _check_frame(frame_bgr, name: str = "frame_bgr") -> np.ndarray:
+    arr = np.asarray(frame_bgr)
+    if arr.dtype != np.uint8 or arr.ndim != 3 or arr.shape[2] != 3 or arr.shape[0] < 1 or arr.shape[1] < 1:
+        raise TudorVisionError(
+            f"{name}: expected a uint8 BGR image of shape (H, W, 3), got {arr.dtype} {arr.shape}")
+    return arr
+
+
+def _check_uv(value, name: str, width: int, height: int) -> np.ndarray:
+    try:
+        uv = np.asarray(value, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise TudorVisionError(f"{name}: expected a pixel (u, v), got {value!r}") from None
+    if uv.shape != (2,) or not np.all(np.isfinite(uv)):
+        raise TudorVisionError(f"{name}: expected a finite pixel (u, v), got {value!r}")
+    if not (-0.5 <= uv[0] < width - 0.5 and -0.5 <= uv[1] < height - 0.5):
+        raise TudorVisionError(
+            f"{name}: pixel ({uv[0]:g}, {uv[1]:g}) lies outside the {width}x{height} image")
+    return uv
+
+
+def _gauss_log_pmf(mean: float, std: float, levels: int, circular: bool) -> np.ndarray:
+    x = np.arange(levels, dtype=np.float64)
+    d = x - mean
+    if circular:
+        d = (d + levels / 2.0) % levels - levels / 2.0
+    logp = -0.5 * (d / std) ** 2
+    # normalise over the discrete levels (a proper pmf, comparable with the histogram)
+    mx = logp.max()
+    return logp - (mx + math.log(np.exp(logp - mx).sum()))
+
+
+def _smooth_pmf(counts: np.ndarray, sigma: float, circular: bool, floor: float) -> np.ndarray:
+    levels = counts.size
+    half = int(math.ceil(3 * sigma))
+    k = np.exp(-0.5 * (np.arange(-half, half + 1) / sigma) ** 2)
+    k /= k.sum()
+    c = counts.astype(np.float64)
+    if circular:
+        c = np.concatenate([c[-half:], c, c[:half]])
+        sm = np.convolve(c, k, mode="valid")
+    else:
+        sm = np.convolve(c, k, mode="same")
+    total = sm.sum()
+    pmf = sm / total if total > 0 else np.full(levels, 1.0 / levels)
+    return (1.0 - floor) * pmf + floor / levels
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class ColorModel:
+    """Colour model of one sphere seen by one camera.
+
+    Parameters
+    ----------
+    mean, std : ndarray, shape (6,)
+        Per-channel Gaussian of the sphere pixels, order ``R, G, B, H, S, V``;
+        8-bit levels, hue in OpenCV levels 0..179 (circular mean and std).
+    background : ndarray, shape (6, 256)
+        Per-channel probability of each level among background pixels (rows
+        sum to 1; the hue row uses the first 180 entries, the rest are 0).
+    prior : float
+        Prior probability that a pixel belongs to the sphere, in (0, 1).
+    use_hue : bool
+        Whether the hue channel takes part (False for unsaturated spheres,
+        whose hue is noise).
+    llr_clip : float
+        Each channel's log-likelihood ratio is clipped to ``[-llr_clip,
+        llr_clip]`` so that one outlying channel cannot veto the others alone.
+    center_uv : tuple of float
+        Picked centre pixel (u right, v down), for reference and start-up.
+    radius_px : float
+        Picked radius in pixels.
+    n_pixels : int
+        Number of pixels the Gaussians were fitted from.
+    image_size : tuple of int
+        ``(width, height)`` of the frame the model was picked on.
+
+    Attributes
+    ----------
+    log_ratio : ndarray, shape (6, 256), float32
+        Per-channel log-likelihood ratio tables ``log p(x|sphere) -
+        log p(x|background)``, clipped (hue entries 180..255 repeat the circle
+        and are never used by OpenCV's hue).
+    log_prior_odds : float
+        ``log(prior / (1 - prior))``.
+    plane_tables : ndarray, shape (6, 256), float32
+        ``log_ratio`` rows reordered to the image planes B, G, R, H, S, V, for
+        ``cv2.LUT``.
+    """
+
+    mean: np.ndarray
+    std: np.ndarray
+    background: np.ndarray
+    prior: float
+    use_hue: bool = True
+    llr_clip: float = 8.0
+    center_uv: tuple = (float("nan"), float("nan"))
+    radius_px: float = float("nan")
+    n_pixels: int = 0
+    image_size: tuple = (0, 0)
+    log_ratio: np.ndarray = field(init=False, repr=False)
+    log_prior_odds: float = field(init=False, repr=False)
+    plane_tables: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        mean = np.array(self.mean, dtype=np.float64).reshape(-1)
+        std = np.array(self.std, dtype=np.float64).reshape(-1)
+        bg = np.array(self.background, dtype=np.float64)
+        if mean.shape != (6,) or not np.all(np.isfinite(mean)):
+            raise TudorVisionError(f"mean: expected 6 finite values (R, G, B, H, S, V), got {mean.shape}")
+        if std.shape != (6,) or not np.all(np.isfinite(std)) or np.any(std <= 0):
+            raise TudorVisionError("std: expected 6 finite positive values (R, G, B, H, S, V)")
+        if bg.shape != (6, 256) or not np.all(np.isfinite(bg)) or np.any(bg < 0):
+            raise TudorVisionError(f"background: expected 6 x 256 non-negative values, got {bg.shape}")
+        if not (0.0 < float(self.prior) < 1.0):
+            raise TudorVisionError(f"prior: must lie in (0, 1), got {self.prior}")
+        if not (float(self.llr_clip) > 0):
+            raise TudorVisionError(f"llr_clip: must be positive, got {self.llr_clip}")
+        bg = bg.copy()
+        bg[_HUE, HUE_LEVELS:] = 0.0
+        for c in range(6):
+            s = bg[c, :_LEVELS[c]].sum()
+            if s <= 0:
+                raise TudorVisionError(f"background: channel {CHANNELS[c]} has no mass")
+            bg[c] /= s
+        mean[_HUE] %= HUE_LEVELS
+        for name, arr in (("mean", mean), ("std", std), ("background", bg)):
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+        object.__setattr__(self, "prior", float(self.prior))
+        object.__setattr__(self, "use_hue", bool(self.use_hue))
+        object.__setattr__(self, "center_uv", tuple(float(x) for x in self.center_uv))
+        object.__setattr__(self, "image_size", tuple(int(x) for x in self.image_size))
+
+        clip = float(self.llr_clip)
+        table = np.zeros((6, 256), dtype=np.float64)
+        for c in range(6):
+            n = _LEVELS[c]
+            if c == _HUE and not self.use_hue:
+                continue
+            # the background pmf already carries a uniform floor, so log is finite
+            log_bg = np.log(np.maximum(bg[c, :n], 1e-300))
+            llr = _gauss_log_pmf(mean[c], std[c], n, circular=(c == _HUE)) - log_bg
+            table[c, :n] = np.clip(llr, -clip, clip)
+            if n < 256:  # never produced by cvtColor; keep the circle going
+                table[c, n:] = table[c, np.arange(n, 256) % n]
+        table = table.astype(np.float32)
+        table.setflags(write=False)
+        object.__setattr__(self, "log_ratio", table)
+        object.__setattr__(self, "log_prior_odds", math.log(self.prior / (1.0 - self.prior)))
+        # one contiguous float32 row per image plane, plane order B, G, R, H, S, V
+        planes = np.ascontiguousarray(table[[2, 1, 0, 3, 4, 5]])
+        planes.setflags(write=False)
+        object.__setattr__(self, "plane_tables", planes)
+
+    def to_dict(self) -> dict:
+        """Plain-data form used by :func:`save_color_models`."""
+        return {
+            "channels": list(CHANNELS),
+            "mean": [round(float(x), 6) for x in self.mean],
+            "std": [round(float(x), 6) for x in self.std],
+            "prior": float(self.prior),
+            "use_hue": bool(self.use_hue),
+            "llr_clip": float(self.llr_clip),
+            "center_uv": [float(x) for x in self.center_uv],
+            "radius_px": float(self.radius_px),
+            "n_pixels": int(self.n_pixels),
+            "image_size": [int(x) for x in self.image_size],
+            "background": [[float(f"{x:.6g}") for x in row[:n]] for row, n in zip(self.background, _LEVELS)],
+        }
+
+    @classmethod
+    def from_dict(cls, data: Mapping) -> "ColorModel":
+        """Inverse of :meth:`to_dict`; raises TudorVisionError on malformed data."""
+        if not isinstance(data, Mapping):
+            raise TudorVisionError(f"expected a mapping, got {type(data).__name__}")
+        missing = [k for k in ("mean", "std", "background", "prior") if k not in data]
+        if missing:
+            raise TudorVisionError(f"missing key(s) {', '.join(missing)}")
+        if list(data.get("channels", CHANNELS)) != list(CHANNELS):
+            raise TudorVisionError(f"channels must be {list(CHANNELS)}, got {data.get('channels')}")
+        bg_rows = data["background"]
+        if not isinstance(bg_rows, (list, tuple)) or len(bg_rows) != 6:
+            raise TudorVisionError("background: expected 6 rows (R, G, B, H, S, V)")
+        bg = np.zeros((6, 256))
+        for c, (row, n) in enumerate(zip(bg_rows, _LEVELS)):
+            try:
+                r = np.asarray(row, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise TudorVisionError(f"background: row {CHANNELS[c]} is not numeric") from None
+            if r.shape != (n,):
+                raise TudorVisionError(f"background: row {CHANNELS[c]} needs {n} values, got {r.shape}")
+            bg[c, :n] = r
+        try:
+            return cls(
+                mean=np.asarray(data["mean"], dtype=np.float64),
+                std=np.asarray(data["std"], dtype=np.float64),
+                background=bg,
+                prior=float(data["prior"]),
+                use_hue=bool(data.get("use_hue", True)),
+                llr_clip=float(data.get("llr_clip", 8.0)),
+                center_uv=tuple(data.get("center_uv", (float("nan"), float("nan")))),
+                radius_px=float(data.get("radius_px", float("nan"))),
+                n_pixels=int(data.get("n_pixels", 0)),
+                image_size=tuple(data.get("image_size", (0, 0))),
+            )
+        except (TypeError, ValueError) as exc:
+            if isinstance(exc, TudorVisionError):
+                raise
+            raise TudorVisionError(str(exc)) from None
+
+
+def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_pixels: int = 12,
+                    max_std: float = 45.0, max_hue_std: float = 20.0, min_saturation: float = 30.0,
+                    background_margin: float = 1.5, llr_clip: float = 8.0, prior: float | None = None,
+                    verify: bool = True) -> ColorModel:
+    """Fit a sphere's colour model from a picked centre and edge pixel.
+
+    Parameters
+    ----------
+    frame_bgr : ndarray, shape (H, W, 3), uint8
+        One frame, OpenCV BGR order.
+    center_uv, edge_uv : array_like, shape (2,)
+        Picked pixel at the sphere's centre and on its rim (u right, v down).
+        Their distance is the sphere's radius in pixels.
+    shrink : float
+        Only pixels within ``shrink * radius`` of the centre are used, which
+        keeps the rim (mixed with background) out of the fit.
+    min_pixels : int
+        Fewest pixels a usable circle must hold.
+    max_std, max_hue_std : float
+        Largest per-channel standard deviation (8-bit levels; hue levels for
+        the circular hue std) accepted; a larger one means the circle is not
+        one colour, typically because the pick missed the sphere.
+    min_saturation : float
+        Below this mean saturation the hue is noise and is left out.
+    background_margin : float
+        Background pixels are those farther than ``background_margin *
+        radius`` from the centre (every second row and column of the frame).
+    llr_clip : float
+        Per-channel log-likelihood-ratio clip, see :class:`ColorModel`.
+    prior : float, optional
+        Prior sphere probability per pixel; default: circle area over frame
+        area, limited to [1e-4, 0.2].
+    verify : bool
+        Segment the pick frame with the new model and require a valid
+        detection at the pick (a model that cannot find its own sphere is
+        useless).
+
+    Returns
+    -------
+    ColorModel
+
+    Raises
+    ------
+    TudorVisionError
+        ``frame_bgr`` not a BGR uint8 image; ``center_uv`` or ``edge_uv``
+        outside the image; ``edge_uv`` equal to ``center_uv``; a circle with
+        fewer than ``min_pixels`` pixels; a circle that is not one colour;
+        with ``verify``, a model that does not single out the picked sphere.
+
+    Examples
+    --------
+    >>> img = np.full((60, 80, 3), 90, np.uint8)
+    >>> _ = cv2.circle(img, (40, 30), 10, (40, 40, 200), -1)
+    >>> m = fit_color_model(img, (40, 30), (50, 30))
+    >>> [round(x) for x in m.mean[:3]]   # R, G, B
+    [200, 40, 40]
+    """
+    img = _check_frame(frame_bgr)
+    h, w = img.shape[:2]
+    c = _check_uv(center_uv, "center_uv", w, h)
+    e = _check_uv(edge_uv, "edge_uv", w, h)
+    if not (0 < shrink <= 1):
+        raise TudorVisionError(f"shrink: must lie in (0, 1], got {shrink}")
+    radius = float(np.hypot(*(e - c)))
+    if radius < 1.0:
+        raise TudorVisionError(
+            f"edge_uv: ({e[0]:g}, {e[1]:g}) is {radius:.2f} px from center_uv; pick a pixel on the sphere's rim")
+    r_in = shrink * radius
+    # pixels inside the shrunken circle (clipped to the image)
+    x0, x1 = max(int(math.floor(c[0] - r_in)), 0), min(int(math.ceil(c[0] + r_in)), w - 1)
+    y0, y1 = max(int(math.floor(c[1] - r_in)), 0), min(int(math.ceil(c[1] + r_in)), h - 1)
+    yy, xx = np.mgrid[y0:y1 + 1, x0:x1 + 1]
+    inside = (xx - c[0]) ** 2 + (yy - c[1]) ** 2 <= r_in ** 2
+    patch = img[y0:y1 + 1, x0:x1 + 1]
+    n = int(inside.sum())
+    if n < min_pixels:
+        raise TudorVisionError(
+            f"center_uv, edge_uv: the circle (radius {radius:.1f} px, shrunk to {r_in:.1f}) holds {n} "
+            f"pixels, fewer than min_pixels={min_pixels}; pick the rim of a larger sphere image")
+    hsv_patch = cv2.cvtColor(np.ascontiguousarray(patch), cv2.COLOR_BGR2HSV)
+    fg = np.concatenate([patch[inside][:, ::-1], hsv_patch[inside]], axis=1).astype(np.float64)  # R G B H S V
+    mean = fg.mean(axis=0)
+    std = fg.std(axis=0)
+    mean[_HUE], std[_HUE] = circular_hue_stats(fg[:, _HUE])
+    use_hue = bool(mean[4] >= min_saturation)
+    bad = [f"{ch}={std[i]:.1f}" for i, ch in enumerate(CHANNELS)
+           if (i != _HUE and std[i] > max_std) or (i == _HUE and use_hue and std[i] > max_hue_std)]
+    if bad:
+        raise TudorVisionError(
+            f"center_uv, edge_uv: the picked circle is not one colour (std {', '.join(bad)} exceeds "
+            f"max_std={max_std:g}/max_hue_std={max_hue_std:g}); is the pick on the sphere?")
+    # floor the spread: sensor noise and a different frame never reproduce the pick exactly
+    std = np.maximum(std, [3.0, 3.0, 3.0, 1.5, 4.0, 4.0])
+    if not use_hue:
+        std[_HUE] = HUE_LEVELS  # unused, but a valid number
+
+    # background: every second pixel farther than background_margin * radius
+    sub = img[::2, ::2]
+    hsv_sub = cv2.cvtColor(np.ascontiguousarray(sub), cv2.COLOR_BGR2HSV)
+    vv, uu = np.mgrid[0:h:2, 0:w:2]
+    outside = (uu - c[0]) ** 2 + (vv - c[1]) ** 2 > (background_margin * radius) ** 2
+    if outside.sum() < 100:
+        raise TudorVisionError(
+            f"center_uv, edge_uv: the circle (radius {radius:.1f} px) leaves too little background in "
+            f"the {w}x{h} frame to fit a background model")
+    bgpix = np.concatenate([sub[outside][:, ::-1], hsv_sub[outside]], axis=1)
+    background = np.zeros((6, 256))
+    for ch in range(6):
+        counts = np.bincount(bgpix[:, ch], minlength=_LEVELS[ch])[:_LEVELS[ch]]
+        background[ch, :_LEVELS[ch]] = _smooth_pmf(counts, sigma=2.0, circular=(ch == _HUE), floor=0.01)
+    if prior is None:
+        prior = float(np.clip(math.pi * radius ** 2 / (w * h), 1e-4, 0.2))
+    model = ColorModel(mean=mean, std=std, background=background, prior=prior, use_hue=use_hue,
+                       llr_clip=llr_clip, center_uv=(float(c[0]), float(c[1])), radius_px=radius,
+                       n_pixels=n, image_size=(w, h))
+    if verify:
+        from tudorvision.stereo.segment import detect_sphere  # segment imports this module
+
+        det = detect_sphere(img, model)
+        if not det.valid or np.hypot(det.uv[0] - c[0], det.uv[1] - c[1]) > radius:
+            why = det.reason if not det.valid else (
+                f"the best region lies at ({det.uv[0]:.1f}, {det.uv[1]:.1f}), not at the pick")
+            raise TudorVisionError(
+                f"center_uv, edge_uv: the colour model does not single out the picked sphere ({why})")
+    return model
+
+
+@dataclass(frozen=True)
+class ColorModelSet:
+    """Colour models per camera and sphere.
+
+    Parameters
+    ----------
+    models : mapping
+        ``{camera: {sphere: ColorModel}}`` with camera ``"left"``,
+        ``"right"`` or ``"mono"`` and free sphere names (``"red"``,
+        ``"green"``).
+
+    Examples
+    --------
+    >>> img = np.full((60, 80, 3), 90, np.uint8)
+    >>> _ = cv2.circle(img, (40, 30), 10, (40, 40, 200), -1)
+    >>> s = ColorModelSet({"mono": {"red": fit_color_model(img, (40, 30), (50, 30))}})
+    >>> s.cameras, s.spheres("mono")
+    (('mono',), ('red',))
+    """
+
+    models: Mapping[str, Mapping[str, ColorModel]]
+
+    def __post_init__(self):
+        if not isinstance(self.models, Mapping):
+            raise TudorVisionError("models: expected a mapping {camera: {sphere: ColorModel}}")
+        frozen = {}
+        for cam, spheres in self.models.items():
+            if cam not in _CAMERAS:
+                raise TudorVisionError(f"models: camera must be one of {', '.join(_CAMERAS)}, got {cam!r}")
+            if not isinstance(spheres, Mapping) or not spheres:
+                raise TudorVisionError(f"models: camera {cam!r} needs a non-empty mapping {{sphere: ColorModel}}")
+            for name, m in spheres.items():
+                if not isinstance(name, str) or not name:
+                    raise TudorVisionError(f"models: sphere names must be non-empty strings, got {name!r}")
+                if not isinstance(m, ColorModel):
+                    raise TudorVisionError(f"models: {cam}/{name} is a {type(m).__name__}, not a ColorModel")
+            frozen[cam] = MappingProxyType(dict(spheres))
+        object.__setattr__(self, "models", MappingProxyType(frozen))
+
+    @property
+    def cameras(self) -> tuple:
+        """Camera names in the set."""
+        return tuple(self.models)
+
+    def spheres(self, camera: str) -> tuple:
+        """Sphere names modelled for ``camera``."""
+        return tuple(self._camera(camera))
+
+    def _camera(self, camera: str):
+        if camera not in self.models:
+            raise TudorVisionError(
+                f"camera: the colour model set has no camera {camera!r} (has {', '.join(self.models)})")
+        return self.models[camera]
+
+    def for_camera(self, camera: str) -> Mapping[str, ColorModel]:
+        """``{sphere: ColorModel}`` of one camera."""
+        return self._camera(camera)
+
+    def get(self, camera: str, sphere: str) -> ColorModel:
+        """The model of one camera and sphere (TudorVisionError naming what is missing)."""
+        cam = self._camera(camera)
+        if sphere not in cam:
+            raise TudorVisionError(
+                f"sphere: the colour model set has no sphere {sphere!r} for camera {camera!r} "
+                f"(has {', '.join(cam)})")
+        return cam[sphere]
+
+
+def save_color_models(model_set: ColorModelSet, path) -> None:
+    """Write a :class:`ColorModelSet` to a YAML (``.yaml``/``.yml``) or JSON file.
+
+    The file holds ``format: tudorvision.colormodel``, ``version: 1`` and
+    ``cameras: {camera: {sphere: {channels, mean, std, prior, use_hue,
+    llr_clip, center_uv, radius_px, n_pixels, image_size, background}}}``.
+    Hue is in OpenCV levels (0..179), all other channels in 8-bit levels.
+    """
+    if not isinstance(model_set, ColorModelSet):
+        raise TudorVisionError(f"model_set: expected a ColorModelSet, got {type(model_set).__name__}")
+    doc = {
+        "format": _FORMAT,
+        "version": _VERSION,
+        "cameras": {cam: {name: m.to_dict() for name, m in spheres.items()}
+                    for cam, spheres in model_set.models.items()},
+    }
+    path = os.fspath(path)
+    with open(path, "w", encoding="utf-8") as fh:
+        if path.lower().endswith(".json"):
+            json.dump(doc, fh, indent=1)
+        else:
+            import yaml
+
+            # flow style for the long number lists keeps the file readable
+            yaml.safe_dump(doc, fh, sort_keys=False, default_flow_style=None, width=120)
+
+
+def load_color_models(path) -> ColorModelSet:
+    """Read a file written by :func:`save_color_models`.
+
+    Raises
+    ------
+    TudorVisionError
+        The file is missing, not YAML/JSON, or malformed; the message starts
+        with the file name.
+    """
+    path = os.fspath(path)
+    try:
+        with open(path, encoding="utf-8") as fh:
+            text = fh.read()
+    except OSError as exc:
+        raise TudorVisionError(f"{path}: cannot read colour model file ({exc.strerror})") from None
+    try:
+        if path.lower().endswith(".json"):
+            doc = json.loads(text)
+        else:
+            import yaml
+
+            doc = yaml.safe_load(text)
+    except Exception as exc:  # yaml.YAMLError / json.JSONDecodeError
+        raise TudorVisionError(f"{path}: not a valid YAML/JSON colour model file ({exc.__class__.__name__})") from None
+    if not isinstance(doc, dict) or doc.get("format") != _FORMAT:
+        raise TudorVisionError(f"{path}: not a colour model file (expected format: {_FORMAT})")
+    if doc.get("version") != _VERSION:
+        raise TudorVisionError(f"{path}: unsupported colour model version {doc.get('version')!r}")
+    cams = doc.get("cameras")
+    if not isinstance(cams, dict) or not cams:
+        raise TudorVisionError(f"{path}: 'cameras' must map camera names to spheres")
+    models = {}
+    for cam, spheres in cams.items():
+        if not isinstance(spheres, dict):
+            raise TudorVisionError(f"{path}: cameras/{cam} must map sphere names to models")
+        models[cam] = {}
+        for name, data in spheres.items():
+            try:
+                models[cam][name] = ColorModel.from_dict(data)
+            except TudorVisionError as exc:
+                raise TudorVisionError(f"{path}: cameras/{cam}/{name}: {exc}") from None
+    try:
+        return ColorModelSet(models)
+    except TudorVisionError as exc:
+        raise TudorVisionError(f"{path}: {exc}") from None

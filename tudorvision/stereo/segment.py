@@ -1,0 +1,531 @@
+"""Sphere segmentation: naive Bayes probability image, erosion, region growing, centroid.
+
+The pipeline of section 2.4, per camera and sphere:
+
+1. **Probability image.** Naive Bayes over the six channels R, G, B, H, S, V:
+   ``log_odds = log_prior_odds + sum_c llr_c(x_c)`` with the per-channel
+   log-likelihood-ratio tables of :class:`~tudorvision.stereo.colormodel.ColorModel`
+   applied by ``cv2.LUT`` (one call for BGR, one for HSV; the HSV image is
+   computed once per frame and shared between spheres). The posterior
+   probability is ``sigmoid(log_odds)``; thresholds are applied to the
+   log-odds, so the sigmoid is evaluated only inside candidate regions.
+2. **Seeds.** Pixels with probability >= ``p_seed``, eroded by a disc of
+   radius ``erode_radius_px`` (removes isolated clutter pixels).
+3. **Region growing.** Every 8-connected region of pixels with probability
+   >= ``p_grow`` that contains a seed (hysteresis thresholding, computed
+   with ``cv2.connectedComponentsWithStats``).
+4. **Centroid.** First moment of the region, each pixel weighted by its
+   probability (``weighting="probability"``, default: rim pixels that mix
+   sphere and background count partially, which gives sub-pixel accuracy) or
+   equally (``"binary"``). Image coordinates: ``u`` right, ``v`` down, pixel
+   centres at integer coordinates (OpenCV). Under motion blur the region is
+   the streak and its first moment is the mean position over the exposure.
+5. **Quality and plausibility.** Area, mean probability, circularity and a
+   fill ratio from the region's second moments; regions outside the limits
+   of :class:`SegmentParams` are rejected with a reason. The best region is
+   the valid one with the largest probability mass.
+
+Shape measures (from the central second moments, eigenvalues
+``lam1 >= lam2`` of the region's pixel covariance):
+
+- ``circularity = sqrt(lam2 / lam1)``: 1 for a disc, ``1/elongation`` for
+  an ellipse or a blur streak. It does not suffer from the pixel-staircase
+  perimeter of ``4 pi A / P^2`` on small blobs.
+- ``fill = area / (4 pi sqrt(lam1 lam2))``: 1 for a filled ellipse (any
+  elongation), about 0.95 for a rectangle, less for rings, crescents and
+  ragged clutter.
+
+With ``motion_blur=True`` the circularity limit drops to
+``min_circularity_blur`` (a streak of length ``L`` behind a sphere of
+diameter ``d`` has circularity of roughly ``d / (d + L)``) while the fill
+check still requires a compact, convex-looking blob.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping
+
+import cv2
+import numpy as np
+
+from tudorvision._checks import TudorVisionError
+from tudorvision.stereo.colormodel import ColorModel, _check_frame
+
+__all__ = [
+    "SegmentParams",
+    "SphereDetection",
+    "hsv_from_bgr",
+    "log_odds_image",
+    "probability_image",
+    "detect_sphere",
+    "detect_spheres",
+]
+
+_CCL = getattr(cv2, "CCL_GRANA", 1)  # block-based 8-connectivity: fastest on sparse masks
+
+
+@dataclass(frozen=True, kw_only=True)
+class SegmentParams:
+    """Thresholds and plausibility limits of the sphere segmentation.
+
+    Parameters
+    ----------
+    p_seed : float
+        Posterior probability a seed pixel needs (before erosion).
+    p_grow : float
+        Posterior probability a pixel needs to join a region grown from a
+        seed; ``p_grow <= p_seed``.
+    erode_radius_px : int
+        Radius of the elliptic erosion element for the seeds (0: none).
+    min_area_px, max_area_px : float
+        Plausible region area in pixels.
+    min_mean_prob : float
+        Smallest mean posterior over the region.
+    min_circularity : float
+        Smallest ``sqrt(lam2 / lam1)`` without motion blur.
+    motion_blur : bool
+        Blur is expected: use ``min_circularity_blur`` instead.
+    min_circularity_blur : float
+        Smallest circularity accepted when ``motion_blur`` is set.
+    min_fill, max_fill : float
+        Accepted range of ``area / (4 pi sqrt(lam1 lam2))``.
+    weighting : {"probability", "binary"}
+        Centroid weights, see the module docstring.
+    reject_border : bool
+        Reject regions touching the image border (the sphere is partly out of
+        view and its centroid biased).
+    coarse_step : int
+        Full-frame search runs coarse to fine: candidate regions are found on
+        the frame decimated by ``coarse_step`` (nearest neighbour, no
+        erosion), then each of the ``max_candidates`` heaviest is segmented at
+        full resolution in a window around it, widened until the region fits;
+        the result equals a full-resolution search whenever the coarse pass
+        sees the sphere (spheres of radius >= about ``coarse_step`` px).
+        1 searches the full frame at full resolution.
+    max_candidates : int
+        Coarse candidates refined at full resolution.
+    """
+
+    p_seed: float = 0.95
+    p_grow: float = 0.5
+    erode_radius_px: int = 1
+    min_area_px: float = 8.0
+    max_area_px: float = 40000.0
+    min_mean_prob: float = 0.6
+    min_circularity: float = 0.55
+    motion_blur: bool = False
+    min_circularity_blur: float = 0.12
+    min_fill: float = 0.7
+    max_fill: float = 1.3
+    weighting: str = "probability"
+    reject_border: bool = True
+    coarse_step: int = 2
+    max_candidates: int = 4
+
+    def __post_init__(self):
+        if not (0.0 < self.p_grow <= self.p_seed < 1.0):
+            raise TudorVisionError(
+                f"p_grow, p_seed: need 0 < p_grow <= p_seed < 1, got {self.p_grow}, {self.p_seed}")
+        if int(self.erode_radius_px) != self.erode_radius_px or self.erode_radius_px < 0:
+            raise TudorVisionError(f"erode_radius_px: must be a non-negative integer, got {self.erode_radius_px}")
+        if not (0 <= self.min_area_px <= self.max_area_px):
+            raise TudorVisionError(
+                f"min_area_px, max_area_px: need 0 <= min <= max, got {self.min_area_px}, {self.max_area_px}")
+        if not (0.0 <= self.min_circularity_blur <= self.min_circularity <= 1.0):
+            raise TudorVisionError("min_circularity_blur, min_circularity: need 0 <= blur <= plain <= 1")
+        if not (0.0 <= self.min_fill <= self.max_fill):
+            raise TudorVisionError(f"min_fill, max_fill: need 0 <= min <= max, got {self.min_fill}, {self.max_fill}")
+        if int(self.coarse_step) != self.coarse_step or self.coarse_step < 1:
+            raise TudorVisionError(f"coarse_step: must be a positive integer, got {self.coarse_step}")
+        if int(self.max_candidates) != self.max_candidates or self.max_candidates < 1:
+            raise TudorVisionError(f"max_candidates: must be a positive integer, got {self.max_candidates}")
+        if self.weighting not in ("probability", "binary"):
+            raise TudorVisionError(f"weighting: must be 'probability' or 'binary', got {self.weighting!r}")
+
+
+@dataclass(frozen=True)
+class SphereDetection:
+    """One sphere detection in one image.
+
+    Parameters
+    ----------
+    uv : tuple of float
+        Sub-pixel centroid ``(u, v)`` in full-frame pixels (u right, v down,
+        pixel centres at integers); ``(nan, nan)`` when no region was found.
+    area_px : float
+        Region area in pixels.
+    mean_prob : float
+        Mean posterior probability over the region.
+    circularity : float
+        ``sqrt(lam2 / lam1)`` of the region's second moments (1 = round).
+    valid : bool
+        Whether the region passed every plausibility check.
+    reason : str
+        Empty when valid, otherwise why the region was rejected (or that
+        none was found).
+    fill : float
+        ``area / (4 pi sqrt(lam1 lam2))`` (1 for a filled ellipse).
+    bbox : tuple of int
+        ``(x, y, w, h)`` of the region in full-frame pixels.
+    touches_window : bool
+        The region touches the border of the searched window where that
+        border is not the image border (the window was too small).
+    """
+
+    uv: tuple
+    area_px: float
+    mean_prob: float
+    circularity: float
+    valid: bool
+    reason: str = ""
+    fill: float = float("nan")
+    bbox: tuple = (0, 0, 0, 0)
+    touches_window: bool = False
+
+    @property
+    def radius_px(self) -> float:
+        """Radius of the disc with the region's area, ``sqrt(area / pi)``."""
+        return math.sqrt(self.area_px / math.pi)
+
+
+_NOTHING = "no pixel above p_seed survives erosion"
+
+
+def _none(reason: str = _NOTHING) -> SphereDetection:
+    return SphereDetection(uv=(float("nan"), float("nan")), area_px=0.0, mean_prob=0.0, circularity=0.0,
+                           valid=False, reason=reason)
+
+
+def _logit(p: float) -> float:
+    return math.log(p / (1.0 - p))
+
+
+def _check_hsv(hsv, shape) -> np.ndarray:
+    arr = np.asarray(hsv)
+    if arr.dtype != np.uint8 or arr.shape != shape:
+        raise TudorVisionError(f"hsv: expected a uint8 HSV image of shape {shape}, got {arr.dtype} {arr.shape}")
+    return arr
+
+
+class _Frame:
+    """Per-frame cache (private): HSV and the six planes B, G, R, H, S, V, shared between spheres."""
+
+    def __init__(self, bgr: np.ndarray, hsv: np.ndarray | None = None):
+        self.bgr = bgr
+        self.hsv = hsv
+        self.height, self.width = bgr.shape[:2]
+        self._full = None
+        self._coarse = {}
+
+    def full_planes(self):
+        if self._full is None:
+            if self.hsv is None:
+                self.hsv = cv2.cvtColor(self.bgr, cv2.COLOR_BGR2HSV)
+            self._full = (*cv2.split(self.bgr), *cv2.split(self.hsv))
+        return self._full
+
+    def coarse_planes(self, step: int):
+        if step not in self._coarse:
+            size = (self.width // step, self.height // step)
+            small = cv2.resize(self.bgr, size, interpolation=cv2.INTER_NEAREST)
+            self._coarse[step] = (*cv2.split(small), *cv2.split(cv2.cvtColor(small, cv2.COLOR_BGR2HSV)))
+        return self._coarse[step]
+
+    def window_planes(self, x0: int, y0: int, w: int, h: int):
+        if self._full is not None:
+            return tuple(p[y0:y0 + h, x0:x0 + w] for p in self._full)
+        win = self.bgr[y0:y0 + h, x0:x0 + w]
+        hw = cv2.cvtColor(win, cv2.COLOR_BGR2HSV) if self.hsv is None else self.hsv[y0:y0 + h, x0:x0 + w]
+        return (*cv2.split(win), *cv2.split(hw))
+
+
+def _log_odds_planes(planes, model: ColorModel) -> np.ndarray:
+    tabs = model.plane_tables
+    acc = cv2.LUT(planes[0], tabs[0])
+    for i in (1, 2, 3, 4, 5):
+        if i == 3 and not model.use_hue:
+            continue  # its table is zero
+        acc += cv2.LUT(planes[i], tabs[i])
+    acc += np.float32(model.log_prior_odds)
+    return acc
+
+
+def hsv_from_bgr(frame_bgr) -> np.ndarray:
+    """OpenCV 8-bit HSV of a BGR frame (H in 0..179, S and V in 0..255).
+
+    Compute it once per frame and pass it as ``hsv=`` to the functions of this
+    module to share it between spheres.
+    """
+    return cv2.cvtColor(_check_frame(frame_bgr), cv2.COLOR_BGR2HSV)
+
+
+def log_odds_image(frame_bgr, model: ColorModel, *, hsv=None) -> np.ndarray:
+    """Naive Bayes log posterior odds ``log P(sphere|x) / P(background|x)`` per pixel.
+
+    ``log_prior_odds + sum over R, G, B, H, S, V of the model's clipped
+    per-channel log-likelihood ratio`` (six ``cv2.LUT`` look-ups and adds).
+
+    Parameters
+    ----------
+    frame_bgr : ndarray, shape (H, W, 3), uint8
+        BGR frame.
+    model : ColorModel
+        The sphere's colour model.
+    hsv : ndarray, shape (H, W, 3), uint8, optional
+        ``hsv_from_bgr(frame_bgr)`` if already computed.
+
+    Returns
+    -------
+    ndarray, shape (H, W), float32
+    """
+    bgr = _check_frame(frame_bgr)
+    frame = _Frame(bgr, None if hsv is None else _check_hsv(hsv, bgr.shape))
+    return _log_odds_planes(frame.full_planes(), model)
+
+
+def probability_image(frame_bgr, model: ColorModel, *, hsv=None) -> np.ndarray:
+    """Posterior probability that each pixel shows the sphere.
+
+    Returns
+    -------
+    ndarray, shape (H, W), float32
+        Values in [0, 1]: ``1 / (1 + exp(-log_odds_image(...)))``.
+
+    Examples
+    --------
+    >>> import cv2
+    >>> from tudorvision.stereo.colormodel import fit_color_model
+    >>> img = np.full((60, 80, 3), 90, np.uint8)
+    >>> _ = cv2.circle(img, (40, 30), 10, (40, 40, 200), -1)
+    >>> p = probability_image(img, fit_color_model(img, (40, 30), (50, 30)))
+    >>> bool(p[30, 40] > 0.99), bool(p[5, 5] < 0.01)
+    (True, True)
+    """
+    lo = log_odds_image(frame_bgr, model, hsv=hsv)
+    with np.errstate(over="ignore"):
+        return (1.0 / (1.0 + np.exp(-lo))).astype(np.float32)
+
+
+_KERNELS = {}
+
+
+def _erode_kernel(r: int):
+    if r not in _KERNELS:
+        _KERNELS[r] = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    return _KERNELS[r]
+
+
+def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, image_size: tuple,
+                blur: bool, *, erode: int, scale: int = 1) -> list:
+    """Seeds, region growing, centroid and checks on a log-odds window.
+
+    ``offset`` = (x0, y0) of the window in frame pixels, ``image_size`` = (W, H)
+    of the frame. Returns every seeded region as a SphereDetection, best first
+    (valid before invalid, then by probability mass). With ``scale`` > 1 the
+    window is a decimated frame: only bounding boxes (scaled back) matter.
+    """
+    seeds = cv2.compare(log_odds, _logit(params.p_seed), cv2.CMP_GE)
+    if erode > 0:
+        seeds = cv2.erode(seeds, _erode_kernel(erode))
+    if cv2.countNonZero(seeds) == 0:
+        return []
+    grow = cv2.compare(log_odds, _logit(params.p_grow), cv2.CMP_GE)
+    n, labels, stats, _ = cv2.connectedComponentsWithStatsWithAlgorithm(grow, 8, cv2.CV_32S, _CCL)
+    hh, ww = log_odds.shape
+    x0, y0 = offset
+    img_w, img_h = image_size
+    min_circ = params.min_circularity_blur if blur else params.min_circularity
+    out = []
+    for k in range(1, n):
+        x, y, w, h, area = (int(s) for s in stats[k])
+        lab = labels[y:y + h, x:x + w] == k
+        if not seeds[y:y + h, x:x + w][lab].any():
+            continue  # no seed inside: not grown
+        lo = log_odds[y:y + h, x:x + w][lab].astype(np.float64)
+        p = 1.0 / (1.0 + np.exp(-lo))
+        mean_prob = float(p.mean())
+        if scale > 1:
+            out.append(SphereDetection(uv=(float("nan"), float("nan")), area_px=float(area * scale * scale),
+                                       mean_prob=mean_prob, circularity=float("nan"), valid=False,
+                                       reason="coarse", bbox=(x * scale, y * scale, w * scale, h * scale)))
+            continue
+        vs, us = np.nonzero(lab)
+        us = us.astype(np.float64)
+        vs = vs.astype(np.float64)
+        wgt = p if params.weighting == "probability" else np.ones_like(p)
+        mass = float(wgt.sum())
+        cu = float(wgt @ us) / mass + (x + x0)
+        cv_ = float(wgt @ vs) / mass + (y + y0)
+        # shape from the binary central second moments; +1/12: pixels are unit squares
+        du, dv = us - us.mean(), vs - vs.mean()
+        suu = float(du @ du) / area + 1.0 / 12.0
+        svv = float(dv @ dv) / area + 1.0 / 12.0
+        suv = float(du @ dv) / area
+        tr, det = suu + svv, suu * svv - suv * suv
+        disc = math.sqrt(max(tr * tr / 4.0 - det, 0.0))
+        lam1, lam2 = tr / 2.0 + disc, max(tr / 2.0 - disc, 1e-12)
+        circ = math.sqrt(lam2 / lam1)
+        fill = area / (4.0 * math.pi * math.sqrt(lam1 * lam2))
+        on_left, on_top, on_right, on_bottom = x == 0, y == 0, x + w == ww, y + h == hh
+        at_image = ((on_left and x0 == 0) or (on_top and y0 == 0)
+                    or (on_right and x0 + ww == img_w) or (on_bottom and y0 + hh == img_h))
+        at_window = ((on_left and x0 > 0) or (on_top and y0 > 0)
+                     or (on_right and x0 + ww < img_w) or (on_bottom and y0 + hh < img_h))
+        reason = ""
+        if area < params.min_area_px:
+            reason = f"area {area} px < min_area_px {params.min_area_px:g}"
+        elif area > params.max_area_px:
+            reason = f"area {area} px > max_area_px {params.max_area_px:g}"
+        elif mean_prob < params.min_mean_prob:
+            reason = f"mean probability {mean_prob:.2f} < min_mean_prob {params.min_mean_prob:g}"
+        elif circ < min_circ:
+            reason = (f"circularity {circ:.2f} < {min_circ:g} (not round"
+                      f"{'' if blur else '; motion blur not expected'})")
+        elif not (params.min_fill <= fill <= params.max_fill):
+            reason = f"fill {fill:.2f} outside [{params.min_fill:g}, {params.max_fill:g}] (not a compact blob)"
+        elif params.reject_border and at_image:
+            reason = "region touches the image border (sphere partly out of view)"
+        out.append(SphereDetection(uv=(cu, cv_), area_px=float(area), mean_prob=mean_prob, circularity=circ,
+                                   valid=not reason, reason=reason, fill=fill,
+                                   bbox=(x + x0, y + y0, w, h), touches_window=at_window))
+    out.sort(key=lambda d: (d.valid, d.area_px * d.mean_prob), reverse=True)
+    return out
+
+
+def _check_roi(roi, width: int, height: int) -> tuple:
+    try:
+        x, y, w, h = (int(v) for v in roi)
+    except (TypeError, ValueError):
+        raise TudorVisionError(f"roi: expected (x, y, w, h) integers, got {roi!r}") from None
+    x0, y0 = max(x, 0), max(y, 0)
+    x1, y1 = min(x + w, width), min(y + h, height)
+    if x1 - x0 < 1 or y1 - y0 < 1:
+        raise TudorVisionError(f"roi: window {roi!r} does not overlap the {width}x{height} image")
+    return x0, y0, x1 - x0, y1 - y0
+
+
+def _detect_window(frame: _Frame, model: ColorModel, params: SegmentParams, roi: tuple, blur: bool) -> list:
+    x0, y0, w, h = roi
+    lo = _log_odds_planes(frame.window_planes(x0, y0, w, h), model)
+    return _candidates(lo, params, (x0, y0), (frame.width, frame.height), blur,
+                       erode=int(params.erode_radius_px))
+
+
+def _grow_roi(bbox, margin: int, width: int, height: int) -> tuple:
+    x, y, w, h = bbox
+    x0, y0 = max(x - margin, 0), max(y - margin, 0)
+    x1, y1 = min(x + w + margin, width), min(y + h + margin, height)
+    return x0, y0, x1 - x0, y1 - y0
+
+
+def _detect_full(frame: _Frame, model: ColorModel, params: SegmentParams, blur: bool) -> SphereDetection:
+    step = int(params.coarse_step)
+    if step == 1:
+        lo = _log_odds_planes(frame.full_planes(), model)
+        found = _candidates(lo, params, (0, 0), (frame.width, frame.height), blur,
+                            erode=int(params.erode_radius_px))
+        return found[0] if found else _none()
+    # coarse pass on the decimated frame, no erosion (it would erase small spheres there)
+    lo = _log_odds_planes(frame.coarse_planes(step), model)
+    coarse = _candidates(lo, params, (0, 0), (frame.width, frame.height), blur, erode=0, scale=step)
+    coarse.sort(key=lambda d: d.area_px * d.mean_prob, reverse=True)
+    best = []
+    for cand in coarse[:params.max_candidates]:
+        margin = 2 * step + int(params.erode_radius_px) + 2
+        for _ in range(4):  # widen the window until the full-resolution region fits
+            roi = _grow_roi(cand.bbox, margin, frame.width, frame.height)
+            found = _detect_window(frame, model, params, roi, blur)
+            if not found or not found[0].touches_window:
+                break
+            cand = found[0]
+        best.extend(found[:1])
+    best.sort(key=lambda d: (d.valid, d.area_px * d.mean_prob), reverse=True)
+    return best[0] if best else _none()
+
+
+def _detect(frame: _Frame, model: ColorModel, params: SegmentParams, roi, blur: bool) -> SphereDetection:
+    if roi is None:
+        return _detect_full(frame, model, params, blur)
+    found = _detect_window(frame, model, params, roi, blur)
+    return found[0] if found else _none()
+
+
+def detect_sphere(frame_bgr, model: ColorModel, *, params: SegmentParams | None = None, hsv=None,
+                  roi=None, motion_blur: bool | None = None) -> SphereDetection:
+    """Find one sphere in a BGR frame (full frame or a window).
+
+    Parameters
+    ----------
+    frame_bgr : ndarray, shape (H, W, 3), uint8
+        The full frame, OpenCV BGR order.
+    model : ColorModel
+        The sphere's colour model for this camera.
+    params : SegmentParams, optional
+        Thresholds and limits (default ``SegmentParams()``).
+    hsv : ndarray, shape (H, W, 3), uint8, optional
+        ``hsv_from_bgr(frame_bgr)`` of the full frame, to share between
+        spheres (:func:`detect_spheres` does this for you).
+    roi : tuple of int, optional
+        Search window ``(x, y, w, h)`` in frame pixels; it is clipped to the
+        image. Without it the full frame is searched (coarse to fine when
+        ``params.coarse_step > 1``).
+    motion_blur : bool, optional
+        Overrides ``params.motion_blur`` for this call (the tracker sets it
+        from the predicted image speed).
+
+    Returns
+    -------
+    SphereDetection
+        ``uv`` in full-frame coordinates even when ``roi`` is given.
+
+    Raises
+    ------
+    TudorVisionError
+        Bad ``frame_bgr``, ``hsv`` or ``roi``.
+
+    Examples
+    --------
+    >>> import cv2
+    >>> from tudorvision.stereo.colormodel import fit_color_model
+    >>> img = np.full((60, 80, 3), 90, np.uint8)
+    >>> _ = cv2.circle(img, (40, 30), 10, (40, 40, 200), -1)
+    >>> model = fit_color_model(img, (40, 30), (50, 30))
+    >>> moved = np.roll(img, 5, axis=1)            # the sphere now sits at u = 45
+    >>> det = detect_sphere(moved, model)
+    >>> det.valid, round(det.uv[0], 2), round(det.uv[1], 2)
+    (True, 45.0, 30.0)
+    """
+    params = SegmentParams() if params is None else params
+    bgr = _check_frame(frame_bgr)
+    frame = _Frame(bgr, None if hsv is None else _check_hsv(hsv, bgr.shape))
+    blur = params.motion_blur if motion_blur is None else bool(motion_blur)
+    if roi is not None:
+        roi = _check_roi(roi, frame.width, frame.height)
+    return _detect(frame, model, params, roi, blur)
+
+
+def detect_spheres(frame_bgr, models: Mapping[str, ColorModel], *, params: SegmentParams | None = None,
+                   hsv=None) -> dict:
+    """Find every modelled sphere in one full BGR frame, sharing the colour conversion.
+
+    Parameters
+    ----------
+    frame_bgr : ndarray, shape (H, W, 3), uint8
+        BGR frame of one camera.
+    models : mapping of str to ColorModel
+        ``{sphere: model}`` for this camera, e.g.
+        ``ColorModelSet.for_camera("left")``.
+    params : SegmentParams, optional
+    hsv : ndarray, shape (H, W, 3), uint8, optional
+        Precomputed HSV of the frame.
+
+    Returns
+    -------
+    dict of str to SphereDetection
+        One detection per model name (invalid ones say why in ``reason``).
+    """
+    params = SegmentParams() if params is None else params
+    bgr = _check_frame(frame_bgr)
+    frame = _Frame(bgr, None if hsv is None else _check_hsv(hsv, bgr.shape))
+    return {name: _detect(frame, m, params, None, params.motion_blur) for name, m in models.items()}
