@@ -1,0 +1,578 @@
+"""Binary UDP protocol between perception and the joint-control layer.
+
+Every datagram is a fixed 28-byte header followed by a message payload, all
+big-endian (network order):
+
+========  =======  ==========================================================
+offset    format   field
+========  =======  ==========================================================
+0         4s       magic ``b"TDJL"``
+4         B        protocol version (:data:`VERSION`)
+5         B        message type (:class:`MsgType`)
+6         H        reserved, must be 0
+8         I        sequence number (uint32, wraps; per sender)
+12        d        sender timestamp in seconds (``time.monotonic`` of the sender)
+20        I        payload length in bytes
+24        I        CRC32 (``zlib.crc32``) over the header with this field zeroed,
+                   followed by the payload
+========  =======  ==========================================================
+
+Units are SI: radians, rad/s, rad/s², seconds, strain in m/m. All floats are
+float64 and must be finite; :func:`decode` refuses NaN and infinities.
+
+Examples
+--------
+>>> data = encode(JointVelocityCommand(theta_dot=(0.1, 0.0, -0.2)), seq=7, t=1.5)
+>>> header, msg = decode(data)
+>>> header.seq, header.msg_type.name, msg.theta_dot
+(7, 'VELOCITY', (0.1, 0.0, -0.2))
+"""
+from __future__ import annotations
+
+import enum
+import math
+import struct
+import zlib
+from dataclasses import dataclass, field
+
+from .._checks import TudorVisionError
+
+__all__ = [
+    "MAGIC", "VERSION", "HEADER_SIZE", "MAX_DATAGRAM", "MsgType", "Mode", "Damping",
+    "CollisionStrategy", "Reason", "StateFlags", "Header", "JointVelocityCommand",
+    "JointSetpoint", "ModeSwitch", "StateRequest", "Counters", "State", "Ack", "Refusal",
+    "Message", "COMMAND_TYPES", "ProtocolError", "BadMagic", "BadVersion", "BadLength",
+    "BadChecksum", "UnknownType", "NonFinite", "BadValue", "encode", "decode",
+    "seq_newer", "seq_add",
+]
+
+MAGIC = b"TDJL"
+VERSION = 1
+_HEADER = struct.Struct("!4sBBHIdII")
+HEADER_SIZE = _HEADER.size          # 28 bytes
+MAX_DATAGRAM = 1400                 # stays below a typical Ethernet MTU
+MAX_TEXT = 255                      # bytes of UTF-8 in Ack/Refusal texts
+_KEEP = 0xFF                        # "keep current" in ModeSwitch fields
+
+
+class MsgType(enum.IntEnum):
+    """Message type byte in the header."""
+
+    VELOCITY = 1
+    SETPOINT = 2
+    MODE = 3
+    STATE_REQUEST = 4
+    STATE = 5
+    ACK = 6
+    REFUSAL = 7
+
+
+class Mode(enum.IntEnum):
+    """Operating mode of the joint-control layer."""
+
+    IDLE = 0        # holds position, refuses motion commands
+    VELOCITY = 1    # joint velocity commands with watchdog (visual servoing)
+    SETPOINT = 2    # point-to-point joint setpoints (catching)
+
+
+class Damping(enum.IntEnum):
+    """Oscillation damping law of the layer (sections 5-7)."""
+
+    OFF = 0
+    PROPORTIONAL = 1       # strain feedback at the velocity-loop input (5.2.1)
+    INTEGRAL = 2           # integral feedback at position level (6.5.1)
+    HALF_INTEGRATOR = 3    # shifted Pade P5,5 half-integrator (7.5.1)
+
+
+class CollisionStrategy(enum.IntEnum):
+    """Collision reaction strategy (section 11.2)."""
+
+    NONE = 0
+    STOP = 1
+    REFLEX = 2
+    INTERACTION = 3
+
+
+class Reason(enum.IntEnum):
+    """Reason codes carried by :class:`Ack` (codes < 10) and :class:`Refusal` (>= 10)."""
+
+    OK = 0
+    CLAMPED_RANGE = 1      # setpoint moved inside the joint range
+    CLAMPED_SPEED = 2      # velocity scaled down / setpoint speed reduced to the limit
+    CLAMPED_ACCEL = 3      # setpoint acceleration reduced to the limit
+    OUT_OF_RANGE = 10
+    OVER_SPEED = 11
+    OVER_ACCEL = 12
+    NON_FINITE = 13
+    MALFORMED = 14
+    WRONG_MODE = 15
+    STALE = 16
+    FAULT = 17             # the layer is in a fault stop
+
+
+class StateFlags(enum.IntFlag):
+    """Bits of :attr:`State.flags`."""
+
+    NONE = 0
+    WATCHDOG_STOP = 1 << 0   # velocity commands expired; controlled stop in progress/done
+    CLAMPED = 1 << 1         # the last accepted command was clamped
+    REFUSED = 1 << 2         # the last command was refused
+    COLLISION = 1 << 3       # the core reports a detected collision
+    SETTLED = 1 << 4         # the core reports the arm at rest (joints and strains)
+    MOVING = 1 << 5          # some joint speed above the rest threshold
+    LIMIT_BRAKE = 1 << 6     # velocity reduced to stop before a joint range limit
+    FAULT = 1 << 7           # the core left its limits; the layer stopped it
+
+
+@dataclass(frozen=True)
+class Header:
+    """Decoded datagram header."""
+
+    version: int
+    msg_type: MsgType
+    seq: int
+    t_sent: float
+    payload_len: int
+
+
+def _floats(value, name: str, n: int) -> tuple:
+    try:
+        out = tuple(float(v) for v in value)
+    except TypeError:
+        raise ValueError(f"{name}: expected {n} numbers, got {value!r}") from None
+    if len(out) != n:
+        raise ValueError(f"{name}: expected {n} numbers, got {len(out)}")
+    return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class JointVelocityCommand:
+    """Joint velocity reference in rad/s, shape (3,), held until the watchdog expires."""
+
+    theta_dot: tuple
+
+    def __post_init__(self):
+        object.__setattr__(self, "theta_dot", _floats(self.theta_dot, "theta_dot", 3))
+
+
+@dataclass(frozen=True, kw_only=True)
+class JointSetpoint:
+    """Joint position setpoint in rad, shape (3,), with optional scalar limits.
+
+    ``max_speed`` (rad/s) and ``max_accel`` (rad/s²) bound the point-to-point
+    profile; ``None`` lets the layer choose its defaults.
+    """
+
+    theta: tuple
+    max_speed: float | None = None
+    max_accel: float | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "theta", _floats(self.theta, "theta", 3))
+        for name in ("max_speed", "max_accel"):
+            v = getattr(self, name)
+            if v is not None:
+                object.__setattr__(self, name, float(v))
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModeSwitch:
+    """Switch mode, damping law and collision strategy; ``None`` keeps the current one."""
+
+    mode: Mode | None = None
+    damping: Damping | None = None
+    collision: CollisionStrategy | None = None
+
+    def __post_init__(self):
+        for name, cls in (("mode", Mode), ("damping", Damping), ("collision", CollisionStrategy)):
+            v = getattr(self, name)
+            if v is not None:
+                object.__setattr__(self, name, cls(v))
+
+
+@dataclass(frozen=True, kw_only=True)
+class StateRequest:
+    """Ask the layer for a :class:`State` (empty payload)."""
+
+
+@dataclass(frozen=True, kw_only=True)
+class Counters:
+    """Event counters of the layer since it started."""
+
+    malformed: int = 0       # datagrams that failed to decode (incl. NaN/inf values)
+    refused: int = 0         # well-formed commands refused (limits, mode, age)
+    duplicates: int = 0      # commands whose sequence number was already seen
+    stale: int = 0           # commands older than the newest seen, or too old in time
+    watchdog_stops: int = 0  # velocity watchdog expiries
+    accepted: int = 0        # commands accepted (possibly clamped)
+    overruns: int = 0        # control ticks skipped because the loop fell behind
+
+
+_N_COUNTERS = 7
+
+
+@dataclass(frozen=True, kw_only=True)
+class State:
+    """State feedback of the joint-control layer.
+
+    Attributes
+    ----------
+    t : float
+        Time of the layer's core in s.
+    theta, theta_dot : tuple of 3 float
+        Joint angles (rad) and speeds (rad/s) at the gear output.
+    strains : tuple of 4 float
+        Strain gauge signals in m/m (link 2 root, link 2 mid, link 3 root, link 3 mid).
+    residuals : tuple of 3 float
+        Collision-detection residuals per joint (core units).
+    flags : StateFlags
+    mode, damping, collision : Mode, Damping, CollisionStrategy
+    last_command_seq : int
+        Sequence number of the last command accepted from any client (0 before any).
+    request_seq : int
+        Sequence number of the :class:`StateRequest` this answers (0 if unsolicited).
+    counters : Counters
+    """
+
+    t: float
+    theta: tuple
+    theta_dot: tuple
+    strains: tuple = (0.0, 0.0, 0.0, 0.0)
+    residuals: tuple = (0.0, 0.0, 0.0)
+    flags: StateFlags = StateFlags.NONE
+    mode: Mode = Mode.IDLE
+    damping: Damping = Damping.OFF
+    collision: CollisionStrategy = CollisionStrategy.NONE
+    last_command_seq: int = 0
+    request_seq: int = 0
+    counters: Counters = field(default_factory=Counters)
+
+    def __post_init__(self):
+        object.__setattr__(self, "t", float(self.t))
+        for name, n in (("theta", 3), ("theta_dot", 3), ("strains", 4), ("residuals", 3)):
+            object.__setattr__(self, name, _floats(getattr(self, name), name, n))
+        object.__setattr__(self, "flags", StateFlags(int(self.flags)))
+        object.__setattr__(self, "mode", Mode(self.mode))
+        object.__setattr__(self, "damping", Damping(self.damping))
+        object.__setattr__(self, "collision", CollisionStrategy(self.collision))
+
+    @property
+    def settled(self) -> bool:
+        """True when the SETTLED flag is set."""
+        return bool(self.flags & StateFlags.SETTLED)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Ack:
+    """Acceptance of command ``command_seq``; ``code`` tells whether it was clamped."""
+
+    command_seq: int
+    code: Reason = Reason.OK
+    text: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "code", Reason(self.code))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Refusal:
+    """Refusal of command ``command_seq`` with a reason code and a human-readable text."""
+
+    command_seq: int
+    code: Reason
+    text: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "code", Reason(self.code))
+
+
+Message = (JointVelocityCommand | JointSetpoint | ModeSwitch | StateRequest | State
+           | Ack | Refusal)
+COMMAND_TYPES = (JointVelocityCommand, JointSetpoint, ModeSwitch)
+
+
+class ProtocolError(TudorVisionError):
+    """A datagram that cannot be decoded.
+
+    ``header`` is the decoded :class:`Header` when the header and checksum were
+    valid (the sender and sequence number can be trusted), else ``None``.
+    """
+
+    reason = Reason.MALFORMED
+
+    def __init__(self, message: str, header: Header | None = None):
+        super().__init__(message)
+        self.header = header
+
+
+class BadMagic(ProtocolError):
+    """The datagram does not start with :data:`MAGIC`."""
+
+
+class BadVersion(ProtocolError):
+    """Unsupported protocol version."""
+
+
+class BadLength(ProtocolError):
+    """Datagram shorter than a header, or payload length not matching."""
+
+
+class BadChecksum(ProtocolError):
+    """CRC32 mismatch (corrupted bytes)."""
+
+
+class UnknownType(ProtocolError):
+    """Unknown message type byte."""
+
+
+class NonFinite(ProtocolError):
+    """A float field holds NaN or an infinity."""
+
+    reason = Reason.NON_FINITE
+
+
+class BadValue(ProtocolError):
+    """A field holds a value outside its domain (enum, flags, text encoding)."""
+
+
+# ---------------------------------------------------------------- payload codecs
+_VEL = struct.Struct("!3d")
+_SETP = struct.Struct("!3d2dB")
+_MODE = struct.Struct("!3B")
+_STATE = struct.Struct(f"!14dI3B2I{_N_COUNTERS}I")
+_REPLY = struct.Struct("!IHB")
+_U32 = 0xFFFFFFFF
+_ALL_FLAGS = int(sum(f.value for f in StateFlags))
+
+
+def _check_finite(values, what: str, strict: bool) -> None:
+    if strict and not all(math.isfinite(v) for v in values):
+        raise NonFinite(f"{what}: NaN or infinite value")
+
+
+def _text_bytes(text: str) -> bytes:
+    raw = text.encode("utf-8")[:MAX_TEXT]
+    return raw.decode("utf-8", errors="ignore").encode("utf-8")
+
+
+def _pack_payload(msg, strict: bool) -> tuple[MsgType, bytes]:
+    if isinstance(msg, JointVelocityCommand):
+        _check_finite(msg.theta_dot, "theta_dot", strict)
+        return MsgType.VELOCITY, _VEL.pack(*msg.theta_dot)
+    if isinstance(msg, JointSetpoint):
+        bits = (msg.max_speed is not None) | ((msg.max_accel is not None) << 1)
+        speed = 0.0 if msg.max_speed is None else msg.max_speed
+        accel = 0.0 if msg.max_accel is None else msg.max_accel
+        _check_finite((*msg.theta, speed, accel), "setpoint", strict)
+        return MsgType.SETPOINT, _SETP.pack(*msg.theta, speed, accel, bits)
+    if isinstance(msg, ModeSwitch):
+        vals = [_KEEP if v is None else int(v) for v in (msg.mode, msg.damping, msg.collision)]
+        return MsgType.MODE, _MODE.pack(*vals)
+    if isinstance(msg, StateRequest):
+        return MsgType.STATE_REQUEST, b""
+    if isinstance(msg, State):
+        floats = (msg.t, *msg.theta, *msg.theta_dot, *msg.strains, *msg.residuals)
+        _check_finite(floats, "state", strict)
+        c = msg.counters
+        counts = (c.malformed, c.refused, c.duplicates, c.stale, c.watchdog_stops,
+                  c.accepted, c.overruns)
+        return MsgType.STATE, _STATE.pack(
+            *floats, int(msg.flags), int(msg.mode), int(msg.damping), int(msg.collision),
+            msg.last_command_seq & _U32, msg.request_seq & _U32, *(n & _U32 for n in counts))
+    if isinstance(msg, (Ack, Refusal)):
+        text = _text_bytes(msg.text)
+        mtype = MsgType.ACK if isinstance(msg, Ack) else MsgType.REFUSAL
+        return mtype, _REPLY.pack(msg.command_seq & _U32, int(msg.code), len(text)) + text
+    raise TypeError(f"msg: not a protocol message: {type(msg).__name__}")
+
+
+def encode(msg: Message, seq: int, t: float, *, strict: bool = True) -> bytes:
+    """Encode a message into one datagram.
+
+    Parameters
+    ----------
+    msg : Message
+        One of the message dataclasses of this module.
+    seq : int
+        Sequence number; taken modulo 2**32.
+    t : float
+        Sender timestamp in s (monotonic clock).
+    strict : bool
+        Refuse NaN/inf values (default). ``False`` lets fault-injection tests
+        build datagrams that the receiver must refuse.
+
+    Returns
+    -------
+    bytes
+
+    Raises
+    ------
+    NonFinite
+        If ``strict`` and a float field is not finite.
+    TypeError
+        If ``msg`` is not a protocol message.
+
+    Examples
+    --------
+    >>> len(encode(StateRequest(), seq=1, t=0.0)) == HEADER_SIZE
+    True
+    """
+    mtype, payload = _pack_payload(msg, strict)
+    _check_finite((t,), "t", strict)
+    head = _HEADER.pack(MAGIC, VERSION, int(mtype), 0, seq & _U32, float(t), len(payload), 0)
+    crc = zlib.crc32(payload, zlib.crc32(head))
+    return head[:-4] + crc.to_bytes(4, "big") + payload
+
+
+def _enum(cls, value: int, what: str, header: Header, keep: bool = False):
+    if keep and value == _KEEP:
+        return None
+    try:
+        return cls(value)
+    except ValueError:
+        raise BadValue(f"{what}: invalid value {value}", header) from None
+
+
+def _unpack_payload(header: Header, payload: bytes):
+    mtype = header.msg_type
+    want = {MsgType.VELOCITY: _VEL.size, MsgType.SETPOINT: _SETP.size, MsgType.MODE: _MODE.size,
+            MsgType.STATE_REQUEST: 0, MsgType.STATE: _STATE.size}.get(mtype)
+    if want is not None and len(payload) != want:
+        raise BadLength(f"{mtype.name} payload: expected {want} bytes, got {len(payload)}", header)
+
+    def finite(values, what):
+        if not all(math.isfinite(v) for v in values):
+            raise NonFinite(f"{what}: NaN or infinite value", header)
+
+    if mtype == MsgType.VELOCITY:
+        vals = _VEL.unpack(payload)
+        finite(vals, "theta_dot")
+        return JointVelocityCommand(theta_dot=vals)
+    if mtype == MsgType.SETPOINT:
+        *theta, speed, accel, bits = _SETP.unpack(payload)
+        finite((*theta, speed, accel), "setpoint")
+        if bits & ~0b11 or (not bits & 1 and speed != 0.0) or (not bits & 2 and accel != 0.0):
+            raise BadValue(f"setpoint: inconsistent option bits {bits:#x}", header)
+        return JointSetpoint(theta=theta, max_speed=speed if bits & 1 else None,
+                             max_accel=accel if bits & 2 else None)
+    if mtype == MsgType.MODE:
+        m, d, c = _MODE.unpack(payload)
+        return ModeSwitch(mode=_enum(Mode, m, "mode", header, keep=True),
+                          damping=_enum(Damping, d, "damping", header, keep=True),
+                          collision=_enum(CollisionStrategy, c, "collision", header, keep=True))
+    if mtype == MsgType.STATE_REQUEST:
+        return StateRequest()
+    if mtype == MsgType.STATE:
+        vals = _STATE.unpack(payload)
+        floats, rest = vals[:14], vals[14:]
+        finite(floats, "state")
+        flags, m, d, c, last_seq, req_seq, *counts = rest
+        if flags & ~_ALL_FLAGS:
+            raise BadValue(f"state flags: unknown bits {flags:#x}", header)
+        return State(t=floats[0], theta=floats[1:4], theta_dot=floats[4:7],
+                     strains=floats[7:11], residuals=floats[11:14], flags=StateFlags(flags),
+                     mode=_enum(Mode, m, "mode", header),
+                     damping=_enum(Damping, d, "damping", header),
+                     collision=_enum(CollisionStrategy, c, "collision", header),
+                     last_command_seq=last_seq, request_seq=req_seq,
+                     counters=Counters(**dict(zip(
+                         ("malformed", "refused", "duplicates", "stale", "watchdog_stops",
+                          "accepted", "overruns"), counts))))
+    # ACK / REFUSAL
+    if len(payload) < _REPLY.size:
+        raise BadLength(f"{mtype.name} payload: expected at least {_REPLY.size} bytes, "
+                        f"got {len(payload)}", header)
+    cseq, code, n = _REPLY.unpack_from(payload)
+    if len(payload) != _REPLY.size + n:
+        raise BadLength(f"{mtype.name} payload: text length {n} does not match "
+                        f"{len(payload) - _REPLY.size} bytes", header)
+    try:
+        text = payload[_REPLY.size:].decode("utf-8")
+    except UnicodeDecodeError:
+        raise BadValue(f"{mtype.name}: text is not UTF-8", header) from None
+    reason = _enum(Reason, code, "reason code", header)
+    if (mtype == MsgType.ACK) != (reason < 10):
+        raise BadValue(f"{mtype.name}: reason code {reason.name} not allowed", header)
+    cls = Ack if mtype == MsgType.ACK else Refusal
+    return cls(command_seq=cseq, code=reason, text=text)
+
+
+def decode(data: bytes) -> tuple[Header, Message]:
+    """Decode one datagram.
+
+    Parameters
+    ----------
+    data : bytes
+        The datagram.
+
+    Returns
+    -------
+    header : Header
+    msg : Message
+
+    Raises
+    ------
+    BadLength
+        Shorter than a header, payload length mismatch, or payload size wrong for the type.
+    BadMagic, BadVersion, BadChecksum, UnknownType
+        As named (checked in that order, after the length of the header).
+    NonFinite
+        A float field is NaN or infinite (``err.header`` is set).
+    BadValue
+        An enum, flag or text field is out of its domain (``err.header`` is set).
+
+    Examples
+    --------
+    >>> decode(b"junk")
+    Traceback (most recent call last):
+    ...
+    tudorvision.joint.protocol.BadLength: datagram of 4 bytes is shorter than the 28-byte header
+    """
+    data = bytes(data)
+    if len(data) < HEADER_SIZE:
+        raise BadLength(f"datagram of {len(data)} bytes is shorter than the "
+                        f"{HEADER_SIZE}-byte header")
+    magic, version, mtype, reserved, seq, t_sent, plen, crc = _HEADER.unpack_from(data)
+    if magic != MAGIC:
+        raise BadMagic(f"bad magic {magic!r}, expected {MAGIC!r}")
+    if version != VERSION:
+        raise BadVersion(f"unsupported protocol version {version}, expected {VERSION}")
+    if plen != len(data) - HEADER_SIZE:
+        raise BadLength(f"payload length field {plen} does not match "
+                        f"{len(data) - HEADER_SIZE} bytes received")
+    head0 = data[:HEADER_SIZE - 4] + b"\0\0\0\0"
+    if zlib.crc32(data[HEADER_SIZE:], zlib.crc32(head0)) != crc:
+        raise BadChecksum("checksum mismatch (corrupted datagram)")
+    try:
+        msg_type = MsgType(mtype)
+    except ValueError:
+        raise UnknownType(f"unknown message type {mtype}") from None
+    header = Header(version=version, msg_type=msg_type, seq=seq, t_sent=t_sent, payload_len=plen)
+    if reserved != 0:
+        raise BadValue(f"reserved header field is {reserved}, expected 0", header)
+    if not math.isfinite(t_sent):
+        raise NonFinite("sender timestamp: NaN or infinite value", header)
+    return header, _unpack_payload(header, data[HEADER_SIZE:])
+
+
+def seq_add(seq: int, n: int = 1) -> int:
+    """Add ``n`` to a uint32 sequence number with wrap-around.
+
+    Examples
+    --------
+    >>> seq_add(2**32 - 1)
+    0
+    """
+    return (seq + n) & _U32
+
+
+def seq_newer(a: int, b: int) -> bool:
+    """True if uint32 sequence number ``a`` is newer than ``b`` (serial arithmetic, RFC 1982).
+
+    Examples
+    --------
+    >>> seq_newer(5, 3), seq_newer(3, 5), seq_newer(2, 2**32 - 3)
+    (True, False, True)
+    """
+    d = (a - b) & _U32
+    return 0 < d < 0x80000000

@@ -1,0 +1,633 @@
+"""Command/state endpoint of the joint-control layer, with its safety shell.
+
+:class:`JointLayerServer` receives datagrams from a :mod:`transport`, checks
+them (:mod:`safety`), and drives a *core* - the object that actually moves
+the arm - at a fixed control rate in wall time. The core is anything that
+implements :class:`JointCore`; the simulated elastic TUDOR with its cascade,
+damping and collision handling is wired in with :func:`register_core`.
+
+Safety that the server owns, whatever the core:
+
+* velocity commands expire after ``watchdog_s`` of core time (default 0.1 s);
+  then the velocity reference ramps to zero at the acceleration limits
+  (controlled stop) and ``WATCHDOG_STOP`` is flagged;
+* velocity references are speed-checked, acceleration-limited and braked so
+  each joint stops inside its range; setpoints outside the ranges and profile
+  limits above the joint limits are clamped or refused (:class:`SafetyPolicy`);
+* datagrams that fail to decode (checksum, length, NaN ...) are counted and
+  never executed; well-formed but non-finite commands get a refusal;
+* per client address, commands with an already seen sequence number
+  (duplicates) or older than the newest one (stale, uint32 wrap-aware) are
+  ignored; a duplicate of the last command gets its original reply again;
+* a core state outside the joint ranges or above the speed limits stops the
+  core and flags ``FAULT`` until the next mode switch.
+
+Examples
+--------
+>>> from tudorvision.joint.transport import InProcessTransport
+>>> from tudorvision.joint.protocol import StateRequest, encode, decode
+>>> client, end = InProcessTransport.pair()
+>>> server = JointLayerServer(end, make_core("kinematic"))
+>>> client.send(encode(StateRequest(), seq=1, t=0.0))
+>>> server.run_for(0.05)
+>>> decode(client.recv(1.0)[0])[1].mode.name
+'IDLE'
+"""
+from __future__ import annotations
+
+import collections
+import threading
+import time
+from dataclasses import dataclass, field, replace
+from typing import Callable, Hashable, Protocol, runtime_checkable
+
+import numpy as np
+
+from .._checks import TudorVisionError, check_array
+from . import protocol as P
+from .safety import (SafetyLimits, SafetyPolicy, brake_velocity, check_setpoint,
+                     check_velocity_command, ramp_velocity)
+
+__all__ = ["CoreState", "JointCore", "KinematicCore", "ServerConfig", "CommandRecord",
+           "JointLayerServer", "register_core", "make_core", "core_names"]
+
+
+# ----------------------------------------------------------------- core interface
+@dataclass(frozen=True, kw_only=True, eq=False)
+class CoreState:
+    """What a core reports after each step.
+
+    Attributes
+    ----------
+    t : float
+        Core time in s (advances by the ``dt`` given to :meth:`JointCore.step`).
+    theta, theta_dot : ndarray, shape (3,)
+        Joint angles (rad) and speeds (rad/s) at the gear output.
+    strains : ndarray, shape (4,)
+        Strain gauge signals in m/m (link 2 root, mid; link 3 root, mid).
+    residuals : ndarray, shape (3,)
+        Collision residuals per joint.
+    collision : bool
+        A collision is detected now.
+    settled : bool
+        The arm is at rest: the current setpoint is reached (or the stop is
+        complete) and strains are inside the settling band.
+    """
+
+    t: float
+    theta: np.ndarray
+    theta_dot: np.ndarray
+    strains: np.ndarray = field(default_factory=lambda: np.zeros(4))
+    residuals: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    collision: bool = False
+    settled: bool = False
+
+
+@runtime_checkable
+class JointCore(Protocol):
+    """The minimal interface between the server and the arm's joint controller.
+
+    The server calls these from one thread only. Per control tick in velocity
+    mode it calls :meth:`apply_velocity` then :meth:`step`; otherwise only
+    :meth:`step`. All vectors are float64 arrays of shape (3,), SI units.
+    """
+
+    def apply_velocity(self, theta_dot: np.ndarray) -> None:
+        """Track this joint velocity reference (rad/s) from now on.
+
+        The server has already checked, braked and acceleration-limited it.
+        """
+
+    def apply_setpoint(self, theta: np.ndarray, *, max_speed_rad_s: np.ndarray,
+                       max_accel_rad_s2: np.ndarray) -> None:
+        """Start a point-to-point motion to ``theta`` (rad) within these per-joint limits.
+
+        May be called while the arm moves (a new setpoint replaces the old one).
+        """
+
+    def stop(self) -> None:
+        """Controlled stop: decelerate within the acceleration limits and hold."""
+
+    def set_modes(self, *, damping: P.Damping, collision: P.CollisionStrategy) -> None:
+        """Select the damping law and the collision reaction strategy."""
+
+    def step(self, dt: float) -> None:
+        """Advance the arm by ``dt`` s (the core may sub-step, e.g. at 2 kHz)."""
+
+    def state(self) -> CoreState:
+        """Current state after the last :meth:`step`."""
+
+
+class KinematicCore:
+    """Rigid joint integrator: a stand-in core without elasticity.
+
+    Velocity references are followed exactly; setpoints with a time-optimal
+    bang-bang profile per joint; :meth:`stop` decelerates at the acceleration
+    limit. Strains and residuals stay zero. Used by ``tudorvision joint serve
+    --core kinematic`` until the simulated elastic arm is registered.
+
+    Parameters
+    ----------
+    theta0 : array_like, shape (3,), optional
+        Initial joint angles in rad (default: the vertical posture [0, 90°, 0]).
+    limits : SafetyLimits, optional
+        Acceleration limits for stops (default: the robot parameters).
+    substep_s : float
+        Integration step in s.
+
+    Examples
+    --------
+    >>> core = KinematicCore(theta0=[0.0, 0.0, 0.0])
+    >>> core.apply_velocity(np.array([0.1, 0.0, 0.0])); core.step(1.0)
+    >>> round(float(core.state().theta[0]), 6)
+    0.1
+    """
+
+    def __init__(self, theta0=None, *, limits: SafetyLimits | None = None,
+                 substep_s: float = 1e-3):
+        self._limits = limits or SafetyLimits.from_params()
+        self._theta = (np.array([0.0, np.pi / 2, 0.0]) if theta0 is None
+                       else check_array(theta0, "theta0", (3,)).copy())
+        self._v = np.zeros(3)
+        self._t = 0.0
+        self._h = float(substep_s)
+        self._mode = "stop"
+        self._v_cmd = np.zeros(3)
+        self._target = self._theta.copy()
+        self._vmax = self._limits.max_speed_rad_s
+        self._amax = self._limits.max_accel_rad_s2
+        self.damping, self.collision = P.Damping.OFF, P.CollisionStrategy.NONE
+
+    def apply_velocity(self, theta_dot):
+        self._mode, self._v_cmd = "velocity", np.asarray(theta_dot, dtype=float).copy()
+
+    def apply_setpoint(self, theta, *, max_speed_rad_s, max_accel_rad_s2):
+        self._mode, self._target = "setpoint", np.asarray(theta, dtype=float).copy()
+        self._vmax = np.asarray(max_speed_rad_s, dtype=float)
+        self._amax = np.asarray(max_accel_rad_s2, dtype=float)
+
+    def stop(self):
+        self._mode, self._amax = "stop", self._limits.max_accel_rad_s2
+
+    def set_modes(self, *, damping, collision):
+        self.damping, self.collision = P.Damping(damping), P.CollisionStrategy(collision)
+
+    def step(self, dt):
+        n = max(1, int(round(dt / self._h)))
+        h = dt / n
+        for _ in range(n):
+            if self._mode == "velocity":
+                self._v = self._v_cmd.copy()
+            else:
+                if self._mode == "setpoint":
+                    e = self._target - self._theta
+                    want = np.sign(e) * np.minimum.reduce(
+                        [self._vmax, np.sqrt(2 * self._amax * np.abs(e)), np.abs(e) / h])
+                else:
+                    want = np.zeros(3)
+                self._v = ramp_velocity(self._v, want, self._amax, h)
+            self._theta = self._theta + self._v * h
+            self._t += h
+
+    def state(self) -> CoreState:
+        at_rest = bool(np.all(np.abs(self._v) < 1e-6))
+        reached = self._mode != "setpoint" or bool(np.all(np.abs(self._target - self._theta) < 1e-6))
+        return CoreState(t=self._t, theta=self._theta.copy(), theta_dot=self._v.copy(),
+                         settled=at_rest and reached and self._mode != "velocity")
+
+
+_CORES: dict[str, Callable[..., JointCore]] = {}
+
+
+def register_core(name: str, factory: Callable[..., JointCore]) -> None:
+    """Make a core available to :func:`make_core` and ``tudorvision joint serve --core``."""
+    _CORES[name] = factory
+
+
+def core_names() -> list[str]:
+    """Names accepted by :func:`make_core`."""
+    return sorted(_CORES)
+
+
+def make_core(name: str, **options) -> JointCore:
+    """Build a registered core by name (``"kinematic"``; the simulated arm registers ``"sim"``).
+
+    Raises
+    ------
+    TudorVisionError
+        If no core of that name is registered.
+    """
+    try:
+        factory = _CORES[name]
+    except KeyError:
+        raise TudorVisionError(f"core: unknown core {name!r}; available: "
+                               f"{', '.join(core_names())}") from None
+    return factory(**options)
+
+
+register_core("kinematic", KinematicCore)
+
+
+# ------------------------------------------------------------------------ server
+@dataclass(frozen=True, kw_only=True)
+class ServerConfig:
+    """Options of :class:`JointLayerServer`.
+
+    Attributes
+    ----------
+    rate_hz : float
+        Control rate of the server loop (the core may sub-step faster).
+    watchdog_s : float
+        Lifetime of a velocity command in core time.
+    max_command_age_s : float or None
+        Motion commands that arrive later than this relative to the fastest
+        delivery seen from their sender are ignored as stale (None: off).
+    initial_mode : Mode
+    policy : SafetyPolicy
+    rest_speed_rad_s : float
+        Joint speed below which the arm is not ``MOVING``.
+    fault_speed_factor, fault_range_tol_rad : float
+        A core state faster than factor x speed limit, or further than the
+        tolerance outside a range, is a fault.
+    max_clients, seq_window, log_size, max_backlog_ticks : int
+        Bounds of the per-client tables, the duplicate window, the command log
+        and of catch-up ticks after a stall (beyond it ticks are skipped and
+        counted as overruns).
+    """
+
+    rate_hz: float = 500.0
+    watchdog_s: float = 0.1
+    max_command_age_s: float | None = 0.25
+    initial_mode: P.Mode = P.Mode.IDLE
+    policy: SafetyPolicy = SafetyPolicy()
+    rest_speed_rad_s: float = 1e-3
+    fault_speed_factor: float = 1.05
+    fault_range_tol_rad: float = np.deg2rad(1.0)
+    max_clients: int = 64
+    seq_window: int = 256
+    log_size: int = 4096
+    max_backlog_ticks: int = 10
+
+    def __post_init__(self):
+        if not self.rate_hz > 0:
+            raise ValueError(f"rate_hz: must be positive, got {self.rate_hz}")
+        if not self.watchdog_s > 0:
+            raise ValueError(f"watchdog_s: must be positive, got {self.watchdog_s}")
+
+
+@dataclass(frozen=True)
+class CommandRecord:
+    """One handled command: times, sender, sequence number, message and outcome code."""
+
+    t_wall: float
+    t_core: float
+    client: Hashable
+    seq: int
+    msg: object
+    code: P.Reason
+
+
+class _Client:
+    """Sequence-number bookkeeping for one sender address."""
+
+    __slots__ = ("newest", "window", "seen", "last_reply", "min_delay")
+
+    def __init__(self):
+        self.newest = None
+        self.window = collections.deque()
+        self.seen = set()
+        self.last_reply = None     # (seq, datagram)
+        self.min_delay = None
+
+    def classify(self, seq: int, window: int) -> str:
+        """Return "new", "duplicate" or "stale" and record ``seq`` if new."""
+        if seq in self.seen:
+            return "duplicate"
+        if self.newest is not None and not P.seq_newer(seq, self.newest):
+            return "stale"
+        self.newest = seq
+        self.window.append(seq)
+        self.seen.add(seq)
+        while len(self.window) > window:
+            self.seen.discard(self.window.popleft())
+        return "new"
+
+
+class JointLayerServer:
+    """The joint-control layer's endpoint: transport in, core out, safety between.
+
+    Parameters
+    ----------
+    transport : Transport
+        Bound server end (:class:`~tudorvision.joint.transport.UdpTransport` or
+        the server end of an in-process pair).
+    core : JointCore
+        The object that moves the arm.
+    limits : SafetyLimits, optional
+        Default: from the robot parameters.
+    config : ServerConfig, optional
+
+    Notes
+    -----
+    Run it with :meth:`serve_forever` (blocking, until :meth:`shutdown`),
+    :meth:`run_for` (blocking, bounded) or :meth:`start` / as a context manager
+    (background thread, stopped and joined on exit). Only the loop thread
+    touches the core; :meth:`state`, :attr:`counters` and :meth:`command_log`
+    are safe to call from other threads.
+    """
+
+    def __init__(self, transport, core: JointCore, *, limits: SafetyLimits | None = None,
+                 config: ServerConfig = ServerConfig()):
+        if not isinstance(core, JointCore):
+            raise TypeError(f"core: {type(core).__name__} does not implement JointCore")
+        self.transport = transport
+        self.core = core
+        self.limits = limits or SafetyLimits.from_params()
+        self.config = config
+        self._lock = threading.RLock()
+        self._stop = threading.Event()
+        self._thread = None
+        self._clients: collections.OrderedDict = collections.OrderedDict()
+        self._log = collections.deque(maxlen=config.log_size)
+        self._counters = P.Counters()
+        self._seq = 0
+        self._mode = P.Mode(config.initial_mode)
+        self._damping, self._collision = P.Damping.OFF, P.CollisionStrategy.NONE
+        self._flags = P.StateFlags.NONE
+        self._last_command_seq = 0
+        self._v_target = np.zeros(3)
+        self._v_ref = np.zeros(3)
+        self._deadline = -np.inf
+        self._armed = False
+        self._period = 1.0 / config.rate_hz
+        core.set_modes(damping=self._damping, collision=self._collision)
+        core.stop()
+        self._core_state = core.state()
+
+    # ------------------------------------------------------------ public view
+    @property
+    def address(self):
+        """Address of the transport (``(host, port)`` for UDP)."""
+        return self.transport.address
+
+    @property
+    def counters(self) -> P.Counters:
+        with self._lock:
+            return self._counters
+
+    @property
+    def mode(self) -> P.Mode:
+        return self._mode
+
+    def command_log(self) -> list[CommandRecord]:
+        """The most recent handled commands (bounded by ``config.log_size``)."""
+        with self._lock:
+            return list(self._log)
+
+    def state(self, request_seq: int = 0) -> P.State:
+        """The state feedback message for the current core state."""
+        with self._lock:
+            cs = self._core_state
+            flags = self._flags & ~(P.StateFlags.SETTLED | P.StateFlags.MOVING
+                                    | P.StateFlags.COLLISION)
+            if cs.settled:
+                flags |= P.StateFlags.SETTLED
+            if np.any(np.abs(cs.theta_dot) > self.config.rest_speed_rad_s):
+                flags |= P.StateFlags.MOVING
+            if cs.collision:
+                flags |= P.StateFlags.COLLISION
+            return P.State(t=cs.t, theta=cs.theta, theta_dot=cs.theta_dot, strains=cs.strains,
+                           residuals=cs.residuals, flags=flags, mode=self._mode,
+                           damping=self._damping, collision=self._collision,
+                           last_command_seq=self._last_command_seq, request_seq=request_seq,
+                           counters=self._counters)
+
+    # ------------------------------------------------------------- lifecycle
+    def serve_forever(self, rate_hz: float | None = None) -> None:
+        """Run the control loop until :meth:`shutdown` is called (from another thread)."""
+        self._stop.clear()
+        self._loop(rate_hz, None)
+
+    def run_for(self, seconds: float, rate_hz: float | None = None) -> None:
+        """Run the control loop in the calling thread for ``seconds`` of wall time."""
+        self._stop.clear()
+        self._loop(rate_hz, float(seconds))
+
+    def start(self, rate_hz: float | None = None) -> "JointLayerServer":
+        """Run :meth:`serve_forever` in a daemon thread; returns self."""
+        if self._thread is not None and self._thread.is_alive():
+            raise RuntimeError("server already running")
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._loop, args=(rate_hz, None),
+                                        name="joint-layer-server", daemon=True)
+        self._thread.start()
+        return self
+
+    def shutdown(self, timeout: float = 2.0) -> None:
+        """Stop the loop and join the background thread (if any)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+            if self._thread.is_alive():
+                raise RuntimeError("server thread did not stop within the timeout")
+            self._thread = None
+
+    def __enter__(self):
+        return self.start()
+
+    def __exit__(self, *exc):
+        self.shutdown()
+
+    # ------------------------------------------------------------------ loop
+    def _loop(self, rate_hz, duration):
+        if rate_hz is not None:
+            if not rate_hz > 0:
+                raise ValueError(f"rate_hz: must be positive, got {rate_hz}")
+            self._period = 1.0 / rate_hz
+        period = self._period
+        now = time.monotonic()
+        end = None if duration is None else now + duration
+        next_tick = now + period
+        while not self._stop.is_set():
+            now = time.monotonic()
+            if end is not None and now >= end:
+                break
+            if now >= next_tick:
+                behind = int((now - next_tick) / period)
+                if behind > self.config.max_backlog_ticks:
+                    next_tick += behind * period
+                    with self._lock:
+                        self._count(overruns=behind)
+                self._tick(period)
+                next_tick += period
+                continue
+            wait = next_tick - now
+            if end is not None:
+                wait = min(wait, max(end - now, 0.0))
+            item = self.transport.recv(wait)
+            handled = 0
+            while item is not None:
+                self._handle(*item)
+                handled += 1
+                if handled >= 64 or time.monotonic() >= next_tick:
+                    break
+                item = self.transport.recv(0.0)
+
+    def _count(self, **inc):
+        c = self._counters
+        self._counters = replace(c, **{k: getattr(c, k) + v for k, v in inc.items()})
+
+    def _tick(self, dt: float) -> None:
+        with self._lock:
+            cs = self._core_state
+            if self._mode == P.Mode.VELOCITY:
+                if self._armed and cs.t >= self._deadline:
+                    self._armed = False
+                    self._v_target = np.zeros(3)
+                    self._flags |= P.StateFlags.WATCHDOG_STOP
+                    self._count(watchdog_stops=1)
+                braked = brake_velocity(cs.theta, self._v_target, self.limits, dt,
+                                        theta_dot_now=self._v_ref)
+                if np.array_equal(braked, self._v_target):
+                    self._flags &= ~P.StateFlags.LIMIT_BRAKE
+                else:
+                    self._flags |= P.StateFlags.LIMIT_BRAKE
+                self._v_ref = ramp_velocity(self._v_ref, braked, self.limits.max_accel_rad_s2, dt)
+                self.core.apply_velocity(self._v_ref.copy())
+            self.core.step(dt)
+            self._core_state = cs = self.core.state()
+            over_speed = np.any(np.abs(cs.theta_dot)
+                                > self.config.fault_speed_factor * self.limits.max_speed_rad_s)
+            lim, tol = self.limits.joint_limits_rad, self.config.fault_range_tol_rad
+            out = np.any(cs.theta < lim[:, 0] - tol) or np.any(cs.theta > lim[:, 1] + tol)
+            if (over_speed or out) and not self._flags & P.StateFlags.FAULT:
+                self._flags |= P.StateFlags.FAULT
+                self._enter_mode(P.Mode.IDLE)
+
+    def _enter_mode(self, mode: P.Mode) -> None:
+        if mode == P.Mode.VELOCITY:
+            if self._mode != P.Mode.VELOCITY:
+                self._v_ref = np.asarray(self._core_state.theta_dot, dtype=float).copy()
+                self._v_target = np.zeros(3)   # ramps down from the current speed
+                self._armed = False
+        elif self._mode == P.Mode.VELOCITY or mode == P.Mode.IDLE:
+            self.core.stop()
+            self._v_ref = np.zeros(3)
+            self._v_target = np.zeros(3)
+            self._armed = False
+        self._mode = mode
+
+    # --------------------------------------------------------------- packets
+    def _client(self, addr) -> _Client:
+        c = self._clients.get(addr)
+        if c is None:
+            c = self._clients[addr] = _Client()
+            while len(self._clients) > self.config.max_clients:
+                self._clients.popitem(last=False)
+        else:
+            self._clients.move_to_end(addr)
+        return c
+
+    def _send(self, msg, addr) -> bytes:
+        self._seq = P.seq_add(self._seq)
+        data = P.encode(msg, self._seq, time.monotonic())
+        try:
+            self.transport.send(data, addr)
+        except OSError:
+            pass    # datagram semantics: a failed reply is a lost reply
+        return data
+
+    def _handle(self, data: bytes, addr) -> None:
+        t_recv = time.monotonic()
+        with self._lock:
+            try:
+                header, msg = P.decode(data)
+            except P.ProtocolError as err:
+                self._count(malformed=1)
+                h = err.header
+                if h is not None and h.msg_type in (P.MsgType.VELOCITY, P.MsgType.SETPOINT,
+                                                    P.MsgType.MODE):
+                    self._flags |= P.StateFlags.REFUSED
+                    self._send(P.Refusal(command_seq=h.seq, code=err.reason, text=str(err)), addr)
+                return
+            if isinstance(msg, P.StateRequest):
+                self._send(self.state(request_seq=header.seq), addr)
+                return
+            if not isinstance(msg, P.COMMAND_TYPES):
+                self._count(malformed=1)     # replies sent to the server: protocol misuse
+                return
+            client = self._client(addr)
+            verdict = client.classify(header.seq, self.config.seq_window)
+            if verdict == "duplicate":
+                self._count(duplicates=1)
+                if client.last_reply is not None and client.last_reply[0] == header.seq:
+                    try:
+                        self.transport.send(client.last_reply[1], addr)
+                    except OSError:
+                        pass
+                return
+            if verdict == "stale":
+                self._count(stale=1)
+                return
+            delay = t_recv - header.t_sent
+            client.min_delay = delay if client.min_delay is None else min(client.min_delay, delay)
+            age = delay - client.min_delay
+            max_age = self.config.max_command_age_s
+            if (max_age is not None and age > max_age
+                    and isinstance(msg, (P.JointVelocityCommand, P.JointSetpoint))):
+                self._count(stale=1)
+                reply = P.Refusal(command_seq=header.seq, code=P.Reason.STALE,
+                                  text=f"command arrived {age * 1e3:.0f} ms late")
+            else:
+                reply = self._execute(msg, header.seq)
+            self._log.append(CommandRecord(t_wall=t_recv, t_core=self._core_state.t, client=addr,
+                                           seq=header.seq, msg=msg, code=reply.code))
+            client.last_reply = (header.seq, self._send(reply, addr))
+
+    def _refuse(self, seq: int, code: P.Reason, text: str) -> P.Refusal:
+        self._count(refused=1)
+        self._flags = (self._flags | P.StateFlags.REFUSED) & ~P.StateFlags.CLAMPED
+        return P.Refusal(command_seq=seq, code=code, text=text)
+
+    def _accept(self, seq: int, code: P.Reason, text: str) -> P.Ack:
+        self._count(accepted=1)
+        self._last_command_seq = seq
+        self._flags &= ~(P.StateFlags.REFUSED | P.StateFlags.CLAMPED)
+        if code != P.Reason.OK:
+            self._flags |= P.StateFlags.CLAMPED
+        return P.Ack(command_seq=seq, code=code, text=text)
+
+    def _execute(self, msg, seq: int):
+        if isinstance(msg, P.ModeSwitch):
+            damping = self._damping if msg.damping is None else msg.damping
+            collision = self._collision if msg.collision is None else msg.collision
+            if (damping, collision) != (self._damping, self._collision):
+                self.core.set_modes(damping=damping, collision=collision)
+                self._damping, self._collision = damping, collision
+            if msg.mode is not None:
+                self._enter_mode(msg.mode)
+            self._flags &= ~(P.StateFlags.FAULT | P.StateFlags.WATCHDOG_STOP)
+            return self._accept(seq, P.Reason.OK, "")
+        if self._flags & P.StateFlags.FAULT:
+            return self._refuse(seq, P.Reason.FAULT, "fault stop; send a mode switch to clear")
+        want = P.Mode.VELOCITY if isinstance(msg, P.JointVelocityCommand) else P.Mode.SETPOINT
+        if self._mode != want:
+            return self._refuse(seq, P.Reason.WRONG_MODE,
+                                f"{type(msg).__name__} needs mode {want.name}, "
+                                f"layer is in {self._mode.name}")
+        if isinstance(msg, P.JointVelocityCommand):
+            v = check_velocity_command(msg.theta_dot, self.limits, policy=self.config.policy)
+            if not v.accepted:
+                return self._refuse(seq, v.code, v.text)
+            self._v_target = v.value
+            self._deadline = self._core_state.t + self.config.watchdog_s
+            self._armed = True
+            self._flags &= ~P.StateFlags.WATCHDOG_STOP
+            return self._accept(seq, v.code, v.text)
+        s = check_setpoint(msg.theta, self.limits, max_speed=msg.max_speed,
+                           max_accel=msg.max_accel, policy=self.config.policy)
+        if not s.accepted:
+            return self._refuse(seq, s.code, s.text)
+        self.core.apply_setpoint(s.value, max_speed_rad_s=s.max_speed_rad_s,
+                                 max_accel_rad_s2=s.max_accel_rad_s2)
+        return self._accept(seq, s.code, s.text)
