@@ -1,0 +1,280 @@
+"""Actuator model and cascaded joint controller (sections 3.1, 3.2).
+
+Actuator (per joint, referred to the gear output)
+-------------------------------------------------
+The amplifier with its current loop is fast (833 Hz) compared to the
+mechanics and is merged into one gain (3.1.2)::
+
+    tau_E = n_M k_tau k_amp v_M = k_M v_M
+
+Friction follows Zeng's direction-dependent model (3.1.3). The seed lists the
+Coulomb coefficients as magnitudes; here they always oppose the motion::
+
+    tau_F = k_v+ dtheta + k_c+      (dtheta > 0)
+    tau_F = k_v- dtheta - k_c-      (dtheta < 0)
+
+with the motor-side coefficients of appendix A.3 reflected through the gear:
+viscous ``n_M^2 k_v``, Coulomb ``n_M k_c``, inertia ``n_M^2 I_M``. The design
+model is the linear ``G_M = k_M / (s (I s + k_v))`` (3.1.7).
+
+Controller (per joint, 2 kHz)
+-----------------------------
+velocity loop: PI ``k_PI (t_PI s + 1) / s`` on the error between the velocity
+reference and the encoder velocity (backward difference, first-order filter
+``1 / (t_d s + 1)``); ``t_PI`` cancels the mechanical time constant
+``I / k_v`` and ``k_PI = k_v / (2 k_M t_d)`` gives the closed velocity loop a
+damping of ``1 / sqrt(2)``.
+
+position loop: PD with first-order lag ``k_PD (t_PD s + 1) / (t_l s + 1)``;
+``t_PD = 2 t_d`` cancels the first-order approximation of the closed velocity
+loop and ``k_PD = 1 / (2 t_l)`` gives the position loop a damping of
+``1 / sqrt(2)`` (no overshoot for a step).
+
+The velocity reference is ``PD output + feed-forward + extra``, where the
+feed-forward is the planned velocity and ``extra`` is the damping input of
+the oscillation controllers (e.g. ``-k_eps * eps_tilde``, eq. 5.2.1). The
+output voltage saturates at the intermittent torque limit; the integrator
+stops integrating while saturated (anti-windup).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._checks import check_array
+from ..robot.params import RobotParams
+
+__all__ = ["motor_gain", "reflected_inertia", "reflected_viscous", "friction_torque",
+           "CascadeGains", "design_cascade", "JointCascade"]
+
+
+def motor_gain(params: RobotParams) -> np.ndarray:
+    """``k_M = n_M k_tau k_amp`` per joint (N m per volt at the gear output), eq. 3.1.2.
+
+    Examples
+    --------
+    >>> from tudorvision.robot import load_robot_params
+    >>> np.round(motor_gain(load_robot_params()), 2)
+    array([ 9.71, 14.32,  4.41])
+    """
+    return (np.asarray(params.gear_ratio, float) * np.asarray(params.torque_constant_Nm_A, float)
+            * np.asarray(params.amplifier_gain_A_V, float))
+
+
+def reflected_inertia(params: RobotParams) -> np.ndarray:
+    """Rotor and gear inertia at the gear output ``n_M^2 I_M``, kg m^2, shape (3,)."""
+    return np.asarray(params.gear_ratio, float) ** 2 * np.asarray(params.rotor_inertia_kg_m2, float)
+
+
+def reflected_viscous(params: RobotParams) -> np.ndarray:
+    """Symmetric viscous friction at the output (mean of k_v+ and k_v-, 3.1.6), N m s/rad."""
+    n2 = np.asarray(params.gear_ratio, float) ** 2
+    return n2 * 0.5 * (np.asarray(params.viscous_pos_Nms_rad, float)
+                       + np.asarray(params.viscous_neg_Nms_rad, float))
+
+
+def friction_torque(dtheta, params: RobotParams) -> np.ndarray:
+    """Joint friction torque at the gear output, model (3.1.3) with opposing Coulomb terms.
+
+    Parameters
+    ----------
+    dtheta : array_like, shape (3,) or (N, 3)
+        Joint velocities, rad/s.
+
+    Returns
+    -------
+    tau_F : ndarray, same shape
+        N m; positive values oppose positive motion. Zero velocity gives zero
+        (the plant treats sticking separately).
+
+    Examples
+    --------
+    >>> from tudorvision.robot import load_robot_params
+    >>> p = load_robot_params()
+    >>> t = friction_torque([0.1, -0.1, 0.0], p)
+    >>> bool(t[0] > 0 and t[1] < 0 and t[2] == 0)
+    True
+    """
+    v = np.asarray(dtheta, dtype=np.float64)
+    n = np.asarray(params.gear_ratio, float)
+    kvp, kvn = n**2 * params.viscous_pos_Nms_rad, n**2 * params.viscous_neg_Nms_rad
+    kcp, kcn = n * params.coulomb_pos_Nm, n * params.coulomb_neg_Nm
+    return np.where(v > 0, kvp * v + kcp, np.where(v < 0, kvn * v - kcn, 0.0))
+
+
+@dataclass(frozen=True, kw_only=True)
+class CascadeGains:
+    """Gains of the joint cascade, each an array of shape (3,).
+
+    Attributes
+    ----------
+    k_pi : V / (rad/s) / s   (PI gain of ``k_PI (t_PI s + 1) / s``)
+    t_pi : s
+    t_d : s   (velocity measurement filter)
+    k_pd : 1/s   (``k_PD (t_PD s + 1) / (t_l s + 1)``)
+    t_pd : s
+    t_l : s
+    v_limit : V   (amplifier input limit, intermittent torque over k_M)
+    """
+
+    k_pi: np.ndarray
+    t_pi: np.ndarray
+    t_d: np.ndarray
+    k_pd: np.ndarray
+    t_pd: np.ndarray
+    t_l: np.ndarray
+    v_limit: np.ndarray
+
+
+def design_cascade(params: RobotParams, effective_inertia_kg_m2, *, t_d: float = 0.003,
+                   t_l: float = 0.02) -> CascadeGains:
+    """Tune the PI velocity and PD position loops from the actuator model (section 3.2).
+
+    Parameters
+    ----------
+    params : RobotParams
+    effective_inertia_kg_m2 : array_like, shape (3,)
+        Inertia seen by each joint at the gear output (rotor reflected plus the
+        attached bodies, e.g. in the zero configuration as in the seed).
+    t_d : float
+        Velocity filter time constant, seconds (> 0).
+    t_l : float
+        Position-loop lag time constant, seconds (> 0).
+
+    Returns
+    -------
+    CascadeGains
+
+    Raises
+    ------
+    ValueError
+        If an inertia or time constant is not positive.
+
+    Examples
+    --------
+    >>> from tudorvision.robot import load_robot_params
+    >>> g = design_cascade(load_robot_params(), [0.3, 0.8, 0.15])
+    >>> np.round(g.k_pd, 1).tolist()
+    [25.0, 25.0, 25.0]
+    """
+    inertia = check_array(effective_inertia_kg_m2, "effective_inertia_kg_m2", (3,))
+    if np.any(inertia <= 0) or t_d <= 0 or t_l <= 0:
+        raise ValueError("effective_inertia_kg_m2, t_d, t_l: expected positive values, got "
+                         f"{inertia.tolist()}, {t_d}, {t_l}")
+    kM = motor_gain(params)
+    kv = reflected_viscous(params)
+    ones = np.ones(3)
+    return CascadeGains(
+        k_pi=kv / (2.0 * kM * t_d),
+        t_pi=inertia / kv,
+        t_d=t_d * ones,
+        k_pd=ones / (2.0 * t_l),
+        t_pd=2.0 * t_d * ones,
+        t_l=t_l * ones,
+        v_limit=np.asarray(params.max_intermittent_torque_Nm, float) / kM,
+    )
+
+
+class JointCascade:
+    """Discrete cascaded controller for the three joints (state between samples).
+
+    Parameters
+    ----------
+    gains : CascadeGains
+    dt : float
+        Sample time, seconds (0.0005 at 2 kHz).
+    theta0 : array_like, shape (3,)
+        Initial encoder reading, radians.
+
+    Examples
+    --------
+    >>> from tudorvision.robot import load_robot_params
+    >>> c = JointCascade(design_cascade(load_robot_params(), [0.3, 0.8, 0.15]), 0.0005, [0, 0, 0])
+    >>> v = c.step([0.0, 0.0, 0.0], [0.01, 0.0, 0.0])
+    >>> v[0] > 0 and v[1] == 0.0
+    True
+    """
+
+    def __init__(self, gains: CascadeGains, dt: float, theta0):
+        if not dt > 0:
+            raise ValueError(f"dt: expected > 0, got {dt}")
+        self.gains = gains
+        self.dt = float(dt)
+        th = check_array(theta0, "theta0", (3,))
+        g = gains
+        # per-joint scalar constants (lists of floats keep the 2 kHz loop fast)
+        self._kp_vel = [float(g.k_pi[j] * g.t_pi[j]) for j in range(3)]
+        self._ki_vel = [float(g.k_pi[j]) for j in range(3)]
+        self._alpha_d = [self.dt / (float(g.t_d[j]) + self.dt) for j in range(3)]
+        self._kpd = [float(g.k_pd[j]) for j in range(3)]
+        self._tpd = [float(g.t_pd[j]) for j in range(3)]
+        self._tl = [float(g.t_l[j]) for j in range(3)]
+        self._vlim = [float(g.v_limit[j]) for j in range(3)]
+        self.reset(th)
+
+    def reset(self, theta) -> None:
+        """Zero the controller state at encoder reading ``theta``."""
+        th = check_array(theta, "theta", (3,))
+        self._th_prev = [float(x) for x in th]
+        self._vel = [0.0, 0.0, 0.0]
+        self._integ = [0.0, 0.0, 0.0]
+        self._e_prev = [0.0, 0.0, 0.0]
+        self._pd = [0.0, 0.0, 0.0]
+        self.velocity = [0.0, 0.0, 0.0]        # filtered encoder velocity, rad/s
+        self.velocity_ref = [0.0, 0.0, 0.0]    # input of the PI loop, rad/s
+
+    def step(self, theta_meas, theta_ref, dtheta_ff=(0.0, 0.0, 0.0),
+             dtheta_extra=(0.0, 0.0, 0.0)) -> list:
+        """One control sample.
+
+        Parameters
+        ----------
+        theta_meas : sequence of 3 floats
+            Encoder angles, radians.
+        theta_ref : sequence of 3 floats
+            Position setpoints, radians.
+        dtheta_ff : sequence of 3 floats
+            Velocity feed-forward (planned velocity), rad/s.
+        dtheta_extra : sequence of 3 floats
+            Extra velocity-loop input (oscillation damping, eq. 5.2.1), rad/s.
+
+        Returns
+        -------
+        list of 3 floats
+            Amplifier input voltages ``v_M``, volts (``tau_E = k_M v_M``).
+        """
+        dt = self.dt
+        out = [0.0, 0.0, 0.0]
+        for j in range(3):
+            th = theta_meas[j]
+            raw = (th - self._th_prev[j]) / dt
+            self._th_prev[j] = th
+            vel = self._vel[j] + self._alpha_d[j] * (raw - self._vel[j])
+            self._vel[j] = vel
+            # PD with first-order lag, backward Euler
+            e = theta_ref[j] - th
+            tl = self._tl[j]
+            pd = (tl * self._pd[j] + self._kpd[j] * (self._tpd[j] * (e - self._e_prev[j]) + dt * e)) \
+                / (tl + dt)
+            self._pd[j] = pd
+            self._e_prev[j] = e
+            wref = pd + dtheta_ff[j] + dtheta_extra[j]
+            ew = wref - vel
+            integ = self._integ[j] + self._ki_vel[j] * ew * dt
+            u = self._kp_vel[j] * ew + integ
+            lim = self._vlim[j]
+            if u > lim:
+                u = lim
+                if ew < 0:
+                    self._integ[j] = integ
+            elif u < -lim:
+                u = -lim
+                if ew > 0:
+                    self._integ[j] = integ
+            else:
+                self._integ[j] = integ
+            out[j] = u
+            self.velocity[j] = vel
+            self.velocity_ref[j] = wref
+        return out

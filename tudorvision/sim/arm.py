@@ -1,0 +1,928 @@
+"""Simulated elastic TUDOR arm (the plant) under gravity, with payload and contacts.
+
+Model (assumptions are listed in full in :data:`ASSUMPTIONS`)
+--------------------------------------------------------------
+* Joint motion: rigid-equivalent multibody dynamics of the three joints
+  ``M(theta) ddtheta + c(theta, dtheta) + g(theta) = tau_E - tau_F + J^T F_c``
+  with lumped bodies (link-2 blade, actuator 3 at its tip, link-3 blade,
+  payload at the end effector, base inertia), rotor inertia ``n^2 I_M`` on
+  the diagonal, friction (3.1.3) with stick/slip and the merged amplifier
+  gain (3.1.2). Link oscillations do not feed back into the joints (the
+  seed's independent joint-link-module assumption, section 5.1).
+* Links 2 and 3: Euler–Bernoulli blades clamped at their hubs with the
+  distal bodies as tip mass and tip inertia (4.4.6). Deflection
+  ``w = w_static + sum_r Phi_r (eta_r - eta_static_r)``: the exact static
+  cantilever shape under own weight, tip force and tip moment plus the
+  dynamic deviation of ``n_modes`` modes (mode-acceleration method). The
+  modal coordinates obey
+  ``eta'' + 2 D w eta' + w^2 eta = Q_gravity - Gamma alpha_hub - Pi a_hub + Q_contact``,
+  so joint accelerations excite them as in (5.1.17); modes are integrated
+  exactly (zero-order hold) at the 2 kHz step.
+* Link-3 hub motion includes link-2's tip slope and deflection
+  accelerations, so link-2 frequencies appear in link-3 strain.
+* Contacts: spring–damper obstacles pushing on a sphere around the end
+  effector; the force acts on the joints through the rigid Jacobian and on
+  the modes as tip force / moment.
+
+Frames and signs: joint angles and the base frame follow
+:mod:`tudorvision.robot.kinematics`; link deflections and strains follow
+:mod:`tudorvision.sim.beam` (deflection toward increasing joint angle,
+top-surface strain positive in tension).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.linalg import expm
+
+from .._checks import TudorVisionError, check_array, check_vector
+from ..joint.cascade import JointCascade, design_cascade, motor_gain, reflected_inertia
+from ..joint.planner import plan_motion
+from ..robot.kinematics import jacobian_ee
+from ..robot.params import RobotParams, load_robot_params
+from .beam import ModalBasis, cantilever_static, link_rho, link_rigidity, modal_basis, surface_strain
+
+__all__ = [
+    "ASSUMPTIONS", "PlantConfig", "Payload", "ArmBodies", "arm_bodies", "mass_matrix",
+    "bias_torques", "rigid_energy", "link_static_loads", "SpringDamperObstacle", "ElasticArm",
+    "SimLog", "simulate", "simulate_ptp", "fk_elastic", "spheres_from_T", "zero_config_inertia",
+]
+
+ASSUMPTIONS = """\
+Simulated TUDOR: assumptions
+- Joints: rigid-equivalent multibody dynamics with lumped bodies (blades as uniform rods,
+  actuator 3 as a point mass with inertia at the link-2 tip, payload as a point mass with
+  plate inertia at the end effector); Coriolis/centrifugal terms included; gear backlash,
+  joint elasticity and motor electrical dynamics neglected (amplifier merged into k_M).
+- Friction: Zeng's model (3.1.3) with Coulomb terms opposing motion; sticking when the
+  Coulomb impulse of one step exceeds the velocity.
+- Links 2 and 3: Euler-Bernoulli blades rigidly clamped at the hub (K_r -> inf), bending only
+  in the arm's vertical plane (out-of-plane bending, torsion and axial strain neglected).
+  Tip load of link 2 = actuator 3 + link 3 + payload with inertia about the tip axis
+  (parallel-axis theorem, configuration independent); tip load of link 3 = payload.
+- Static deflection: exact small-deflection cantilever with own weight, tip force and tip
+  moment from the distal bodies, computed on the rigid geometry.
+- Dynamics of the deflection: n_modes modes per link from (4.4.6), mass-normalised,
+  proportional modal damping (ratios from tudor.yaml), forced by gravity, hub rotational
+  and translational accelerations, joint-3 reaction on the link-2 tip and contact forces.
+  Gravity stiffening/softening (axial load) and the backlash 'canyons' of fig. 4.8 are not
+  modelled, so link-2 frequencies do not vary with the configuration.
+- One-way coupling: link oscillations do not act back on the joints (section 5.1).
+- Encoders: 500 lines x 4 quadrature counts per motor revolution.
+"""
+
+
+@dataclass(frozen=True, kw_only=True)
+class PlantConfig:
+    """Options of the simulated arm (SI units).
+
+    Attributes
+    ----------
+    dt : float
+        Integration and control step, seconds (2 kHz).
+    n_modes : int
+        Bending modes per elastic link (>= 1).
+    gravity : bool
+        Apply gravity.
+    elastic : bool
+        Simulate link deflection (static and dynamic).
+    encoder_counts_per_rev : float or None
+        Counts per motor revolution; ``None`` gives exact angle readings.
+    base_inertia_kg_m2 : float
+        Inertia of the parts turning with joint 1 that are not modelled as
+        bodies (link 1, actuator 2 housing), assumed.
+    actuator3_inertia_kg_m2 : float
+        Inertia of actuator 3's housing about the joint-3 axis, assumed
+        (cylinder of 32 mm diameter).
+    plate_size_m : float
+        Edge of a square payload plate (inertia ``m a^2 / 12``).
+    modal_damping_ratio : tuple or None
+        Damping ratio per mode; ``None`` takes the values of the parameter file.
+    """
+
+    dt: float = 0.0005
+    n_modes: int = 2
+    gravity: bool = True
+    elastic: bool = True
+    encoder_counts_per_rev: float | None = 2000.0
+    base_inertia_kg_m2: float = 0.02
+    actuator3_inertia_kg_m2: float = 7.5e-5
+    plate_size_m: float = 0.08
+    modal_damping_ratio: tuple | None = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Payload:
+    """End-effector payload.
+
+    Attributes
+    ----------
+    mass_kg : float
+        Total mass at the end effector (mount, plates, camera, balls).
+    inertia_kg_m2 : float
+        Inertia about the bending axis through the end effector.
+    """
+
+    mass_kg: float
+    inertia_kg_m2: float = 0.0
+
+    @classmethod
+    def from_parts(cls, params: RobotParams, *, plates: int = 0, camera: bool = False,
+                   balls: int = 0, plate_size_m: float = 0.08) -> "Payload":
+        """Payload of the end-effector mount plus plates, camera rig and caught balls.
+
+        Examples
+        --------
+        >>> p = Payload.from_parts(load_robot_params(), plates=3)
+        >>> round(p.mass_kg, 3), round(p.inertia_kg_m2, 6)
+        (0.35, 0.00016)
+        """
+        if plates < 0 or balls < 0:
+            raise ValueError(f"plates, balls: expected >= 0, got {plates}, {balls}")
+        m_pl = plates * params.plate_mass_kg
+        mass = (params.end_effector_mount_mass_kg + m_pl + balls * params.ball_mass_kg
+                + (params.camera_and_spheres_mass_kg if camera else 0.0))
+        return cls(mass_kg=mass, inertia_kg_m2=m_pl * plate_size_m**2 / 12.0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ArmBodies:
+    """Lumped bodies of the arm (kg, m, kg m^2) and derived constants."""
+
+    l2: float
+    l3: float
+    h1: float
+    m2: float            # link-2 blade
+    mA: float            # actuator 3 (at the link-2 tip)
+    IA: float
+    m3: float            # link-3 blade
+    mP: float            # payload at the end effector
+    IP: float
+    I_base: float
+    rotor: tuple         # n^2 I_M per joint
+
+    @property
+    def J2(self) -> float:
+        """Inertia about joint 2 of link 2, actuator 3 and the distal masses as points at joint 3."""
+        return self.m2 * self.l2**2 / 3 + self.IA + (self.mA + self.m3 + self.mP) * self.l2**2
+
+    @property
+    def J3(self) -> float:
+        """Inertia of link 3 and payload about joint 3."""
+        return self.m3 * self.l3**2 / 3 + self.IP + self.mP * self.l3**2
+
+    @property
+    def s3(self) -> float:
+        """First moment of link 3 and payload about joint 3, kg m."""
+        return self.m3 * self.l3 / 2 + self.mP * self.l3
+
+    @property
+    def s2(self) -> float:
+        """First moment about joint 2 of link 2 and all masses lumped at joint 3, kg m."""
+        return self.m2 * self.l2 / 2 + (self.mA + self.m3 + self.mP) * self.l2
+
+
+def arm_bodies(params: RobotParams, payload: Payload, config: PlantConfig = PlantConfig()) -> ArmBodies:
+    """Lumped bodies for the given parameters and payload."""
+    if payload.mass_kg < 0 or payload.inertia_kg_m2 < 0:
+        raise ValueError(f"payload: expected mass and inertia >= 0, got {payload}")
+    rot = reflected_inertia(params)
+    return ArmBodies(
+        l2=float(params.link2_length_m), l3=float(params.link3_length_m), h1=float(params.link1_height_m),
+        m2=link_rho(params.link2) * float(params.link2.length_m), mA=float(params.actuator_mass_kg[2]),
+        IA=config.actuator3_inertia_kg_m2, m3=link_rho(params.link3) * float(params.link3.length_m),
+        mP=payload.mass_kg, IP=payload.inertia_kg_m2, I_base=config.base_inertia_kg_m2,
+        rotor=tuple(float(r) for r in rot))
+
+
+def _theta_rows(theta):
+    th = np.asarray(theta, dtype=np.float64)
+    single = th.ndim == 1
+    return check_array(th[None] if single else th, "theta", (None, 3)), single
+
+
+def _m11_and_partials(b: ArmBodies, t2, t3):
+    ca, sa = np.cos(t2), np.sin(t2)
+    cb, sb = np.cos(t2 + t3), np.sin(t2 + t3)
+    rA = b.l2 * ca
+    rP = rA + b.l3 * cb
+    f = (b.I_base + b.m2 * b.l2**2 * ca**2 / 3 + b.mA * rA**2
+         + b.m3 * (rA**2 + rA * b.l3 * cb + b.l3**2 * cb**2 / 3) + b.mP * rP**2)
+    drA2 = -b.l2 * sa
+    f2 = (-2 * b.m2 * b.l2**2 * ca * sa / 3 + 2 * b.mA * rA * drA2
+          + b.m3 * (2 * rA * drA2 + drA2 * b.l3 * cb - rA * b.l3 * sb - 2 * b.l3**2 * cb * sb / 3)
+          + 2 * b.mP * rP * (drA2 - b.l3 * sb))
+    f3 = b.m3 * (-rA * b.l3 * sb - 2 * b.l3**2 * cb * sb / 3) - 2 * b.mP * rP * b.l3 * sb
+    return f, f2, f3
+
+
+def mass_matrix(theta, bodies: ArmBodies) -> np.ndarray:
+    """Joint-space mass matrix including reflected rotor inertia.
+
+    Parameters
+    ----------
+    theta : array_like, shape (3,) or (N, 3)
+        Joint angles, radians.
+    bodies : ArmBodies
+
+    Returns
+    -------
+    M : ndarray, shape (3, 3) or (N, 3, 3)
+        kg m^2. Joint 1 decouples from joints 2 and 3 (bodies lie in the arm plane).
+    """
+    th, single = _theta_rows(theta)
+    b = bodies
+    c3 = np.cos(th[:, 2])
+    f, _, _ = _m11_and_partials(b, th[:, 1], th[:, 2])
+    M = np.zeros((th.shape[0], 3, 3))
+    M[:, 0, 0] = f + b.rotor[0]
+    M[:, 1, 1] = b.J2 + b.J3 + 2 * b.l2 * b.s3 * c3 + b.rotor[1]
+    M[:, 1, 2] = M[:, 2, 1] = b.J3 + b.l2 * b.s3 * c3
+    M[:, 2, 2] = b.J3 + b.rotor[2]
+    return M[0] if single else M
+
+
+def bias_torques(theta, dtheta, bodies: ArmBodies, gravity_m_s2: float = 9.81) -> np.ndarray:
+    """Coriolis, centrifugal and gravity torques ``c(theta, dtheta) + g(theta)``, N m.
+
+    Parameters
+    ----------
+    theta, dtheta : array_like, shape (3,) or (N, 3)
+        Angles (rad) and velocities (rad/s).
+    """
+    th, single = _theta_rows(theta)
+    dth, _ = _theta_rows(dtheta)
+    b, g = bodies, gravity_m_s2
+    t2, t3 = th[:, 1], th[:, 2]
+    d1, d2, d3 = dth[:, 0], dth[:, 1], dth[:, 2]
+    _, f2, f3 = _m11_and_partials(b, t2, t3)
+    h = b.l2 * b.s3 * np.sin(t3)
+    ca, cb = np.cos(t2), np.cos(t2 + t3)
+    out = np.zeros_like(th)
+    out[:, 0] = (f2 * d2 + f3 * d3) * d1
+    out[:, 1] = -h * (2 * d2 * d3 + d3**2) - 0.5 * f2 * d1**2 + g * (b.s2 * ca + b.s3 * cb)
+    out[:, 2] = h * d2**2 - 0.5 * f3 * d1**2 + g * b.s3 * cb
+    return out[0] if single else out
+
+
+def rigid_energy(theta, dtheta, bodies: ArmBodies, gravity_m_s2: float = 9.81) -> np.ndarray:
+    """Kinetic plus potential energy of the rigid-equivalent arm, joules (for checks)."""
+    th, single = _theta_rows(theta)
+    dth, _ = _theta_rows(dtheta)
+    M = mass_matrix(th, bodies)
+    kin = 0.5 * np.einsum("ni,nij,nj->n", dth, M, dth)
+    b = bodies
+    pot = gravity_m_s2 * (b.s2 * np.sin(th[:, 1]) + b.s3 * np.sin(th[:, 1] + th[:, 2]))
+    e = kin + pot
+    return e[0] if single else e
+
+
+def link_static_loads(theta, bodies: ArmBodies, gravity_m_s2: float = 9.81):
+    """Gravity loads on the elastic links along their ``y`` axes (rigid geometry).
+
+    Returns
+    -------
+    loads2, loads3 : ndarray, shape (3,) or (N, 3)
+        ``(q N/m, tip force N, tip moment N m)`` for link 2 and link 3.
+    """
+    th, single = _theta_rows(theta)
+    b, g = bodies, gravity_m_s2
+    ca, cb = np.cos(th[:, 1]), np.cos(th[:, 1] + th[:, 2])
+    rho2, rho3 = b.m2 / b.l2, b.m3 / b.l3
+    l2 = np.stack([-rho2 * g * ca, -(b.mA + b.m3 + b.mP) * g * ca, -g * b.s3 * cb], axis=1)
+    l3 = np.stack([-rho3 * g * cb, -b.mP * g * cb, np.zeros_like(cb)], axis=1)
+    return (l2[0], l3[0]) if single else (l2, l3)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SpringDamperObstacle:
+    """A rigid obstacle touched by a sphere around the end effector.
+
+    The contact force is ``F = max(0, k d + c d') n`` with penetration depth
+    ``d``, its rate ``d'`` and the outward surface normal ``n``.
+
+    Attributes
+    ----------
+    kind : {"plane", "sphere"}
+    point_base : ndarray, shape (3,)
+        A point on the plane, or the sphere centre (metres, base frame).
+    normal_base : ndarray, shape (3,)
+        Plane normal pointing out of the obstacle (ignored for spheres).
+    radius_m : float
+        Obstacle sphere radius (ignored for planes).
+    stiffness_N_m, damping_Ns_m : float
+        Contact spring and damper.
+    probe_radius_m : float
+        Radius of the contact sphere around the end effector.
+    """
+
+    kind: str
+    point_base: np.ndarray
+    normal_base: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    radius_m: float = 0.0
+    stiffness_N_m: float = 2.0e4
+    damping_Ns_m: float = 50.0
+    probe_radius_m: float = 0.03
+
+    def __post_init__(self):
+        if self.kind not in ("plane", "sphere"):
+            raise ValueError(f"kind: expected 'plane' or 'sphere', got {self.kind!r}")
+        object.__setattr__(self, "point_base", check_vector(self.point_base, "point_base", 3))
+        n = check_vector(self.normal_base, "normal_base", 3)
+        if np.linalg.norm(n) < 1e-12:
+            raise ValueError("normal_base: must not be zero")
+        object.__setattr__(self, "normal_base", n / np.linalg.norm(n))
+
+    def force(self, p_base, v_base) -> np.ndarray:
+        """Contact force on the probe at ``p_base`` moving with ``v_base`` (N, base frame).
+
+        Examples
+        --------
+        >>> floor = SpringDamperObstacle(kind="plane", point_base=[0, 0, 0], damping_Ns_m=0.0,
+        ...                              stiffness_N_m=1000.0, probe_radius_m=0.01)
+        >>> floor.force([0, 0, 0.005], [0, 0, 0]).tolist()
+        [0.0, 0.0, 5.0]
+        """
+        p = np.asarray(p_base, dtype=np.float64)
+        v = np.asarray(v_base, dtype=np.float64)
+        if self.kind == "plane":
+            n = self.normal_base
+            depth = self.probe_radius_m - float(n @ (p - self.point_base))
+        else:
+            d = p - self.point_base
+            dist = float(np.linalg.norm(d))
+            n = d / dist if dist > 1e-12 else np.array([0.0, 0.0, 1.0])
+            depth = self.radius_m + self.probe_radius_m - dist
+        if depth <= 0:
+            return np.zeros(3)
+        mag = self.stiffness_N_m * depth - self.damping_Ns_m * float(n @ v)
+        return max(mag, 0.0) * n
+
+
+def fk_elastic(theta, tip2, tip3, params: RobotParams | None = None):
+    """End-effector frame of the deflected arm.
+
+    Parameters
+    ----------
+    theta : array_like, shape (3,) or (N, 3)
+        Joint angles, radians.
+    tip2, tip3 : array_like, shape (2,) or (N, 2)
+        ``(w(L), w'(L))`` of links 2 and 3: tip deflection (m) and slope (rad).
+
+    Returns
+    -------
+    T_base_ee : ndarray, shape (4, 4) or (N, 4, 4)
+        Same axis convention as :func:`tudorvision.robot.T_base_ee`, with
+        link 3's direction rotated by the link-2 tip slope and the x axis
+        along the deflected link-3 tip tangent.
+
+    Examples
+    --------
+    >>> from tudorvision.robot import T_base_ee
+    >>> bool(np.allclose(fk_elastic([0.1, 0.5, 0.2], [0, 0], [0, 0]), T_base_ee([0.1, 0.5, 0.2])))
+    True
+    """
+    p = params or load_robot_params()
+    th, single = _theta_rows(theta)
+    w2 = np.asarray(tip2, dtype=np.float64).reshape(-1, 2)
+    w3 = np.asarray(tip3, dtype=np.float64).reshape(-1, 2)
+    a = th[:, 1]
+    b = th[:, 1] + th[:, 2] + w2[:, 1]
+    e = b + w3[:, 1]
+    l2, l3 = p.link2_length_m, p.link3_length_m
+    r = l2 * np.cos(a) - w2[:, 0] * np.sin(a) + l3 * np.cos(b) - w3[:, 0] * np.sin(b)
+    z = p.link1_height_m + l2 * np.sin(a) + w2[:, 0] * np.cos(a) + l3 * np.sin(b) + w3[:, 0] * np.cos(b)
+    c1, s1 = np.cos(th[:, 0]), np.sin(th[:, 0])
+    n = th.shape[0]
+    T = np.zeros((n, 4, 4))
+    T[:, :3, 0] = np.stack([np.cos(e) * c1, np.cos(e) * s1, np.sin(e)], axis=1)
+    T[:, :3, 1] = np.stack([-np.sin(e) * c1, -np.sin(e) * s1, np.cos(e)], axis=1)
+    T[:, :3, 2] = np.stack([s1, -c1, np.zeros(n)], axis=1)
+    T[:, :3, 3] = np.stack([r * c1, r * s1, z], axis=1)
+    T[:, 3, 3] = 1.0
+    return T[0] if single else T
+
+
+def spheres_from_T(T_base_ee, params: RobotParams | None = None) -> dict:
+    """Tracking-sphere centres ``{"red": (N, 3), "green": (N, 3)}`` from end-effector poses."""
+    p = params or load_robot_params()
+    T = np.asarray(T_base_ee, dtype=np.float64)
+    return {k: T[..., :3, :3] @ off + T[..., :3, 3] for k, off in p.sphere_offsets_ee_m.items()}
+
+
+class _LinkModel:
+    """Per-link constants for the scalar 2 kHz loop (rebuilt when the payload changes)."""
+
+    def __init__(self, basis: ModalBasis, gauges, zeta, dt: float):
+        self.basis = basis
+        self.L, self.EI, self.h = basis.length_m, basis.flexural_rigidity_Nm2, basis.height_m
+        self.gauges = [float(x) for x in gauges]
+        n = basis.n_modes
+        om = basis.omega_rad_s
+        self.om2 = [float(w * w) for w in om]
+        self.gamma = [float(x) for x in basis.rotation_participation]
+        self.pi = [float(x) for x in basis.translation_participation]
+        self.phiL = [float(x) for x in basis.shape([self.L])[:, 0]]
+        self.dphiL = [float(x) for x in basis.shape([self.L], 1)[:, 0]]
+        self.iphi = [float(x) for x in basis.static_coordinates(1.0, 0.0, 0.0) * om**2]
+        d2 = basis.shape(self.gauges, 2)
+        self.ddphi_g = [[float(d2[r, k]) for r in range(n)] for k in range(len(self.gauges))]
+        self.zoh = []
+        for r in range(n):
+            z = float(zeta[min(r, len(zeta) - 1)])
+            A = expm(np.array([[0.0, 1.0], [-om[r] ** 2, -2.0 * z * om[r]]]) * dt)
+            self.zoh.append(tuple(float(v) for v in A.ravel()))
+        self.n = n
+
+    def static_tip_and_gauges(self, q, P, M):
+        """Static (w(L), w'(L)) and curvatures at the gauges, scalar closed form."""
+        L, EI = self.L, self.EI
+        wL = (q * L**4 / 8.0 + P * L**3 / 3.0 + M * L**2 / 2.0) / EI
+        sL = (q * L**3 / 6.0 + P * L**2 / 2.0 + M * L) / EI
+        curv = [(q * (L - x) ** 2 / 2.0 + P * (L - x) + M) / EI for x in self.gauges]
+        return wL, sL, curv
+
+
+class ElasticArm:
+    """State of the simulated arm; advance it with :meth:`step` at ``config.dt``.
+
+    Parameters
+    ----------
+    theta0 : array_like, shape (3,)
+        Initial joint angles, radians; the arm starts at rest in static equilibrium.
+    payload : Payload, optional
+        Default: mount plus the eye-in-hand camera with the tracking spheres.
+    params : RobotParams, optional
+    config : PlantConfig, optional
+    obstacles : sequence of SpringDamperObstacle, optional
+
+    Attributes (read after each step; Python lists for speed)
+    --------------------------------------------------------
+    t : float
+        Simulated time, seconds.
+    theta, dtheta, ddtheta : list of 3 floats
+        Joint angles (rad), velocities (rad/s), accelerations of the last step (rad/s^2).
+    tau : list of 3 floats
+        Electrical torques ``tau_E`` applied in the last step, N m.
+    strain : list of 4 floats
+        Top-surface strains at the gauges (link 2 near, far; link 3 near, far), m/m.
+    tip2, tip3 : list of 2 floats
+        Tip deflection (m) and slope (rad) of links 2 and 3.
+    contact_force : list of 3 floats
+        Total obstacle force on the end effector, N, base frame.
+
+    Examples
+    --------
+    >>> arm = ElasticArm([0.0, 0.0, 0.0])
+    >>> arm.tip2[0] < 0   # the horizontal arm sags
+    True
+    """
+
+    def __init__(self, theta0, *, payload: Payload | None = None, params: RobotParams | None = None,
+                 config: PlantConfig = PlantConfig(), obstacles=()):
+        self.params = params or load_robot_params()
+        self.config = config
+        if not config.dt > 0 or config.n_modes < 1:
+            raise ValueError(f"config: expected dt > 0 and n_modes >= 1, got {config.dt}, {config.n_modes}")
+        p = self.params
+        self.g = float(p.gravity_m_s2) if config.gravity else 0.0
+        self.kM = [float(x) for x in motor_gain(p)]
+        self.tau_max = [float(x) for x in p.max_intermittent_torque_Nm]
+        n = np.asarray(p.gear_ratio, float)
+        self._kvp = [float(x) for x in n**2 * p.viscous_pos_Nms_rad]
+        self._kvn = [float(x) for x in n**2 * p.viscous_neg_Nms_rad]
+        self._kcp = [float(x) for x in n * p.coulomb_pos_Nm]
+        self._kcn = [float(x) for x in n * p.coulomb_neg_Nm]
+        if config.encoder_counts_per_rev:
+            self._quant = [float(2 * np.pi / (config.encoder_counts_per_rev * nj)) for nj in n]
+        else:
+            self._quant = None
+        self.obstacles = tuple(obstacles)
+        th = check_vector(theta0, "theta0", 3)
+        self.t = 0.0
+        self.theta = [float(x) for x in th]
+        self.dtheta = [0.0, 0.0, 0.0]
+        self.ddtheta = [0.0, 0.0, 0.0]
+        self.tau = [0.0, 0.0, 0.0]
+        self.contact_force = [0.0, 0.0, 0.0]
+        self._p_prev = None
+        self.payload = payload or Payload.from_parts(p, camera=True)
+        self._build(self.payload)
+        n_m = config.n_modes
+        self.eta2, self.deta2 = [0.0] * n_m, [0.0] * n_m
+        self.eta3, self.deta3 = [0.0] * n_m, [0.0] * n_m
+        self._settle()
+        self._outputs()
+
+    # -- model set-up -------------------------------------------------------------------------
+    def _build(self, payload: Payload) -> None:
+        p, cfg = self.params, self.config
+        b = arm_bodies(p, payload, cfg)
+        self.bodies = b
+        zeta = cfg.modal_damping_ratio or tuple(float(z) for z in p.modal_damping_ratio)
+        mL2 = b.mA + b.m3 + b.mP
+        IL2 = b.IA + b.J3                         # distal inertia about the link-2 tip axis
+        basis2 = modal_basis(p.link2, mL2, IL2, cfg.n_modes)
+        basis3 = modal_basis(p.link3, b.mP, b.IP, cfg.n_modes)
+        g2 = p.gauge_positions_m["link2"]
+        g3 = p.gauge_positions_m["link3"]
+        self.link2 = _LinkModel(basis2, g2, zeta, cfg.dt)
+        self.link3 = _LinkModel(basis3, g3, zeta, cfg.dt)
+
+    def _loads(self):
+        th, b, g = self.theta, self.bodies, self.g
+        ca, cb = math.cos(th[1]), math.cos(th[1] + th[2])
+        l2 = (-(b.m2 / b.l2) * g * ca, -(b.mA + b.m3 + b.mP) * g * ca, -g * b.s3 * cb)
+        l3 = (-(b.m3 / b.l3) * g * cb, -b.mP * g * cb, 0.0)
+        return l2, l3
+
+    @staticmethod
+    def _gen_force(lm: _LinkModel, q, P, M):
+        return [lm.iphi[r] * q + lm.phiL[r] * P + lm.dphiL[r] * M for r in range(lm.n)]
+
+    def _settle(self) -> None:
+        """Put the modal coordinates at the static equilibrium of the current configuration."""
+        if not self.config.elastic:
+            return
+        l2, l3 = self._loads()
+        for lm, eta, deta, loads in ((self.link2, self.eta2, self.deta2, l2),
+                                     (self.link3, self.eta3, self.deta3, l3)):
+            f = self._gen_force(lm, *loads)
+            for r in range(lm.n):
+                eta[r] = f[r] / lm.om2[r]
+                deta[r] = 0.0
+
+    def set_payload(self, payload: Payload) -> None:
+        """Change the payload (e.g. a caught ball) keeping the current link shapes.
+
+        The deflection and its rate are projected onto the new modes, so the
+        links start to oscillate about the new static equilibrium.
+        """
+        old2, old3 = self.link2, self.link3
+        shapes = []
+        if self.config.elastic:
+            l2, l3 = self._loads()
+            for lm, eta, deta, loads in ((old2, self.eta2, self.deta2, l2), (old3, self.eta3, self.deta3, l3)):
+                shapes.append(self._shape_on_grid(lm, eta, deta, loads))
+        self.payload = payload
+        self._build(payload)
+        if self.config.elastic:
+            for lm, (xg, wg, w, dw, wL, sL, vL, svL), eta, deta in zip(
+                    (self.link2, self.link3), shapes, (self.eta2, self.eta3), (self.deta2, self.deta3)):
+                B = lm.basis
+                phi = B.shape(xg)
+                rho = B.rho_kg_m
+                eta[:] = [float(v) for v in rho * phi @ (wg * w) + B.tip_mass_kg * np.array(lm.phiL) * wL
+                          + B.tip_inertia_kg_m2 * np.array(lm.dphiL) * sL]
+                deta[:] = [float(v) for v in rho * phi @ (wg * dw) + B.tip_mass_kg * np.array(lm.phiL) * vL
+                           + B.tip_inertia_kg_m2 * np.array(lm.dphiL) * svL]
+        self._outputs()
+
+    @staticmethod
+    def _shape_on_grid(lm: _LinkModel, eta, deta, loads):
+        from .beam import _gauss
+        B = lm.basis
+        xg, wg = _gauss(B.length_m)
+        ws, ss, _ = cantilever_static(xg, B.length_m, B.flexural_rigidity_Nm2, q_N_m=loads[0],
+                                      tip_force_N=loads[1], tip_moment_Nm=loads[2])
+        wsL, ssL, _ = cantilever_static(B.length_m, B.length_m, B.flexural_rigidity_Nm2, q_N_m=loads[0],
+                                        tip_force_N=loads[1], tip_moment_Nm=loads[2])
+        nu = np.asarray(eta) - B.static_coordinates(*loads)
+        phi = B.shape(xg)
+        w = ws + nu @ phi
+        dw = np.asarray(deta) @ phi
+        wL = float(wsL) + float(nu @ np.asarray(lm.phiL))
+        sL = float(ssL) + float(nu @ np.asarray(lm.dphiL))
+        vL = float(np.asarray(deta) @ np.asarray(lm.phiL))
+        svL = float(np.asarray(deta) @ np.asarray(lm.dphiL))
+        return xg, wg, w, dw, wL, sL, vL, svL
+
+    # -- sensors --------------------------------------------------------------------------------
+    def measured_theta(self) -> list:
+        """Encoder readings (quantised joint angles), radians."""
+        if self._quant is None:
+            return list(self.theta)
+        return [round(self.theta[j] / self._quant[j]) * self._quant[j] for j in range(3)]
+
+    def T_base_ee(self) -> np.ndarray:
+        """Current deflected end-effector pose, shape (4, 4)."""
+        return fk_elastic(self.theta, self.tip2, self.tip3, self.params)
+
+    def ee_position(self) -> np.ndarray:
+        """Current deflected end-effector position, metres, base frame."""
+        return self.T_base_ee()[:3, 3]
+
+    def sphere_positions(self) -> dict:
+        """Current tracking-sphere centres ``{"red": (3,), "green": (3,)}``, base frame."""
+        return spheres_from_T(self.T_base_ee(), self.params)
+
+    # -- dynamics -------------------------------------------------------------------------------
+    def step(self, v_M) -> None:
+        """Advance one step ``config.dt`` with amplifier input voltages ``v_M`` (3 floats)."""
+        dt = self.config.dt
+        b = self.bodies
+        th, dth = self.theta, self.dtheta
+        tau = [0.0, 0.0, 0.0]
+        for j in range(3):
+            tj = self.kM[j] * v_M[j]
+            lim = self.tau_max[j]
+            tau[j] = lim if tj > lim else (-lim if tj < -lim else tj)
+        self.tau = tau
+        t2, t3 = th[1], th[2]
+        ca, sa = math.cos(t2), math.sin(t2)
+        cb, sb = math.cos(t2 + t3), math.sin(t2 + t3)
+        c3, s3_ = math.cos(t3), math.sin(t3)
+        l2, l3 = b.l2, b.l3
+        # joint-1 inertia and its partials (see _m11_and_partials)
+        rA = l2 * ca
+        rP = rA + l3 * cb
+        f = (b.I_base + b.m2 * l2 * l2 * ca * ca / 3 + b.mA * rA * rA
+             + b.m3 * (rA * rA + rA * l3 * cb + l3 * l3 * cb * cb / 3) + b.mP * rP * rP)
+        drA2 = -l2 * sa
+        f2 = (-2 * b.m2 * l2 * l2 * ca * sa / 3 + 2 * b.mA * rA * drA2
+              + b.m3 * (2 * rA * drA2 + drA2 * l3 * cb - rA * l3 * sb - 2 * l3 * l3 * cb * sb / 3)
+              + 2 * b.mP * rP * (drA2 - l3 * sb))
+        f3 = b.m3 * (-rA * l3 * sb - 2 * l3 * l3 * cb * sb / 3) - 2 * b.mP * rP * l3 * sb
+        d1, d2, d3 = dth
+        J3, s3 = b.J3, b.s3
+        h = l2 * s3 * s3_
+        g = self.g
+        bias1 = (f2 * d2 + f3 * d3) * d1
+        bias2 = -h * (2 * d2 * d3 + d3 * d3) - 0.5 * f2 * d1 * d1 + g * (b.s2 * ca + s3 * cb)
+        bias3 = h * d2 * d2 - 0.5 * f3 * d1 * d1 + g * s3 * cb
+        rhs = [tau[0] - bias1, tau[1] - bias2, tau[2] - bias3]
+        for j in range(3):          # viscous friction, explicit
+            v = dth[j]
+            rhs[j] -= (self._kvp[j] if v > 0 else self._kvn[j]) * v
+        fc = self.contact_force
+        if fc[0] != 0.0 or fc[1] != 0.0 or fc[2] != 0.0:
+            Jc = jacobian_ee(th, self.params)
+            tc = Jc.T @ np.asarray(fc)
+            for j in range(3):
+                rhs[j] += float(tc[j])
+        m11 = f + b.rotor[0]
+        m22 = b.J2 + J3 + 2 * l2 * s3 * c3 + b.rotor[1]
+        m23 = J3 + l2 * s3 * c3
+        m33 = J3 + b.rotor[2]
+        det = m22 * m33 - m23 * m23
+        acc = [rhs[0] / m11, (m33 * rhs[1] - m23 * rhs[2]) / det, (m22 * rhs[2] - m23 * rhs[1]) / det]
+        mdiag = (m11, m22, m33)
+        for j in range(3):          # Coulomb friction with sticking
+            v_old = dth[j]
+            vt = v_old + acc[j] * dt
+            if vt > 0:
+                dv = self._kcp[j] * dt / mdiag[j]
+                v_new = vt - dv if vt > dv else 0.0
+            elif vt < 0:
+                dv = self._kcn[j] * dt / mdiag[j]
+                v_new = vt + dv if -vt > dv else 0.0
+            else:
+                v_new = 0.0
+            self.ddtheta[j] = (v_new - v_old) / dt
+            dth[j] = v_new
+            th[j] += v_new * dt
+        self.t += dt
+        if self.config.elastic:
+            self._step_modes()
+        self._outputs()
+        if self.obstacles:
+            self._contact()
+
+    def _step_modes(self) -> None:
+        dt = self.config.dt
+        b = self.bodies
+        a2, a3 = self.ddtheta[1], self.ddtheta[2]
+        c3 = math.cos(self.theta[2])
+        l2s, l3s = self._loads()
+        fc = self.contact_force
+        contact = fc[0] != 0.0 or fc[1] != 0.0 or fc[2] != 0.0
+        if contact:
+            t1 = self.theta[0]
+            a_, bb = self.theta[1], self.theta[1] + self.theta[2] + self.tip2[1]
+            ey2 = (-math.sin(a_) * math.cos(t1), -math.sin(a_) * math.sin(t1), math.cos(a_))
+            ey3 = (-math.sin(bb) * math.cos(t1), -math.sin(bb) * math.sin(t1), math.cos(bb))
+            fy2 = sum(fc[i] * ey2[i] for i in range(3))
+            fy3 = sum(fc[i] * ey3[i] for i in range(3))
+        # link 2: hub rotation theta2, reaction of the joint-3 acceleration on the tip
+        lm = self.link2
+        f = self._gen_force(lm, *l2s)
+        react_F = -b.s3 * c3 * a3
+        react_M = -b.J3 * a3
+        acc2_tip = 0.0
+        acc2_slope = 0.0
+        for r in range(lm.n):
+            u = f[r] - lm.gamma[r] * a2 + lm.phiL[r] * react_F + lm.dphiL[r] * react_M
+            if contact:
+                u += lm.phiL[r] * fy2 + lm.dphiL[r] * b.l3 * fy3
+            xs = u / lm.om2[r]
+            A11, A12, A21, A22 = lm.zoh[r]
+            x, v = self.eta2[r] - xs, self.deta2[r]
+            v_new = A21 * x + A22 * v
+            self.eta2[r] = xs + A11 * x + A12 * v
+            acc = (v_new - v) / dt
+            self.deta2[r] = v_new
+            acc2_tip += lm.phiL[r] * acc
+            acc2_slope += lm.dphiL[r] * acc
+        # link 3: hub rotation theta2 + theta3 + link-2 tip slope, hub translation
+        lm = self.link3
+        f = self._gen_force(lm, *l3s)
+        alpha = a2 + a3 + acc2_slope
+        a_perp = (b.l2 * a2 + acc2_tip) * c3
+        for r in range(lm.n):
+            u = f[r] - lm.gamma[r] * alpha - lm.pi[r] * a_perp
+            if contact:
+                u += lm.phiL[r] * fy3
+            xs = u / lm.om2[r]
+            A11, A12, A21, A22 = lm.zoh[r]
+            x, v = self.eta3[r] - xs, self.deta3[r]
+            self.eta3[r] = xs + A11 * x + A12 * v
+            self.deta3[r] = A21 * x + A22 * v
+
+    def _outputs(self) -> None:
+        if not self.config.elastic:
+            self.strain = [0.0, 0.0, 0.0, 0.0]
+            self.tip2, self.tip3 = [0.0, 0.0], [0.0, 0.0]
+            return
+        l2s, l3s = self._loads()
+        strain = []
+        tips = []
+        for lm, eta, loads in ((self.link2, self.eta2, l2s), (self.link3, self.eta3, l3s)):
+            wL, sL, curv = lm.static_tip_and_gauges(*loads)
+            f = self._gen_force(lm, *loads)
+            nu = [eta[r] - f[r] / lm.om2[r] for r in range(lm.n)]
+            for k in range(len(lm.gauges)):
+                c = curv[k] + sum(lm.ddphi_g[k][r] * nu[r] for r in range(lm.n))
+                strain.append(-0.5 * lm.h * c)
+            tips.append([wL + sum(lm.phiL[r] * nu[r] for r in range(lm.n)),
+                         sL + sum(lm.dphiL[r] * nu[r] for r in range(lm.n))])
+        self.strain = strain
+        self.tip2, self.tip3 = tips
+
+    def _contact(self) -> None:
+        p = self.ee_position()
+        dt = self.config.dt
+        v = np.zeros(3) if self._p_prev is None else (p - self._p_prev) / dt
+        self._p_prev = p
+        total = np.zeros(3)
+        for ob in self.obstacles:
+            total += ob.force(p, v)
+        self.contact_force = [float(x) for x in total]
+
+
+@dataclass(frozen=True, kw_only=True)
+class SimLog:
+    """Time series of one simulation (row k is the state after step k).
+
+    Attributes
+    ----------
+    t : ndarray, shape (N,)
+        Seconds.
+    theta, dtheta, ddtheta, theta_ref, dtheta_ref, tau : ndarray, shape (N, 3)
+        Joint angles (rad), velocities (rad/s), accelerations (rad/s^2), reference
+        angles and velocities, electrical torques (N m).
+    strain : ndarray, shape (N, 4)
+        Gauge strains (link 2 near, far; link 3 near, far), m/m, top surface, tension positive.
+    tip2, tip3 : ndarray, shape (N, 2)
+        Tip deflection (m) and slope (rad) of links 2 and 3.
+    contact_force : ndarray, shape (N, 3)
+        N, base frame.
+    """
+
+    t: np.ndarray
+    theta: np.ndarray
+    dtheta: np.ndarray
+    ddtheta: np.ndarray
+    theta_ref: np.ndarray
+    dtheta_ref: np.ndarray
+    tau: np.ndarray
+    strain: np.ndarray
+    tip2: np.ndarray
+    tip3: np.ndarray
+    contact_force: np.ndarray
+    params: RobotParams
+
+    def T_base_ee(self) -> np.ndarray:
+        """Deflected end-effector poses, shape (N, 4, 4)."""
+        return fk_elastic(self.theta, self.tip2, self.tip3, self.params)
+
+    def ee_position(self) -> np.ndarray:
+        """Deflected end-effector positions, shape (N, 3), metres, base frame."""
+        return self.T_base_ee()[:, :3, 3]
+
+    def sphere_positions(self) -> dict:
+        """Tracking-sphere centres ``{"red": (N, 3), "green": (N, 3)}``, base frame."""
+        return spheres_from_T(self.T_base_ee(), self.params)
+
+
+def zero_config_inertia(arm: ElasticArm) -> np.ndarray:
+    """Diagonal of the mass matrix at the zero configuration (the seed's design point)."""
+    return np.diag(mass_matrix(np.zeros(3), arm.bodies)).copy()
+
+
+def simulate(arm: ElasticArm, controller: JointCascade, reference, duration_s: float, *,
+             dtheta_extra=None) -> SimLog:
+    """Run the plant and the joint cascade together for ``duration_s``.
+
+    Parameters
+    ----------
+    arm : ElasticArm
+        Plant, advanced in place.
+    controller : JointCascade
+        Joint controller, advanced in place (same ``dt`` as the plant).
+    reference : object with ``sample(t) -> (theta, dtheta, ddtheta)``
+        E.g. a :class:`tudorvision.joint.planner.JointMotion`; sampled at all
+        step times up front.
+    duration_s : float
+        Simulated time, seconds.
+    dtheta_extra : callable, optional
+        ``f(arm) -> 3 floats`` added at the velocity-loop input each step (damping hook).
+
+    Returns
+    -------
+    SimLog
+    """
+    dt = arm.config.dt
+    if abs(controller.dt - dt) > 1e-12:
+        raise ValueError(f"controller.dt: expected the plant step {dt}, got {controller.dt}")
+    n = int(round(duration_s / dt))
+    if n < 1:
+        raise ValueError(f"duration_s: expected at least one step of {dt} s, got {duration_s}")
+    times = arm.t + dt * np.arange(n)          # reference at the sample instant
+    ref_th, ref_dth, _ = reference.sample(times)
+    ref_th, ref_dth = ref_th.tolist(), ref_dth.tolist()
+    cols = {k: [] for k in ("t", "theta", "dtheta", "ddtheta", "tau", "strain", "tip2", "tip3", "fc")}
+    zero = (0.0, 0.0, 0.0)
+    for k in range(n):
+        extra = dtheta_extra(arm) if dtheta_extra is not None else zero
+        v = controller.step(arm.measured_theta(), ref_th[k], ref_dth[k], extra)
+        arm.step(v)
+        cols["t"].append(arm.t)
+        cols["theta"].append(list(arm.theta))
+        cols["dtheta"].append(list(arm.dtheta))
+        cols["ddtheta"].append(list(arm.ddtheta))
+        cols["tau"].append(arm.tau)
+        cols["strain"].append(arm.strain)
+        cols["tip2"].append(arm.tip2)
+        cols["tip3"].append(arm.tip3)
+        cols["fc"].append(arm.contact_force)
+    return SimLog(t=np.asarray(cols["t"]), theta=np.asarray(cols["theta"]),
+                  dtheta=np.asarray(cols["dtheta"]), ddtheta=np.asarray(cols["ddtheta"]),
+                  theta_ref=np.asarray(ref_th), dtheta_ref=np.asarray(ref_dth),
+                  tau=np.asarray(cols["tau"]), strain=np.asarray(cols["strain"]),
+                  tip2=np.asarray(cols["tip2"]), tip3=np.asarray(cols["tip3"]),
+                  contact_force=np.asarray(cols["fc"]), params=arm.params)
+
+
+def simulate_ptp(theta_start, theta_goal, duration_s: float, *, payload: Payload | None = None,
+                 v_max=None, a_max=None, t_move: float = 0.0, params: RobotParams | None = None,
+                 config: PlantConfig = PlantConfig(), obstacles=()) -> SimLog:
+    """Simulate a point-to-point motion with the planner, cascade and elastic plant.
+
+    Parameters
+    ----------
+    theta_start, theta_goal : array_like, shape (3,)
+        Radians. The arm starts at rest in static equilibrium at ``theta_start``.
+    duration_s : float
+        Total simulated time, seconds.
+    payload : Payload, optional
+    v_max, a_max : float or array_like, optional
+        Planner limits; default the experiment values of chapter 8 (60 deg/s,
+        200 deg/s^2) capped by each joint's maximum speed and acceleration.
+    t_move : float
+        When the motion starts, seconds.
+
+    Returns
+    -------
+    SimLog
+
+    Raises
+    ------
+    ValueError
+        If a goal lies outside the joint ranges or a limit exceeds the hardware limits.
+
+    Examples
+    --------
+    >>> log = simulate_ptp([0, 0.5, 0], [0, 0.6, 0], 0.05)
+    >>> log.strain.shape
+    (100, 4)
+    """
+    p = params or load_robot_params()
+    goal = check_vector(theta_goal, "theta_goal", 3)
+    start = check_vector(theta_start, "theta_start", 3)
+    lo, hi = p.joint_limits_rad[:, 0], p.joint_limits_rad[:, 1]
+    for name, th in (("theta_start", start), ("theta_goal", goal)):
+        if np.any(th < lo - 1e-9) or np.any(th > hi + 1e-9):
+            raise ValueError(f"{name}: {np.round(np.rad2deg(th), 2).tolist()} deg is outside the joint ranges")
+    vmax = np.minimum(p.experiment_speed_rad_s, p.max_speed_rad_s) if v_max is None \
+        else np.broadcast_to(np.asarray(v_max, float), (3,))
+    amax = np.minimum(p.experiment_accel_rad_s2, p.max_accel_rad_s2) if a_max is None \
+        else np.broadcast_to(np.asarray(a_max, float), (3,))
+    if np.any(vmax > p.max_speed_rad_s + 1e-9) or np.any(amax > p.max_accel_rad_s2 + 1e-9):
+        raise ValueError("v_max, a_max: exceed the joint speed or acceleration limits of the parameter file")
+    arm = ElasticArm(start, payload=payload, params=p, config=config, obstacles=obstacles)
+    gains = design_cascade(p, zero_config_inertia(arm))
+    ctrl = JointCascade(gains, config.dt, arm.measured_theta())
+    motion = plan_motion(start, goal, v_max=vmax, a_max=amax, t0=t_move)
+    return simulate(arm, ctrl, motion, duration_s)
