@@ -125,6 +125,12 @@ class _Ctx:
         return TudorVisionError(f"{where}: {name}: {msg}" if name else f"{where}: {msg}")
 
     def array(self, value, keys, shape):
+        want = "(" + ", ".join("N" if n is None else str(n) for n in shape) + ")"
+        try:
+            np.asarray(value, dtype=np.float64)
+        except (ValueError, TypeError):
+            text = repr(value) if len(repr(value)) < 80 else repr(value)[:77] + "..."
+            raise self.error(keys, f"expected shape {want} of numbers, got {text}") from None
         try:
             return check_array(value, ".".join(map(str, keys)), shape)
         except (ValueError, TypeError) as exc:
