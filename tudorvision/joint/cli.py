@@ -1,0 +1,177 @@
+"""``tudorvision joint`` commands: serve the layer on loopback, query it, move it.
+
+* ``joint serve --port P [--duration S] [--core NAME]`` runs the joint-control
+  layer on 127.0.0.1 in real time and prints the port it listens on;
+* ``joint status --port P [--timeout S]`` prints the layer's state (exit 0),
+  or one line and exit 1 when nothing answers;
+* ``joint move --port P --to DEG,DEG,DEG`` sends a setpoint and waits until
+  the arm has settled (exit 0), exit 1 on refusal, silence or timeout.
+
+Angles on the command line are in degrees; everything inside is SI.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+__all__ = ["register"]
+
+
+def _port(allow_zero: bool):
+    def parse(text: str) -> int:
+        try:
+            port = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer port, got {text!r}") from None
+        low = 0 if allow_zero else 1
+        if not low <= port <= 65535:
+            raise argparse.ArgumentTypeError(f"expected a port in {low}..65535, got {port}")
+        return port
+    return parse
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (np.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _degrees3(text: str) -> np.ndarray:
+    parts = text.split(",")
+    try:
+        deg = np.array([float(p) for p in parts])
+    except ValueError:
+        deg = None
+    if deg is None or deg.shape != (3,) or not np.all(np.isfinite(deg)):
+        raise argparse.ArgumentTypeError(
+            f"expected three comma-separated angles in degrees (e.g. 0,90,0), got {text!r}")
+    return deg
+
+
+def register(subparsers) -> None:
+    """Add the ``joint`` command and its actions to the top-level parser."""
+    p = subparsers.add_parser("joint", help="joint-control layer over UDP: serve, status, move",
+                              description=__doc__.split("\n\n")[0])
+    actions = p.add_subparsers(dest="joint_action", metavar="ACTION")
+    p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
+
+    s = actions.add_parser("serve", help="run the joint-control layer on 127.0.0.1")
+    s.add_argument("--port", type=_port(True), required=True,
+                   help="UDP port on 127.0.0.1 (0 picks a free one; printed on start)")
+    s.add_argument("--duration", type=_positive, default=None,
+                   help="stop after this many seconds (default: until interrupted)")
+    s.add_argument("--core", default="kinematic", help="registered core (default: kinematic)")
+    s.add_argument("--rate", type=_positive, default=500.0, help="control rate in Hz")
+    s.add_argument("--watchdog", type=_positive, default=0.1,
+                   help="velocity command lifetime in s (default 0.1)")
+    s.set_defaults(func=_serve)
+
+    st = actions.add_parser("status", help="print the layer's state")
+    st.add_argument("--port", type=_port(False), required=True, help="UDP port of the layer")
+    st.add_argument("--timeout", type=_positive, default=1.0, help="seconds to wait (default 1)")
+    st.set_defaults(func=_status)
+
+    m = actions.add_parser("move", help="send a joint setpoint and wait until settled")
+    m.add_argument("--port", type=_port(False), required=True, help="UDP port of the layer")
+    m.add_argument("--to", type=_degrees3, required=True, metavar="DEG,DEG,DEG",
+                   help="target joint angles in degrees")
+    m.add_argument("--speed", type=_positive, default=None, metavar="DEG_S",
+                   help="profile speed in deg/s (default: the layer's, 60)")
+    m.add_argument("--accel", type=_positive, default=None, metavar="DEG_S2",
+                   help="profile acceleration in deg/s^2 (default: the layer's, 200)")
+    m.add_argument("--tol", type=_positive, default=0.5, metavar="DEG",
+                   help="settling tolerance in degrees (default 0.5)")
+    m.add_argument("--timeout", type=_positive, default=20.0,
+                   help="seconds to wait for the arm to settle (default 20)")
+    m.set_defaults(func=_move)
+
+
+def _serve(args) -> int:
+    from .server import JointLayerServer, ServerConfig, make_core
+    from .transport import UdpTransport
+
+    core = make_core(args.core)
+    with UdpTransport.server(port=args.port) as transport:
+        server = JointLayerServer(transport, core,
+                                  config=ServerConfig(rate_hz=args.rate,
+                                                      watchdog_s=args.watchdog))
+        host, port = transport.address
+        print(f"joint layer (core {args.core}) listening on udp {host}:{port}", flush=True)
+        if args.duration is None:
+            server.serve_forever()
+        else:
+            server.run_for(args.duration)
+    return 0
+
+
+def _format_state(st) -> str:
+    deg = np.rad2deg
+    flags = "|".join(f.name for f in type(st.flags) if f and f in st.flags) or "none"
+    c = st.counters
+    lines = [
+        f"t {st.t:.3f} s  mode {st.mode.name}  damping {st.damping.name}  "
+        f"collision {st.collision.name}",
+        "theta_deg " + " ".join(f"{x:8.3f}" for x in deg(st.theta)),
+        "theta_dot_deg_s " + " ".join(f"{x:8.3f}" for x in deg(st.theta_dot)),
+        "strains_um_m " + " ".join(f"{x * 1e6:8.2f}" for x in st.strains),
+        "residuals " + " ".join(f"{x:.4g}" for x in st.residuals),
+        f"flags {flags}  last_command_seq {st.last_command_seq}",
+        f"counters accepted={c.accepted} refused={c.refused} malformed={c.malformed} "
+        f"duplicates={c.duplicates} stale={c.stale} watchdog_stops={c.watchdog_stops} "
+        f"overruns={c.overruns}",
+    ]
+    return "\n".join(lines)
+
+
+def _client(port: int):
+    from .adapter import JointAdapter
+    from .transport import UdpTransport
+    return JointAdapter(UdpTransport.client(port))
+
+
+def _fail(action: str, text: str) -> int:
+    print(f"tudorvision joint {action}: {text}", file=sys.stderr)
+    return 1
+
+
+def _status(args) -> int:
+    with _client(args.port) as joints:
+        st = joints.request_state(timeout=args.timeout)
+    if st is None:
+        return _fail("status", f"no answer from 127.0.0.1:{args.port} within {args.timeout:g} s")
+    print(_format_state(st))
+    return 0
+
+
+def _move(args) -> int:
+    from .protocol import Ack, Mode
+
+    target = np.deg2rad(args.to)
+    speed = None if args.speed is None else float(np.deg2rad(args.speed))
+    accel = None if args.accel is None else float(np.deg2rad(args.accel))
+    with _client(args.port) as joints:
+        reply = joints.set_mode(Mode.SETPOINT, timeout=min(args.timeout, 2.0))
+        if reply is None:
+            return _fail("move", f"no answer from 127.0.0.1:{args.port}")
+        if not isinstance(reply, Ack):
+            return _fail("move", f"mode switch refused: {reply.code.name} {reply.text}")
+        reply = joints.send_setpoint(target, max_speed=speed, max_accel=accel,
+                                     timeout=min(args.timeout, 2.0))
+        if reply is None:
+            return _fail("move", f"no answer to the setpoint from 127.0.0.1:{args.port}")
+        if not isinstance(reply, Ack):
+            return _fail("move", f"setpoint refused: {reply.code.name}: {reply.text}")
+        if reply.text:
+            print(f"note: {reply.code.name}: {reply.text}")
+        st = joints.wait_settled(target, tol=float(np.deg2rad(args.tol)), timeout=args.timeout)
+    if st is None:
+        return _fail("move", f"arm did not settle at {args.to.tolist()} deg "
+                             f"within {args.timeout:g} s")
+    print("settled at theta_deg " + " ".join(f"{x:.3f}" for x in np.rad2deg(st.theta)))
+    return 0
