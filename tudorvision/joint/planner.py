@@ -13,6 +13,10 @@ start velocity points away from the goal, or the joint cannot stop before the
 goal, the first transition passes through zero velocity and the motion
 approaches the goal from the other side, still without violating the limits.
 
+Re-planning in motion (:class:`OnlinePlanner`) keeps angle and velocity
+continuous; the acceleration restarts from the sin^2 shape (B.6 assumes zero
+initial acceleration), so it may jump at the switching instant.
+
 Joints are planned independently (each with its own limits), as in the seed.
 Angles in radians, time in seconds.
 """
@@ -96,8 +100,8 @@ class JointMotion:
         Parameters
         ----------
         t : float or array_like, shape (N,)
-            Absolute times, seconds. Before ``t0`` the start state is held
-            (extrapolated with the start velocity); after the end the goal is held.
+            Absolute times, seconds. Before ``t0`` the start state (angle and
+            velocity) is returned; after the end the goal is held at rest.
 
         Returns
         -------

@@ -1,0 +1,87 @@
+"""Sinusoidal-acceleration planner (B.6): limits, continuity, re-planning."""
+import numpy as np
+import pytest
+from scipy.integrate import cumulative_trapezoid
+
+from tudorvision.joint.planner import OnlinePlanner, plan_motion, sinusoidal_transition
+
+
+def test_transition_matches_integrated_acceleration():
+    T, v0, dv = 0.7, -0.3, 1.1
+    t = np.linspace(0, T, 20001)
+    a_ref = (2 * dv / T) * np.sin(np.pi * t / T) ** 2          # B.6.1 with a_max = 2 dv / T
+    v_ref = v0 + cumulative_trapezoid(a_ref, t, initial=0.0)
+    p_ref = cumulative_trapezoid(v_ref, t, initial=0.0)
+    dp, v, a = sinusoidal_transition(t, T, v0, dv)
+    assert np.allclose(a, a_ref)
+    assert np.allclose(v, v_ref, atol=1e-8)
+    assert np.allclose(dp, p_ref, atol=1e-8)
+
+
+def _check_profile(m, vmax, amax, dt=1e-4, check_acc=True):
+    t = np.arange(m.t0, m.t0 + m.duration_s + 0.2, dt)
+    th, dth, ddth = m.sample(t)
+    assert np.all(np.abs(dth) <= vmax * (1 + 1e-9) + 1e-12)
+    assert np.all(np.abs(ddth) <= amax * (1 + 1e-9) + 1e-12)
+    # continuity: finite differences of theta and dtheta match dtheta and ddtheta
+    fd_v = np.diff(th, axis=0) / dt
+    fd_a = np.diff(dth, axis=0) / dt
+    assert np.allclose(fd_v, 0.5 * (dth[1:] + dth[:-1]), atol=1e-4 * max(1.0, np.max(amax)))
+    if check_acc:
+        assert np.allclose(fd_a, 0.5 * (ddth[1:] + ddth[:-1]), atol=5e-3 * np.max(amax))
+    assert np.allclose(th[-1], m.theta_goal, atol=1e-12)
+    assert np.allclose(dth[-1], 0.0)
+    return t, th, dth, ddth
+
+
+def test_random_point_to_point_motions_respect_limits_and_arrive():
+    rng = np.random.default_rng(7)
+    for _ in range(30):
+        start = rng.uniform(-2, 2, 3)
+        goal = rng.uniform(-2, 2, 3)
+        vmax = rng.uniform(0.3, 2.0, 3)
+        amax = rng.uniform(1.0, 7.0, 3)
+        m = plan_motion(start, goal, v_max=vmax, a_max=amax, t0=rng.uniform(0, 1))
+        _check_profile(m, vmax, amax)
+
+
+def test_long_move_reaches_speed_limit_and_short_move_does_not():
+    vmax, amax = np.deg2rad(60.0), np.deg2rad(200.0)
+    long = plan_motion([0.0], [np.pi / 2], v_max=vmax, a_max=amax)
+    assert np.isclose(abs(long.v_peak[0]), vmax)
+    # duration: ramps of 2 v / a each plus cruise
+    t_ramp = 2 * vmax / amax
+    assert np.isclose(long.duration_s, 2 * t_ramp + (np.pi / 2 - vmax * t_ramp) / vmax)
+    d = 0.05
+    short = plan_motion([0.0], [d], v_max=vmax, a_max=amax)
+    vp = np.sqrt(amax * d / 2)                   # two sin^2 ramps cover 2 vp^2 / a
+    assert np.isclose(short.v_peak[0], vp) and vp < vmax
+    assert np.isclose(short.duration_s, 4 * vp / amax)
+
+
+def test_replanning_from_motion_is_smooth_and_within_limits():
+    rng = np.random.default_rng(11)
+    vmax, amax = np.array([1.0, 0.8, 1.2]), np.array([3.0, 2.5, 4.0])
+    for _ in range(30):
+        pl = OnlinePlanner(rng.uniform(-1, 1, 3), v_max=vmax, a_max=amax)
+        pl.set_goal(rng.uniform(-1, 1, 3), t=0.0)
+        t_switch = rng.uniform(0.05, 1.0)
+        before = pl.sample(t_switch)
+        pl.set_goal(rng.uniform(-1, 1, 3), t=t_switch)
+        after = pl.sample(t_switch)
+        assert np.allclose(before[0], after[0]) and np.allclose(before[1], after[1])
+        # B.6 starts every transition at zero acceleration: only angle and velocity are continuous
+        _check_profile(pl.motion, vmax, amax, check_acc=False)
+
+
+def test_moving_away_from_goal_turns_back():
+    m = plan_motion([0.0], [0.2], v_max=1.0, a_max=2.0, dtheta_start=[-0.8])
+    t, th, dth, _ = _check_profile(m, np.array([1.0]), np.array([2.0]))
+    assert th.min() < 0.0 and np.isclose(th[-1, 0], 0.2)
+
+
+def test_bad_limits_raise():
+    with pytest.raises(ValueError, match="v_max, a_max"):
+        plan_motion([0.0], [1.0], v_max=0.0, a_max=1.0)
+    with pytest.raises(ValueError, match="theta_goal"):
+        plan_motion([0.0, 0.0], [1.0], v_max=1.0, a_max=1.0)
