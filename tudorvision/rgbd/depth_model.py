@@ -139,8 +139,10 @@ def planar_region_mask(mean_depth_m, *, roi=None, rel_tol: float = 0.05,
         Per-pixel mean depth, metres, NaN = invalid.
     roi : tuple (u0, v0, u1, v1), optional
         Pixel box (u right, v down; end exclusive). When given, the region is
-        the valid pixels of the box. Otherwise automatic: the largest connected
-        region of valid pixels within ``rel_tol`` of the median depth.
+        the valid pixels of the box. Otherwise automatic (the target sits on
+        the optical axis): the connected region of valid pixels within
+        ``rel_tol`` of the median depth of the central image window that
+        contains (or lies nearest to) the image centre.
     rel_tol : float
         Relative depth tolerance of the automatic region.
     min_pixels : int
@@ -166,15 +168,21 @@ def planar_region_mask(mean_depth_m, *, roi=None, rel_tol: float = 0.05,
         mask = np.zeros_like(valid)
         mask[v0:v1, u0:u1] = valid[v0:v1, u0:u1]
     else:
-        med = float(np.nanmedian(d))
+        h, w = d.shape
+        vc, uc = h // 2, w // 2
+        centre = d[vc - max(1, h // 10): vc + max(1, h // 10) + 1, uc - max(1, w // 10): uc + max(1, w // 10) + 1]
+        if not np.any(np.isfinite(centre)):
+            raise TudorVisionError("planar region: no valid depth near the image centre (give an roi)")
+        med = float(np.nanmedian(centre))
         with np.errstate(invalid="ignore"):
             cand = valid & (np.abs(d - med) <= rel_tol * med)
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(cand.astype(np.uint8), connectivity=4)
-        if n <= 1:
+        _, labels = cv2.connectedComponents(cand.astype(np.uint8), connectivity=4)
+        vv, uu = np.nonzero(labels)
+        if len(vv) == 0:
             mask = cand
         else:
-            best = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-            mask = labels == best
+            k = int(np.argmin((vv - vc) ** 2 + (uu - uc) ** 2))
+            mask = labels == labels[vv[k], uu[k]]
     if int(mask.sum()) < min_pixels:
         raise TudorVisionError(f"planar region has {int(mask.sum())} valid pixels, need at least {min_pixels}")
     return mask
