@@ -1,0 +1,200 @@
+"""Lights, Lambertian shading and the image-sensor model of the virtual lab.
+
+Radiometry is deliberately simple: Lambertian surfaces, no shadows, no
+inter-reflections. Colours are linear RGB in [0, 1]; the sensor turns linear
+radiance into 8-bit values and the renderer writes BGR (OpenCV order).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Union
+
+import numpy as np
+
+from .._checks import check_vector
+
+__all__ = [
+    "Varying", "AmbientLight", "DirectionalLight", "PointLight", "intensity_at",
+    "light_terms", "SensorModel", "apply_sensor",
+]
+
+Intensity = Union[float, Callable[[float], float]]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Varying:
+    """A light intensity that drifts slowly: ``base (1 + rel_amplitude sin(2 pi t / period_s + phase_rad))``.
+
+    Examples
+    --------
+    >>> Varying(base=1.0, rel_amplitude=0.5, period_s=4.0)(1.0)
+    1.5
+    """
+
+    base: float
+    rel_amplitude: float = 0.0
+    period_s: float = 60.0
+    phase_rad: float = 0.0
+
+    def __post_init__(self):
+        if self.period_s <= 0:
+            raise ValueError(f"period_s: expected > 0, got {self.period_s}")
+
+    def __call__(self, t: float) -> float:
+        return float(self.base * (1.0 + self.rel_amplitude * np.sin(2 * np.pi * t / self.period_s + self.phase_rad)))
+
+
+def _check_color(value, name):
+    c = check_vector(value, name, 3)
+    if np.any(c < 0):
+        raise ValueError(f"{name}: expected non-negative RGB, got {c.tolist()}")
+    return c
+
+
+@dataclass(frozen=True, kw_only=True)
+class AmbientLight:
+    """Uniform light: radiance = albedo * color * intensity."""
+
+    color_rgb: tuple = (1.0, 1.0, 1.0)
+    intensity: Intensity = 0.2
+
+    def __post_init__(self):
+        object.__setattr__(self, "color_rgb", _check_color(self.color_rgb, "color_rgb"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class DirectionalLight:
+    """Daylight: parallel rays travelling along ``direction_world`` (normalised on creation)."""
+
+    direction_world: tuple = (0.3, 0.2, -1.0)
+    color_rgb: tuple = (1.0, 1.0, 1.0)
+    intensity: Intensity = 0.5
+
+    def __post_init__(self):
+        d = check_vector(self.direction_world, "direction_world", 3)
+        n = np.linalg.norm(d)
+        if n == 0:
+            raise ValueError("direction_world: must be non-zero")
+        object.__setattr__(self, "direction_world", d / n)
+        object.__setattr__(self, "color_rgb", _check_color(self.color_rgb, "color_rgb"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class PointLight:
+    """Ceiling lamp at ``position_world``; ``intensity`` is the irradiance factor at 1 m (inverse-square falloff)."""
+
+    position_world: tuple = (0.0, 0.0, 3.0)
+    color_rgb: tuple = (1.0, 1.0, 1.0)
+    intensity: Intensity = 4.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "position_world", check_vector(self.position_world, "position_world", 3))
+        object.__setattr__(self, "color_rgb", _check_color(self.color_rgb, "color_rgb"))
+
+
+def intensity_at(light, t: float) -> float:
+    """Light intensity at time ``t`` (seconds); constants pass through.
+
+    Examples
+    --------
+    >>> intensity_at(AmbientLight(intensity=0.3), 10.0)
+    0.3
+    """
+    i = light.intensity
+    return float(i(t)) if callable(i) else float(i)
+
+
+def light_terms(lights, points_world: np.ndarray, normals_world: np.ndarray,
+                albedo_rgb: np.ndarray) -> np.ndarray:
+    """Per-light Lambertian radiance for unit light intensity.
+
+    Parameters
+    ----------
+    lights : sequence of AmbientLight, DirectionalLight, PointLight
+    points_world, normals_world : ndarray, shape (N, 3)
+        Surface points (metres) and unit normals facing the viewer.
+    albedo_rgb : ndarray, shape (N, 3)
+
+    Returns
+    -------
+    ndarray, shape (L, N, 3), float32
+        Radiance of each light at unit intensity; the image at time t is
+        ``sum_l intensity_at(light_l, t) * terms[l]``.
+    """
+    out = np.empty((len(lights),) + albedo_rgb.shape, dtype=np.float32)
+    for i, light in enumerate(lights):
+        if isinstance(light, AmbientLight):
+            geo = 1.0
+        elif isinstance(light, DirectionalLight):
+            geo = np.maximum(normals_world @ (-light.direction_world), 0.0)[:, None]
+        elif isinstance(light, PointLight):
+            to_l = light.position_world - points_world
+            d2 = np.einsum("ij,ij->i", to_l, to_l)
+            cos = np.einsum("ij,ij->i", to_l, normals_world) / np.sqrt(d2)
+            geo = (np.maximum(cos, 0.0) / np.maximum(d2, 1e-6))[:, None]
+        else:
+            raise ValueError(f"lights: unsupported light type {type(light).__name__}")
+        out[i] = albedo_rgb * geo * light.color_rgb
+    return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class SensorModel:
+    """Linear sensor with shot and read noise, then gamma and 8-bit quantisation.
+
+    Parameters
+    ----------
+    gain : float
+        Linear radiance that reaches full scale.
+    full_well_e : float
+        Electrons at full scale (shot noise is Poisson, approximated as Gaussian).
+    read_noise_e : float
+        Read noise standard deviation in electrons.
+    gamma : float
+        Output encoding ``value = 255 * x ** (1 / gamma)``.
+    """
+
+    gain: float = 1.0
+    full_well_e: float = 8000.0
+    read_noise_e: float = 12.0
+    gamma: float = 2.2
+
+    def __post_init__(self):
+        for name in ("gain", "full_well_e", "gamma"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name}: expected > 0, got {getattr(self, name)}")
+        if self.read_noise_e < 0:
+            raise ValueError(f"read_noise_e: expected >= 0, got {self.read_noise_e}")
+
+
+def apply_sensor(radiance_rgb: np.ndarray, sensor: SensorModel, rng: np.random.Generator | None) -> np.ndarray:
+    """Turn linear RGB radiance into an 8-bit BGR image.
+
+    Parameters
+    ----------
+    radiance_rgb : ndarray, shape (H, W, 3)
+        Linear radiance (RGB order).
+    sensor : SensorModel
+    rng : numpy.random.Generator or None
+        Noise source; ``None`` gives a noise-free image.
+
+    Returns
+    -------
+    ndarray, shape (H, W, 3), uint8
+        BGR (OpenCV order).
+
+    Examples
+    --------
+    >>> img = apply_sensor(np.full((1, 1, 3), 0.5), SensorModel(gamma=1.0), None)
+    >>> img[0, 0].tolist()
+    [128, 128, 128]
+    """
+    x = np.clip(np.asarray(radiance_rgb, dtype=np.float32) * np.float32(sensor.gain), 0.0, 1.0)
+    if rng is not None:
+        e = x * np.float32(sensor.full_well_e)
+        sigma = np.sqrt(e + np.float32(sensor.read_noise_e ** 2))
+        e += sigma * rng.standard_normal(x.shape, dtype=np.float32)
+        x = np.clip(e / np.float32(sensor.full_well_e), 0.0, 1.0)
+    if sensor.gamma != 1.0:
+        x = x ** np.float32(1.0 / sensor.gamma)
+    return np.ascontiguousarray((x * 255.0 + 0.5).astype(np.uint8)[..., ::-1])

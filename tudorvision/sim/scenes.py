@@ -1,0 +1,653 @@
+"""Scene builders for the virtual TUDOR lab: stereo rig, RGB-D sets, checkerboards.
+
+Every builder takes explicit parameters and a ``numpy.random.Generator`` that
+randomises what should not matter (lighting, clutter positions and colours), so
+that nothing downstream is tuned to one picture. Each returns a
+:class:`SimSetup`: the :class:`~tudorvision.sim.render.Scene`, its cameras and
+a ``meta`` dict with the ground truth needed to write labels (object ids by
+name, poses, target geometry).
+
+World frame: z up, floor at z = 0. The arm is never simulated here: its
+drawing comes in as :class:`ArmGeometry` (points in the robot base frame),
+constant or as a function of time.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from .._checks import check_points, check_transform, check_vector
+from .camera import PinholeCamera, intrinsic_matrix, look_at
+from .lighting import AmbientLight, DirectionalLight, PointLight, Varying
+from .render import Box, Capsule, Cylinder, Disc, Rectangle, Scene, Sphere
+
+__all__ = [
+    "ArmGeometry", "arm_geometry_from_joints", "arm_shapes", "SimSetup", "StereoRigConfig",
+    "stereo_rig", "stereo_lab", "kinect_camera", "planar_target", "wall_disc", "ball_throw",
+    "ballistic", "eye_in_hand", "checkerboard_lab", "lab_room", "KINECT_RATE_HZ", "STEREO_RATE_HZ",
+]
+
+KINECT_RATE_HZ = 30.0
+STEREO_RATE_HZ = 50.0
+
+RED_RGB = (0.75, 0.06, 0.05)
+GREEN_RGB = (0.08, 0.55, 0.12)
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class SimSetup:
+    """A scene, its cameras by name and ground-truth metadata."""
+
+    scene: Scene
+    cameras: dict
+    meta: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class ArmGeometry:
+    """What the cameras see of the arm, in the robot base frame (metres).
+
+    Parameters
+    ----------
+    link_points_base : sequence of ndarray, each shape (N_i, 3), N_i >= 2
+        Polylines along the elastic links (joint 2 -> elbow, elbow -> end
+        effector), deflection included. Each segment is drawn as a capsule.
+    sphere_centers_base : dict
+        ``{"red": (3,), "green": (3,)}`` tracking-sphere centres.
+    """
+
+    link_points_base: tuple
+    sphere_centers_base: dict
+
+    def __post_init__(self):
+        links = tuple(check_points(p, f"link_points_base[{i}]") for i, p in enumerate(self.link_points_base))
+        for i, p in enumerate(links):
+            if len(p) < 2:
+                raise ValueError(f"link_points_base[{i}]: expected at least 2 points, got {len(p)}")
+        object.__setattr__(self, "link_points_base", links)
+        if set(self.sphere_centers_base) != {"red", "green"}:
+            raise ValueError(f"sphere_centers_base: expected keys 'red' and 'green', got {sorted(self.sphere_centers_base)}")
+        object.__setattr__(self, "sphere_centers_base", {
+            k: check_vector(v, f"sphere_centers_base[{k!r}]", 3) for k, v in self.sphere_centers_base.items()})
+
+
+def arm_geometry_from_joints(theta, params=None, *, n_points: int = 2) -> ArmGeometry:
+    """Rigid-equivalent arm drawing (straight links) from joint angles, for scenes and tests.
+
+    The elastic plant supplies deflected polylines instead; this uses
+    :mod:`tudorvision.robot` rigid kinematics only.
+
+    Examples
+    --------
+    >>> g = arm_geometry_from_joints([0.0, np.pi / 2, 0.0])
+    >>> np.round(g.link_points_base[1][-1], 3).tolist()
+    [0.0, 0.0, 1.19]
+    """
+    from ..robot import fk_ee, fk_spheres, load_robot_params
+    p = params or load_robot_params()
+    th = check_vector(theta, "theta", 3)
+    joint2 = np.array([0.0, 0.0, p.link1_height_m])
+    c1, s1 = np.cos(th[0]), np.sin(th[0])
+    elbow = joint2 + p.link2_length_m * np.array([np.cos(th[1]) * c1, np.cos(th[1]) * s1, np.sin(th[1])])
+    ee = fk_ee(th, p)
+    s = np.linspace(0.0, 1.0, max(int(n_points), 2))[:, None]
+    links = (joint2 + s * (elbow - joint2), elbow + s * (ee - elbow))
+    return ArmGeometry(link_points_base=links, sphere_centers_base=fk_spheres(th, p))
+
+
+def _to_world(T, p):
+    return p @ T[:3, :3].T + T[:3, 3]
+
+
+def arm_shapes(arm: ArmGeometry, T_world_base, *, sphere_radius_m: float, link_radius_m: float = 0.008,
+               red_rgb=RED_RGB, green_rgb=GREEN_RGB) -> list:
+    """Shapes of the moving arm in the world: the two spheres, actuators 2 and 3, link capsules, end-effector bar.
+
+    Names: ``"red_sphere"``, ``"green_sphere"``, ``"actuator2"``, ``"actuator3"``,
+    ``"link{k}_{i}"`` (link k = 2, 3; segment i) and ``"ee_bar"``. The order is
+    fixed for a given number of link points.
+    """
+    T = check_transform(T_world_base, "T_world_base")
+    red = _to_world(T, arm.sphere_centers_base["red"])
+    green = _to_world(T, arm.sphere_centers_base["green"])
+    grey, dark = (0.55, 0.56, 0.58), (0.12, 0.12, 0.13)
+    shapes = [Sphere(center=red, radius=sphere_radius_m, color_rgb=red_rgb, name="red_sphere"),
+              Sphere(center=green, radius=sphere_radius_m, color_rgb=green_rgb, name="green_sphere")]
+    links = [_to_world(T, p) for p in arm.link_points_base]
+    shapes.append(Sphere(center=links[0][0], radius=0.05, color_rgb=dark, name="actuator2"))
+    if len(links) > 1:
+        shapes.append(Sphere(center=links[1][0], radius=0.035, color_rgb=dark, name="actuator3"))
+    for k, pts in enumerate(links):
+        for i in range(len(pts) - 1):
+            if np.linalg.norm(pts[i + 1] - pts[i]) > 1e-9:
+                shapes.append(Capsule(p0=pts[i], p1=pts[i + 1], radius=link_radius_m, color_rgb=grey,
+                                      name=f"link{k + 2}_{i}"))
+    shapes.append(Capsule(p0=red, p1=green, radius=0.6 * link_radius_m, color_rgb=dark, name="ee_bar"))
+    return shapes
+
+
+def _rand_color(rng, kind="any"):
+    if kind == "reddish":
+        return np.clip([rng.uniform(0.5, 0.85), rng.uniform(0.05, 0.3), rng.uniform(0.03, 0.25)], 0, 1)
+    if kind == "greenish":
+        return np.clip([rng.uniform(0.05, 0.3), rng.uniform(0.4, 0.7), rng.uniform(0.05, 0.35)], 0, 1)
+    return rng.uniform(0.15, 0.85, 3)
+
+
+def lab_room(rng: np.random.Generator, *, size_m=(8.0, 7.0, 3.0), center_xy=(0.0, 0.0), keepout_xy=(0.0, 0.0),
+             keepout_radius_m: float = 1.3, n_clutter: int = 8, n_distractors: int = 4,
+             clutter_region_y=(-1.0, 3.0)):
+    """Static lab background and lights: floor, ceiling, four walls, tables, clutter, distractors.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Randomises colours, clutter placement and lighting.
+    size_m : (3,)
+        Room length (x), width (y), height (z).
+    keepout_xy, keepout_radius_m
+        No clutter within this horizontal radius (the robot's workspace).
+    n_clutter : int
+        Random boxes on the floor and on two tables.
+    n_distractors : int
+        Reddish and greenish objects (spheres, boxes, posters) alternating.
+    clutter_region_y : (2,)
+        World-y band for clutter (keep it out of the cameras' line of sight).
+
+    Returns
+    -------
+    shapes : list
+    lights : list
+        Ambient, daylight (directional, slowly varying) and ceiling (point) light.
+    """
+    Lx, Ly, Lz = check_vector(size_m, "size_m", 3)
+    cx, cy = check_vector(center_xy, "center_xy", 2)
+    kx, ky = check_vector(keepout_xy, "keepout_xy", 2)
+    for name, n in (("n_clutter", n_clutter), ("n_distractors", n_distractors)):
+        if int(n) != n or n < 0:
+            raise ValueError(f"{name}: expected a non-negative integer, got {n!r}")
+    floor_a = rng.uniform(0.35, 0.55)
+    wall = rng.uniform(0.6, 0.8) * np.array([1.0, rng.uniform(0.95, 1.0), rng.uniform(0.85, 0.95)])
+    shapes = [
+        Rectangle(center=(cx, cy, 0.0), half_size=(Lx / 2, Ly / 2), checker_square_m=0.6,
+                  color_rgb=np.full(3, floor_a), color2_rgb=np.full(3, floor_a * 0.85), name="floor"),
+        Rectangle(center=(cx, cy, Lz), half_size=(Lx / 2, Ly / 2), color_rgb=(0.8, 0.8, 0.8), name="ceiling"),
+        Rectangle(center=(cx, cy + Ly / 2, Lz / 2), axis_u=(1, 0, 0), axis_v=(0, 0, 1), half_size=(Lx / 2, Lz / 2),
+                  color_rgb=wall, name="wall_back"),
+        Rectangle(center=(cx, cy - Ly / 2, Lz / 2), axis_u=(1, 0, 0), axis_v=(0, 0, 1), half_size=(Lx / 2, Lz / 2),
+                  color_rgb=wall * 0.97, name="wall_front"),
+        Rectangle(center=(cx - Lx / 2, cy, Lz / 2), axis_u=(0, 1, 0), axis_v=(0, 0, 1), half_size=(Ly / 2, Lz / 2),
+                  color_rgb=wall * 0.95, name="wall_left"),
+        Rectangle(center=(cx + Lx / 2, cy, Lz / 2), axis_u=(0, 1, 0), axis_v=(0, 0, 1), half_size=(Ly / 2, Lz / 2),
+                  color_rgb=wall * 0.93, name="wall_right"),
+    ]
+
+    def free_spot(half, z_top=0.0, tries=50):
+        for _ in range(tries):
+            x = rng.uniform(cx - Lx / 2 + half + 0.1, cx + Lx / 2 - half - 0.1)
+            y = rng.uniform(max(clutter_region_y[0], cy - Ly / 2 + half + 0.1),
+                            min(clutter_region_y[1], cy + Ly / 2 - half - 0.1))
+            if np.hypot(x - kx, y - ky) > keepout_radius_m + half:
+                return x, y
+        return None
+
+    tables = []
+    for k in range(2):
+        spot = free_spot(0.6)
+        if spot is None:
+            continue
+        hx, hy, h = rng.uniform(0.5, 0.8), rng.uniform(0.3, 0.45), 0.75
+        yaw = rng.uniform(-0.3, 0.3)
+        R = _yaw(yaw)
+        shapes.append(Box(center=(spot[0], spot[1], h - 0.02), half_extents=(hx, hy, 0.02), R_world_box=R,
+                          color_rgb=_rand_color(rng) * 0.6 + 0.3, name=f"table{k}"))
+        for sx in (-1, 1):
+            for sy in (-1, 1):
+                leg = np.array(spot) + R[:2, :2] @ [sx * (hx - 0.05), sy * (hy - 0.05)]
+                shapes.append(Box(center=(leg[0], leg[1], (h - 0.04) / 2), half_extents=(0.025, 0.025, (h - 0.04) / 2),
+                                  R_world_box=R, color_rgb=(0.25, 0.25, 0.27), name=f"table{k}_leg"))
+        tables.append((spot, hx, hy, h, R))
+
+    def clutter_pose(half):
+        if tables and rng.uniform() < 0.5:
+            spot, hx, hy, h, R = tables[rng.integers(len(tables))]
+            local = [rng.uniform(-hx + half, hx - half), rng.uniform(-hy + half, hy - half)]
+            xy = np.array(spot) + R[:2, :2] @ local
+            return xy, h
+        spot = free_spot(half)
+        return (None, 0.0) if spot is None else (np.array(spot), 0.0)
+
+    for k in range(int(n_clutter)):
+        he = rng.uniform(0.05, 0.25, 3)
+        xy, z0 = clutter_pose(he[:2].max())
+        if xy is None:
+            continue
+        shapes.append(Box(center=(xy[0], xy[1], z0 + he[2]), half_extents=he, R_world_box=_yaw(rng.uniform(0, np.pi)),
+                          color_rgb=_rand_color(rng), name=f"clutter{k}"))
+    for k in range(int(n_distractors)):
+        kind = "reddish" if k % 2 == 0 else "greenish"
+        col = _rand_color(rng, kind)
+        form = k // 2 % 3
+        if form == 2:   # a poster on the back wall
+            shapes.append(Rectangle(center=(rng.uniform(cx - Lx / 3, cx + Lx / 3), cy + Ly / 2 - 0.01,
+                                            rng.uniform(1.2, 2.0)),
+                                    axis_u=(1, 0, 0), axis_v=(0, 0, 1), half_size=rng.uniform(0.15, 0.4, 2),
+                                    color_rgb=col, name=f"distractor{k}"))
+            continue
+        r = rng.uniform(0.03, 0.12)
+        xy, z0 = clutter_pose(r)
+        if xy is None:
+            continue
+        if form == 0:
+            shapes.append(Sphere(center=(xy[0], xy[1], z0 + r), radius=r, color_rgb=col, name=f"distractor{k}"))
+        else:
+            shapes.append(Box(center=(xy[0], xy[1], z0 + r), half_extents=(r, 1.5 * r, r),
+                              R_world_box=_yaw(rng.uniform(0, np.pi)), color_rgb=col, name=f"distractor{k}"))
+    lights = _lab_lights(rng, ceiling_xy=(kx, ky), ceiling_z=Lz - 0.05)
+    return shapes, lights
+
+
+def _yaw(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _lab_lights(rng, *, ceiling_xy, ceiling_z):
+    az = rng.uniform(0, 2 * np.pi)
+    elev = rng.uniform(0.4, 1.0)
+    sun_dir = -np.array([np.cos(az) * np.cos(elev), np.sin(az) * np.cos(elev), np.sin(elev)])
+    return [
+        AmbientLight(intensity=rng.uniform(0.18, 0.3), color_rgb=(1.0, 1.0, 1.0)),
+        DirectionalLight(direction_world=sun_dir, color_rgb=(0.95, 0.98, 1.05),
+                         intensity=Varying(base=rng.uniform(0.25, 0.5), rel_amplitude=rng.uniform(0.1, 0.35),
+                                           period_s=rng.uniform(20.0, 120.0), phase_rad=rng.uniform(0, 2 * np.pi))),
+        PointLight(position_world=(ceiling_xy[0] + rng.uniform(-0.5, 0.5), ceiling_xy[1] + rng.uniform(-0.5, 0.5),
+                                   ceiling_z),
+                   color_rgb=(1.05, 0.97, 0.85),
+                   intensity=Varying(base=rng.uniform(2.5, 4.0), rel_amplitude=rng.uniform(0.0, 0.1),
+                                     period_s=rng.uniform(5.0, 30.0), phase_rad=rng.uniform(0, 2 * np.pi))),
+    ]
+
+
+@dataclass(frozen=True, kw_only=True)
+class StereoRigConfig:
+    """Geometry of the convergent ceiling stereo rig (BRIEF "External stereo tracking").
+
+    The baseline midpoint sits ``standoff_m`` in front of the robot base
+    (along base −y, horizontally) at world height ``height_m``; the cameras
+    are ``baseline_m`` apart along base x and look at ``aim_base`` (a point in
+    the base frame, by default above the base so that the workspace is in
+    view). Left camera at base −x.
+    """
+
+    baseline_m: float = 3.0
+    height_m: float = 2.7
+    standoff_m: float = 2.0
+    aim_base: tuple = (0.0, 0.0, 0.5)
+    f_px: float = 700.0
+    width: int = 640
+    height: int = 480
+    dist: tuple = (-0.12, 0.05, 3e-4, -2e-4, 0.0)
+    pose_jitter_m: float = 0.02
+    aim_jitter_m: float = 0.05
+
+    def __post_init__(self):
+        for name in ("baseline_m", "height_m", "f_px"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name}: expected > 0, got {getattr(self, name)!r}")
+
+
+def stereo_rig(T_world_base, *, config: StereoRigConfig = StereoRigConfig(),
+               rng: np.random.Generator | None = None) -> tuple[PinholeCamera, PinholeCamera]:
+    """Left and right cameras of the convergent ceiling rig.
+
+    With ``rng`` the positions and aim points are jittered by up to
+    ``pose_jitter_m`` / ``aim_jitter_m`` (the true poses are in the returned
+    cameras; calibration must recover them).
+
+    Examples
+    --------
+    >>> left, right = stereo_rig(np.eye(4))
+    >>> round(float(np.linalg.norm(left.T_world_cam[:3, 3] - right.T_world_cam[:3, 3])), 3)
+    3.0
+    """
+    T = check_transform(T_world_base, "T_world_base")
+    c = config
+    K = intrinsic_matrix(c.f_px, (c.width - 1) / 2, (c.height - 1) / 2)
+    aim = _to_world(T, check_vector(c.aim_base, "aim_base", 3))
+    cams = []
+    for side in (-1.0, 1.0):
+        eye = _to_world(T, np.array([side * c.baseline_m / 2, -c.standoff_m, 0.0]))
+        eye[2] = c.height_m
+        target = aim.copy()
+        if rng is not None:
+            eye = eye + rng.uniform(-c.pose_jitter_m, c.pose_jitter_m, 3)
+            target = target + rng.uniform(-c.aim_jitter_m, c.aim_jitter_m, 3)
+        cams.append(look_at(eye, target, K=K, dist=np.asarray(c.dist), width=c.width, height=c.height))
+    return cams[0], cams[1]
+
+
+def _arm_fn(arm):
+    if arm is None:
+        return None
+    if isinstance(arm, ArmGeometry):
+        return lambda t: arm
+    if callable(arm):
+        return arm
+    raise ValueError("arm: expected an ArmGeometry, a callable t -> ArmGeometry or None")
+
+
+def _sphere_radius(sphere_radius_m):
+    if sphere_radius_m is None:
+        from ..robot import load_robot_params
+        return load_robot_params().sphere_radius_m
+    if not sphere_radius_m > 0:
+        raise ValueError(f"sphere_radius_m: expected > 0, got {sphere_radius_m!r}")
+    return float(sphere_radius_m)
+
+
+def _robot_base_shapes(T, link1_height_m):
+    base = _to_world(T, np.zeros(3))
+    top = _to_world(T, np.array([0.0, 0.0, link1_height_m - 0.05]))
+    return [Cylinder(p0=base, p1=top, radius=0.09, color_rgb=(0.35, 0.36, 0.4), name="robot_base"),
+            Cylinder(p0=base, p1=_to_world(T, np.array([0.0, 0.0, 0.02])), radius=0.2, color_rgb=(0.3, 0.3, 0.3),
+                     name="base_plate")]
+
+
+def stereo_lab(rng: np.random.Generator, *, arm=None, T_world_base=np.eye(4),
+               rig: StereoRigConfig = StereoRigConfig(), sphere_radius_m: float | None = None,
+               link1_height_m: float | None = None, n_clutter: int = 8, n_distractors: int = 4,
+               jitter_rig: bool = False) -> SimSetup:
+    """The external stereo tracking set: ceiling rig, lab clutter, robot, red and green spheres.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Randomises lighting, clutter and (with ``jitter_rig``) the rig.
+    arm : ArmGeometry or callable t -> ArmGeometry, optional
+        The arm drawing in the base frame, constant or moving with time
+        (e.g. ``lambda t: plant_geometry_at(t)``). None draws no arm.
+    T_world_base : ndarray, shape (4, 4)
+        Robot base pose in the world (floor at world z = 0).
+    rig : StereoRigConfig
+    sphere_radius_m, link1_height_m : float, optional
+        Default to :func:`tudorvision.robot.load_robot_params`.
+
+    Returns
+    -------
+    SimSetup
+        ``cameras = {"left", "right"}``; ``meta`` holds ``T_world_base``,
+        ``sphere_radius_m``, ``object_ids`` (name -> id; the arm's ids are
+        those of the dynamic shapes, e.g. ``"red_sphere"``), ``rate_hz``.
+
+    Examples
+    --------
+    >>> setup = stereo_lab(np.random.default_rng(0), arm=arm_geometry_from_joints([0.0, 0.8, 0.5]))
+    >>> sorted(setup.cameras), "red_sphere" in setup.meta["object_ids"]
+    (['left', 'right'], True)
+    """
+    T = check_transform(T_world_base, "T_world_base")
+    radius = _sphere_radius(sphere_radius_m)
+    if link1_height_m is None:
+        from ..robot import load_robot_params
+        link1_height_m = load_robot_params().link1_height_m
+    left, right = stereo_rig(T, config=rig, rng=rng if jitter_rig else None)
+    base_xy = T[:2, 3]
+    shapes, lights = lab_room(rng, center_xy=base_xy + [0.0, 0.0], keepout_xy=base_xy, n_clutter=n_clutter,
+                              n_distractors=n_distractors, size_m=(8.0, 7.0, rig.height_m + 0.3),
+                              clutter_region_y=(base_xy[1] - 0.8, base_xy[1] + 3.4))
+    shapes += _robot_base_shapes(T, link1_height_m)
+    arm_at = _arm_fn(arm)
+    dynamic = None
+    if arm_at is not None:
+        def dynamic(t):
+            return arm_shapes(arm_at(t), T, sphere_radius_m=radius)
+    scene = Scene(static=shapes, lights=lights, dynamic=dynamic)
+    return SimSetup(scene=scene, cameras={"left": left, "right": right},
+                    meta={"T_world_base": T, "sphere_radius_m": radius, "object_ids": scene.object_ids(0.0),
+                          "rate_hz": STEREO_RATE_HZ})
+
+
+def kinect_camera(T_world_cam, *, width: int = 640, height: int = 480, f_px: float = 525.0,
+                  dist=(0.0, 0.0, 0.0, 0.0, 0.0)) -> PinholeCamera:
+    """Kinect-like RGB-D camera (colour and registered depth share these intrinsics).
+
+    Examples
+    --------
+    >>> kinect_camera(np.eye(4)).K[0, 0]
+    np.float64(525.0)
+    """
+    return PinholeCamera(K=intrinsic_matrix(f_px * width / 640.0, (width - 1) / 2, (height - 1) / 2),
+                         dist=np.asarray(dist, float), width=width, height=height, T_world_cam=T_world_cam)
+
+
+def _room_for_rgbd(rng, *, size_m, center_xy, keepout_xy, keepout_radius_m, n_clutter, n_distractors, region_y):
+    return lab_room(rng, size_m=size_m, center_xy=center_xy, keepout_xy=keepout_xy,
+                    keepout_radius_m=keepout_radius_m, n_clutter=n_clutter, n_distractors=n_distractors,
+                    clutter_region_y=region_y)
+
+
+def planar_target(distance_m: float, rng: np.random.Generator, *, width: int = 640, height: int = 480,
+                  target_size_m=(1.2, 0.9), textured: bool = True, square_m: float = 0.1) -> SimSetup:
+    """Planar target perpendicular to the optical axis at ``distance_m`` (depth-noise calibration).
+
+    The camera sits at world (0, 0, 1.2) looking along +y; the target is
+    centred on the optical axis. The back wall is beyond the Kinect range.
+
+    Returns
+    -------
+    SimSetup
+        ``cameras = {"rgbd"}``; ``meta``: ``target_id``, ``distance_m``,
+        ``target_corners_world`` (4, 3), ``rate_hz``.
+    """
+    if not distance_m > 0:
+        raise ValueError(f"distance_m: expected > 0, got {distance_m!r}")
+    eye = np.array([0.0, 0.0, 1.2])
+    cam = kinect_camera(look_at(eye, eye + [0, 1, 0], K=np.eye(3)).T_world_cam, width=width, height=height)
+    ts = check_vector(target_size_m, "target_size_m", 2)
+    board = Rectangle(center=eye + [0, distance_m, 0], axis_u=(1, 0, 0), axis_v=(0, 0, 1), half_size=ts / 2,
+                      checker_square_m=square_m if textured else None, color_rgb=(0.85, 0.85, 0.85),
+                      color2_rgb=(0.08, 0.08, 0.08), name="target")
+    shapes, lights = _room_for_rgbd(rng, size_m=(8.0, 2 * (distance_m + 8.0), 3.0), center_xy=(0.0, 0.0),
+                                    keepout_xy=(0.0, distance_m / 2), keepout_radius_m=distance_m / 2 + 1.0,
+                                    n_clutter=4, n_distractors=2, region_y=(-1.0, distance_m + 6.0))
+    scene = Scene(static=[board] + shapes, lights=lights)
+    return SimSetup(scene=scene, cameras={"rgbd": cam},
+                    meta={"target_id": 1, "distance_m": float(distance_m), "target_corners_world": board.corners(),
+                          "rate_hz": KINECT_RATE_HZ})
+
+
+def wall_disc(disc_center_base, rng: np.random.Generator, *, T_world_base=np.eye(4), arm=None,
+              disc_radius_m: float = 0.075, camera_standoff_m: float = 3.5, camera_height_m: float = 1.6,
+              width: int = 640, height: int = 480) -> SimSetup:
+    """Wall-mounted RGB-D camera facing the robot, a disc in the catching net (base calibration sweep).
+
+    Parameters
+    ----------
+    disc_center_base : array_like, shape (3,), or callable t -> (3,)
+        Disc centre in the base frame (the net at the end effector).
+    arm : ArmGeometry or callable t -> ArmGeometry, optional
+        Drawn as in :func:`stereo_lab` (spheres included).
+    disc_radius_m : float
+        7.5 cm: a 15 cm disc in the 18 cm net.
+
+    The camera is ``camera_standoff_m`` in front of the base (base −y) at
+    world height ``camera_height_m``, looking at the point 0.6 m above the base.
+    The disc faces the camera.
+
+    Returns
+    -------
+    SimSetup
+        ``cameras = {"rgbd"}``; ``meta``: ``object_ids`` (``"disc"``),
+        ``T_world_base``, ``disc_center_world(t)`` (a function), ``rate_hz``.
+    """
+    T = check_transform(T_world_base, "T_world_base")
+    radius = _positive(disc_radius_m, "disc_radius_m")
+    disc_fn = disc_center_base if callable(disc_center_base) else (
+        lambda t, c=check_vector(disc_center_base, "disc_center_base", 3): c)
+    eye = _to_world(T, np.array([0.0, -camera_standoff_m, 0.0]))
+    eye[2] = camera_height_m
+    cam = kinect_camera(look_at(eye, _to_world(T, np.array([0.0, 0.0, 0.6])), K=np.eye(3)).T_world_cam,
+                        width=width, height=height)
+    shapes, lights = _room_for_rgbd(rng, size_m=(8.0, 2 * camera_standoff_m + 2.0, 3.0), center_xy=T[:2, 3],
+                                    keepout_xy=T[:2, 3], keepout_radius_m=1.4, n_clutter=6, n_distractors=2,
+                                    region_y=(T[1, 3] - 0.5, T[1, 3] + camera_standoff_m))
+    shapes += _robot_base_shapes(T, 0.35)
+    arm_at = _arm_fn(arm)
+    sphere_r = _sphere_radius(None)
+
+    def disc_world(t):
+        return _to_world(T, check_vector(disc_fn(t), "disc_center_base", 3))
+
+    def dynamic(t):
+        c = disc_world(t)
+        out = [Disc(center=c, normal=eye - c, radius=radius, color_rgb=(0.9, 0.85, 0.2), name="disc")]
+        if arm_at is not None:
+            out += arm_shapes(arm_at(t), T, sphere_radius_m=sphere_r)
+        return out
+
+    scene = Scene(static=shapes, lights=lights, dynamic=dynamic)
+    return SimSetup(scene=scene, cameras={"rgbd": cam},
+                    meta={"object_ids": scene.object_ids(0.0), "T_world_base": T, "disc_center_world": disc_world,
+                          "disc_radius_m": radius, "rate_hz": KINECT_RATE_HZ})
+
+
+def _positive(v, name):
+    if not v > 0:
+        raise ValueError(f"{name}: expected > 0, got {v!r}")
+    return float(v)
+
+
+def ballistic(p0_world, v0_world, *, t0: float = 0.0, gravity_m_s2: float = 9.81) -> Callable[[float], np.ndarray]:
+    """Drag-free flight ``p(t) = p0 + v0 (t - t0) - g/2 (t - t0)^2 e_z`` (world, m).
+
+    Examples
+    --------
+    >>> ballistic([0, 0, 1], [1, 0, 0])(1.0).round(3).tolist()
+    [1.0, 0.0, -3.905]
+    """
+    p0 = check_vector(p0_world, "p0_world", 3)
+    v0 = check_vector(v0_world, "v0_world", 3)
+    g = np.array([0.0, 0.0, -gravity_m_s2])
+
+    def at(t):
+        dt = t - t0
+        return p0 + v0 * dt + 0.5 * g * dt * dt
+    return at
+
+
+def ball_throw(ball_center_world: Callable[[float], np.ndarray], rng: np.random.Generator, *,
+               T_world_base=np.eye(4), arm=None, ball_radius_m: float = 0.045,
+               camera_position_world=(0.0, -6.8, 2.0), width: int = 640, height: int = 480) -> SimSetup:
+    """RGB-D camera on the wall behind the thrower, looking at the robot; a 9 cm ball in flight.
+
+    The ball is the only moving object within 4.5 m of the sensor (the arm,
+    if drawn, stands about 6.8 m away). ``ball_center_world(t)`` gives the
+    ball centre (see :func:`ballistic`).
+
+    Returns
+    -------
+    SimSetup
+        ``cameras = {"rgbd"}``; ``meta``: ``object_ids`` (``"ball"``),
+        ``ball_center_world`` (the function), ``ball_radius_m``, ``T_world_base``, ``rate_hz``.
+    """
+    if not callable(ball_center_world):
+        raise ValueError("ball_center_world: expected a callable t -> (3,) centre")
+    T = check_transform(T_world_base, "T_world_base")
+    r = _positive(ball_radius_m, "ball_radius_m")
+    eye = check_vector(camera_position_world, "camera_position_world", 3)
+    cam = kinect_camera(look_at(eye, _to_world(T, np.array([0.0, 0.0, 1.0])), K=np.eye(3)).T_world_cam,
+                        width=width, height=height)
+    span = abs(eye[1] - T[1, 3])
+    shapes, lights = _room_for_rgbd(rng, size_m=(8.0, span + 3.0, 3.2), center_xy=(T[0, 3], (eye[1] + T[1, 3]) / 2),
+                                    keepout_xy=T[:2, 3], keepout_radius_m=1.4, n_clutter=8, n_distractors=2,
+                                    region_y=(T[1, 3] - 1.0, T[1, 3] + 1.5))
+    shapes += _robot_base_shapes(T, 0.35)
+    ball_rgb = rng.choice([(0.9, 0.8, 0.1), (0.95, 0.45, 0.05), (0.2, 0.5, 0.9)])
+    arm_at = _arm_fn(arm)
+    sphere_r = _sphere_radius(None)
+
+    def dynamic(t):
+        out = [Sphere(center=ball_center_world(t), radius=r, color_rgb=ball_rgb, name="ball")]
+        if arm_at is not None:
+            out += arm_shapes(arm_at(t), T, sphere_radius_m=sphere_r)
+        return out
+
+    scene = Scene(static=shapes, lights=lights, dynamic=dynamic)
+    return SimSetup(scene=scene, cameras={"rgbd": cam},
+                    meta={"object_ids": scene.object_ids(0.0), "ball_center_world": ball_center_world,
+                          "ball_radius_m": r, "T_world_base": T, "rate_hz": KINECT_RATE_HZ})
+
+
+def eye_in_hand(T_world_cam, rng: np.random.Generator, *, square_center_world=(0.6, 0.0, 0.0),
+                square_size_m: float = 0.1, square_yaw_rad: float = 0.0, width: int = 640,
+                height: int = 480) -> SimSetup:
+    """Eye-in-hand RGB-D view of a black square on white ground (visual servoing).
+
+    The ground is the plane z = 0 (white, slightly randomised); the square
+    lies 1 mm above it. For a moving camera re-pose the returned camera with
+    :func:`tudorvision.sim.camera.with_pose` and render the same scene.
+
+    Returns
+    -------
+    SimSetup
+        ``cameras = {"rgbd"}``; ``meta``: ``object_ids`` (``"square"``),
+        ``square_corners_world`` (4, 3), ``rate_hz``.
+    """
+    c = check_vector(square_center_world, "square_center_world", 3)
+    s = _positive(square_size_m, "square_size_m")
+    cam = kinect_camera(T_world_cam, width=width, height=height)
+    R = _yaw(square_yaw_rad)
+    white = rng.uniform(0.8, 0.92)
+    ground = Rectangle(center=(c[0], c[1], 0.0), half_size=(3.0, 3.0), color_rgb=np.full(3, white), name="ground")
+    square = Rectangle(center=c + [0, 0, 0.001], axis_u=R[:, 0], axis_v=R[:, 1], half_size=(s / 2, s / 2),
+                       color_rgb=(0.05, 0.05, 0.05), name="square")
+    lights = [AmbientLight(intensity=rng.uniform(0.3, 0.45)),
+              DirectionalLight(direction_world=(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), -1.0),
+                               intensity=rng.uniform(0.3, 0.5))]
+    scene = Scene(static=[ground, square], lights=lights)
+    return SimSetup(scene=scene, cameras={"rgbd": cam},
+                    meta={"object_ids": scene.object_ids(), "square_corners_world": square.corners(),
+                          "rate_hz": KINECT_RATE_HZ})
+
+
+def checkerboard_lab(T_world_board, rng: np.random.Generator, *, squares=(9, 7), square_m: float = 0.06,
+                     border_m: float = 0.04, T_world_base=np.eye(4), rig: StereoRigConfig = StereoRigConfig(),
+                     n_clutter: int = 6) -> SimSetup:
+    """A checkerboard held in the stereo lab, for calibration image pairs.
+
+    Parameters
+    ----------
+    T_world_board : ndarray, shape (4, 4)
+        Board pose: origin at the board centre, x along the ``squares[0]``
+        direction, y along ``squares[1]``, z the board normal.
+    squares : (int, int)
+        Number of squares; OpenCV's pattern size is ``(squares[0] - 1, squares[1] - 1)``.
+
+    Returns
+    -------
+    SimSetup
+        ``cameras = {"left", "right"}``; ``meta``: ``inner_corners_world``
+        (N, 3) in the row-major order of ``Rectangle.inner_corners``,
+        ``pattern_size``, ``square_m``, ``T_world_board``.
+    """
+    Tb = check_transform(T_world_board, "T_world_board")
+    T = check_transform(T_world_base, "T_world_base")
+    sq = _positive(square_m, "square_m")
+    n = np.asarray(squares)
+    if n.shape != (2,) or np.any(n < 2):
+        raise ValueError(f"squares: expected two integers >= 2, got {squares!r}")
+    board = Rectangle(center=Tb[:3, 3], axis_u=Tb[:3, 0], axis_v=Tb[:3, 1],
+                      half_size=(n[0] * sq / 2 + border_m, n[1] * sq / 2 + border_m), checker_square_m=sq,
+                      checker_squares=tuple(int(k) for k in n), color_rgb=(0.88, 0.88, 0.86),
+                      color2_rgb=(0.04, 0.04, 0.04), name="board")
+    left, right = stereo_rig(T, config=rig)
+    shapes, lights = lab_room(rng, center_xy=T[:2, 3], keepout_xy=T[:2, 3], n_clutter=n_clutter,
+                              size_m=(8.0, 7.0, rig.height_m + 0.3), clutter_region_y=(T[1, 3] - 0.8, T[1, 3] + 3.4))
+    scene = Scene(static=[board] + shapes, lights=lights)
+    return SimSetup(scene=scene, cameras={"left": left, "right": right},
+                    meta={"inner_corners_world": board.inner_corners(),
+                          "pattern_size": (int(n[0]) - 1, int(n[1]) - 1), "square_m": sq, "T_world_board": Tb,
+                          "object_ids": {"board": 1}})
