@@ -259,3 +259,37 @@ def test_real_video():
         assert np.allclose(t, seq.timestamps, atol=2e-3)
         back = seq[17]                 # random access after a full pass seeks
         assert back.index == 17 and np.array_equal(back.image, frames[17].image)
+
+
+def _write_avi(path, n=8, size=(32, 24), fps=25.0):
+    vw = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), fps, size)
+    if not vw.isOpened():
+        pytest.skip("this OpenCV build cannot write MJPG video")
+    for k in range(n):
+        vw.write(np.full((size[1], size[0], 3), 20 * k, np.uint8))
+    vw.release()
+
+
+def test_mono_sequence_pointing_at_a_video(tmp_path):
+    _write_avi(tmp_path / "clip.avi")
+    (tmp_path / "sequence.yaml").write_text("kind: mono\nrate_hz: 25\nvideo: clip.avi\nsize: [32, 24]\n")
+    seq = open_sequence(tmp_path)
+    assert (seq.layout, seq.kind, len(seq)) == ("tudorvision", "mono", 8)
+    means = [float(f.image.mean()) for f in seq]
+    assert np.allclose(means, 20 * np.arange(8), atol=3)           # decode order = index order
+    assert np.allclose(seq.timestamps, np.arange(8) / 25.0)
+    (tmp_path / "sequence.yaml").write_text("kind: mono\nrate_hz: 25\nvideo: clip.avi\nsize: [30, 24]\n")
+    with pytest.raises(TudorVisionError, match=r"clip\.avi frame 0: image is 32x24, expected 30x24"):
+        open_sequence(tmp_path)[0]
+    (tmp_path / "sequence.yaml").write_text("kind: mono\nrate_hz: 25\nvideo: other.avi\n")
+    with pytest.raises(TudorVisionError, match=r"sequence\.yaml:3: video: video file 'other.avi' does not exist"):
+        open_sequence(tmp_path)
+
+
+def test_image_folder_in_natural_order(tmp_path):
+    for k in (10, 2, 1):
+        cv2.imwrite(str(tmp_path / f"img{k}.png"), np.full((4, 5), k, np.uint8))
+    seq = open_sequence(tmp_path, rate_hz=5.0)
+    assert (seq.layout, seq.kind) == ("image_folder", "mono")
+    assert [int(f.image[0, 0]) for f in seq] == [1, 2, 10]
+    assert np.allclose(seq.timestamps, [0.0, 0.2, 0.4])

@@ -13,8 +13,9 @@ from .calibration import (Calibration, CameraModel, DepthModel, StereoExtrinsics
 from .formats import (CameraInfo, calibration_from_ros, load_opencv_stereo, load_ros_camera_info,
                       save_opencv_stereo, save_ros_camera_info)
 from .playback import Playback, Played
-from .sequence import (JointLog, MonoFrame, RGBDFrame, Sequence, StereoFrame, depth_m_from_raw,
-                       open_sequence, raw_from_depth_m)
+from .frames import (JointLog, MonoFrame, RGBDFrame, StereoFrame, depth_m_from_raw,
+                     raw_from_depth_m)
+from .sequence import Sequence, open_sequence
 from .writer import SequenceWriter
 
 __all__ = [

@@ -16,7 +16,7 @@ import numpy as np
 
 from .._checks import TudorVisionError
 from ._index import Problem, associate, parse_index
-from .calibration import read_yaml
+from ._yaml import read_yaml
 
 KINDS = ("stereo", "rgbd", "mono")
 FRAME_STREAMS = {"stereo": ("left", "right"), "rgbd": ("rgb", "depth"), "mono": ("image",)}

@@ -23,7 +23,9 @@ import cv2
 import numpy as np
 
 from .._checks import TudorVisionError, check_array
-from .calibration import Calibration, CameraModel, StereoExtrinsics, _Ctx, dump_yaml, read_yaml
+from ._yaml import YamlContext as _Ctx
+from ._yaml import dump_yaml, read_yaml
+from .calibration import Calibration, CameraModel, StereoExtrinsics
 
 __all__ = ["CameraInfo", "load_ros_camera_info", "save_ros_camera_info", "calibration_from_ros",
            "load_opencv_stereo", "save_opencv_stereo"]

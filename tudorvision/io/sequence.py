@@ -53,8 +53,6 @@ frame (``seq[i]``) always raises for a defective frame.
 """
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -65,175 +63,13 @@ from ._index import ImageProblem, Problem, parse_table, read_columns, read_image
 from ._layouts import (FRAME_STREAMS, LAYOUTS, VIDEO_SUFFIXES, Record, Spec, detect_layout,
                        parse_sequence_yaml, spec_image_folder, spec_kinect_folders,
                        spec_numbered_pairs, spec_tudorvision, spec_tum)
+from ._video import VideoSource
 from .calibration import Calibration, CameraModel, load_calibration
+from .frames import (JointLog, MonoFrame, RGBDFrame, StereoFrame, depth_m_from_raw,
+                     raw_from_depth_m)
 
 __all__ = ["StereoFrame", "RGBDFrame", "MonoFrame", "JointLog", "Sequence", "open_sequence",
            "depth_m_from_raw", "raw_from_depth_m", "Problem"]
-
-
-# ----------------------------------------------------------------------------- frames
-@dataclass(frozen=True, eq=False)
-class StereoFrame:
-    """A stereo pair. ``left``, ``right``: (H, W, 3) uint8 BGR (or (H, W) grey) images."""
-
-    t: float
-    index: int
-    left: np.ndarray
-    right: np.ndarray
-
-
-@dataclass(frozen=True, eq=False)
-class RGBDFrame:
-    """A registered colour + depth frame.
-
-    Attributes
-    ----------
-    t : float
-        Colour timestamp, seconds.
-    index : int
-        0-based frame index in the sequence.
-    rgb : ndarray, shape (H, W, 3), uint8
-        Colour image in OpenCV **BGR** channel order (named after the
-        stream; :attr:`bgr` is the same array).
-    depth_raw : ndarray, shape (H, W), uint16
-        Raw depth, 0 = invalid.
-    depth_m : ndarray, shape (H, W), float32
-        Depth along the optical axis in metres, NaN where invalid.
-    t_depth : float
-        Depth timestamp, seconds (differs from ``t`` in TUM recordings).
-    """
-
-    t: float
-    index: int
-    rgb: np.ndarray
-    depth_raw: np.ndarray
-    depth_m: np.ndarray
-    t_depth: float
-
-    @property
-    def bgr(self) -> np.ndarray:
-        return self.rgb
-
-    @property
-    def valid(self) -> np.ndarray:
-        """(H, W) bool mask of pixels with a depth measurement."""
-        return self.depth_raw > 0
-
-
-@dataclass(frozen=True, eq=False)
-class MonoFrame:
-    """One image: (H, W, 3) uint8 BGR or (H, W) grey."""
-
-    t: float
-    index: int
-    image: np.ndarray
-
-
-@dataclass(frozen=True, eq=False)
-class JointLog:
-    """Joint angles as the joint-control layer logs them.
-
-    Attributes
-    ----------
-    t : ndarray, shape (N,)
-        Timestamps, seconds, increasing.
-    theta_rad : ndarray, shape (N, 3)
-        ``[theta1, theta2, theta3]`` in radians.
-    """
-
-    t: np.ndarray
-    theta_rad: np.ndarray
-
-    def at(self, t) -> np.ndarray:
-        """Joint angles linearly interpolated at time(s) ``t``; shape ``(3,)`` or ``(M, 3)``."""
-        tq = np.asarray(t, dtype=np.float64)
-        out = np.stack([np.interp(tq, self.t, self.theta_rad[:, k]) for k in range(3)], axis=-1)
-        return out
-
-
-# ----------------------------------------------------------------------------- depth units
-def depth_m_from_raw(depth_raw, depth_scale: float) -> np.ndarray:
-    """Metres from raw 16-bit depth; 0 (invalid) becomes NaN.
-
-    Parameters
-    ----------
-    depth_raw : array_like, shape (H, W), integer
-        Raw depth values.
-    depth_scale : float
-        Raw units per metre (1000 for millimetres, 5000 for TUM).
-
-    Returns
-    -------
-    ndarray, shape (H, W), float32
-
-    Examples
-    --------
-    >>> depth_m_from_raw(np.array([[0, 1500]], np.uint16), 1000.0)
-    array([[nan, 1.5]], dtype=float32)
-    """
-    if not (isinstance(depth_scale, (int, float)) and math.isfinite(depth_scale) and depth_scale > 0):
-        raise ValueError(f"depth_scale: expected a positive number of units per metre, got {depth_scale!r}")
-    raw = np.asarray(depth_raw)
-    out = raw.astype(np.float32) / np.float32(depth_scale)
-    out[raw == 0] = np.nan
-    return out
-
-
-def raw_from_depth_m(depth_m, depth_scale: float) -> np.ndarray:
-    """Raw uint16 depth from metres; NaN, non-positive and out-of-range values become 0.
-
-    Examples
-    --------
-    >>> raw_from_depth_m(np.array([[np.nan, 1.5, 70.0]]), 1000.0)
-    array([[   0, 1500,    0]], dtype=uint16)
-    """
-    if not (isinstance(depth_scale, (int, float)) and math.isfinite(depth_scale) and depth_scale > 0):
-        raise ValueError(f"depth_scale: expected a positive number of units per metre, got {depth_scale!r}")
-    d = np.asarray(depth_m, dtype=np.float64) * depth_scale
-    with np.errstate(invalid="ignore"):
-        ok = np.isfinite(d) & (d >= 0.5) & (d < 65535.5)
-    out = np.zeros(d.shape, np.uint16)
-    out[ok] = np.rint(d[ok]).astype(np.uint16)
-    return out
-
-
-# ----------------------------------------------------------------------------- video backend
-class _Video:
-    """An open ``cv2.VideoCapture`` with sequential reads and seeking."""
-
-    def __init__(self, path: Path):
-        self.path = Path(path)
-        if not self.path.is_file():
-            raise TudorVisionError(f"{self.path}: video file not found")
-        self.cap = cv2.VideoCapture(str(self.path))
-        if not self.cap.isOpened():
-            raise TudorVisionError(f"{self.path}: cannot open as a video")
-        fps = self.cap.get(cv2.CAP_PROP_FPS)
-        self.fps = float(fps) if fps and math.isfinite(fps) and fps > 0 else None
-        self.count = max(int(self.cap.get(cv2.CAP_PROP_FRAME_COUNT)), 0)
-        self.size = (int(self.cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(self.cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
-        self.next = 0
-
-    def nominal_t(self, i: int) -> float:
-        return i / self.fps if self.fps else float(i)
-
-    def read(self, i: int):
-        if self.cap is None:
-            raise TudorVisionError(f"{self.path}: sequence is closed")
-        if i != self.next:
-            self.cap.set(cv2.CAP_PROP_POS_FRAMES, i)
-        ok, img = self.cap.read()
-        self.next = i + 1 if ok else -1
-        if not ok or img is None:
-            raise ImageProblem(f"cannot decode video frame {i}")
-        t_ms = self.cap.get(cv2.CAP_PROP_POS_MSEC)
-        t = t_ms / 1000.0 if (t_ms > 0 or i == 0) else self.nominal_t(i)
-        return img, t
-
-    def close(self):
-        if self.cap is not None:
-            self.cap.release()
-            self.cap = None
 
 
 # ----------------------------------------------------------------------------- the reader
@@ -287,7 +123,7 @@ class Sequence:
         self._seen: set = set()
         self._calibration = calibration
         self._calibration_done = False
-        self._video = _Video(spec.video) if spec.video is not None else None
+        self._video = VideoSource(spec.video) if spec.video is not None else None
         if self._video is not None and self.rate_hz is None:
             self.rate_hz = self._video.fps
         for p in spec.problems:
@@ -378,7 +214,8 @@ class Sequence:
         if self.size and stream in self.size:
             w, h = self.size[stream]
             if img.shape[1] != w or img.shape[0] != h:
-                raise _FrameProblem(Problem(where, f"{stream} image is {img.shape[1]}x{img.shape[0]}, "
+                label = "image" if stream == "image" else f"{stream} image"
+                raise _FrameProblem(Problem(where, f"{label} is {img.shape[1]}x{img.shape[0]}, "
                                                    f"expected {w}x{h} (size)", i))
 
     def _load(self, i: int):
@@ -386,8 +223,8 @@ class Sequence:
             try:
                 img, t = self._video.read(i)
             except ImageProblem as exc:
-                raise _FrameProblem(Problem(f"{self.path}", str(exc), i)) from None
-            self._check_size(img, "image", f"{self.path} frame {i}", i)
+                raise _FrameProblem(Problem(f"{self._video.path} frame {i}", str(exc), i)) from None
+            self._check_size(img, "image", f"{self._video.path} frame {i}", i)
             return MonoFrame(t=t, index=i, image=img)
         rec: Record = self._spec.records[i]
         imgs = {}

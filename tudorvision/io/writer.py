@@ -15,8 +15,9 @@ import numpy as np
 
 from .._checks import TudorVisionError, check_array
 from ._layouts import FRAME_STREAMS, KINDS
-from .calibration import Calibration, dump_yaml, load_calibration, save_calibration
-from .sequence import raw_from_depth_m
+from ._yaml import dump_yaml
+from .calibration import Calibration, load_calibration, save_calibration
+from .frames import raw_from_depth_m
 
 __all__ = ["SequenceWriter"]
 
