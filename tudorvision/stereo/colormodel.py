@@ -119,6 +119,11 @@ def _gauss_log_pmf(mean: float, std: float, levels: int, circular: bool) -> np.n
     return logp - (mx + math.log(np.exp(logp - mx).sum()))
 
 
+def _readonly(arr: np.ndarray) -> np.ndarray:
+    arr.setflags(write=False)
+    return arr
+
+
 def _smooth_pmf(counts: np.ndarray, sigma: float, circular: bool, floor: float) -> np.ndarray:
     levels = counts.size
     half = int(math.ceil(3 * sigma))
@@ -155,6 +160,11 @@ class ColorModel:
     llr_clip : float
         Each channel's log-likelihood ratio is clipped to ``[-llr_clip,
         llr_clip]`` so that one outlying channel cannot veto the others alone.
+    blur_min_std, blur_min_hue_std : float
+        Smallest standard deviation (8-bit levels; hue levels) of the
+        blur-tolerant tables used when motion blur is expected: a blur streak
+        mixes the sphere's colour with the background's, which mostly moves
+        R, G, B, S and V and much less the hue.
     center_uv : tuple of float
         Picked centre pixel (u right, v down), for reference and start-up.
     radius_px : float
@@ -175,6 +185,8 @@ class ColorModel:
     plane_tables : ndarray, shape (6, 256), float32
         ``log_ratio`` rows reordered to the image planes B, G, R, H, S, V, for
         ``cv2.LUT``.
+    log_ratio_blur, plane_tables_blur : ndarray, shape (6, 256), float32
+        The same with the blur-tolerant spreads.
     """
 
     mean: np.ndarray
@@ -183,6 +195,8 @@ class ColorModel:
     prior: float
     use_hue: bool = True
     llr_clip: float = 8.0
+    blur_min_std: float = 40.0
+    blur_min_hue_std: float = 4.0
     center_uv: tuple = (float("nan"), float("nan"))
     radius_px: float = float("nan")
     n_pixels: int = 0
@@ -190,6 +204,8 @@ class ColorModel:
     log_ratio: np.ndarray = field(init=False, repr=False)
     log_prior_odds: float = field(init=False, repr=False)
     plane_tables: np.ndarray = field(init=False, repr=False)
+    log_ratio_blur: np.ndarray = field(init=False, repr=False)
+    plane_tables_blur: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self):
         mean = np.array(self.mean, dtype=np.float64).reshape(-1)
@@ -205,6 +221,9 @@ class ColorModel:
             raise TudorVisionError(f"prior: must lie in (0, 1), got {self.prior}")
         if not (float(self.llr_clip) > 0):
             raise TudorVisionError(f"llr_clip: must be positive, got {self.llr_clip}")
+        if not (float(self.blur_min_std) > 0 and float(self.blur_min_hue_std) > 0):
+            raise TudorVisionError(
+                f"blur_min_std, blur_min_hue_std: must be positive, got {self.blur_min_std}, {self.blur_min_hue_std}")
         bg = bg.copy()
         bg[_HUE, HUE_LEVELS:] = 0.0
         for c in range(6):
@@ -221,6 +240,19 @@ class ColorModel:
         object.__setattr__(self, "center_uv", tuple(float(x) for x in self.center_uv))
         object.__setattr__(self, "image_size", tuple(int(x) for x in self.image_size))
 
+        table = self._tables(std)
+        object.__setattr__(self, "log_ratio", table)
+        object.__setattr__(self, "log_prior_odds", math.log(self.prior / (1.0 - self.prior)))
+        # one contiguous float32 row per image plane, plane order B, G, R, H, S, V
+        order = [2, 1, 0, 3, 4, 5]
+        object.__setattr__(self, "plane_tables", _readonly(np.ascontiguousarray(table[order])))
+        std_blur = np.maximum(std, self.blur_min_std)
+        std_blur[_HUE] = max(std[_HUE], self.blur_min_hue_std)
+        blur = self._tables(std_blur)
+        object.__setattr__(self, "log_ratio_blur", blur)
+        object.__setattr__(self, "plane_tables_blur", _readonly(np.ascontiguousarray(blur[order])))
+
+    def _tables(self, std: np.ndarray) -> np.ndarray:
         clip = float(self.llr_clip)
         table = np.zeros((6, 256), dtype=np.float64)
         for c in range(6):
@@ -228,19 +260,12 @@ class ColorModel:
             if c == _HUE and not self.use_hue:
                 continue
             # the background pmf already carries a uniform floor, so log is finite
-            log_bg = np.log(np.maximum(bg[c, :n], 1e-300))
-            llr = _gauss_log_pmf(mean[c], std[c], n, circular=(c == _HUE)) - log_bg
+            log_bg = np.log(np.maximum(self.background[c, :n], 1e-300))
+            llr = _gauss_log_pmf(self.mean[c], std[c], n, circular=(c == _HUE)) - log_bg
             table[c, :n] = np.clip(llr, -clip, clip)
             if n < 256:  # never produced by cvtColor; keep the circle going
                 table[c, n:] = table[c, np.arange(n, 256) % n]
-        table = table.astype(np.float32)
-        table.setflags(write=False)
-        object.__setattr__(self, "log_ratio", table)
-        object.__setattr__(self, "log_prior_odds", math.log(self.prior / (1.0 - self.prior)))
-        # one contiguous float32 row per image plane, plane order B, G, R, H, S, V
-        planes = np.ascontiguousarray(table[[2, 1, 0, 3, 4, 5]])
-        planes.setflags(write=False)
-        object.__setattr__(self, "plane_tables", planes)
+        return _readonly(table.astype(np.float32))
 
     def to_dict(self) -> dict:
         """Plain-data form used by :func:`save_color_models`."""
@@ -251,6 +276,8 @@ class ColorModel:
             "prior": float(self.prior),
             "use_hue": bool(self.use_hue),
             "llr_clip": float(self.llr_clip),
+            "blur_min_std": float(self.blur_min_std),
+            "blur_min_hue_std": float(self.blur_min_hue_std),
             "center_uv": [float(x) for x in self.center_uv],
             "radius_px": float(self.radius_px),
             "n_pixels": int(self.n_pixels),
@@ -288,6 +315,8 @@ class ColorModel:
                 prior=float(data["prior"]),
                 use_hue=bool(data.get("use_hue", True)),
                 llr_clip=float(data.get("llr_clip", 8.0)),
+                blur_min_std=float(data.get("blur_min_std", 40.0)),
+                blur_min_hue_std=float(data.get("blur_min_hue_std", 4.0)),
                 center_uv=tuple(data.get("center_uv", (float("nan"), float("nan")))),
                 radius_px=float(data.get("radius_px", float("nan"))),
                 n_pixels=int(data.get("n_pixels", 0)),

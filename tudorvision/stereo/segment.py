@@ -35,10 +35,21 @@ Shape measures (from the central second moments, eigenvalues
   elongation), about 0.95 for a rectangle, less for rings, crescents and
   ragged clutter.
 
-With ``motion_blur=True`` the circularity limit drops to
-``min_circularity_blur`` (a streak of length ``L`` behind a sphere of
-diameter ``d`` has circularity of roughly ``d / (d + L)``) while the fill
-check still requires a compact, convex-looking blob.
+Motion blur: a streak mixes the sphere's colour with the background's (a
+pixel in the middle of a streak of length ``L`` sees the sphere for at most
+``d / L`` of the exposure), which mostly moves R, G, B, S and V, much less the
+hue. With ``motion_blur=True`` (per call, or set by the tracker from the
+predicted image speed) the log-odds come from the model's blur-tolerant tables
+(``ColorModel.plane_tables_blur``: spreads of at least ``blur_min_std``
+levels, hue kept tight) and the circularity limit drops to
+``min_circularity_blur`` (a streak of length ``L`` behind a sphere of diameter
+``d`` has circularity of roughly ``d / (d + L)``) while the fill check still
+requires a compact, convex-looking blob. On synthetic frames this keeps
+streaks of up to about 1.5 diameters valid with the centroid at the
+mid-exposure position (0.1-0.2 px). The tolerant tables also accept darker
+objects of the sphere's hue (a blurred red sphere *is* a darker red), so use
+them in a window around the predicted position (tracking mode) rather than on
+full frames with such clutter.
 """
 from __future__ import annotations
 
@@ -132,6 +143,8 @@ class SegmentParams:
         if not (0 <= self.min_area_px <= self.max_area_px):
             raise TudorVisionError(
                 f"min_area_px, max_area_px: need 0 <= min <= max, got {self.min_area_px}, {self.max_area_px}")
+        if not (0.0 <= self.min_mean_prob <= 1.0):
+            raise TudorVisionError(f"min_mean_prob: must lie in [0, 1], got {self.min_mean_prob}")
         if not (0.0 <= self.min_circularity_blur <= self.min_circularity <= 1.0):
             raise TudorVisionError("min_circularity_blur, min_circularity: need 0 <= blur <= plain <= 1")
         if not (0.0 <= self.min_fill <= self.max_fill):
@@ -240,8 +253,8 @@ class _Frame:
         return (*cv2.split(win), *cv2.split(hw))
 
 
-def _log_odds_planes(planes, model: ColorModel) -> np.ndarray:
-    tabs = model.plane_tables
+def _log_odds_planes(planes, model: ColorModel, blur: bool = False) -> np.ndarray:
+    tabs = model.plane_tables_blur if blur else model.plane_tables
     acc = cv2.LUT(planes[0], tabs[0])
     for i in (1, 2, 3, 4, 5):
         if i == 3 and not model.use_hue:
@@ -407,7 +420,7 @@ def _check_roi(roi, width: int, height: int) -> tuple:
 
 def _detect_window(frame: _Frame, model: ColorModel, params: SegmentParams, roi: tuple, blur: bool) -> list:
     x0, y0, w, h = roi
-    lo = _log_odds_planes(frame.window_planes(x0, y0, w, h), model)
+    lo = _log_odds_planes(frame.window_planes(x0, y0, w, h), model, blur)
     return _candidates(lo, params, (x0, y0), (frame.width, frame.height), blur,
                        erode=int(params.erode_radius_px))
 
@@ -422,12 +435,12 @@ def _grow_roi(bbox, margin: int, width: int, height: int) -> tuple:
 def _detect_full(frame: _Frame, model: ColorModel, params: SegmentParams, blur: bool) -> SphereDetection:
     step = int(params.coarse_step)
     if step == 1:
-        lo = _log_odds_planes(frame.full_planes(), model)
+        lo = _log_odds_planes(frame.full_planes(), model, blur)
         found = _candidates(lo, params, (0, 0), (frame.width, frame.height), blur,
                             erode=int(params.erode_radius_px))
         return found[0] if found else _none()
     # coarse pass on the decimated frame, no erosion (it would erase small spheres there)
-    lo = _log_odds_planes(frame.coarse_planes(step), model)
+    lo = _log_odds_planes(frame.coarse_planes(step), model, blur)
     coarse = _candidates(lo, params, (0, 0), (frame.width, frame.height), blur, erode=0, scale=step)
     coarse.sort(key=lambda d: d.area_px * d.mean_prob, reverse=True)
     best = []

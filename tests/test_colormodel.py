@@ -1,0 +1,212 @@
+"""Colour models: fitting from picks, hue statistics, files and errors."""
+from __future__ import annotations
+
+import colorsys
+
+import cv2
+import numpy as np
+import pytest
+import scipy.stats
+
+from test_stereo_segment_scenes import RED_BGR, make_frame, two_spheres
+from tudorvision._checks import TudorVisionError
+from tudorvision.stereo.colormodel import (
+    CHANNELS, ColorModel, ColorModelSet, circular_hue_stats, fit_color_model, load_color_models,
+    save_color_models)
+
+RED_UV, GREEN_UV, R = (200.3, 150.7), (420.2, 300.4), 10.0
+
+
+@pytest.fixture(scope="module")
+def pick_frame():
+    return make_frame(np.random.default_rng(11), two_spheres(RED_UV, GREEN_UV, radius=R))
+
+
+@pytest.fixture(scope="module")
+def models(pick_frame):
+    red = fit_color_model(pick_frame, (200, 151), (210, 151))
+    green = fit_color_model(pick_frame, (420, 300), (430, 300))
+    return {"red": red, "green": green}
+
+
+def test_circular_hue_stats_match_scipy():
+    rng = np.random.default_rng(0)
+    for centre in (0.5, 45.0, 90.0, 178.0):
+        h = np.rint(centre + rng.normal(0, 3.0, 400)) % 180
+        m, s = circular_hue_stats(h)
+        m_ref = scipy.stats.circmean(h, high=180, low=0)
+        s_ref = scipy.stats.circstd(h, high=180, low=0)
+        assert abs((m - m_ref + 90) % 180 - 90) < 1e-9
+        assert s == pytest.approx(s_ref, rel=1e-9)
+
+
+def test_fit_matches_direct_statistics(pick_frame, models):
+    """Mean/std of the shrunken pick circle, recomputed independently (colorsys for HSV)."""
+    m = models["red"]
+    v, u = np.mgrid[0:pick_frame.shape[0], 0:pick_frame.shape[1]]
+    inside = (u - 200) ** 2 + (v - 151) ** 2 <= (0.8 * 10) ** 2
+    bgr = pick_frame[inside].astype(float)
+    rgb = bgr[:, ::-1]
+    np.testing.assert_allclose(m.mean[:3], rgb.mean(axis=0), atol=1e-9)
+    np.testing.assert_allclose(m.std[:3], np.maximum(rgb.std(axis=0), 3.0), atol=1e-9)
+    hsv = np.array([colorsys.rgb_to_hsv(*(px / 255.0)) for px in rgb])
+    hue_levels = hsv[:, 0] * 180.0  # OpenCV keeps degrees / 2
+    h_ref = scipy.stats.circmean(hue_levels, high=180, low=0)
+    assert abs((m.mean[3] - h_ref + 90) % 180 - 90) < 0.6  # OpenCV rounds hue to integer levels
+    assert m.mean[4] == pytest.approx(np.mean(hsv[:, 1] * 255), abs=0.6)
+    assert m.mean[5] == pytest.approx(np.mean(hsv[:, 2] * 255), abs=0.6)
+    assert m.n_pixels == int(inside.sum())
+    assert m.radius_px == pytest.approx(10.0)
+    assert m.image_size == (640, 480)
+
+
+def test_opencv_hsv_matches_colorsys():
+    rng = np.random.default_rng(3)
+    px = rng.integers(0, 256, (500, 1, 3), dtype=np.uint8)
+    hsv = cv2.cvtColor(px, cv2.COLOR_BGR2HSV)[:, 0].astype(float)
+    for (b, g, r), (h, s, v) in zip(px[:, 0], hsv):
+        hr, sr, vr = colorsys.rgb_to_hsv(r / 255.0, g / 255.0, b / 255.0)
+        assert v == pytest.approx(vr * 255, abs=0.51)
+        assert s == pytest.approx(sr * 255, abs=1.01)
+        if sr > 0.05:
+            assert abs((h - hr * 180 + 90) % 180 - 90) <= 1.01
+
+
+def test_red_model_wraps_hue(models):
+    m = models["red"]
+    # the red sphere's hue straddles 179/0: a linear mean would sit near 90
+    assert min(m.mean[3], 180 - m.mean[3]) < 4
+    assert m.std[3] < 3
+    assert m.log_ratio[3, 0] > 0 and m.log_ratio[3, 179] > 0 and m.log_ratio[3, 90] < 0
+    # levels 180..255 (never produced) continue the circle
+    assert m.log_ratio[3, 180] == m.log_ratio[3, 0]
+
+
+def test_tables_layout(models):
+    m = models["green"]
+    np.testing.assert_array_equal(m.plane_tables[0], m.log_ratio[2])  # B plane <- B row
+    np.testing.assert_array_equal(m.plane_tables[2], m.log_ratio[0])  # R plane <- R row
+    np.testing.assert_array_equal(m.plane_tables[3:], m.log_ratio[3:])
+    assert np.all(np.abs(m.log_ratio) <= m.llr_clip + 1e-6)
+    assert m.plane_tables.dtype == np.float32 and m.plane_tables.flags.c_contiguous
+    assert not m.log_ratio.flags.writeable
+
+
+@pytest.mark.parametrize("suffix", [".yaml", ".json"])
+def test_save_load_round_trip(tmp_path, models, suffix):
+    s = ColorModelSet({"left": models, "right": {"red": models["red"]}})
+    path = tmp_path / f"colors{suffix}"
+    save_color_models(s, path)
+    back = load_color_models(path)
+    assert back.cameras == ("left", "right")
+    assert back.spheres("left") == ("red", "green")
+    for cam in back.cameras:
+        for name in back.spheres(cam):
+            a, b = s.get(cam, name), back.get(cam, name)
+            np.testing.assert_allclose(b.mean, a.mean, atol=1e-6)
+            np.testing.assert_allclose(b.std, a.std, atol=1e-6)
+            np.testing.assert_allclose(b.background, a.background, rtol=1e-5, atol=1e-12)
+            np.testing.assert_allclose(b.log_ratio, a.log_ratio, atol=1e-3)
+            assert (b.prior, b.use_hue, b.n_pixels, b.image_size) == (a.prior, a.use_hue, a.n_pixels, a.image_size)
+            assert b.center_uv == pytest.approx(a.center_uv)
+
+
+def test_fit_errors(pick_frame):
+    h, w = pick_frame.shape[:2]
+    with pytest.raises(TudorVisionError, match="center_uv: pixel .* outside the 640x480 image"):
+        fit_color_model(pick_frame, (700, 10), (705, 10))
+    with pytest.raises(TudorVisionError, match="edge_uv: pixel .* outside"):
+        fit_color_model(pick_frame, (200, 151), (200, -3))
+    with pytest.raises(TudorVisionError, match="edge_uv: .* 0.00 px from center_uv"):
+        fit_color_model(pick_frame, (200, 151), (200, 151))
+    with pytest.raises(TudorVisionError, match="fewer than min_pixels"):
+        fit_color_model(pick_frame, (200, 151), (202, 151))
+    # a circle reaching far beyond the sphere mixes colours
+    with pytest.raises(TudorVisionError, match="not one colour .* is the pick on the sphere"):
+        fit_color_model(pick_frame, (200, 151), (240, 151))
+    with pytest.raises(TudorVisionError, match="frame_bgr: expected a uint8 BGR image"):
+        fit_color_model(pick_frame.astype(float), (200, 151), (210, 151))
+    with pytest.raises(TudorVisionError, match="center_uv: expected a finite pixel"):
+        fit_color_model(pick_frame, (np.nan, 1), (210, 151))
+    with pytest.raises(TudorVisionError, match="shrink"):
+        fit_color_model(pick_frame, (200, 151), (210, 151), shrink=0)
+
+
+def test_pick_on_plain_background_is_rejected():
+    """A one-coloured pick that is not a sphere: the model finds no separate region there."""
+    rng = np.random.default_rng(5)
+    img = make_frame(rng, two_spheres(RED_UV, GREEN_UV, radius=R), clutter=False)
+    with pytest.raises(TudorVisionError, match="does not single out the picked sphere"):
+        fit_color_model(img, (320, 40), (330, 40))
+
+
+def test_unsaturated_sphere_ignores_hue():
+    img = np.full((120, 160, 3), 60, np.uint8)
+    cv2.circle(img, (80, 60), 12, (215, 215, 215), -1)
+    noisy = np.clip(img + np.random.default_rng(1).normal(0, 2, img.shape), 0, 255).astype(np.uint8)
+    m = fit_color_model(noisy, (80, 60), (92, 60))
+    assert not m.use_hue
+    assert np.all(m.log_ratio[3] == 0)
+
+
+def test_model_and_set_errors(models):
+    m = models["red"]
+    with pytest.raises(TudorVisionError, match="std: expected 6 finite positive"):
+        ColorModel(mean=m.mean, std=np.zeros(6), background=m.background, prior=0.01)
+    with pytest.raises(TudorVisionError, match="mean: expected 6 finite values"):
+        ColorModel(mean=m.mean[:5], std=m.std, background=m.background, prior=0.01)
+    with pytest.raises(TudorVisionError, match="background: expected 6 x 256"):
+        ColorModel(mean=m.mean, std=m.std, background=m.background[:, :180], prior=0.01)
+    with pytest.raises(TudorVisionError, match="prior: must lie in"):
+        ColorModel(mean=m.mean, std=m.std, background=m.background, prior=1.0)
+    with pytest.raises(TudorVisionError, match="camera must be one of left, right, mono"):
+        ColorModelSet({"centre": {"red": m}})
+    with pytest.raises(TudorVisionError, match="is a dict, not a ColorModel"):
+        ColorModelSet({"left": {"red": {}}})
+    s = ColorModelSet({"mono": {"red": m}})
+    with pytest.raises(TudorVisionError, match="no camera 'left'"):
+        s.get("left", "red")
+    with pytest.raises(TudorVisionError, match="no sphere 'green' for camera 'mono'"):
+        s.get("mono", "green")
+    with pytest.raises(TudorVisionError, match="model_set: expected a ColorModelSet"):
+        save_color_models({"mono": {"red": m}}, "x.yaml")
+
+
+def test_load_errors(tmp_path, models):
+    missing = tmp_path / "none.yaml"
+    with pytest.raises(TudorVisionError, match="none.yaml: cannot read colour model file"):
+        load_color_models(missing)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("a: [1, 2\n")
+    with pytest.raises(TudorVisionError, match="bad.yaml: not a valid YAML/JSON"):
+        load_color_models(bad)
+    other = tmp_path / "other.yaml"
+    other.write_text("format: something\n")
+    with pytest.raises(TudorVisionError, match="other.yaml: not a colour model file"):
+        load_color_models(other)
+    good = tmp_path / "good.json"
+    save_color_models(ColorModelSet({"mono": {"red": models["red"]}}), good)
+    text = good.read_text()
+    (tmp_path / "v2.json").write_text(text.replace('"version": 1', '"version": 2'))
+    with pytest.raises(TudorVisionError, match="v2.json: unsupported colour model version 2"):
+        load_color_models(tmp_path / "v2.json")
+    (tmp_path / "short.json").write_text(text.replace('"std"', '"sd"'))
+    with pytest.raises(TudorVisionError, match="short.json: cameras/mono/red: missing key.*std"):
+        load_color_models(tmp_path / "short.json")
+    import json
+
+    doc = json.loads(text)
+    doc["cameras"]["mono"]["red"]["background"][3] = [1.0] * 256
+    (tmp_path / "hue.json").write_text(json.dumps(doc))
+    with pytest.raises(TudorVisionError, match="hue.json: .*row H needs 180 values"):
+        load_color_models(tmp_path / "hue.json")
+    doc = json.loads(text)
+    doc["cameras"] = {"stereo": doc["cameras"]["mono"]}
+    (tmp_path / "cam.json").write_text(json.dumps(doc))
+    with pytest.raises(TudorVisionError, match="cam.json: .*camera must be one of"):
+        load_color_models(tmp_path / "cam.json")
+
+
+def test_channels_constant():
+    assert CHANNELS == ("R", "G", "B", "H", "S", "V")
+    assert RED_BGR[2] > RED_BGR[0]

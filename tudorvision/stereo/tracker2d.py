@@ -1,0 +1,253 @@
+"""Tracking mode: search a window around the predicted sphere position.
+
+A :class:`SphereTracker` follows one sphere in one camera's frames. While the
+sphere was found in the previous frame it predicts the next position with a
+constant-velocity model from the last two detections and segments only a
+window around the prediction (:func:`~tudorvision.stereo.segment.detect_sphere`
+with ``roi``). The window's half size is
+
+``max(min_half_window_px, window_scale * r + uncertainty_gain * e + 0.5 * s)``
+
+with ``r`` the last region's equivalent radius (``sqrt(area / pi)``), ``e``
+the recent prediction error (px, decaying) and ``s`` the predicted image speed
+(px/frame: the blur streak extends about half of it to each side). The window
+is clipped at the image border. If the window finds no valid region, or the
+region touches the window's edge (the window was too small), the same frame is
+searched in full (coarse to fine); once lost, the tracker searches full frames
+until it finds the sphere again. Motion blur is expected in the window when the
+predicted speed exceeds ``blur_speed * r`` px/frame; then the window is
+segmented with the model's blur-tolerant colour tables and the looser
+circularity limit ``min_circularity_blur`` (see
+:mod:`tudorvision.stereo.segment`). Full-frame searches use the strict tables
+(unless ``segment.motion_blur`` is set), because the tolerant ones also accept
+darker objects of the sphere's hue anywhere in the frame.
+
+:class:`FrameTracker` runs one tracker per sphere of one camera and shares the
+colour conversion of frames that need a full search.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+
+from tudorvision._checks import TudorVisionError
+from tudorvision.stereo.colormodel import ColorModel, _check_frame
+from tudorvision.stereo.segment import SegmentParams, SphereDetection, _check_hsv, _detect, _Frame
+
+__all__ = ["TrackerParams", "SphereTracker", "FrameTracker"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrackerParams:
+    """Options of the tracking mode.
+
+    Parameters
+    ----------
+    segment : SegmentParams
+        Segmentation thresholds and limits (``motion_blur`` is set per frame
+        by the tracker from the predicted speed).
+    window_scale : float
+        Half window of at least ``window_scale`` sphere radii.
+    min_half_window_px : int
+        Smallest half window in pixels.
+    uncertainty_gain : float
+        Half window grows by this many recent prediction errors (px).
+    blur_speed : float
+        Blur is expected above ``blur_speed`` radii per frame of image speed.
+    max_half_window_px : int
+        Beyond this half size the tracker searches the full frame instead.
+    """
+
+    segment: SegmentParams = field(default_factory=SegmentParams)
+    window_scale: float = 2.5
+    min_half_window_px: int = 12
+    uncertainty_gain: float = 3.0
+    blur_speed: float = 0.5
+    max_half_window_px: int = 160
+
+    def __post_init__(self):
+        if not isinstance(self.segment, SegmentParams):
+            raise TudorVisionError(f"segment: expected SegmentParams, got {type(self.segment).__name__}")
+        for name in ("window_scale", "uncertainty_gain", "blur_speed"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise TudorVisionError(f"{name}: must be finite and non-negative, got {v}")
+        if not (1 <= self.min_half_window_px <= self.max_half_window_px):
+            raise TudorVisionError(
+                "min_half_window_px, max_half_window_px: need 1 <= min <= max, got "
+                f"{self.min_half_window_px}, {self.max_half_window_px}")
+
+
+class SphereTracker:
+    """Track one sphere in the frames of one camera.
+
+    Parameters
+    ----------
+    model : ColorModel
+        The sphere's colour model for this camera.
+    params : TrackerParams, optional
+
+    Attributes
+    ----------
+    last : SphereDetection or None
+        Result of the latest :meth:`update`.
+    mode : str
+        How the latest frame was searched: ``"window"`` or ``"full"``.
+    n_window, n_full : int
+        Frames searched by window only, and frames that needed a full search.
+
+    Examples
+    --------
+    >>> import cv2
+    >>> from tudorvision.stereo.colormodel import fit_color_model
+    >>> img = np.full((120, 160, 3), 90, np.uint8)
+    >>> _ = cv2.circle(img, (40, 60), 8, (40, 40, 200), -1)
+    >>> trk = SphereTracker(fit_color_model(img, (40, 60), (48, 60)))
+    >>> for du in (0, 4, 8, 12):                 # moves 4 px right per frame
+    ...     det = trk.update(np.roll(img, du, axis=1))
+    >>> round(det.uv[0], 2), trk.mode, trk.n_full
+    (52.0, 'window', 1)
+    """
+
+    def __init__(self, model: ColorModel, *, params: TrackerParams | None = None):
+        if not isinstance(model, ColorModel):
+            raise TudorVisionError(f"model: expected a ColorModel, got {type(model).__name__}")
+        self.model = model
+        self.params = TrackerParams() if params is None else params
+        if not isinstance(self.params, TrackerParams):
+            raise TudorVisionError(f"params: expected TrackerParams, got {type(self.params).__name__}")
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the track; the next frame is searched in full."""
+        self._index = -1
+        self._hist: list = []  # [(frame index, uv ndarray)] of the last two valid detections
+        self._radius = float("nan")
+        self._err = 0.0
+        self.last: SphereDetection | None = None
+        self.mode = "full"
+        self.n_window = 0
+        self.n_full = 0
+
+    def predict(self):
+        """Predicted position and half window for the next frame.
+
+        Returns
+        -------
+        (uv, half_window_px, speed_px_per_frame) or None
+            ``None`` when the sphere was not found in the latest frame (the
+            next frame is searched in full).
+        """
+        if not self._hist or self._hist[-1][0] != self._index:
+            return None
+        k1, uv1 = self._hist[-1]
+        if len(self._hist) == 2:
+            k0, uv0 = self._hist[0]
+            vel = (uv1 - uv0) / (k1 - k0)
+        else:
+            vel = np.zeros(2)
+        uv = uv1 + vel
+        speed = float(np.hypot(*vel))
+        p = self.params
+        half = p.window_scale * self._radius + p.uncertainty_gain * self._err + 0.5 * speed
+        half = max(float(p.min_half_window_px), half)
+        return uv, half, speed
+
+    def update(self, frame_bgr, *, hsv=None) -> SphereDetection:
+        """Find the sphere in the next frame.
+
+        Parameters
+        ----------
+        frame_bgr : ndarray, shape (H, W, 3), uint8
+            The next BGR frame of this camera.
+        hsv : ndarray, shape (H, W, 3), uint8, optional
+            Its HSV image if already computed.
+
+        Returns
+        -------
+        SphereDetection
+        """
+        bgr = _check_frame(frame_bgr)
+        return self._update(_Frame(bgr, None if hsv is None else _check_hsv(hsv, bgr.shape)))
+
+    def _update(self, frame: _Frame) -> SphereDetection:
+        pred = self.predict()
+        self._index += 1
+        p = self.params
+        det = None
+        blur = p.segment.motion_blur
+        if pred is not None:
+            uv, half, speed = pred
+            blur = blur or speed > p.blur_speed * self._radius
+            if half <= p.max_half_window_px:
+                h = int(math.ceil(half))
+                x0, y0 = int(round(uv[0])) - h, int(round(uv[1])) - h
+                x1, y1 = min(x0 + 2 * h + 1, frame.width), min(y0 + 2 * h + 1, frame.height)
+                x0, y0 = max(x0, 0), max(y0, 0)
+                if x1 - x0 >= 3 and y1 - y0 >= 3:
+                    det = _detect(frame, self.model, p.segment, (x0, y0, x1 - x0, y1 - y0), blur)
+                    if not det.valid or det.touches_window:
+                        det = None
+        if det is not None:
+            self.mode = "window"
+            self.n_window += 1
+        else:
+            # full frames use the strict colour tables unless the caller expects blur everywhere:
+            # the blur-tolerant ones also accept darker objects of the sphere's hue
+            self.mode = "full"
+            self.n_full += 1
+            det = _detect(frame, self.model, p.segment, None, p.segment.motion_blur)
+        if det.valid:
+            uv_now = np.array(det.uv, dtype=np.float64)
+            if pred is not None:
+                e = float(np.hypot(*(uv_now - pred[0])))
+                self._err = max(0.5 * self._err, e)
+            else:
+                self._err = 0.0
+            self._radius = det.radius_px
+            self._hist = (self._hist + [(self._index, uv_now)])[-2:]
+        self.last = det
+        return det
+
+
+class FrameTracker:
+    """Track every sphere of one camera, sharing per-frame colour conversions.
+
+    Parameters
+    ----------
+    models : mapping of str to ColorModel
+        ``{sphere: model}`` for this camera (``ColorModelSet.for_camera(c)``).
+    params : TrackerParams, optional
+
+    Examples
+    --------
+    >>> import cv2
+    >>> from tudorvision.stereo.colormodel import fit_color_model
+    >>> img = np.full((120, 160, 3), 90, np.uint8)
+    >>> _ = cv2.circle(img, (40, 60), 8, (40, 40, 200), -1)
+    >>> _ = cv2.circle(img, (110, 60), 8, (50, 190, 40), -1)
+    >>> models = {"red": fit_color_model(img, (40, 60), (48, 60)),
+    ...           "green": fit_color_model(img, (110, 60), (118, 60))}
+    >>> dets = FrameTracker(models).update(img)
+    >>> {k: (round(d.uv[0], 1), d.valid) for k, d in dets.items()}
+    {'red': (40.0, True), 'green': (110.0, True)}
+    """
+
+    def __init__(self, models: Mapping[str, ColorModel], *, params: TrackerParams | None = None):
+        if not isinstance(models, Mapping) or not models:
+            raise TudorVisionError("models: expected a non-empty mapping {sphere: ColorModel}")
+        self.trackers = {name: SphereTracker(m, params=params) for name, m in models.items()}
+
+    def reset(self) -> None:
+        """Forget every track."""
+        for t in self.trackers.values():
+            t.reset()
+
+    def update(self, frame_bgr, *, hsv=None) -> dict:
+        """Detections ``{sphere: SphereDetection}`` in the next frame."""
+        bgr = _check_frame(frame_bgr)
+        frame = _Frame(bgr, None if hsv is None else _check_hsv(hsv, bgr.shape))
+        return {name: t._update(frame) for name, t in self.trackers.items()}
