@@ -27,8 +27,9 @@ damping of ``1 / sqrt(2)``.
 
 position loop: PD with first-order lag ``k_PD (t_PD s + 1) / (t_l s + 1)``;
 ``t_PD = 2 t_d`` cancels the first-order approximation of the closed velocity
-loop and ``k_PD = 1 / (2 t_l)`` gives the position loop a damping of
-``1 / sqrt(2)`` (no overshoot for a step).
+loop and ``k_PD = 1 / (4 t_l)`` makes the remaining position loop
+``k_PD / (s (t_l s + 1))`` critically damped, so steps do not overshoot
+(section 3.3: "There is no overshoot").
 
 The velocity reference is ``PD output + feed-forward + extra``, where the
 feed-forward is the planned velocity and ``extra`` is the damping input of
@@ -128,7 +129,7 @@ class CascadeGains:
 
 
 def design_cascade(params: RobotParams, effective_inertia_kg_m2, *, t_d: float = 0.003,
-                   t_l: float = 0.02) -> CascadeGains:
+                   t_l: float = 0.01) -> CascadeGains:
     """Tune the PI velocity and PD position loops from the actuator model (section 3.2).
 
     Parameters
@@ -169,7 +170,7 @@ def design_cascade(params: RobotParams, effective_inertia_kg_m2, *, t_d: float =
         k_pi=kv / (2.0 * kM * t_d),
         t_pi=inertia / kv,
         t_d=t_d * ones,
-        k_pd=ones / (2.0 * t_l),
+        k_pd=ones / (4.0 * t_l),
         t_pd=2.0 * t_d * ones,
         t_l=t_l * ones,
         v_limit=np.asarray(params.max_intermittent_torque_Nm, float) / kM,

@@ -1,0 +1,88 @@
+"""Actuator model (3.1.2, 3.1.3, 3.1.7) and the cascaded joint controller (3.2)."""
+import numpy as np
+import pytest
+
+from tudorvision.joint.cascade import (JointCascade, design_cascade, friction_torque, motor_gain,
+                                       reflected_inertia, reflected_viscous)
+from tudorvision.robot import load_robot_params
+
+P = load_robot_params()
+INERTIA = reflected_inertia(P) + np.array([0.25, 0.35, 0.12])
+
+
+def test_motor_gain_and_reflection_from_appendix_values():
+    n = np.array([156.0, 230.0, 246.0])
+    assert np.allclose(motor_gain(P), n * np.array([44.8e-3, 44.8e-3, 12.9e-3]) * 1.39)
+    assert np.allclose(reflected_inertia(P), n**2 * np.array([9.19e-6, 9.41e-6, 0.82e-6]))
+    assert np.allclose(reflected_viscous(P), n**2 * np.array([2.16e-5, 1.86e-5, 0.245e-5]))
+
+
+def test_friction_model_is_direction_dependent_and_opposes_motion():
+    rng = np.random.default_rng(2)
+    n = np.asarray(P.gear_ratio)
+    for v in rng.uniform(-3, 3, size=(50, 3)):
+        tau = friction_torque(v, P)
+        expect = np.where(v > 0, n**2 * P.viscous_pos_Nms_rad * v + n * P.coulomb_pos_Nm,
+                          n**2 * P.viscous_neg_Nms_rad * v - n * P.coulomb_neg_Nm)
+        assert np.allclose(tau, expect)
+        assert np.all(tau * v > 0)          # dissipative
+
+
+def test_velocity_loop_design_gives_cancellation_and_damping():
+    """Roots of s (I s + k_v)(t_d s + 1) + k_M k_PI (t_PI s + 1): one at -k_v/I, a pair at D = 1/sqrt(2)."""
+    g = design_cascade(P, INERTIA, t_d=0.003, t_l=0.02)
+    kM, kv = motor_gain(P), reflected_viscous(P)
+    for j in range(3):
+        I = INERTIA[j]
+        poly = np.polymul(np.polymul([1, 0], [I, kv[j]]), [g.t_d[j], 1])
+        poly = np.polyadd(poly, kM[j] * g.k_pi[j] * np.array([g.t_pi[j], 1]))
+        r = np.roots(poly)
+        real = r[np.abs(r.imag) < 1e-9].real
+        assert np.any(np.isclose(real, -kv[j] / I, rtol=1e-6))
+        pair = r[r.imag > 1e-9][0]
+        assert np.isclose(-pair.real / abs(pair), 1 / np.sqrt(2), rtol=1e-6)
+
+
+def _run_linear_joint(target, n_steps, dt=0.0005, gains=None, disturbance=0.0):
+    """Discrete controller on the linear design plant I ddtheta = k_M v - k_v dtheta - d."""
+    g = gains or design_cascade(P, INERTIA)
+    c = JointCascade(g, dt, [0.0, 0.0, 0.0])
+    kM, kv = motor_gain(P), reflected_viscous(P)
+    th, dth = np.zeros(3), np.zeros(3)
+    out, volts = [], []
+    for _ in range(n_steps):
+        v = np.array(c.step(th.tolist(), target))
+        acc = (kM * v - kv * dth - disturbance) / INERTIA
+        dth = dth + acc * dt
+        th = th + dth * dt
+        out.append(th.copy())
+        volts.append(v)
+    return np.array(out), np.array(volts), g
+
+
+def test_small_position_step_has_no_overshoot_and_no_steady_error():
+    target = [0.01, -0.01, 0.005]
+    th, _, _ = _run_linear_joint(target, 4000)
+    overshoot = (th - target) * np.sign(target)
+    assert np.all(overshoot.max(axis=0) < 0.01 * np.abs(target))   # well damped: < 1 %
+    assert np.allclose(th[-1], target, atol=1e-6)
+
+
+def test_constant_load_torque_is_rejected_without_steady_error():
+    th, _, _ = _run_linear_joint([0.0, 0.0, 0.0], 30000, disturbance=np.array([2.0, 8.0, 1.5]))
+    assert np.all(np.abs(th[-1]) < 2e-4)
+
+
+def test_output_saturates_at_torque_limit():
+    th, volts, g = _run_linear_joint([1.0, 1.0, 1.0], 200)
+    assert np.all(np.abs(volts) <= g.v_limit + 1e-12)
+    assert np.any(np.isclose(np.abs(volts), g.v_limit))
+
+
+def test_bad_design_arguments_raise():
+    with pytest.raises(ValueError, match="effective_inertia_kg_m2"):
+        design_cascade(P, [0.1, -0.2, 0.1])
+    with pytest.raises(ValueError, match="effective_inertia_kg_m2"):
+        design_cascade(P, [0.1, 0.2])
+    with pytest.raises(ValueError, match="dt"):
+        JointCascade(design_cascade(P, INERTIA), 0.0, [0, 0, 0])
