@@ -118,6 +118,27 @@ def test_writer_rejects_bad_calls(tmp_path):
         SequenceWriter(tmp_path / "w", kind="stereo", rate_hz=50.0)
     with pytest.raises(ValueError, match="kind"):
         SequenceWriter(tmp_path / "x", kind="lidar", rate_hz=50.0)
+    with pytest.raises(ValueError, match="meta: key 'kind' is reserved"):
+        SequenceWriter(tmp_path / "y", kind="mono", rate_hz=5.0, meta={"kind": "x"})
+
+
+def test_writer_overwrite_and_calibration_file_copy(tmp_path):
+    from tudorvision.io import save_calibration
+    cam = CameraModel(K=[[30.0, 0, 3], [0, 30, 2], [0, 0, 1]], width=6, height=4)
+    cal_path = save_calibration(Calibration(cameras={"camera": cam}), tmp_path / "lab.yaml")
+    img = np.zeros((4, 6), np.uint8)
+    for n in (3, 1):                      # the second recording replaces the first one
+        with SequenceWriter(tmp_path / "o", kind="mono", rate_hz=5.0, calibration=cal_path,
+                            overwrite=True) as w:
+            for k in range(n):
+                w.add_mono(k * 0.2, img)
+    seq = open_sequence(tmp_path / "o")
+    assert len(seq) == 1 and sorted(p.name for p in (tmp_path / "o" / "image").iterdir()) == ["000000.png"]
+    assert seq.calibration.camera("camera").allclose(cam)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("cameras: [\n")
+    with pytest.raises(TudorVisionError, match=r"bad\.yaml:2: malformed YAML"):
+        SequenceWriter(tmp_path / "p", kind="mono", rate_hz=5.0, calibration=bad)
 
 
 def test_depth_conversions():
