@@ -186,3 +186,21 @@ def test_tum_directory_with_bad_lines(tmp_path):
     assert len(seq) == 3 and float(seq[0].depth_m[0, 0]) == 1.0
     assert [str(p) for p in seq.report] == [f"{root / 'rgb.txt'}:4: malformed line 'garbage': "
                                             "expected 'timestamp path'"]
+
+
+def test_bad_sidecar_values_name_the_line(tmp_path):
+    import cv2
+    cv2.imwrite(str(tmp_path / "1.png"), np.zeros((4, 4, 3), np.uint8))
+    cv2.imwrite(str(tmp_path / "1_depth.png"), np.full((4, 4), 5000, np.uint16))
+    (tmp_path / "sequence.yaml").write_text("layout: numbered_pairs\nrate_hz: fast\n")
+    with pytest.raises(TudorVisionError, match=r"sequence\.yaml:2: rate_hz: expected a positive number"):
+        open_sequence(tmp_path)
+    (tmp_path / "sequence.yaml").write_text("layout: numbered_pairs\nintrinsics: {fx: 1}\n")
+    with pytest.raises(TudorVisionError, match=r"sequence\.yaml:2: intrinsics: expected"):
+        open_sequence(tmp_path)
+    (tmp_path / "sequence.yaml").write_text("layout: pile\n")
+    with pytest.raises(TudorVisionError, match=r"sequence\.yaml:1: layout: expected one of"):
+        open_sequence(tmp_path)
+    (tmp_path / "sequence.yaml").write_text("layout: numbered_pairs\ndepth_scale: 1000\nrate_hz: 10\n")
+    seq = open_sequence(tmp_path)
+    assert seq.rate_hz == 10.0 and float(seq[0].depth_m[0, 0]) == 5.0 and seq.notes == []

@@ -2,8 +2,15 @@
 import numpy as np
 import pytest
 
+import tudorvision.cli
 from tudorvision.cli import main
 from tudorvision.io import SequenceWriter
+
+
+@pytest.fixture(autouse=True)
+def _only_seq_commands(monkeypatch):
+    """Build the real CLI with only this module's commands (others may be mid-development)."""
+    monkeypatch.setattr(tudorvision.cli, "COMMAND_MODULES", ("tudorvision.io.cli",))
 
 
 def _seq(root, n=4):

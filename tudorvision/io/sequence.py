@@ -60,8 +60,8 @@ import numpy as np
 
 from .._checks import TudorVisionError, check_array
 from ._index import ImageProblem, Problem, parse_table, read_columns, read_image
-from ._layouts import (FRAME_STREAMS, LAYOUTS, VIDEO_SUFFIXES, Record, Spec, detect_layout,
-                       parse_sequence_yaml, spec_image_folder, spec_kinect_folders,
+from ._layouts import (FRAME_STREAMS, LAYOUTS, VIDEO_SUFFIXES, Record, Spec, _parse_size, _positive,
+                       detect_layout, parse_sequence_yaml, spec_image_folder, spec_kinect_folders,
                        spec_numbered_pairs, spec_tudorvision, spec_tum)
 from ._video import VideoSource
 from .calibration import Calibration, CameraModel, load_calibration
@@ -408,7 +408,9 @@ def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
             if layout not in LAYOUTS or layout == "video":
                 raise TudorVisionError(f"{path / 'sequence.yaml'}:{line_of(('layout',))}: layout: expected one "
                                        f"of {', '.join(x for x in LAYOUTS if x != 'video')}, got {layout!r}")
-        side_rate = data.get("rate_hz") if layout != "tudorvision" else None
+        side_rate = None
+        if layout != "tudorvision":
+            side_rate = _positive(data, "rate_hz", path / "sequence.yaml", line_of, required=False)
         folder_rate = float(rate_hz or side_rate or 30.0)
         if layout == "tudorvision":
             spec = spec_tudorvision(path, data, line_of, max_dt_s=max_dt_s)
@@ -424,6 +426,8 @@ def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
             spec = spec_image_folder(path, rate_hz=folder_rate)
         if layout != "tudorvision":
             _apply_sidecar(spec, data, line_of, path / "sequence.yaml")
+            if side_rate is not None:
+                spec.rate_hz = side_rate
             if spec.kind == "rgbd" and depth_scale is None and "depth_scale" not in data \
                     and layout != "tum":
                 spec.notes.append(f"depth_scale not given: assuming {spec.depth_scale:g} units per metre "
@@ -452,7 +456,6 @@ def _apply_sidecar(spec: Spec, data: dict, line_of, ypath: Path) -> None:
     """Sidecar sequence.yaml of a folder layout: rate, depth scale, calibration, intrinsics, size."""
     if not data:
         return
-    from ._layouts import _parse_size, _positive
     ds = _positive(data, "depth_scale", ypath, line_of, required=False)
     if ds is not None:
         spec.depth_scale = ds
