@@ -54,6 +54,11 @@ __all__ = [
 ]
 
 
+# OpenCV's default (5 iterations) leaves up to ~0.01 px at the corners of a
+# wide-angle image (k1 = -0.2); iterate to convergence instead (~3x the cost).
+_UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-10)
+
+
 def _uv(value, name: str) -> np.ndarray:
     return check_points(value, name, dim=2, finite=False)
 
@@ -85,7 +90,8 @@ def undistort_points(uv, K, dist, *, R=None, P=None) -> np.ndarray:
     Returns
     -------
     ndarray, shape (N, 2)
-        Undistorted points.
+        Undistorted points. The iterative inversion runs to convergence
+        (1e-10 in normalised units) rather than OpenCV's default 5 steps.
 
     Examples
     --------
@@ -101,7 +107,7 @@ def undistort_points(uv, K, dist, *, R=None, P=None) -> np.ndarray:
     out = np.full_like(pts, np.nan)
     ok = _valid_rows(pts)
     if ok.any():
-        kw = {}
+        kw = {"criteria": _UNDISTORT_CRITERIA}
         if R is not None:
             kw["R"] = check_array(R, "R", (3, 3))
         if P is not None:

@@ -1,0 +1,211 @@
+"""``tudorvision calib stereo`` and ``tudorvision calib base-stereo``.
+
+Thin shells over :mod:`tudorvision.stereo.calibrate` and
+:mod:`tudorvision.stereo.base_frame`; files are written with
+:mod:`tudorvision.io.calibration` and :mod:`tudorvision.io.formats`.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from .._checks import TudorVisionError
+
+__all__ = ["register"]
+
+_IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".ppm", ".pgm"}
+
+
+def register(calib_sub) -> None:
+    """Add the stereo calibration subcommands to the ``calib`` group."""
+    p = calib_sub.add_parser(
+        "stereo", help="stereo intrinsics/extrinsics from checkerboard image pairs",
+        description="Calibrate a stereo pair from checkerboard image pairs: intrinsics, distortion, "
+                    "extrinsics, rectification, per-view and overall RMS reprojection error. Pairs "
+                    "where the board is not found in both images are skipped and counted.")
+    p.add_argument("--left", help="comma-separated left images")
+    p.add_argument("--right", help="comma-separated right images (same order as --left)")
+    p.add_argument("--dir", help="directory with left*/right* images, paired in natural sort order")
+    p.add_argument("--board", default="9x6", help="inner corners COLSxROWS (default 9x6)")
+    p.add_argument("--square", type=float, default=0.025, help="square edge length in metres (default 0.025)")
+    p.add_argument("--out", help="calibration file to write (project YAML format)")
+    p.add_argument("--plot", help="PNG of the per-view reprojection errors")
+    p.add_argument("--export-ros", metavar="DIR", help="write DIR/left.yaml and DIR/right.yaml (ROS camera_info)")
+    p.add_argument("--export-opencv", metavar="DIR",
+                   help="write DIR/intrinsics.yml and DIR/extrinsics.yml like OpenCV's stereo_calib sample "
+                        "(T in metres)")
+    p.add_argument("--mode", choices=("default", "opencv-sample"), default="default",
+                   help="'default': calibrateCamera per camera then a joint stereoCalibrate; "
+                        "'opencv-sample': the flags of OpenCV's stereo_calib sample (default: default)")
+    p.add_argument("--fix-intrinsic", action="store_true",
+                   help="keep the per-camera intrinsics fixed in the stereo step")
+    p.add_argument("--alpha", type=float, default=1.0, help="stereoRectify free scaling (default 1, like the sample)")
+    p.add_argument("--line-time", type=float, default=None, metavar="S",
+                   help="rolling-shutter row time in seconds, stored with both cameras")
+    p.add_argument("--min-views", type=int, default=3, help="fewest usable pairs (default 3)")
+    p.set_defaults(func=run_stereo)
+
+    b = calib_sub.add_parser(
+        "base-stereo", help="robot base frame from a theta1 sweep tracked by the stereo cameras",
+        description="Robot base frame in the left camera frame from a theta1 sweep (theta2 = theta3 = 0): "
+                    "circle fit of the end-effector trajectory, z = circle normal (up), x toward "
+                    "theta1 = 0, gravity sag removed with the vertical posture [0, 90, 0] deg. Input is a "
+                    "trajectory CSV in the left camera frame (from 'tudorvision track stereo' without a "
+                    "base calibration) and the joint log.")
+    b.add_argument("seq", nargs="?", help="sequence directory (its joints.txt is used unless --joints)")
+    b.add_argument("--traj", required=True, help="trajectory CSV in the left camera frame")
+    b.add_argument("--joints", help="joints.txt: 'timestamp theta1 theta2 theta3' per line")
+    b.add_argument("--joints-deg", action="store_true", help="joint angles in the file are degrees")
+    b.add_argument("--vertical-frame", type=int, default=None, metavar="I",
+                   help="0-based trajectory row in the vertical posture (default: rows whose joints are "
+                        "[0, 90, 0] deg within --tol-deg)")
+    b.add_argument("--tol-deg", type=float, default=1.0, help="joint tolerance for sweep/vertical rows (default 1)")
+    b.add_argument("--robot-params", help="robot parameter YAML (default: packaged TUDOR parameters)")
+    b.add_argument("--out", required=True,
+                   help="calibration file; T_base_left and circle_rmse_m are added (kept content otherwise)")
+    b.set_defaults(func=run_base_stereo)
+
+
+# ----------------------------------------------------------------------------- calib stereo
+def _natural_key(p: Path):
+    return [int(s) if s.isdigit() else s.lower() for s in re.split(r"(\d+)", p.name)]
+
+
+def _image_lists(args) -> tuple[list[Path], list[Path]]:
+    if args.dir:
+        if args.left or args.right:
+            raise TudorVisionError("give either --dir or --left/--right, not both")
+        d = Path(args.dir)
+        if not d.is_dir():
+            raise TudorVisionError(f"{d}: not a directory")
+        files = [f for f in d.iterdir() if f.suffix.lower() in _IMAGE_SUFFIXES]
+        left = sorted((f for f in files if f.name.lower().startswith("left")), key=_natural_key)
+        right = sorted((f for f in files if f.name.lower().startswith("right")), key=_natural_key)
+        if not left or len(left) != len(right):
+            raise TudorVisionError(f"{d}: found {len(left)} left* and {len(right)} right* images; "
+                                   "need the same nonzero number")
+        return left, right
+    if not (args.left and args.right):
+        raise TudorVisionError("give --dir DIR or both --left and --right image lists")
+    left = [Path(s.strip()) for s in args.left.split(",") if s.strip()]
+    right = [Path(s.strip()) for s in args.right.split(",") if s.strip()]
+    if len(left) != len(right):
+        raise TudorVisionError(f"--right: expected {len(left)} images like --left, got {len(right)}")
+    for f in left + right:
+        if not f.is_file():
+            raise TudorVisionError(f"{f}: image not found")
+    return left, right
+
+
+def run_stereo(args) -> int:
+    from ..io.calibration import save_calibration
+    from ..io.formats import save_opencv_stereo, save_ros_camera_info
+    from .calibrate import calibrate_stereo_from_images, parse_board, plot_view_errors
+
+    board = parse_board(args.board)
+    if not args.square > 0:
+        raise TudorVisionError(f"--square: must be positive metres, got {args.square}")
+    left, right = _image_lists(args)
+    res = calibrate_stereo_from_images(left, right, board, args.square, mode=args.mode,
+                                       fix_intrinsic=args.fix_intrinsic, alpha=args.alpha,
+                                       line_time_s=args.line_time, min_views=args.min_views)
+    for name, reason in res.skipped:
+        print(f"skipped {name}: {reason}")
+    print(f"board {board[0]}x{board[1]} inner corners, square {args.square} m")
+    print(res.summary())
+    cal = res.calibration
+    if args.out:
+        print(f"wrote {save_calibration(cal, args.out, header='stereo calibration from ' f'{len(res.views)} checkerboard pairs')}")
+    if args.plot:
+        print(f"wrote {plot_view_errors(res, args.plot)}")
+    st = cal.stereo
+    if args.export_ros:
+        d = Path(args.export_ros)
+        for name, R, P in (("left", st.R1, st.P1), ("right", st.R2, st.P2)):
+            print(f"wrote {save_ros_camera_info(d / f'{name}.yaml', cal.camera(name), name=name, R_rect=R, P=P)}")
+    if args.export_opencv:
+        d = Path(args.export_opencv)
+        for f in save_opencv_stereo(cal, d / "intrinsics.yml", d / "extrinsics.yml"):
+            print(f"wrote {f}")
+    if not (args.out or args.export_ros or args.export_opencv):
+        print("note: nothing written (use --out, --export-ros or --export-opencv)")
+    return 0
+
+
+# ----------------------------------------------------------------------------- calib base-stereo
+def _joint_log(args):
+    """(t (M,), theta (M, 3) radians) from --joints or the sequence's joints.txt."""
+    if args.joints:
+        from ..io._index import parse_table
+        path = Path(args.joints)
+        if not path.is_file():
+            raise TudorVisionError(f"{path}: joints file not found")
+        rows, _, problems = parse_table(path, 4)
+        if problems:
+            raise problems[0].error()
+        t, th = rows[:, 0], rows[:, 1:]
+    elif args.seq:
+        from ..io.sequence import open_sequence
+        log = open_sequence(args.seq).joints()
+        t, th = log.t, log.theta_rad
+    else:
+        raise TudorVisionError("need the joint log: give SEQ (with joints.txt) or --joints FILE")
+    if len(t) < 2:
+        raise TudorVisionError("joint log: fewer than 2 samples")
+    if args.joints_deg:
+        th = np.deg2rad(th)
+    return t, th
+
+
+def run_base_stereo(args) -> int:
+    from ..io.calibration import Calibration, load_calibration, save_calibration
+    from ..robot import load_robot_params
+    from .base_frame import base_frame_from_sweep
+    from .trajectory import read_trajectory_csv
+
+    traj = read_trajectory_csv(args.traj)
+    if traj.frame not in ("left", "unknown"):
+        raise TudorVisionError(f"{args.traj}: trajectory is in frame {traj.frame!r}; base-stereo needs "
+                               "the left camera frame (track without a base calibration)")
+    t_j, th_j = _joint_log(args)
+    params = load_robot_params(args.robot_params)
+    tol = np.deg2rad(args.tol_deg)
+    inside = (traj.t >= t_j[0]) & (traj.t <= t_j[-1])
+    theta = np.stack([np.interp(traj.t, t_j, th_j[:, k]) for k in range(3)], axis=1)
+    ok = traj.valid & inside
+    sweep = ok & (np.abs(theta[:, 1]) < tol) & (np.abs(theta[:, 2]) < tol)
+    if sweep.sum() < 10:
+        raise TudorVisionError(f"{args.traj}: only {int(sweep.sum())} valid trajectory rows with "
+                               f"theta2 = theta3 = 0 (within {args.tol_deg} deg); need at least 10")
+    if args.vertical_frame is not None:
+        i = args.vertical_frame
+        if not 0 <= i < len(traj.t):
+            raise TudorVisionError(f"--vertical-frame: {i} is outside the trajectory (0..{len(traj.t) - 1})")
+        if not traj.valid[i]:
+            raise TudorVisionError(f"--vertical-frame: trajectory row {i} has no valid 3D position")
+        vertical = traj.p[i]
+        n_vert = 1
+    else:
+        target = np.array([0.0, np.pi / 2, 0.0])
+        vmask = ok & np.all(np.abs(theta - target) < tol, axis=1)
+        n_vert = int(vmask.sum())
+        if n_vert == 0:
+            raise TudorVisionError(f"{args.traj}: no valid rows in the vertical posture [0, 90, 0] deg "
+                                   f"(within {args.tol_deg} deg); record it or give --vertical-frame I")
+        vertical = np.median(traj.p[vmask], axis=0)
+    T, rep = base_frame_from_sweep(traj.p[sweep], theta[sweep], vertical, params,
+                                   sweep_tol_rad=tol)
+    print(f"vertical posture from {n_vert} trajectory row(s)")
+    print(rep.summary())
+    out = Path(args.out)
+    base = load_calibration(out) if out.is_file() else Calibration()
+    cal = base.with_updates(transforms={"T_base_left": T}, circle_rmse_m=rep.circle_rmse_m,
+                            metadata={"base_stereo": {"sweep_points": rep.n_points,
+                                                      "inliers": rep.n_inliers,
+                                                      "sag_m": float(rep.sag_m),
+                                                      "radius_m": float(rep.radius_m),
+                                                      "trajectory": str(args.traj)}})
+    print(f"wrote {save_calibration(cal, out)}")
+    return 0
