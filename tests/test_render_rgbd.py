@@ -1,0 +1,153 @@
+"""Kinect-like RGB-D rendering: depth noise model, z not range, invalid pixels, scene builders."""
+import cv2
+import numpy as np
+import pytest
+
+from tudorvision.sim.camera import look_at, project_points
+from tudorvision.sim.render import (DepthModel, Rectangle, depth_mm_from_gbuffer, depth_sigma_m, render_gbuffer,
+                                    render_rgbd)
+from tudorvision.sim.scenes import (ArmGeometry, arm_geometry_from_joints, ball_throw, ballistic, checkerboard_lab,
+                                    eye_in_hand, planar_target, stereo_lab, wall_disc)
+
+W, H = 80, 60
+
+
+def _sigma_cm(z):
+    return 0.51 * z ** 3 - 2.1 * z ** 2 + 5.12 * z - 2.18
+
+
+def test_depth_sigma_is_the_seed_polynomial_in_cm():
+    z = np.linspace(0.6, 6.0, 7)
+    np.testing.assert_allclose(depth_sigma_m(z) * 100, _sigma_cm(z), rtol=1e-12)
+
+
+@pytest.mark.parametrize("distance", [0.8, 1.5, 3.0, 4.5, 5.5])
+def test_depth_noise_std_matches_sigma_z(distance):
+    """Planar target perpendicular to the axis, 100 frames: mean per-pixel std within 10 % of sigma_z(z)."""
+    rng = np.random.default_rng(int(distance * 10))
+    setup = planar_target(distance, rng, width=W, height=H)
+    cam = setup.cameras["rgbd"]
+    g = render_gbuffer(cam, setup.scene, 0.0)
+    frames = np.stack([depth_mm_from_gbuffer(g, DepthModel(), rng) for _ in range(100)]).astype(float)
+    region = (g.object_id == setup.meta["target_id"]) & np.all(frames > 0, axis=0)
+    assert region.sum() > 30
+    std_m = frames[:, region].std(axis=0, ddof=1).mean() / 1000.0
+    assert abs(std_m - _sigma_cm(distance) / 100) < 0.1 * _sigma_cm(distance) / 100
+    mean_m = frames[:, region].mean() / 1000.0
+    assert abs(mean_m - distance) < 0.05 * distance
+
+
+def test_depth_is_z_along_axis_not_ray_length():
+    setup = planar_target(2.0, np.random.default_rng(0), width=W, height=H)
+    cam = setup.cameras["rgbd"]
+    bgr, depth, g = render_rgbd(cam, setup.scene, 0.0, rng=None)
+    region = (g.object_id == setup.meta["target_id"]) & (depth > 0)
+    assert np.all(depth[region] == 2000)
+    # the ray length grows towards the image corners, the depth does not
+    assert g.distance_m[region].max() > 2.05
+    assert bgr.shape == (H, W, 3) and depth.dtype == np.uint16
+
+
+def test_invalid_pixels_out_of_range_edges_and_dark():
+    rng = np.random.default_rng(1)
+    # too near and too far
+    for d in (0.5, 6.5):
+        setup = planar_target(d, rng, width=W, height=H)
+        g = render_gbuffer(setup.cameras["rgbd"], setup.scene)
+        depth = depth_mm_from_gbuffer(g, DepthModel(), rng)
+        assert np.all(depth[g.object_id == setup.meta["target_id"]] == 0)
+    # the limits are parameters
+    depth = depth_mm_from_gbuffer(g, DepthModel(max_depth_m=7.0), rng)
+    assert np.mean(depth[g.object_id == setup.meta["target_id"]] > 0) > 0.5
+    # edges: with an unlimited range the background is valid, but the target's border is not
+    setup = planar_target(2.0, rng, width=W, height=H, textured=False)
+    g = render_gbuffer(setup.cameras["rgbd"], setup.scene)
+    depth = depth_mm_from_gbuffer(g, DepthModel(max_depth_m=60.0), None)
+    target = g.object_id == setup.meta["target_id"]
+    border = target & ~cv2.erode(target.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    interior = cv2.erode(target.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    assert border.sum() > 20 and np.all(depth[border] == 0)
+    assert np.all(depth[interior] > 0)
+    # dark surfaces: a black target gives no depth
+    dark = Rectangle(center=(0.0, 2.0, 1.2), axis_u=(1, 0, 0), axis_v=(0, 0, 1), half_size=(0.5, 0.4),
+                     color_rgb=(0.01, 0.01, 0.01))
+    from tudorvision.sim.render import Scene
+    scene = Scene(static=[dark] + list(setup.scene.static[1:]), lights=setup.scene.lights)
+    g = render_gbuffer(setup.cameras["rgbd"], scene)
+    depth = depth_mm_from_gbuffer(g, DepthModel(), rng)
+    assert np.all(depth[g.object_id == 1] == 0)
+
+
+def test_wall_disc_is_uniform_depth_and_moves_with_time():
+    rng = np.random.default_rng(2)
+    centre = lambda t: np.array([0.5 * np.cos(t), 0.0, 0.35 + 0.5 * np.sin(t)])  # noqa: E731
+    setup = wall_disc(centre, rng, arm=lambda t: arm_geometry_from_joints([0.0, t, 0.0]), width=160, height=120)
+    cam = setup.cameras["rgbd"]
+    disc_id = setup.meta["object_ids"]["disc"]
+    for t in (0.3, 1.2):
+        _, depth, g = render_rgbd(cam, setup.scene, t, rng=None)
+        mask = g.object_id == disc_id
+        assert mask.sum() > 10
+        v, u = np.nonzero(mask)
+        uv = project_points(cam, [setup.meta["disc_center_world"](t)])[0]
+        assert np.hypot(u.mean() - uv[0], v.mean() - uv[1]) < 1.5
+        z = depth[mask & (depth > 0)]
+        assert z.size > 5 and np.ptp(z) < 40   # nearly fronto-parallel: uniform depth
+
+
+def test_ball_throw_only_ball_moves():
+    rng = np.random.default_rng(3)
+    traj = ballistic([0.2, -5.0, 1.5], [0.0, 5.0, 2.5])
+    setup = ball_throw(traj, rng, width=160, height=120)
+    cam = setup.cameras["rgbd"]
+    _, d0, g0 = render_rgbd(cam, setup.scene, 0.2, rng=None)
+    _, d1, g1 = render_rgbd(cam, setup.scene, 0.25, rng=None)
+    ball = setup.meta["object_ids"]["ball"]
+    changed = d0 != d1
+    assert changed.sum() > 0
+    assert np.all((g0.object_id == ball) | (g1.object_id == ball) | ~changed)
+    dist = np.linalg.norm(traj(0.2) - cam.T_world_cam[:3, 3])
+    assert dist < 4.5
+
+
+def test_eye_in_hand_square_and_checkerboard_corners():
+    rng = np.random.default_rng(4)
+    T = look_at([0.62, 0.03, 0.9], [0.6, 0.0, 0.0], K=np.eye(3), up_world=(1, 0, 0)).T_world_cam
+    setup = eye_in_hand(T, rng, square_center_world=(0.6, 0.0, 0.0), width=160, height=120)
+    bgr, depth, g = render_rgbd(setup.cameras["rgbd"], setup.scene, 0.0, rng=rng)
+    sq = g.object_id == setup.meta["object_ids"]["square"]
+    assert sq.sum() > 50
+    assert bgr[sq].mean() < 0.4 * bgr[~sq & (g.object_id > 0)].mean()
+    # checkerboard for stereo calibration: OpenCV finds the inner corners where the metadata says
+    Tb = look_at([0.2, 0.3, 1.2], [0.5, -3.0, 3.0], K=np.eye(3)).T_world_cam
+    cb = checkerboard_lab(Tb, rng, squares=(7, 5), square_m=0.08)
+    from tudorvision.sim.render import render_bgr
+    for cam in cb.cameras.values():
+        img = cv2.cvtColor(render_bgr(cam, cb.scene, 0.0, rng=rng), cv2.COLOR_BGR2GRAY)
+        ok, corners = cv2.findChessboardCorners(img, cb.meta["pattern_size"])
+        assert ok
+        corners = cv2.cornerSubPix(img, corners, (5, 5), (-1, -1),
+                                   (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 50, 1e-3)).reshape(-1, 2)
+        truth = project_points(cam, cb.meta["inner_corners_world"])
+        dmin = np.linalg.norm(corners[:, None] - truth[None], axis=2).min(axis=1)
+        assert np.median(dmin) < 0.3 and dmin.max() < 1.0
+
+
+@pytest.mark.parametrize("make, name", [
+    (lambda: DepthModel(min_depth_m=3.0, max_depth_m=2.0), "max_depth_m"),
+    (lambda: DepthModel(edge_width_px=-1), "edge_width_px"),
+    (lambda: DepthModel(units_per_m=1e5), "units_per_m"),
+    (lambda: planar_target(0.0, np.random.default_rng(0)), "distance_m"),
+    (lambda: stereo_lab(np.random.default_rng(0), T_world_base=np.ones((4, 4))), "T_world_base"),
+    (lambda: stereo_lab(np.random.default_rng(0), arm=3), "arm"),
+    (lambda: ArmGeometry(link_points_base=[np.zeros((2, 3))], sphere_centers_base={"red": np.zeros(3)}),
+     "sphere_centers_base"),
+    (lambda: ArmGeometry(link_points_base=[np.zeros((1, 3))],
+                         sphere_centers_base={"red": np.zeros(3), "green": np.zeros(3)}), "link_points_base"),
+    (lambda: ball_throw(np.zeros(3), np.random.default_rng(0)), "ball_center_world"),
+    (lambda: checkerboard_lab(np.eye(4), np.random.default_rng(0), squares=(1, 5)), "squares"),
+    (lambda: wall_disc([0, 0, 1], np.random.default_rng(0), disc_radius_m=0.0), "disc_radius_m"),
+])
+def test_bad_rgbd_and_scene_arguments_raise(make, name):
+    with pytest.raises(ValueError, match=name):
+        make()
