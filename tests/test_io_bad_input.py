@@ -204,3 +204,15 @@ def test_bad_sidecar_values_name_the_line(tmp_path):
     (tmp_path / "sequence.yaml").write_text("layout: numbered_pairs\ndepth_scale: 1000\nrate_hz: 10\n")
     seq = open_sequence(tmp_path)
     assert seq.rate_hz == 10.0 and float(seq[0].depth_m[0, 0]) == 5.0 and seq.notes == []
+
+
+def test_load_joint_log_standalone(tmp_path):
+    from tudorvision.io import load_joint_log
+    p = tmp_path / "joints.txt"
+    p.write_text("# t th1 th2 th3\n0.0 0 1.5 0\n0.001 0.1 1.5 0\n0.0005 0.2 1.5 0\nx y z w\n")
+    with pytest.raises(TudorVisionError, match=r"joints\.txt:4: timestamp 0\.0005 is not after"):
+        load_joint_log(p)
+    report = []
+    log = load_joint_log(p, strict=False, report=report)
+    assert np.array_equal(log.t, [0.0, 0.001]) and log.theta_rad[1, 0] == 0.1
+    assert [r.where.rsplit(":", 1)[1] for r in report] == ["4", "5"]

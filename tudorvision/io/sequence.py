@@ -68,7 +68,7 @@ from .calibration import Calibration, CameraModel, load_calibration
 from .frames import (JointLog, MonoFrame, RGBDFrame, StereoFrame, depth_m_from_raw,
                      raw_from_depth_m)
 
-__all__ = ["StereoFrame", "RGBDFrame", "MonoFrame", "JointLog", "Sequence", "open_sequence",
+__all__ = ["StereoFrame", "RGBDFrame", "MonoFrame", "JointLog", "Sequence", "open_sequence", "load_joint_log",
            "depth_m_from_raw", "raw_from_depth_m", "Problem"]
 
 
@@ -293,12 +293,11 @@ class Sequence:
         path = self._spec.joints_path
         if path is None:
             raise TudorVisionError(f"{self.path}: no joints.txt in this sequence")
-        rows, _, problems = parse_table(path, 4)
+        problems: list[Problem] = []
+        log = load_joint_log(path, strict=self.strict, report=problems)
         for p in problems:
-            if self.strict:
-                raise p.error()
             self._record(p)
-        return JointLog(t=rows[:, 0].copy(), theta_rad=rows[:, 1:].copy())
+        return log
 
     @property
     def groundtruth_names(self) -> list[str]:
@@ -324,6 +323,36 @@ class Sequence:
         """
         from .playback import Playback
         return Playback(self, speed=speed, clock=clock, sleep=sleep)
+
+
+def load_joint_log(path, *, strict: bool = True, report: list | None = None) -> JointLog:
+    """Read a joint log file (``timestamp theta1 theta2 theta3`` per line, radians, ``#`` comments).
+
+    Parameters
+    ----------
+    path : str or Path
+        E.g. a sequence's ``joints.txt``.
+    strict : bool
+        Raise on the first malformed or out-of-order line; otherwise leave
+        such lines out.
+    report : list, optional
+        Receives a :class:`Problem` per line left out (lenient mode).
+
+    Returns
+    -------
+    JointLog
+
+    Raises
+    ------
+    TudorVisionError
+        Unreadable file, or (strict) a bad line, naming ``file:line``.
+    """
+    rows, _, problems = parse_table(Path(path), 4)
+    if problems and strict:
+        raise problems[0].error()
+    if report is not None:
+        report.extend(problems)
+    return JointLog(t=rows[:, 0].copy(), theta_rad=rows[:, 1:].copy())
 
 
 class _FrameProblem(Exception):
