@@ -436,14 +436,6 @@ class _LinkModel:
             self.zoh.append(tuple(float(v) for v in A.ravel()))
         self.n = n
 
-    def static_tip_and_gauges(self, q, P, M):
-        """Static (w(L), w'(L)) and curvatures at the gauges, scalar closed form."""
-        L, EI = self.L, self.EI
-        wL = (q * L**4 / 8.0 + P * L**3 / 3.0 + M * L**2 / 2.0) / EI
-        sL = (q * L**3 / 6.0 + P * L**2 / 2.0 + M * L) / EI
-        curv = [(q * (L - x) ** 2 / 2.0 + P * (L - x) + M) / EI for x in self.gauges]
-        return wL, sL, curv
-
 
 class ElasticArm:
     """State of the simulated arm; advance it with :meth:`step` at ``config.dt``.
@@ -685,17 +677,20 @@ class ElasticArm:
             th[j] += v_new * dt
         self.t += dt
         if self.config.elastic:
-            self._step_modes()
-        self._outputs()
+            self._outputs(*self._step_modes())
+        else:
+            self._outputs()
         if self.obstacles:
             self._contact()
 
-    def _step_modes(self) -> None:
+    def _step_modes(self):
         dt = self.config.dt
         b = self.bodies
         a2, a3 = self.ddtheta[1], self.ddtheta[2]
         c3 = math.cos(self.theta[2])
         l2s, l3s = self._loads()
+        f2g = self._gen_force(self.link2, *l2s)
+        f3g = self._gen_force(self.link3, *l3s)
         fc = self.contact_force
         contact = fc[0] != 0.0 or fc[1] != 0.0 or fc[2] != 0.0
         if contact:
@@ -707,7 +702,7 @@ class ElasticArm:
             fy3 = sum(fc[i] * ey3[i] for i in range(3))
         # link 2: hub rotation theta2, reaction of the joint-3 acceleration on the tip
         lm = self.link2
-        f = self._gen_force(lm, *l2s)
+        f = f2g
         react_F = -b.s3 * c3 * a3
         react_M = -b.J3 * a3
         acc2_tip = 0.0
@@ -727,7 +722,7 @@ class ElasticArm:
             acc2_slope += lm.dphiL[r] * acc
         # link 3: hub rotation theta2 + theta3 + link-2 tip slope, hub translation
         lm = self.link3
-        f = self._gen_force(lm, *l3s)
+        f = f3g
         alpha = a2 + a3 + acc2_slope
         a_perp = (b.l2 * a2 + acc2_tip) * c3
         for r in range(lm.n):
@@ -739,24 +734,34 @@ class ElasticArm:
             x, v = self.eta3[r] - xs, self.deta3[r]
             self.eta3[r] = xs + A11 * x + A12 * v
             self.deta3[r] = A21 * x + A22 * v
+        return (l2s, l3s), (f2g, f3g)
 
-    def _outputs(self) -> None:
+    def _outputs(self, loads=None, forces=None) -> None:
         if not self.config.elastic:
             self.strain = [0.0, 0.0, 0.0, 0.0]
             self.tip2, self.tip3 = [0.0, 0.0], [0.0, 0.0]
             return
-        l2s, l3s = self._loads()
+        if loads is None:
+            loads = self._loads()
+            forces = (self._gen_force(self.link2, *loads[0]), self._gen_force(self.link3, *loads[1]))
         strain = []
         tips = []
-        for lm, eta, loads in ((self.link2, self.eta2, l2s), (self.link3, self.eta3, l3s)):
-            wL, sL, curv = lm.static_tip_and_gauges(*loads)
-            f = self._gen_force(lm, *loads)
+        for lm, eta, (q, P, M), f in ((self.link2, self.eta2, loads[0], forces[0]),
+                                      (self.link3, self.eta3, loads[1], forces[1])):
+            L, EI = lm.L, lm.EI
+            wL = (q * L**4 / 8.0 + P * L**3 / 3.0 + M * L**2 / 2.0) / EI
+            sL = (q * L**3 / 6.0 + P * L**2 / 2.0 + M * L) / EI
             nu = [eta[r] - f[r] / lm.om2[r] for r in range(lm.n)]
-            for k in range(len(lm.gauges)):
-                c = curv[k] + sum(lm.ddphi_g[k][r] * nu[r] for r in range(lm.n))
+            for k, x in enumerate(lm.gauges):
+                c = (q * (L - x) ** 2 / 2.0 + P * (L - x) + M) / EI
+                row = lm.ddphi_g[k]
+                for r in range(lm.n):
+                    c += row[r] * nu[r]
                 strain.append(-0.5 * lm.h * c)
-            tips.append([wL + sum(lm.phiL[r] * nu[r] for r in range(lm.n)),
-                         sL + sum(lm.dphiL[r] * nu[r] for r in range(lm.n))])
+            for r in range(lm.n):
+                wL += lm.phiL[r] * nu[r]
+                sL += lm.dphiL[r] * nu[r]
+            tips.append([wL, sL])
         self.strain = strain
         self.tip2, self.tip3 = tips
 
