@@ -118,9 +118,22 @@ def _repr_list(dumper, data):
 
 _FlowDumper.add_representer(list, _repr_list)
 _FlowDumper.add_representer(tuple, _repr_list)
+_FlowDumper.add_multi_representer(np.generic, lambda d, x: d.represent_data(x.item()))
+_FlowDumper.add_representer(np.ndarray, lambda d, x: d.represent_data(x.tolist()))
 
 
 def dump_yaml(data) -> str:
-    """YAML text with numeric lists in flow style and keys in insertion order."""
+    """YAML text with numeric lists in flow style and keys in insertion order.
+
+    NumPy scalars and arrays are written as plain numbers and lists.
+
+    Examples
+    --------
+    >>> print(dump_yaml({"K": np.eye(2), "n": np.int64(3)}), end="")
+    K:
+    - [1.0, 0.0]
+    - [0.0, 1.0]
+    n: 3
+    """
     return yaml.dump(data, Dumper=_FlowDumper, sort_keys=False, default_flow_style=False,
                      allow_unicode=True)
