@@ -24,6 +24,7 @@ Examples
 """
 from __future__ import annotations
 
+import collections
 import time
 from dataclasses import dataclass
 
@@ -82,6 +83,7 @@ class JointAdapter:
         self._stats = AdapterStats()
         self.last_state: State | None = None
         self.last_reply: Ack | Refusal | None = None
+        self._replies: collections.OrderedDict = collections.OrderedDict()
 
     # ------------------------------------------------------------- plumbing
     def _count(self, **inc):
@@ -117,13 +119,21 @@ class JointAdapter:
             self._count(states=1)
             if self.last_state is None or msg.t >= self.last_state.t:
                 self.last_state = msg
-        elif isinstance(msg, Ack):
-            self._count(acks=1)
+        elif isinstance(msg, (Ack, Refusal)):
+            self._count(**{"acks" if isinstance(msg, Ack) else "refusals": 1})
             self.last_reply = msg
-        elif isinstance(msg, Refusal):
-            self._count(refusals=1)
-            self.last_reply = msg
+            self._replies[msg.command_seq] = msg
+            self._replies.move_to_end(msg.command_seq)
+            while len(self._replies) > 1024:
+                self._replies.popitem(last=False)
         return header, msg
+
+    def reply_for(self, seq: int) -> Ack | Refusal | None:
+        """The answer received so far to command ``seq`` (recent 1024 kept), else ``None``.
+
+        Call :meth:`poll` first to take in datagrams that have arrived.
+        """
+        return self._replies.get(seq)
 
     def poll(self, max_datagrams: int = 1000) -> int:
         """Process datagrams already received (replies to velocity commands); return how many."""
