@@ -1,0 +1,109 @@
+"""``tudorvision joint serve/status/move``: a served layer in a subprocess, queried through the CLI."""
+from __future__ import annotations
+
+import select
+import socket
+import subprocess
+import sys
+import time
+
+import pytest
+
+from tudorvision.cli import main
+
+SERVE_S = 20.0
+
+
+@pytest.fixture(scope="module")
+def served_port():
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tudorvision.cli", "joint", "serve", "--port", "0",
+         "--duration", str(SERVE_S)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        ready, _, _ = select.select([proc.stdout], [], [], 15.0)
+        line = proc.stdout.readline() if ready else ""
+        if "listening on udp 127.0.0.1:" not in line:
+            proc.kill()
+            _, err = proc.communicate(timeout=5)
+            pytest.fail(f"joint serve did not start: {line!r} {err[-2000:]!r}")
+        yield int(line.rsplit(":", 1)[1])
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=5)
+
+
+def _dead_port() -> int:
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()
+    return port
+
+
+def test_status_answers(served_port, capsys):
+    assert main(["joint", "status", "--port", str(served_port), "--timeout", "3"]) == 0
+    out = capsys.readouterr().out
+    assert "mode IDLE" in out and "theta_deg" in out and "counters accepted=" in out
+
+
+def test_move_settles_then_status_shows_it(served_port, capsys):
+    t0 = time.monotonic()
+    code = main(["joint", "move", "--port", str(served_port), "--to", "5,85,-10",
+                 "--timeout", "15"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "settled at theta_deg 5.000 85.000 -10.000" in out
+    assert time.monotonic() - t0 < 15.0
+    assert main(["joint", "status", "--port", str(served_port)]) == 0
+    out = capsys.readouterr().out
+    assert "mode SETPOINT" in out and "SETTLED" in out
+
+
+def test_move_out_of_range_is_refused(served_port, capsys):
+    assert main(["joint", "move", "--port", str(served_port), "--to", "0,300,0"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("tudorvision joint move: setpoint refused: OUT_OF_RANGE")
+    assert len(err.splitlines()) == 1
+
+
+def test_status_on_dead_port_fails_with_one_line(capsys):
+    port = _dead_port()
+    assert main(["joint", "status", "--port", str(port), "--timeout", "0.3"]) == 1
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert lines == [f"tudorvision joint status: no answer from 127.0.0.1:{port} within 0.3 s"]
+    assert captured.out == ""
+
+
+def test_status_on_dead_port_subprocess_exit_code():
+    port = _dead_port()
+    proc = subprocess.run([sys.executable, "-m", "tudorvision.cli", "joint", "status",
+                           "--port", str(port), "--timeout", "0.2"],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 1
+    assert len(proc.stderr.strip().splitlines()) == 1 and "no answer" in proc.stderr
+
+
+@pytest.mark.parametrize("argv, named", [
+    (["joint", "move", "--port", "9", "--to", "1,2"], "argument --to"),
+    (["joint", "move", "--port", "9", "--to", "a,b,c"], "argument --to"),
+    (["joint", "status", "--port", "70000"], "argument --port"),
+    (["joint", "status", "--port", "5", "--timeout", "-1"], "argument --timeout"),
+    (["joint", "serve", "--port", "x"], "argument --port"),
+])
+def test_parse_errors_name_the_argument(argv, named, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    assert named in capsys.readouterr().err
+
+
+def test_unknown_core_is_one_line_error(capsys):
+    assert main(["joint", "serve", "--port", "0", "--duration", "0.1", "--core", "nope"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown core 'nope'" in err and "kinematic" in err
