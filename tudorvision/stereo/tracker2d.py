@@ -2,17 +2,20 @@
 
 A :class:`SphereTracker` follows one sphere in one camera's frames. While the
 sphere was found in the previous frame it predicts the next position with a
-constant-velocity model from the last two detections and segments only a
+constant-velocity model from the detections in the last two frames and segments only a
 window around the prediction (:func:`~tudorvision.stereo.segment.detect_sphere`
 with ``roi``). The window's half size is
 
 ``max(min_half_window_px, window_scale * r + uncertainty_gain * e + 0.5 * s)``
 
 with ``r`` the last region's equivalent radius (``sqrt(area / pi)``), ``e``
-the recent prediction error (px, decaying) and ``s`` the predicted image speed
-(px/frame: the blur streak extends about half of it to each side). The window
-is clipped at the image border. If the window finds no valid region, or the
-region touches the window's edge (the window was too small), the same frame is
+the recent constant-velocity prediction error (px, decaying) and ``s`` the predicted image speed
+(px/frame: the blur streak extends about half of it to each side). Right after
+a full-frame (re)acquisition the velocity is unknown: the prediction is the
+last position and the window grows by ``1.5 s`` with the last known speed. The window
+is clipped at the image border. Of the valid regions in the window the one
+nearest the prediction is taken. If there is none, or it touches the window's
+edge (the window was too small), the same frame is
 searched in full (coarse to fine); once lost, the tracker searches full frames
 until it finds the sphere again. Motion blur is expected in the window when the
 predicted speed exceeds ``blur_speed * r`` px/frame; then the window is
@@ -20,7 +23,11 @@ segmented with the model's blur-tolerant colour tables and the looser
 circularity limit ``min_circularity_blur`` (see
 :mod:`tudorvision.stereo.segment`). Full-frame searches use the strict tables
 (unless ``segment.motion_blur`` is set), because the tolerant ones also accept
-darker objects of the sphere's hue anywhere in the frame.
+darker objects of the sphere's hue anywhere in the frame. Only in the frame
+where a fast sphere (one expected to blur) is lost and the strict full search
+fails, a large window (``max_half_window_px``) around the prediction is
+searched with the tolerant tables, keeping regions of 0.5 to 2 times the last
+area and taking the one nearest the prediction.
 
 :class:`FrameTracker` runs one tracker per sphere of one camera and shares the
 colour conversion of frames that need a full search.
@@ -35,7 +42,7 @@ import numpy as np
 
 from tudorvision._checks import TudorVisionError
 from tudorvision.stereo.colormodel import ColorModel, _check_frame
-from tudorvision.stereo.segment import SegmentParams, SphereDetection, _check_hsv, _detect, _Frame
+from tudorvision.stereo.segment import SegmentParams, SphereDetection, _check_hsv, _detect, _detect_window, _Frame
 
 __all__ = ["TrackerParams", "SphereTracker", "FrameTracker"]
 
@@ -65,7 +72,7 @@ class TrackerParams:
     window_scale: float = 2.5
     min_half_window_px: int = 12
     uncertainty_gain: float = 3.0
-    blur_speed: float = 0.5
+    blur_speed: float = 1.0
     max_half_window_px: int = 160
 
     def __post_init__(self):
@@ -127,6 +134,9 @@ class SphereTracker:
         self._hist: list = []  # [(frame index, uv ndarray)] of the last two valid detections
         self._radius = float("nan")
         self._err = 0.0
+        self._fast = False  # the last prediction expected motion blur
+        self._area = float("nan")
+        self._speed = 0.0  # last known image speed, px/frame
         self.last: SphereDetection | None = None
         self.mode = "full"
         self.n_window = 0
@@ -141,20 +151,26 @@ class SphereTracker:
             ``None`` when the sphere was not found in the latest frame (the
             next frame is searched in full).
         """
+        pred = self._prediction()
+        return None if pred is None else pred[:3]
+
+    def _prediction(self):
+        """``(uv, half, speed, has_velocity)`` or None; does not change the state."""
         if not self._hist or self._hist[-1][0] != self._index:
             return None
         k1, uv1 = self._hist[-1]
-        if len(self._hist) == 2:
-            k0, uv0 = self._hist[0]
-            vel = (uv1 - uv0) / (k1 - k0)
-        else:
-            vel = np.zeros(2)
-        uv = uv1 + vel
-        speed = float(np.hypot(*vel))
         p = self.params
-        half = p.window_scale * self._radius + p.uncertainty_gain * self._err + 0.5 * speed
+        if len(self._hist) == 2 and self._hist[0][0] == k1 - 1:
+            vel = uv1 - self._hist[0][1]
+            speed = float(np.hypot(*vel))
+            has_velocity, extra = True, 0.5 * speed
+        else:  # no velocity across a gap: the sphere may have jumped while unseen
+            vel = np.zeros(2)
+            speed = self._speed  # direction unknown: widen by the last known speed
+            has_velocity, extra = False, 1.5 * speed
+        half = p.window_scale * self._radius + p.uncertainty_gain * self._err + extra
         half = max(float(p.min_half_window_px), half)
-        return uv, half, speed
+        return uv1 + vel, half, speed, has_velocity
 
     def update(self, frame_bgr, *, hsv=None) -> SphereDetection:
         """Find the sphere in the next frame.
@@ -174,23 +190,29 @@ class SphereTracker:
         return self._update(_Frame(bgr, None if hsv is None else _check_hsv(hsv, bgr.shape)))
 
     def _update(self, frame: _Frame) -> SphereDetection:
-        pred = self.predict()
+        pred = self._prediction()
         self._index += 1
         p = self.params
         det = None
         blur = p.segment.motion_blur
         if pred is not None:
-            uv, half, speed = pred
-            blur = blur or speed > p.blur_speed * self._radius
+            uv, half, speed, has_velocity = pred
+            if has_velocity:
+                self._speed = speed
+            self._fast = speed > p.blur_speed * self._radius
+            blur = blur or self._fast
             if half <= p.max_half_window_px:
                 h = int(math.ceil(half))
                 x0, y0 = int(round(uv[0])) - h, int(round(uv[1])) - h
                 x1, y1 = min(x0 + 2 * h + 1, frame.width), min(y0 + 2 * h + 1, frame.height)
                 x0, y0 = max(x0, 0), max(y0, 0)
                 if x1 - x0 >= 3 and y1 - y0 >= 3:
-                    det = _detect(frame, self.model, p.segment, (x0, y0, x1 - x0, y1 - y0), blur)
-                    if not det.valid or det.touches_window:
-                        det = None
+                    found = _detect_window(frame, self.model, p.segment, (x0, y0, x1 - x0, y1 - y0), blur)
+                    ok = [d for d in found if d.valid]
+                    if ok:  # nearest to the prediction; a region cut by the window edge sends us to the full frame
+                        det = min(ok, key=lambda d: math.hypot(d.uv[0] - uv[0], d.uv[1] - uv[1]))
+                        if det.touches_window:
+                            det = None
         if det is not None:
             self.mode = "window"
             self.n_window += 1
@@ -200,17 +222,38 @@ class SphereTracker:
             self.mode = "full"
             self.n_full += 1
             det = _detect(frame, self.model, p.segment, None, p.segment.motion_blur)
+            if not det.valid and pred is not None and self._fast and not p.segment.motion_blur:
+                det = self._reacquire_blurred(frame, pred[0], det)
         if det.valid:
             uv_now = np.array(det.uv, dtype=np.float64)
-            if pred is not None:
+            if pred is not None and pred[3]:
                 e = float(np.hypot(*(uv_now - pred[0])))
                 self._err = max(0.5 * self._err, e)
-            else:
+            else:  # first sighting, or velocity unknown: no constant-velocity error to learn from
                 self._err = 0.0
             self._radius = det.radius_px
+            self._area = det.area_px
             self._hist = (self._hist + [(self._index, uv_now)])[-2:]
         self.last = det
         return det
+
+
+    def _reacquire_blurred(self, frame: _Frame, uv_pred, fallback: SphereDetection) -> SphereDetection:
+        """Lost while fast: a blur streak may only pass the blur-tolerant tables.
+
+        Searched in a ``max_half_window_px`` window around the prediction, keeping
+        regions of 0.5 to 2 times the last area, nearest to the prediction first.
+        """
+        h = int(self.params.max_half_window_px)
+        x0, y0 = max(int(round(uv_pred[0])) - h, 0), max(int(round(uv_pred[1])) - h, 0)
+        x1, y1 = min(x0 + 2 * h + 1, frame.width), min(y0 + 2 * h + 1, frame.height)
+        if x1 - x0 < 3 or y1 - y0 < 3:
+            return fallback
+        found = _detect_window(frame, self.model, self.params.segment, (x0, y0, x1 - x0, y1 - y0), True)
+        ok = [d for d in found if d.valid and not d.touches_window and 0.5 <= d.area_px / self._area <= 2.0]
+        if not ok:
+            return fallback
+        return min(ok, key=lambda d: math.hypot(d.uv[0] - uv_pred[0], d.uv[1] - uv_pred[1]))
 
 
 class FrameTracker:

@@ -1,0 +1,178 @@
+"""Tracking mode: windows around the prediction, full-frame fallback, image borders."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from test_stereo_segment_scenes import GREEN_BGR, RED_BGR, clutter_background, make_frame, sphere_patch, two_spheres
+from tudorvision._checks import TudorVisionError
+from tudorvision.stereo.colormodel import fit_color_model
+from tudorvision.stereo.segment import SegmentParams, detect_sphere, detect_spheres
+from tudorvision.stereo.tracker2d import FrameTracker, SphereTracker, TrackerParams
+
+COLORS = {"red": RED_BGR, "green": GREEN_BGR}
+
+
+@pytest.fixture(scope="module")
+def models():
+    frame = make_frame(np.random.default_rng(11), two_spheres((200.3, 150.7), (420.2, 300.4), radius=10.0))
+    return {"red": fit_color_model(frame, (200, 151), (210, 151)),
+            "green": fit_color_model(frame, (420, 300), (430, 300))}
+
+
+def render_sequence(rng, paths, radius=9.0, *, visible=None, blur=None):
+    """Frames over a static cluttered background; ``paths[name]`` is (N, 2) centres."""
+    n = len(next(iter(paths.values())))
+    keep = [(u, v, radius + 25) for p in paths.values() for u, v in p[::2]]
+    bg = clutter_background(rng, keep_out=keep)
+    frames = []
+    for k in range(n):
+        img = bg.copy()
+        for name, path in paths.items():
+            if visible is not None and not visible[name][k]:
+                continue
+            b = (0.0, 0.0) if blur is None else tuple(blur[name][k])
+            sphere_patch(path[k], radius, COLORS[name], img, blur_uv=b, n_time=1 if b == (0.0, 0.0) else 24)
+        img += rng.normal(0, 3.0, img.shape).astype(np.float32)
+        frames.append(np.clip(np.rint(img), 0, 255).astype(np.uint8))
+    return frames
+
+
+def test_tracking_equals_full_frame(models):
+    rng = np.random.default_rng(3)
+    t = np.arange(24)
+    paths = {"red": np.c_[150 + 3.0 * t + 0.05 * t ** 2, 240 + 20 * np.sin(t / 5.0)],
+             "green": np.c_[480 - 5.0 * t, 120 + 3.5 * t + 6 * np.cos(t / 3.0)]}
+    frames = render_sequence(rng, paths)
+    trk = FrameTracker(models)
+    for k, frame in enumerate(frames):
+        got = trk.update(frame)
+        full = detect_spheres(frame, models)
+        for name in models:
+            assert got[name].valid and full[name].valid, (k, name, got[name].reason)
+            np.testing.assert_allclose(got[name].uv, full[name].uv, atol=1e-9)
+            assert got[name].area_px == full[name].area_px
+            assert np.hypot(*(np.subtract(got[name].uv, paths[name][k]))) < 0.5
+    for t_ in trk.trackers.values():
+        assert t_.n_full == 1 and t_.n_window == len(frames) - 1  # only the first frame is searched in full
+
+
+def test_recovers_after_disappearing(models):
+    rng = np.random.default_rng(4)
+    n = 16
+    path = np.c_[np.linspace(120, 420, n), np.linspace(300, 200, n)]
+    path[9:] += [60.0, 90.0]  # it reappears away from where it vanished
+    visible = {"red": np.array([k not in (5, 6, 7, 8) for k in range(n)])}
+    frames = render_sequence(rng, {"red": path}, visible=visible)
+    trk = SphereTracker(models["red"])
+    modes = []
+    for k, frame in enumerate(frames):
+        d = trk.update(frame)
+        modes.append(trk.mode)
+        if visible["red"][k]:
+            assert d.valid, (k, d.reason)
+            assert np.hypot(*(np.subtract(d.uv, path[k]))) < 0.5
+        else:
+            assert not d.valid
+            assert trk.predict() is None  # lost: the next frame is searched in full
+    assert modes[5:10] == ["window"] * 0 + ["full"] * 5  # absent frames and the recovery: full frames
+    assert modes[10:] == ["window"] * (n - 10)
+
+
+def test_window_at_image_border(models):
+    """The sphere runs into the left border: clipped windows, then rejection at the border."""
+    rng = np.random.default_rng(5)
+    path = np.c_[np.linspace(70.3, 4.3, 13), np.linspace(200.6, 190.1, 13)]  # radius 9
+    frames = render_sequence(rng, {"green": path})
+    trk = SphereTracker(models["green"])
+    clipped_windows = 0
+    for k, frame in enumerate(frames):
+        pred = trk.predict()
+        d = trk.update(frame)
+        full = detect_sphere(frame, models["green"])
+        if path[k, 0] - 9.0 > 2.0:
+            assert d.valid, (k, d.reason)
+            np.testing.assert_allclose(d.uv, full.uv, atol=1e-9)
+            assert np.hypot(*(np.subtract(d.uv, path[k]))) < 0.5
+            if pred is not None and pred[0][0] - pred[1] < 0:
+                clipped_windows += 1
+                assert trk.mode == "window"
+        elif path[k, 0] < 9.0:  # clearly cut by the border
+            assert not d.valid and "image border" in d.reason
+    assert clipped_windows >= 2
+
+
+def test_fast_motion_with_blur_uses_window(models):
+    """Speeding up to 25 px/frame with a streak as long as the frame-to-frame motion
+    (exposure = frame time, the worst case): blur is expected in the window and accepted."""
+    rng = np.random.default_rng(6)
+    speed = np.minimum(np.arange(14) * 5.0, 25.0)  # px/frame
+    direction = np.array([0.97, 0.24])
+    travelled = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]))])
+    path = np.array([60.2, 120.7]) + travelled[:, None] * direction
+    blur = {"red": speed[:, None] * direction}
+    frames = render_sequence(rng, {"red": path}, blur=blur)
+    trk = SphereTracker(models["red"])
+    errs = []
+    for k, frame in enumerate(frames):
+        d = trk.update(frame)
+        assert d.valid, (k, d.reason)
+        assert trk.mode == ("full" if k == 0 else "window")
+        errs.append(np.subtract(d.uv, path[k]))
+        if speed[k] >= 20:
+            assert d.circularity < 0.85  # elongated streak, accepted
+    assert np.sqrt(np.mean(np.sum(np.array(errs) ** 2, axis=1))) < 0.4
+
+
+def test_lost_while_fast_reacquires_blurred_sphere(models):
+    """A fast, blurred sphere jumps out of the window: found again with the tolerant tables."""
+    rng = np.random.default_rng(9)
+    speed = np.minimum(np.arange(12) * 6.0, 24.0)
+    travelled = np.concatenate([[0.0], np.cumsum(0.5 * (speed[1:] + speed[:-1]))])
+    path = np.c_[50.2 + travelled, np.full(12, 150.6)]
+    path[9:] += [0.0, 110.0]  # a jump the window cannot follow
+    frames = render_sequence(rng, {"red": path}, blur={"red": np.c_[speed, np.zeros(12)]})
+    trk = SphereTracker(models["red"])
+    for k, frame in enumerate(frames):
+        d = trk.update(frame)
+        assert d.valid, (k, d.reason)
+        assert np.hypot(*(np.subtract(d.uv, path[k]))) < 0.5
+        if k == 9:
+            assert trk.mode == "full"
+    # the strict tables alone do not see the streak after the jump
+    assert not detect_sphere(frames[9], models["red"]).valid
+
+
+def test_predict_constant_velocity(models):
+    rng = np.random.default_rng(8)
+    path = np.array([[200.0, 200.0], [207.0, 196.0], [214.0, 192.0]])
+    frames = render_sequence(rng, {"red": path})
+    trk = SphereTracker(models["red"])
+    assert trk.predict() is None
+    trk.update(frames[0])
+    uv, half, speed = trk.predict()
+    assert uv == pytest.approx(trk.last.uv) and speed == 0.0
+    trk.update(frames[1])
+    uv, half, speed = trk.predict()
+    assert uv == pytest.approx(path[2], abs=0.5)
+    assert speed == pytest.approx(np.hypot(7, 4), abs=0.3)
+    assert half >= 2.5 * trk.last.radius_px
+    trk.reset()
+    assert trk.predict() is None and trk.n_full == 0
+
+
+def test_tracker_errors(models):
+    with pytest.raises(TudorVisionError, match="model: expected a ColorModel"):
+        SphereTracker({"red": models["red"]})
+    with pytest.raises(TudorVisionError, match="params: expected TrackerParams"):
+        SphereTracker(models["red"], params=SegmentParams())
+    with pytest.raises(TudorVisionError, match="segment: expected SegmentParams"):
+        TrackerParams(segment={})
+    with pytest.raises(TudorVisionError, match="window_scale"):
+        TrackerParams(window_scale=-1.0)
+    with pytest.raises(TudorVisionError, match="min_half_window_px, max_half_window_px"):
+        TrackerParams(min_half_window_px=50, max_half_window_px=20)
+    with pytest.raises(TudorVisionError, match="models: expected a non-empty mapping"):
+        FrameTracker({})
+    with pytest.raises(TudorVisionError, match="frame_bgr: expected a uint8 BGR image"):
+        SphereTracker(models["red"]).update(np.zeros((10, 10), np.uint8))
