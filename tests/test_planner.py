@@ -85,3 +85,15 @@ def test_bad_limits_raise():
         plan_motion([0.0], [1.0], v_max=0.0, a_max=1.0)
     with pytest.raises(ValueError, match="theta_goal"):
         plan_motion([0.0, 0.0], [1.0], v_max=1.0, a_max=1.0)
+
+
+def test_scalar_sampling_matches_vectorised():
+    rng = np.random.default_rng(4)
+    for _ in range(10):
+        m = plan_motion(rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 3), v_max=rng.uniform(0.3, 1, 3),
+                        a_max=rng.uniform(1, 4, 3), dtheta_start=rng.uniform(-0.3, 0.3, 3), t0=0.2)
+        for t in rng.uniform(0, m.t0 + m.duration_s + 0.5, 30):
+            vec = m.sample(t)
+            sca = m.sample_scalar(t)
+            for a, b in zip(vec, sca):
+                assert np.allclose(a, b, atol=1e-12)

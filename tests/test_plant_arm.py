@@ -230,3 +230,34 @@ def test_bad_inputs_raise():
         ElasticArm([0.0, 0.0])
     with pytest.raises(ValueError, match="plates"):
         Payload.from_parts(P, plates=-1)
+
+
+def test_controlled_arm_velocity_command_stop_and_replanned_setpoint():
+    from tudorvision.sim.arm import ControlledArm
+    ca = ControlledArm(ElasticArm(D([0, 60, -30]), payload=Payload.from_parts(P, plates=2)))
+    cmd = np.array([0.3, -0.4, 0.5])
+    refs = []
+    ca.set_velocity(cmd)
+    for _ in range(1600):                        # 0.8 s
+        ca.step()
+        refs.append(ca.dtheta_ref)
+    refs = np.array(refs)
+    assert np.all(np.abs(np.diff(refs, axis=0)) <= ca.a_max * 0.0005 + 1e-12)
+    assert np.allclose(refs[-1], np.clip(cmd, -ca.v_max, ca.v_max))
+    assert np.allclose(ca.arm.dtheta, refs[-1], atol=0.02)
+    ca.stop()
+    ca.run(1.5)
+    # at rest up to the slow recovery of the velocity integrator (pole at -k_v / I)
+    assert np.all(np.abs(ca.arm.dtheta) < 5e-3)
+    held = np.array(ca.arm.theta)
+    ca.run(0.2)
+    assert np.allclose(ca.arm.theta, held, atol=D(0.1))
+    # setpoint, re-planned in motion
+    ca.set_goal(D([20, 80, 10]))
+    ca.run(0.4)
+    goal = D([-10, 70, -20])
+    ca.set_goal(goal)
+    ca.run(3.0)
+    assert np.allclose(ca.arm.theta, goal, atol=D(0.05))
+    with pytest.raises(ValueError, match="theta_goal"):
+        ca.set_goal(D([0, 200, 0]))

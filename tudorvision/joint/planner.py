@@ -22,6 +22,7 @@ Angles in radians, time in seconds.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -118,6 +119,22 @@ class JointMotion:
             return th[0], dth[0], ddth[0]
         return th, dth, ddth
 
+    def sample_scalar(self, t: float):
+        """Fast pure-Python :meth:`sample` for one time (for 2 kHz loops).
+
+        Returns
+        -------
+        theta, dtheta, ddtheta : list of J floats
+        """
+        tt = max(float(t) - self.t0, 0.0)
+        th, dth, ddth = [], [], []
+        for j in range(len(self.theta0)):
+            p, v, a = _scalar_joint(tt, float(self.theta0[j]), float(self.dtheta0[j]), float(self.v_peak[j]),
+                                    float(self.t_acc[j]), float(self.t_cruise[j]), float(self.t_dec[j]),
+                                    float(self.theta_goal[j]))
+            th.append(p); dth.append(v); ddth.append(a)
+        return th, dth, ddth
+
     def _sample_joint(self, j: int, tt: np.ndarray):
         v0, vp = self.dtheta0[j], self.v_peak[j]
         t1, tc, t3 = self.t_acc[j], self.t_cruise[j], self.t_dec[j]
@@ -144,6 +161,27 @@ class JointMotion:
         done = tt >= t1 + tc + t3
         p[done] = self.theta_goal[j]; v[done] = 0.0; a[done] = 0.0
         return p, v, a
+
+
+def _transition_scalar(tau: float, T: float, v0: float, dv: float):
+    w = 2.0 * math.pi / T
+    v = v0 + dv * (tau / T - math.sin(w * tau) / (2.0 * math.pi))
+    dp = v0 * tau + dv * (tau * tau / (2.0 * T) + T * (math.cos(w * tau) - 1.0) / (4.0 * math.pi ** 2))
+    a = (2.0 * dv / T) * math.sin(0.5 * w * tau) ** 2
+    return dp, v, a
+
+
+def _scalar_joint(tt, p0, v0, vp, t1, tc, t3, goal):
+    if tt >= t1 + tc + t3:
+        return goal, 0.0, 0.0
+    if tt < t1:
+        dp, v, a = _transition_scalar(tt, t1, v0, vp - v0)
+        return p0 + dp, v, a
+    p1 = p0 + (_transition_scalar(t1, t1, v0, vp - v0)[0] if t1 > 0 else 0.0)
+    if tt < t1 + tc:
+        return p1 + vp * (tt - t1), vp, 0.0
+    dp, v, a = _transition_scalar(tt - t1 - tc, t3, vp, -vp)
+    return p1 + vp * tc + dp, v, a
 
 
 def _plan_1d(d: float, v0: float, vmax: float, amax: float):
@@ -248,3 +286,7 @@ class OnlinePlanner:
     def sample(self, t):
         """Planned ``(theta, dtheta, ddtheta)`` at time(s) ``t`` (see :meth:`JointMotion.sample`)."""
         return self.motion.sample(t)
+
+    def sample_scalar(self, t: float):
+        """Pure-Python sample at one time (lists of floats)."""
+        return self.motion.sample_scalar(t)

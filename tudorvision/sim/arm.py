@@ -37,17 +37,18 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import expm
 
-from .._checks import TudorVisionError, check_array, check_vector
+from .._checks import check_array, check_vector
 from ..joint.cascade import JointCascade, design_cascade, motor_gain, reflected_inertia
 from ..joint.planner import plan_motion
 from ..robot.kinematics import jacobian_ee
 from ..robot.params import RobotParams, load_robot_params
-from .beam import ModalBasis, cantilever_static, link_rho, link_rigidity, modal_basis, surface_strain
+from .beam import ModalBasis, cantilever_static, link_rho, modal_basis
 
 __all__ = [
     "ASSUMPTIONS", "PlantConfig", "Payload", "ArmBodies", "arm_bodies", "mass_matrix",
     "bias_torques", "rigid_energy", "link_static_loads", "SpringDamperObstacle", "ElasticArm",
     "SimLog", "simulate", "simulate_ptp", "fk_elastic", "spheres_from_T", "zero_config_inertia",
+    "ControlledArm",
 ]
 
 ASSUMPTIONS = """\
@@ -931,3 +932,119 @@ def simulate_ptp(theta_start, theta_goal, duration_s: float, *, payload: Payload
     ctrl = JointCascade(gains, config.dt, arm.measured_theta())
     motion = plan_motion(start, goal, v_max=vmax, a_max=amax, t0=t_move)
     return simulate(arm, ctrl, motion, duration_s)
+
+
+class ControlledArm:
+    """The simulated arm with its joint cascade, driven by setpoints or velocity commands.
+
+    This is the joint-control layer's view of the plant at 2 kHz: a
+    point-to-point setpoint starts a B.6 motion (re-planned from the current
+    reference when a new one arrives in motion); a velocity command is
+    followed with the acceleration limits and integrated into the position
+    reference; :meth:`stop` brakes at the acceleration limits and holds.
+
+    Parameters
+    ----------
+    arm : ElasticArm
+        The plant (advanced in place).
+    gains : CascadeGains, optional
+        Default: designed from the zero-configuration inertia (section 3.2).
+    v_max, a_max : array_like, shape (3,), optional
+        Default limits for setpoints and velocity commands (rad/s, rad/s^2);
+        default the chapter-8 values capped by the hardware limits.
+    damping : callable, optional
+        ``f(arm) -> 3 floats`` added at the velocity-loop input every sample
+        (e.g. ``-k_eps * eps_tilde``, eq. 5.2.1).
+
+    Examples
+    --------
+    >>> ca = ControlledArm(ElasticArm([0.0, 0.5, 0.0]))
+    >>> ca.set_velocity([0.0, 0.2, 0.0])
+    >>> ca.run(0.5)
+    >>> round(ca.arm.dtheta[1], 2)
+    0.2
+    """
+
+    def __init__(self, arm: ElasticArm, *, gains=None, v_max=None, a_max=None, damping=None):
+        from ..joint.planner import OnlinePlanner
+        self.arm = arm
+        p = arm.params
+        self.v_max = np.minimum(p.experiment_speed_rad_s, p.max_speed_rad_s) if v_max is None \
+            else check_vector(np.broadcast_to(np.asarray(v_max, float), (3,)), "v_max", 3)
+        self.a_max = np.minimum(p.experiment_accel_rad_s2, p.max_accel_rad_s2) if a_max is None \
+            else check_vector(np.broadcast_to(np.asarray(a_max, float), (3,)), "a_max", 3)
+        self.controller = JointCascade(gains or design_cascade(p, zero_config_inertia(arm)),
+                                       arm.config.dt, arm.measured_theta())
+        self.damping = damping
+        self._planner = OnlinePlanner(arm.theta, v_max=self.v_max, a_max=self.a_max, t0=arm.t)
+        self.mode = "setpoint"
+        self.theta_ref = list(arm.theta)
+        self.dtheta_ref = [0.0, 0.0, 0.0]
+        self._v_cmd = [0.0, 0.0, 0.0]
+        self._lo = [float(x) for x in p.joint_limits_rad[:, 0]]
+        self._hi = [float(x) for x in p.joint_limits_rad[:, 1]]
+
+    def set_goal(self, theta_goal, *, v_max=None, a_max=None) -> None:
+        """Start (or re-plan) a point-to-point motion to ``theta_goal`` (rad).
+
+        Raises
+        ------
+        ValueError
+            If the goal lies outside the joint ranges or a limit exceeds the hardware limits.
+        """
+        from ..joint.planner import plan_motion as _plan
+        goal = check_vector(theta_goal, "theta_goal", 3)
+        p = self.arm.params
+        if np.any(goal < p.joint_limits_rad[:, 0]) or np.any(goal > p.joint_limits_rad[:, 1]):
+            raise ValueError(f"theta_goal: {np.round(np.rad2deg(goal), 2).tolist()} deg is outside the joint ranges")
+        vmax = self.v_max if v_max is None else np.broadcast_to(np.asarray(v_max, float), (3,))
+        amax = self.a_max if a_max is None else np.broadcast_to(np.asarray(a_max, float), (3,))
+        if np.any(vmax > p.max_speed_rad_s + 1e-9) or np.any(amax > p.max_accel_rad_s2 + 1e-9):
+            raise ValueError("v_max, a_max: exceed the joint speed or acceleration limits")
+        self._planner.motion = _plan(self.theta_ref, goal, v_max=vmax, a_max=amax,
+                                     dtheta_start=self.dtheta_ref, t0=self.arm.t)
+        self.mode = "setpoint"
+
+    def set_velocity(self, dtheta_cmd) -> None:
+        """Follow a joint velocity command (rad/s), clipped to ``v_max``, ramped at ``a_max``."""
+        v = check_vector(dtheta_cmd, "dtheta_cmd", 3)
+        self._v_cmd = [float(x) for x in np.clip(v, -self.v_max, self.v_max)]
+        self.mode = "velocity"
+
+    def stop(self) -> None:
+        """Brake at the acceleration limits and hold where the arm comes to rest."""
+        self.set_velocity([0.0, 0.0, 0.0])
+
+    def _reference(self, t: float):
+        if self.mode == "setpoint":
+            th, dth, _ = self._planner.sample_scalar(t)
+            return th, dth
+        dt = self.arm.config.dt
+        th, dth = self.theta_ref, self.dtheta_ref
+        out_th, out_dth = [0.0] * 3, [0.0] * 3
+        for j in range(3):
+            dv_max = float(self.a_max[j]) * dt
+            v = dth[j] + max(-dv_max, min(dv_max, self._v_cmd[j] - dth[j]))
+            # brake so that the joint stops inside its range
+            a = float(self.a_max[j])
+            room_hi, room_lo = self._hi[j] - th[j], th[j] - self._lo[j]
+            if v > 0 and v * v / a > 2 * max(room_hi, 0.0):
+                v = max(dth[j] - dv_max, 0.0)
+            elif v < 0 and v * v / a > 2 * max(room_lo, 0.0):
+                v = min(dth[j] + dv_max, 0.0)
+            out_dth[j] = v
+            out_th[j] = min(self._hi[j], max(self._lo[j], th[j] + v * dt))
+        return out_th, out_dth
+
+    def step(self) -> None:
+        """Advance one control sample (``arm.config.dt``)."""
+        arm = self.arm
+        th_ref, dth_ref = self._reference(arm.t)
+        self.theta_ref, self.dtheta_ref = th_ref, dth_ref
+        extra = self.damping(arm) if self.damping is not None else (0.0, 0.0, 0.0)
+        arm.step(self.controller.step(arm.measured_theta(), th_ref, dth_ref, extra))
+
+    def run(self, duration_s: float) -> None:
+        """Advance ``duration_s`` seconds (rounded to whole samples)."""
+        for _ in range(int(round(duration_s / self.arm.config.dt))):
+            self.step()
