@@ -38,6 +38,7 @@ before triangulation.
 """
 from __future__ import annotations
 
+import weakref
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -57,6 +58,9 @@ __all__ = [
 # OpenCV's default (5 iterations) leaves up to ~0.01 px at the corners of a
 # wide-angle image (k1 = -0.2); iterate to convergence instead (~3x the cost).
 _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-10)
+
+
+_P_IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
 
 
 def _uv(value, name: str) -> np.ndarray:
@@ -104,15 +108,26 @@ def undistort_points(uv, K, dist, *, R=None, P=None) -> np.ndarray:
     pts = _uv(uv, "uv")
     K = check_array(K, "K", (3, 3))
     d = np.asarray(dist, dtype=np.float64).ravel()
+    if R is not None:
+        R = check_array(R, "R", (3, 3))
+    if P is not None:
+        P = np.asarray(P, dtype=np.float64)
+        if P.shape not in ((3, 3), (3, 4)):
+            raise ValueError(f"P: expected shape (3, 3) or (3, 4), got {P.shape}")
+    return _undistort(pts, K, d, R=R, P=P)
+
+
+def _undistort(pts, K, d, *, R=None, P=None) -> np.ndarray:
+    """Core of :func:`undistort_points` on checked arrays."""
     out = np.full_like(pts, np.nan)
     ok = _valid_rows(pts)
     if ok.any():
         kw = {"criteria": _UNDISTORT_CRITERIA}
         if R is not None:
-            kw["R"] = check_array(R, "R", (3, 3))
+            kw["R"] = R
         if P is not None:
-            kw["P"] = np.asarray(P, dtype=np.float64)
-        und = cv2.undistortPoints(pts[ok].reshape(-1, 1, 2), K, d, **kw)
+            kw["P"] = P
+        und = cv2.undistortPoints(np.ascontiguousarray(pts[ok]).reshape(-1, 1, 2), K, d, **kw)
         out[ok] = und.reshape(-1, 2)
     return out
 
@@ -182,6 +197,11 @@ def triangulate_points(uv_left, uv_right, P_left, P_right) -> np.ndarray:
         raise ValueError(f"uv_right: expected shape {a.shape} like uv_left, got {b.shape}")
     P1 = check_array(P_left, "P_left", (3, 4))
     P2 = check_array(P_right, "P_right", (3, 4))
+    return _triangulate_cv2(a, b, P1, P2)
+
+
+def _triangulate_cv2(a, b, P1, P2) -> np.ndarray:
+    """Core of :func:`triangulate_points` on checked float64 arrays."""
     out = np.full((len(a), 3), np.nan)
     ok = _valid_rows(a, b)
     if ok.any():
@@ -250,13 +270,22 @@ def _rig(calibration):
     return calibration.camera(stereo.left), calibration.camera(stereo.right), stereo
 
 
+_RECTIFY_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
 def _rectification(left, right, stereo):
+    """(R1, R2, P1, P2): stored ones, else computed once per extrinsics object."""
     if stereo.has_rectification:
         return stereo.R1, stereo.R2, stereo.P1, stereo.P2
+    key = (left.K.tobytes(), left.dist.tobytes(), right.K.tobytes(), right.dist.tobytes())
+    hit = _RECTIFY_CACHE.get(stereo)
+    if hit is not None and hit[0] == key:
+        return hit[1]
     R1, R2, P1, P2, *_ = cv2.stereoRectify(left.K, left.dist, right.K, right.dist,
                                            (left.width, left.height), stereo.R,
                                            stereo.T.reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY,
                                            alpha=-1)
+    _RECTIFY_CACHE[stereo] = (key, (R1, R2, P1, P2))
     return R1, R2, P1, P2
 
 
@@ -288,16 +317,21 @@ def triangulate_stereo(uv_left, uv_right, calibration, *, method: str = "normali
     b = _uv(uv_right, "uv_right")
     if a.shape != b.shape:
         raise ValueError(f"uv_right: expected shape {a.shape} like uv_left, got {b.shape}")
+    return _triangulate_rig(a, b, left, right, stereo, method)
+
+
+def _triangulate_rig(a, b, left, right, stereo, method) -> np.ndarray:
+    """Core of :func:`triangulate_stereo` on checked (N, 2) arrays; validated models."""
     if method == "normalized":
-        na = undistort_points(a, left.K, left.dist)
-        nb = undistort_points(b, right.K, right.dist)
-        P1, P2 = projection_matrices(np.eye(3), np.eye(3), stereo.R, stereo.T)
-        return triangulate_points(na, nb, P1, P2)
+        na = _undistort(a, left.K, left.dist)
+        nb = _undistort(b, right.K, right.dist)
+        P2 = np.hstack([stereo.R, stereo.T[:, None]])
+        return _triangulate_cv2(na, nb, _P_IDENTITY, P2)
     if method == "rectified":
         R1, R2, P1, P2 = _rectification(left, right, stereo)
-        ra = undistort_points(a, left.K, left.dist, R=R1, P=P1)
-        rb = undistort_points(b, right.K, right.dist, R=R2, P=P2)
-        points_rect = triangulate_points(ra, rb, P1, P2)
+        ra = _undistort(a, left.K, left.dist, R=R1, P=P1)
+        rb = _undistort(b, right.K, right.dist, R=R2, P=P2)
+        points_rect = _triangulate_cv2(ra, rb, np.asarray(P1, float), np.asarray(P2, float))
         return points_rect @ np.asarray(R1)   # p_left = R1^T p_rect, as rows
     raise ValueError(f"method: expected 'normalized' or 'rectified', got {method!r}")
 
@@ -365,22 +399,34 @@ def triangulate_spheres(uv_left: Mapping, uv_right: Mapping, calibration, *, T_b
     if set(uv_left) != set(uv_right) or not uv_left:
         raise ValueError(f"uv_right: expected the same non-empty sphere names as uv_left "
                          f"({sorted(uv_left)}), got {sorted(uv_right)}")
-    left, right, _ = _rig(calibration)
+    left, right, stereo = _rig(calibration)
+    if method not in ("normalized", "rectified"):
+        raise ValueError(f"method: expected 'normalized' or 'rectified', got {method!r}")
     rs = t_left is not None and t_right is not None and \
         bool(left.line_time_s) and bool(right.line_time_s)
-    spheres, valid = {}, {}
-    for name in uv_left:
+    names = list(uv_left)
+    ua, ub = [], []
+    for name in names:
         a = _uv(uv_left[name], f"uv_left[{name!r}]")
         b = _uv(uv_right[name], f"uv_right[{name!r}]")
+        if a.shape != b.shape or (ua and a.shape != ua[0].shape):
+            raise ValueError(f"uv_right[{name!r}]: expected shape {ua[0].shape if ua else a.shape} "
+                             f"like the other tracks, got {a.shape} / {b.shape}")
         if rs:
             tt = t_left if t_target is None else t_target
             a, _ = compensate_rolling_shutter(t_left, a, left.line_time_s, t_target=tt)
             b, _ = compensate_rolling_shutter(t_right, b, right.line_time_s, t_target=tt)
-        p = triangulate_stereo(a, b, calibration, method=method)
-        if T_base_left is not None:
-            p = transform_points(T_base_left, p)
-        spheres[name] = p
-        valid[name] = np.all(np.isfinite(p), axis=1)
+        ua.append(a)
+        ub.append(b)
+    n = len(ua[0])
+    # all spheres in one call: per-frame use is dominated by call overhead
+    p_all = _triangulate_rig(np.concatenate(ua), np.concatenate(ub), left, right, stereo, method)
+    if T_base_left is not None:
+        p_all = transform_points(T_base_left, p_all)
+    spheres, valid = {}, {}
+    for i, name in enumerate(names):
+        spheres[name] = p_all[i * n:(i + 1) * n]
+        valid[name] = np.all(np.isfinite(spheres[name]), axis=1)
     stack = np.stack(list(spheres.values()))
     ee_valid = np.all(np.stack(list(valid.values())), axis=0)
     ee = np.full(stack.shape[1:], np.nan)
@@ -492,23 +538,28 @@ def compensate_rolling_shutter(t_frame, uv, line_time_s: float, *, t_target=None
     idx = np.argsort(ts, kind="stable")
     ts, vals = ts[idx], vals[idx]
     n = len(ts)
-    for k in np.flatnonzero(ok):
-        tau = tt[k]
-        i = int(np.searchsorted(ts, tau))
-        # nearest valid samples around tau, nearest first
-        cand = [j for j in range(i - order - 1, i + order + 1) if 0 <= j < n]
-        cand.sort(key=lambda j: abs(ts[j] - tau))
-        near = [j for j in cand if abs(ts[j] - tau) <= max_gap_s][:order + 1]
-        if len(near) < 2:
-            continue
-        sel = sorted(near)
-        x = ts[sel]
-        y = vals[sel]
-        w = np.ones(len(sel))
-        for a_ in range(len(sel)):
-            for b_ in range(len(sel)):
-                if a_ != b_:
-                    w[a_] *= (tau - x[b_]) / (x[a_] - x[b_])
-        out[k] = w @ y
-        done[k] = True
+    rows = np.flatnonzero(ok)
+    tau = tt[rows]
+    # candidate samples around each target, the nearest (order + 1) within max_gap_s
+    cand = np.searchsorted(ts, tau)[:, None] + np.arange(-order - 1, order + 1)
+    inside = (cand >= 0) & (cand < n)
+    cand = np.clip(cand, 0, n - 1)
+    dist = np.abs(ts[cand] - tau[:, None])
+    dist[~inside | (dist > max_gap_s)] = np.inf
+    pick = np.argsort(dist, axis=1, kind="stable")[:, :order + 1]
+    sel = np.take_along_axis(cand, pick, axis=1)                 # (M, m)
+    use = np.isfinite(np.take_along_axis(dist, pick, axis=1))    # (M, m)
+    x = ts[sel]
+    # Lagrange weights over the used nodes: w_a = prod_{b != a, used} (tau - x_b) / (x_a - x_b)
+    m = sel.shape[1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f = (tau[:, None, None] - x[:, None, :]) / (x[:, :, None] - x[:, None, :])
+    skip = np.eye(m, dtype=bool)[None] | ~use[:, None, :] | ~use[:, :, None]
+    f[skip] = 1.0
+    w = np.prod(f, axis=2) * use
+    good = (use.sum(axis=1) >= 2) & np.all(np.isfinite(w), axis=1)
+    w[~good] = 0.0
+    interp = np.einsum("ka,kac->kc", w, vals[sel])
+    out[rows[good]] = interp[good]
+    done[rows[good]] = True
     return out, done
