@@ -44,9 +44,25 @@ def _rotation_axis(points: np.ndarray, centre: np.ndarray, normal: np.ndarray, t
     return normal if s > 0 else -normal
 
 
+def _inliers(pts: np.ndarray, fit, k: float) -> tuple[np.ndarray, np.ndarray]:
+    """Inliers by the normalised residual with separate robust scales out of plane and radially.
+
+    Depth noise makes the out-of-plane scatter much larger than the in-plane one
+    when the camera faces the sweep plane, so one pooled scale would reject
+    good points.
+    """
+    d = pts - fit.centre
+    h = d @ fit.normal
+    dr = np.linalg.norm(d - h[:, None] * fit.normal, axis=1) - fit.radius
+    floor = 1e-6 * max(fit.radius, 1e-9)
+    sh = max(1.4826 * float(np.median(np.abs(h))), floor)
+    sr = max(1.4826 * float(np.median(np.abs(dr))), floor)
+    return (h / sh) ** 2 + (dr / sr) ** 2 <= k * k, np.hypot(h, dr)
+
+
 def base_frame_from_sweep(points_cam, vertical_cam, *, theta2_rad=None, link1_height_m: float | None = None,
                           origin: str = "base", project_vertical: bool = False, min_points: int = 6,
-                          loss: str = "soft_l1", max_rejected_fraction: float = 0.3):
+                          loss: str = "soft_l1", inlier_sigma: float = 3.5, max_rejected_fraction: float = 0.3):
     """Robot base frame in the camera frame from disc centroids of a theta2 sweep.
 
     Parameters
@@ -73,6 +89,9 @@ def base_frame_from_sweep(points_cam, vertical_cam, *, theta2_rad=None, link1_he
         Minimum number of valid inlier samples.
     loss : str
         Robust loss of the circle refinement (see :func:`tudorvision.geometry.fit_circle_3d`).
+    inlier_sigma : float
+        A sample is an outlier when its residual, normalised by robust scales
+        taken separately out of the circle plane and radially, exceeds this.
     max_rejected_fraction : float
         Raise when more of the valid samples than this are outliers.
 
@@ -113,9 +132,9 @@ def base_frame_from_sweep(points_cam, vertical_cam, *, theta2_rad=None, link1_he
         fit = fit_circle_3d(pts, loss=loss)
     except ValueError as exc:
         raise TudorVisionError(f"circle fit failed: {exc}") from None
-    inl = fit.inliers
+    inl, dist = _inliers(pts, fit, inlier_sigma)
     for i in np.nonzero(~inl)[0]:
-        rejected.append({"index": int(idx[i]), "reason": "outlier", "distance_m": float(fit.distances[i])})
+        rejected.append({"index": int(idx[i]), "reason": "outlier", "distance_m": float(dist[i])})
     if (~inl).sum() > max_rejected_fraction * len(idx):
         raise TudorVisionError(f"{int((~inl).sum())} of {len(idx)} sweep points are circle outliers "
                                f"(more than {max_rejected_fraction:.0%}): check the disc segmentation")

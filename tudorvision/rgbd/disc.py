@@ -9,8 +9,10 @@ centroid is the end-effector sample. Between sweep steps the seed follows the
 disc: the next seed is the previous centroid's pixel.
 
 Depth noise at 5 m is tens of centimetres per pixel (seed model), so growing
-runs on a median-filtered depth image (``smooth_px``); the centroid uses the
-raw depths of the region, which averages the noise down.
+runs on a median-filtered depth image (``smooth_px``). The centroid is the
+region's mean pixel back-projected at the robust mean raw depth inside the
+region's shrunk moment ellipse (averaging the noise down without the mixed rim
+pixels, and without selection bias from the noisy region boundary).
 """
 from __future__ import annotations
 
@@ -49,6 +51,10 @@ class DiscOptions:
         Disc radius; when given, the region must also cover between
         ``area_ratio[0]`` and ``area_ratio[1]`` times the disc's
         fronto-parallel image area at its depth.
+    inner_scale : float
+        The centroid depth is the robust mean raw depth of the pixels inside
+        the region's moment ellipse scaled by this factor (rim pixels mix disc
+        and background).
     depth_model : DepthNoiseModel
         ``sigma_z(z)`` used for the tolerance.
     """
@@ -63,6 +69,7 @@ class DiscOptions:
     max_pixels: int = 40000
     disc_radius_m: float | None = None
     area_ratio: tuple = (0.25, 2.5)
+    inner_scale: float = 0.7
     depth_model: DepthNoiseModel = field(default=SEED_DEPTH_MODEL)
 
     def __post_init__(self):
@@ -212,6 +219,17 @@ def observe_disc(depth_m, intrinsics: Intrinsics, seed_uv, options: DiscOptions 
             raise
         return _lost((u, v), float("nan"), 0, str(exc))
     n = int(mask.sum())
+    if n >= options.min_pixels and n <= options.max_pixels:
+        # re-grow once from the region's centre: a seed near the rim (the disc moved
+        # since the last step) biases the reference depth toward the background
+        vv, uu = np.nonzero(mask)
+        uc, vc = int(round(uu.mean())), int(round(vv.mean()))
+        if (uc, vc) != (u, v) and mask[vc, uc]:
+            try:
+                mask, z_ref, tol = segment_uniform_depth(d, (uc, vc), options)
+            except TudorVisionError:
+                pass
+            n = int(mask.sum())
     lo, hi = options.min_pixels, options.max_pixels
     if options.disc_radius_m is not None:
         r_px = np.sqrt(intrinsics.fx * intrinsics.fy) * options.disc_radius_m / z_ref
@@ -227,21 +245,35 @@ def observe_disc(depth_m, intrinsics: Intrinsics, seed_uv, options: DiscOptions 
         if strict:
             raise TudorVisionError(reason)
         return _lost((u, v), z_ref, n, reason)
+    import cv2
+
+    # pixel centroid and shape (second moments) from the region; the depth from all
+    # pixels inside the region's ellipse shrunk by ``inner_scale``. Taking the
+    # interior geometrically (not the noisy mask itself) keeps the depth mean free of
+    # selection bias, and leaves out the rim pixels that mix disc and background.
     vv, uu = np.nonzero(mask)
-    z = d[vv, uu]
-    # raw depths, without pixels whose raw value belongs to another surface
-    raw_tol = max(3.0 * float(options.depth_model.sigma(z_ref)), tol)
-    with np.errstate(invalid="ignore"):
-        keep = np.isfinite(z) & (np.abs(z - z_ref) <= raw_tol)
-    if keep.sum() < 3:
-        reason = f"disc region at seed ({u}, {v}) has only {int(keep.sum())} valid raw depths"
+    uv = np.array([uu.mean(), vv.mean()])
+    C = np.cov(np.stack([uu, vv]).astype(np.float64)) + 0.25 * np.eye(2)
+    Ci = np.linalg.inv(C)
+    half = int(np.ceil(2.0 * options.inner_scale * np.sqrt(np.max(np.linalg.eigvalsh(C))))) + 1
+    u0, u1 = max(0, int(uv[0]) - half), min(d.shape[1], int(uv[0]) + half + 2)
+    v0, v1 = max(0, int(uv[1]) - half), min(d.shape[0], int(uv[1]) + half + 2)
+    gv, gu = np.mgrid[v0:v1, u0:u1]
+    du, dv = gu - uv[0], gv - uv[1]
+    inside = Ci[0, 0] * du * du + 2 * Ci[0, 1] * du * dv + Ci[1, 1] * dv * dv <= 4.0 * options.inner_scale ** 2
+    z = d[v0:v1, u0:u1][inside]
+    z = z[np.isfinite(z)]
+    if len(z) < 3:
+        reason = f"disc region at seed ({u}, {v}) has only {len(z)} valid raw depths"
         if strict:
             raise TudorVisionError(reason)
         return _lost((u, v), z_ref, n, reason)
-    uu, vv, z = uu[keep], vv[keep], z[keep]
-    pts = np.stack([(uu - intrinsics.cx) * z / intrinsics.fx, (vv - intrinsics.cy) * z / intrinsics.fy, z], axis=1)
-    c = pts.mean(axis=0)
-    uv = np.array([intrinsics.fx * c[0] / c[2] + intrinsics.cx, intrinsics.fy * c[1] / c[2] + intrinsics.cy])
+    med = float(np.median(z))
+    clip = 3.0 * float(options.depth_model.sigma(med))
+    zk = z[np.abs(z - med) <= clip]
+    z_mean = float(zk.mean()) if len(zk) >= 3 else med
+    c = np.array([(uv[0] - intrinsics.cx) * z_mean / intrinsics.fx,
+                  (uv[1] - intrinsics.cy) * z_mean / intrinsics.fy, z_mean])
     return DiscObservation(True, c, uv, (u, v), z_ref, n)
 
 
