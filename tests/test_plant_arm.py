@@ -261,3 +261,25 @@ def test_controlled_arm_velocity_command_stop_and_replanned_setpoint():
     assert np.allclose(ca.arm.theta, goal, atol=D(0.05))
     with pytest.raises(ValueError, match="theta_goal"):
         ca.set_goal(D([0, 200, 0]))
+
+
+def test_sim_core_follows_the_joint_layer_interface():
+    from tudorvision.joint.server import JointCore
+    from tudorvision.sim.arm import SimCore
+    core = SimCore(payload=Payload.from_parts(P, plates=1),
+                   config=PlantConfig(modal_damping_ratio=(0.2, 0.2)))
+    assert isinstance(core, JointCore)
+    goal = D([10, 70, 20])
+    core.apply_setpoint(goal, max_speed_rad_s=np.full(3, 1.0), max_accel_rad_s2=np.full(3, 3.0))
+    core.step(0.2)
+    assert not core.state().settled
+    core.step(3.5)
+    st = core.state()
+    assert np.allclose(st.theta, goal, atol=D(0.05)) and st.strains.shape == (4,)
+    assert st.settled                                 # heavily damped links calm down
+    core.apply_velocity(np.array([0.0, -0.2, 0.0]))
+    core.step(0.5)
+    assert abs(core.state().theta_dot[1] + 0.2) < 0.02
+    core.stop()
+    core.step(1.0)
+    assert np.all(np.abs(core.state().theta_dot) < 5e-3)

@@ -48,7 +48,7 @@ __all__ = [
     "ASSUMPTIONS", "PlantConfig", "Payload", "ArmBodies", "arm_bodies", "mass_matrix",
     "bias_torques", "rigid_energy", "link_static_loads", "SpringDamperObstacle", "ElasticArm",
     "SimLog", "simulate", "simulate_ptp", "fk_elastic", "spheres_from_T", "zero_config_inertia",
-    "ControlledArm",
+    "ControlledArm", "SimCore",
 ]
 
 ASSUMPTIONS = """\
@@ -1048,3 +1048,96 @@ class ControlledArm:
         """Advance ``duration_s`` seconds (rounded to whole samples)."""
         for _ in range(int(round(duration_s / self.arm.config.dt))):
             self.step()
+
+
+class SimCore:
+    """The simulated arm as a core of the joint-layer server (:class:`tudorvision.joint.server.JointCore`).
+
+    Wraps :class:`ControlledArm`; :meth:`step` sub-steps at the plant's 2 kHz.
+    Register it with ``register_core("sim", SimCore)``.
+
+    Damping laws and collision reactions are not part of the plant: the
+    selected modes are recorded (``self.damping``, ``self.collision``) and a
+    damping callable may be set on ``self.controlled.damping``; with the
+    default (none) the arm runs with the bare cascade.
+
+    Parameters
+    ----------
+    theta0 : array_like, shape (3,), optional
+        Initial angles (rad); default the vertical posture [0, 90 deg, 0].
+    payload : Payload, optional
+    params : RobotParams, optional
+    config : PlantConfig, optional
+    obstacles : sequence of SpringDamperObstacle, optional
+    settle_band : float
+        Strain settling band, m/m (15 um/m in the seed).
+
+    Examples
+    --------
+    >>> core = SimCore()
+    >>> core.apply_setpoint(np.deg2rad([0.0, 80.0, 0.0]), max_speed_rad_s=np.full(3, 1.0),
+    ...                     max_accel_rad_s2=np.full(3, 3.0))
+    >>> core.step(1.5)
+    >>> round(float(np.rad2deg(core.state().theta[1])), 1)
+    80.0
+    """
+
+    def __init__(self, theta0=None, *, payload: Payload | None = None, params: RobotParams | None = None,
+                 config: PlantConfig = PlantConfig(), obstacles=(), settle_band: float = 15e-6):
+        th = np.array([0.0, np.pi / 2, 0.0]) if theta0 is None else check_vector(theta0, "theta0", 3)
+        arm = ElasticArm(th, payload=payload, params=params, config=config, obstacles=obstacles)
+        p = arm.params
+        self.controlled = ControlledArm(arm, v_max=p.max_speed_rad_s, a_max=p.max_accel_rad_s2)
+        self.damping, self.collision = 0, 0
+        self._band = float(settle_band)
+        self._mean = list(arm.strain)              # static strain estimate (two cascaded EMAs)
+        self._mean1 = list(arm.strain)
+        self._env = [0.0, 0.0, 0.0, 0.0]          # decaying peak of |strain - mean|
+        self._goal = None
+
+    @property
+    def arm(self) -> ElasticArm:
+        return self.controlled.arm
+
+    def apply_velocity(self, theta_dot) -> None:
+        self._goal = None
+        self.controlled.set_velocity(theta_dot)
+
+    def apply_setpoint(self, theta, *, max_speed_rad_s, max_accel_rad_s2) -> None:
+        p = self.arm.params
+        self.controlled.set_goal(theta, v_max=np.minimum(max_speed_rad_s, p.max_speed_rad_s),
+                                 a_max=np.minimum(max_accel_rad_s2, p.max_accel_rad_s2))
+        self._goal = check_vector(theta, "theta", 3)
+
+    def stop(self) -> None:
+        self._goal = None
+        self.controlled.stop()
+
+    def set_modes(self, *, damping, collision) -> None:
+        self.damping, self.collision = damping, collision
+
+    def step(self, dt: float) -> None:
+        arm = self.arm
+        n = max(1, int(round(float(dt) / arm.config.dt)))
+        a = arm.config.dt / 0.5                    # second-order smoothing (section 2.2), 0.5 s
+        decay = math.exp(-arm.config.dt / 0.5)     # peak envelope forgets within ~0.5 s
+        for _ in range(n):
+            self.controlled.step()
+            s = arm.strain
+            for k in range(4):
+                self._mean1[k] += a * (s[k] - self._mean1[k])
+                self._mean[k] += a * (self._mean1[k] - self._mean[k])
+                self._env[k] = max(abs(s[k] - self._mean[k]), self._env[k] * decay)
+
+    def state(self):
+        from ..joint.server import CoreState
+        arm = self.arm
+        strain = np.asarray(arm.strain)
+        calm = max(self._env) < self._band
+        at_rest = bool(np.all(np.abs(np.asarray(arm.dtheta)) < 1e-3))
+        reached = self._goal is None or bool(np.all(np.abs(np.asarray(arm.theta) - self._goal) < 1e-3))
+        settled = calm and at_rest and reached and self.controlled.mode == "setpoint" \
+            or (calm and at_rest and self.controlled.mode == "velocity"
+                and not any(self.controlled._v_cmd))
+        return CoreState(t=arm.t, theta=np.asarray(arm.theta, float), theta_dot=np.asarray(arm.dtheta, float),
+                         strains=strain, settled=bool(settled))
