@@ -61,7 +61,8 @@ def test_ee_frame_is_rotation_and_spheres_straddle_ee():
     s = fk_spheres(th)
     assert np.allclose((s["red"] + s["green"]) / 2, fk_ee(th))
     d = np.linalg.norm(s["red"] - s["green"], axis=1)
-    assert np.allclose(d, 0.14)
+    off = P.sphere_offsets_ee_m
+    assert np.allclose(d, np.linalg.norm(off["red"] - off["green"]))
     # spheres sit on the joint axis direction: horizontal offset
     assert np.allclose(s["red"][:, 2], s["green"][:, 2])
 
