@@ -6,8 +6,9 @@ to an upstream server and the answers back, and on the way applies a
 loss, duplication, reordering (holding a datagram back so later ones
 overtake it), byte corruption (one flipped byte, truncation or trailing
 garbage: all detectable by the protocol's length and CRC32 checks), and
-fixed plus random delay. Decisions come from one seeded generator, so a
-seed reproduces the fault pattern for the same packet sequence.
+fixed plus random delay. Each direction draws from its own generator seeded
+from ``seed``, so a seed reproduces the fault pattern of a direction for the
+same sequence of datagrams.
 
 The proxy runs in a daemon thread and stops by itself after
 ``max_duration_s`` or ``max_packets``.
@@ -97,8 +98,9 @@ class ProxyStats:
 
 
 class _Direction:
-    def __init__(self, model: FaultModel):
+    def __init__(self, model: FaultModel, rng: random.Random):
         self.model = model
+        self.rng = rng
         self.bad = False
         self.counts = dict.fromkeys(ProxyStats.__dataclass_fields__, 0)
 
@@ -130,8 +132,8 @@ class LossyUdpProxy:
         if host not in ("127.0.0.1", "localhost"):
             raise ValueError(f"upstream: the proxy is loopback-only, got host {host!r}")
         self.upstream = ("127.0.0.1", int(upstream[1]))
-        self._dirs = {"to_server": _Direction(to_server), "to_client": _Direction(to_client)}
-        self._rng = random.Random(seed)
+        self._dirs = {"to_server": _Direction(to_server, random.Random(2 * int(seed))),
+                      "to_client": _Direction(to_client, random.Random(2 * int(seed) + 1))}
         self.max_duration_s = float(max_duration_s)
         self.max_packets = int(max_packets)
         self.max_clients = int(max_clients)
@@ -198,8 +200,8 @@ class LossyUdpProxy:
         self.stop()
 
     # ---------------------------------------------------------------- faults
-    def _corrupt(self, data: bytes) -> bytes:
-        r = self._rng
+    @staticmethod
+    def _corrupt(data: bytes, r: random.Random) -> bytes:
         kind = r.random()
         if kind < 0.6 or len(data) < 2:
             b = bytearray(data)
@@ -212,7 +214,7 @@ class LossyUdpProxy:
 
     def _admit(self, direction: str, data: bytes, sock, dest, now: float) -> None:
         d = self._dirs[direction]
-        m, r = d.model, self._rng
+        m, r = d.model, d.rng
         with self._lock:
             d.counts["received"] += 1
             lost = r.random() < m.loss
@@ -226,7 +228,7 @@ class LossyUdpProxy:
                 return
             corrupted = r.random() < m.corrupt
             if corrupted:
-                data = self._corrupt(data)
+                data = self._corrupt(data, r)
             copies = 2 if r.random() < m.duplicate else 1
             d.counts["duplicated"] += copies - 1
             for _ in range(copies):
