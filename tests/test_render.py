@@ -73,7 +73,7 @@ def test_bounding_box_culling_matches_naive_casting():
 
 def test_shapes_intersections_against_closed_forms():
     o = np.zeros(3)
-    d = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8]])
+    d = np.array([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8]]).T  # component-first (3, N)
     box = Box(center=(0, 0, 3), half_extents=(0.5, 0.5, 0.5))
     np.testing.assert_allclose(box.intersect(o, d), [2.5, np.inf])
     disc = Disc(center=(0, 0, 2), normal=(0, 0, 1), radius=0.3)

@@ -78,11 +78,12 @@ def test_points_behind_camera_give_nan():
     assert np.all(np.isnan(uv[0])) and np.all(np.isfinite(uv[1]))
 
 
-def _brute_force_silhouette_centroid(cam, center, radius, step=0.05):
+def _brute_force_silhouette_centroid(cam, center, radius):
     """Dense pixel-space sampling with OpenCV's undistortion and the cone test (an independent oracle)."""
     uv_c = project_points(cam, [center])[0]
     pc = (np.asarray(center) - cam.T_world_cam[:3, 3]) @ cam.T_world_cam[:3, :3]
     r_px = cam.K[0, 0] * radius / pc[2] * 1.6 + 3
+    step = r_px / 250
     g = np.arange(-r_px, r_px, step) + step / 2
     uu, vv = np.meshgrid(uv_c[0] + g, uv_c[1] + g)
     uv = np.stack([uu.ravel(), vv.ravel()], 1)

@@ -126,7 +126,9 @@ def light_terms(lights, points_world: np.ndarray, normals_world: np.ndarray,
         if isinstance(light, AmbientLight):
             geo = 1.0
         elif isinstance(light, DirectionalLight):
-            geo = np.maximum(normals_world @ (-light.direction_world), 0.0)[:, None]
+            dl = -light.direction_world
+            geo = np.maximum(normals_world[:, 0] * dl[0] + normals_world[:, 1] * dl[1]
+                             + normals_world[:, 2] * dl[2], 0.0)[:, None]
         elif isinstance(light, PointLight):
             to_l = light.position_world - points_world
             d2 = np.einsum("ij,ij->i", to_l, to_l)
@@ -140,7 +142,7 @@ def light_terms(lights, points_world: np.ndarray, normals_world: np.ndarray,
 
 @dataclass(frozen=True, kw_only=True)
 class SensorModel:
-    """Linear sensor with shot and read noise, then gamma and 8-bit quantisation.
+    """Linear sensor with shot and read noise, a 12-bit ADC, then gamma and 8-bit output.
 
     Parameters
     ----------
@@ -185,16 +187,34 @@ def apply_sensor(radiance_rgb: np.ndarray, sensor: SensorModel, rng: np.random.G
 
     Examples
     --------
-    >>> img = apply_sensor(np.full((1, 1, 3), 0.5), SensorModel(gamma=1.0), None)
-    >>> img[0, 0].tolist()
-    [128, 128, 128]
+    >>> apply_sensor(np.array([[[1.0, 0.0, 0.0]]]), SensorModel(), None)[0, 0].tolist()
+    [0, 0, 255]
     """
-    x = np.clip(np.asarray(radiance_rgb, dtype=np.float32) * np.float32(sensor.gain), 0.0, 1.0)
+    fw = np.float32(sensor.full_well_e)
+    e = np.multiply(radiance_rgb, np.float32(sensor.gain) * fw, dtype=np.float32)
+    np.clip(e, 0.0, fw, out=e)
     if rng is not None:
-        e = x * np.float32(sensor.full_well_e)
-        sigma = np.sqrt(e + np.float32(sensor.read_noise_e ** 2))
-        e += sigma * rng.standard_normal(x.shape, dtype=np.float32)
-        x = np.clip(e / np.float32(sensor.full_well_e), 0.0, 1.0)
-    if sensor.gamma != 1.0:
-        x = x ** np.float32(1.0 / sensor.gamma)
-    return np.ascontiguousarray((x * 255.0 + 0.5).astype(np.uint8)[..., ::-1])
+        sigma = np.add(e, np.float32(sensor.read_noise_e ** 2))
+        np.sqrt(sigma, out=sigma)
+        sigma *= rng.standard_normal(e.shape, dtype=np.float32)
+        e += sigma
+    e *= np.float32(_ADC_MAX) / fw
+    e += np.float32(0.5)
+    np.clip(e, 0.0, _ADC_MAX, out=e)
+    return _gamma_lut(sensor.gamma)[e.astype(np.uint16)[..., ::-1]]
+
+
+_ADC_MAX = 4095
+
+
+def _gamma_lut(gamma: float) -> np.ndarray:
+    """12-bit linear ADC code -> 8-bit gamma-encoded value."""
+    lut = _LUTS.get(gamma)
+    if lut is None:
+        x = np.arange(_ADC_MAX + 1) / _ADC_MAX
+        lut = np.rint(255.0 * x ** (1.0 / gamma)).astype(np.uint8)
+        _LUTS[gamma] = lut
+    return lut
+
+
+_LUTS: dict = {}

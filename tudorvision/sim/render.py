@@ -1,5 +1,10 @@
 """Vectorised ray casting of simple shapes, colour frames and Kinect-like depth.
 
+Shapes implement ``intersect(o, d) -> t`` for a common origin ``o`` (3,) and
+unit directions ``d`` stored component-first, shape (3, ...) (t is ``inf`` on
+a miss), ``normals(p)`` and ``albedo(p)`` for hit points ``p`` (N, 3), and
+``corners()`` (points whose hull bounds the shape, or None if unbounded).
+
 The renderer casts one ray per pixel centre (:func:`~tudorvision.sim.camera.ray_directions_world`,
 distortion included) against a handful of analytic shapes: spheres,
 rectangles (bounded or infinite planes, optionally checker-textured), discs,
@@ -43,6 +48,22 @@ _EPS = 1e-6
 _INF = np.inf
 
 
+def _dot(d, v):
+    """Dot product of component-first rays ``d`` (3, ...) with a 3-vector (no BLAS: numpy's
+    threaded matmul is slow for an inner dimension of 3)."""
+    return d[0] * v[0] + d[1] * v[1] + d[2] * v[2]
+
+
+def _rowdot(p, v):
+    """``p @ v`` for row points ``p`` (N, 3) and a 3-vector."""
+    return p[:, 0] * v[0] + p[:, 1] * v[1] + p[:, 2] * v[2]
+
+
+def _rowmat(p, M):
+    """``p @ M`` for row points ``p`` (N, 3) and a 3x3 matrix."""
+    return p[:, 0:1] * M[0] + p[:, 1:2] * M[1] + p[:, 2:3] * M[2]
+
+
 def _color(value, name):
     c = check_vector(value, name, 3)
     if np.any(c < 0) or np.any(c > 1):
@@ -84,7 +105,7 @@ class Sphere(_Shape):
     Examples
     --------
     >>> s = Sphere(center=(0, 0, 2), radius=0.5)
-    >>> s.intersect(np.zeros(3), np.array([[0.0, 0.0, 1.0]])).tolist()
+    >>> s.intersect(np.zeros(3), np.array([[0.0], [0.0], [1.0]])).tolist()
     [1.5]
     """
 
@@ -102,7 +123,7 @@ class Sphere(_Shape):
 
     def intersect(self, o, d):
         oc = o - self.center
-        b = d @ oc
+        b = _dot(d, oc)
         disc = b * b - (oc @ oc - self.radius ** 2)
         sq = np.sqrt(np.maximum(disc, 0.0))
         t = -b - sq
@@ -177,12 +198,12 @@ class Rectangle(_Shape):
         return self.center + (s[:, :1] * hu) * self.axis_u + (s[:, 1:] * hv) * self.axis_v
 
     def intersect(self, o, d):
-        n = self.normal
+        rel = o - self.center
+        dn, du, dv = _dot(d, self.normal), _dot(d, self.axis_u), _dot(d, self.axis_v)
+        on, ou, ov = rel @ self.normal, rel @ self.axis_u, rel @ self.axis_v
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = ((self.center - o) @ n) / (d @ n)
-        rel = o - self.center + t[:, None] * d
-        a, b = rel @ self.axis_u, rel @ self.axis_v
-        ok = (t > _EPS) & (np.abs(a) <= self.half_size[0]) & (np.abs(b) <= self.half_size[1])
+            t = -on / dn
+        ok = (t > _EPS) & (np.abs(ou + t * du) <= self.half_size[0]) & (np.abs(ov + t * dv) <= self.half_size[1])
         return np.where(ok, t, _INF)
 
     def normals(self, p):
@@ -192,7 +213,7 @@ class Rectangle(_Shape):
         if self.checker_square_m is None:
             return np.broadcast_to(self.color_rgb, p.shape)
         rel = p - self.center
-        a, b = rel @ self.axis_u, rel @ self.axis_v
+        a, b = _rowdot(rel, self.axis_u), _rowdot(rel, self.axis_v)
         sq = self.checker_square_m
         if self.checker_squares is not None:
             au, av = self.checker_squares[0] * sq / 2, self.checker_squares[1] * sq / 2
@@ -238,9 +259,10 @@ class Disc(_Shape):
 
     def intersect(self, o, d):
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = ((self.center - o) @ self.normal) / (d @ self.normal)
-        rel = o - self.center + t[:, None] * d
-        ok = (t > _EPS) & (np.einsum("ij,ij->i", rel, rel) <= self.radius ** 2)
+            t = ((self.center - o) @ self.normal) / _dot(d, self.normal)
+        oc = o - self.center
+        r2 = (oc[0] + t * d[0]) ** 2 + (oc[1] + t * d[1]) ** 2 + (oc[2] + t * d[2]) ** 2
+        ok = (t > _EPS) & (r2 <= self.radius ** 2)
         return np.where(ok, t, _INF)
 
     def normals(self, p):
@@ -273,18 +295,19 @@ class Box(_Shape):
     def intersect(self, o, d):
         R, h = self.R_world_box, self.half_extents
         ol = (o - self.center) @ R
-        dl = d @ R
+        tmin, tmax = -_INF, _INF
         with np.errstate(divide="ignore", invalid="ignore"):
-            inv = 1.0 / dl
-            t1 = (-h - ol) * inv
-            t2 = (h - ol) * inv
-        tmin = np.minimum(t1, t2).max(axis=1)
-        tmax = np.maximum(t1, t2).min(axis=1)
+            for k in range(3):
+                inv = 1.0 / _dot(d, R[:, k])
+                t1 = (-h[k] - ol[k]) * inv
+                t2 = (h[k] - ol[k]) * inv
+                tmin = np.maximum(tmin, np.minimum(t1, t2))
+                tmax = np.minimum(tmax, np.maximum(t1, t2))
         t = np.where(tmin > _EPS, tmin, tmax)
         return np.where((tmax >= tmin) & (t > _EPS), t, _INF)
 
     def normals(self, p):
-        pl = (p - self.center) @ self.R_world_box / self.half_extents
+        pl = _rowmat(p - self.center, self.R_world_box) / self.half_extents
         k = np.argmax(np.abs(pl), axis=1)
         sign = np.sign(pl[np.arange(len(pl)), k])
         return self.R_world_box.T[k] * sign[:, None]
@@ -313,7 +336,7 @@ class Capsule(_Shape):
         ba = self.p1 - self.p0
         oa = o - self.p0
         baba, baoa = ba @ ba, ba @ oa
-        bard, rdoa = d @ ba, d @ oa
+        bard, rdoa = _dot(d, ba), _dot(d, oa)
         a = baba - bard * bard
         b = baba * rdoa - baoa * bard
         c = baba * (oa @ oa) - baoa * baoa - self.radius ** 2 * baba
@@ -332,7 +355,7 @@ class Capsule(_Shape):
 
     def normals(self, p):
         ba = self.p1 - self.p0
-        s = np.clip((p - self.p0) @ ba / (ba @ ba), 0.0, 1.0)
+        s = np.clip(_rowdot(p - self.p0, ba) / (ba @ ba), 0.0, 1.0)
         return (p - self.p0 - s[:, None] * ba) / self.radius
 
 
@@ -351,7 +374,7 @@ class Cylinder(Capsule):
         ba = self.p1 - self.p0
         L = np.linalg.norm(ba)
         axis = ba / L
-        s = (p - self.p0) @ axis
+        s = _rowdot(p - self.p0, axis)
         radial = p - self.p0 - s[:, None] * axis
         rn = np.linalg.norm(radial, axis=1)
         on_cap = rn < self.radius * (1 - 1e-6)
@@ -464,7 +487,10 @@ def pixel_bboxes(camera: PinholeCamera, corners_list, *, pad: int = 2) -> list:
                     (np.asarray(corners_list[i], float) for i in idx)])          # (n, 8, 3)
     T = camera.T_world_cam
     pc = (pts - T[:3, 3]) @ T[:3, :3]
-    front = np.all(pc[..., 2] > 1e-3, axis=1)
+    front = np.all(pc[..., 2] > _NEAR, axis=1)
+    for k in np.nonzero(~front)[0]:
+        pc[k] = _clip_hull_near(pc[k])
+    front = np.all(np.isfinite(pc[..., 2]), axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
         xy = pc[..., :2] / pc[..., 2:]
     lo, hi = xy.min(axis=1), xy.max(axis=1)
@@ -486,6 +512,30 @@ def pixel_bboxes(camera: PinholeCamera, corners_list, *, pad: int = 2) -> list:
         v0, v1 = max(int(vmin[k]) - pad, 0), min(int(vmax[k]) + pad + 1, H)
         out[i] = (v0, v1, u0, u1) if (u0 < u1 and v0 < v1) else None
     return out
+
+
+_NEAR = 1e-3
+
+
+def _clip_hull_near(pc: np.ndarray) -> np.ndarray:
+    """Eight points whose hull contains (hull of ``pc``) cut by z >= _NEAR; NaN if nothing is in front.
+
+    The clipped hull's vertices are the corners in front and the crossings of
+    segments between a corner in front and one behind; all such crossings are
+    taken, then reduced to their normalized-plane extremes.
+    """
+    inside = pc[:, 2] > _NEAR
+    if not inside.any():
+        return np.full((8, 3), np.nan)
+    a, b = pc[inside], pc[~inside]
+    s = (a[:, None, 2] - _NEAR) / (a[:, None, 2] - b[None, :, 2])
+    cross = (a[:, None] + s[..., None] * (b[None] - a[:, None])).reshape(-1, 3)
+    pts = np.concatenate([a, cross])
+    xy = pts[:, :2] / np.maximum(pts[:, 2:], _NEAR)
+    lo, hi = xy.min(axis=0), xy.max(axis=0)
+    box = np.array([[lo[0], lo[1]], [hi[0], lo[1]], [hi[0], hi[1]], [lo[0], hi[1]]])
+    out = np.concatenate([box, box]) * _NEAR
+    return np.concatenate([out, np.full((8, 1), _NEAR)], axis=1)
 
 
 _s9 = np.linspace(0.0, 1.0, 9)
@@ -531,7 +581,7 @@ def cast_rays(camera: PinholeCamera, shapes: Sequence, *, cull: bool = True,
         The pixel box used for each shape (None when off-screen).
     """
     H, W = camera.height, camera.width
-    rays = ray_directions_world(camera)
+    rays = _rays_soa(camera)
     o = camera_center_world(camera)
     t = np.full((H, W), _INF) if t_init is None else t_init.copy()
     ids = np.zeros((H, W), dtype=np.int32)
@@ -542,7 +592,7 @@ def cast_rays(camera: PinholeCamera, shapes: Sequence, *, cull: bool = True,
         if bb is None:
             continue
         v0, v1, u0, u1 = bb
-        ti = shape.intersect(o, rays[v0:v1, u0:u1].reshape(-1, 3)).reshape(v1 - v0, u1 - u0)
+        ti = shape.intersect(o, rays[:, v0:v1, u0:u1])
         tv, iv = t[v0:v1, u0:u1], ids[v0:v1, u0:u1]
         closer = ti < tv
         tv[closer] = ti[closer]
@@ -550,13 +600,24 @@ def cast_rays(camera: PinholeCamera, shapes: Sequence, *, cull: bool = True,
     return t, ids, bboxes
 
 
+def _rays_soa(camera: PinholeCamera) -> np.ndarray:
+    """World ray directions component-first, shape (3, H, W), cached on the camera."""
+    rays = camera._cache.get("rays_world_soa")
+    if rays is None:
+        rays = np.ascontiguousarray(np.moveaxis(ray_directions_world(camera), -1, 0))
+        rays.setflags(write=False)
+        camera._cache["rays_world_soa"] = rays
+    return rays
+
+
 def _surface(camera, shape, rr, cc, t):
-    """Hit points, camera-facing unit normals and albedo of ``shape`` at pixels (rr, cc)."""
-    d = ray_directions_world(camera)[rr, cc]
-    p = camera_center_world(camera) + t[:, None] * d
-    n = np.asarray(shape.normals(p), dtype=np.float64)
-    n = n / np.linalg.norm(n, axis=1, keepdims=True)
-    n = np.where((np.einsum("ij,ij->i", n, d) > 0)[:, None], -n, n)
+    """Hit points (N, 3), camera-facing unit normals and albedo of ``shape`` at pixels (rr, cc)."""
+    d = _rays_soa(camera)[:, rr, cc]
+    p = np.ascontiguousarray((camera_center_world(camera)[:, None] + t * d).T)
+    n = np.array(np.broadcast_to(shape.normals(p), p.shape), dtype=np.float64)
+    n /= np.sqrt(n[:, 0] ** 2 + n[:, 1] ** 2 + n[:, 2] ** 2)[:, None]
+    flip = n[:, 0] * d[0] + n[:, 1] * d[1] + n[:, 2] * d[2] > 0
+    n[flip] *= -1.0
     return p, n, np.asarray(shape.albedo(p), dtype=np.float64)
 
 
@@ -614,7 +675,7 @@ def _dynamic_hits(camera, shapes, full_boxes, st, rows):
         return []
     V0, V1 = min(b[0] for b in live), max(b[1] for b in live)
     U0, U1 = min(b[2] for b in live), max(b[3] for b in live)
-    rays = ray_directions_world(camera)
+    rays = _rays_soa(camera)
     o = camera_center_world(camera)
     t = st.t[V0:V1, U0:U1].copy()
     ids = np.zeros(t.shape, np.int32)
@@ -622,7 +683,7 @@ def _dynamic_hits(camera, shapes, full_boxes, st, rows):
         if bb is None:
             continue
         v0, v1, u0, u1 = bb
-        ti = shape.intersect(o, rays[v0:v1, u0:u1].reshape(-1, 3)).reshape(v1 - v0, u1 - u0)
+        ti = shape.intersect(o, rays[:, v0:v1, u0:u1])
         tv, iv = t[v0 - V0:v1 - V0, u0 - U0:u1 - U0], ids[v0 - V0:v1 - V0, u0 - U0:u1 - U0]
         closer = ti < tv
         tv[closer] = ti[closer]
