@@ -128,18 +128,18 @@ def _as_depth32(depth, shape) -> np.ndarray:
 
 
 def _block_mean(d: np.ndarray, n: int, min_valid: float = 0.25) -> np.ndarray:
-    """Block mean over valid (> 0, finite) pixels; NaN where too few are valid."""
+    """Block mean over valid (> 0, finite) pixels; NaN where too few are valid. float32 in and out."""
     import cv2
 
     h, w = d.shape
     hc, wc = h // n, w // n
-    d = d[: hc * n, : wc * n]
-    valid = d > 0                                 # NaN compares False
-    dz = np.where(valid, d, np.float32(0.0))
-    s = cv2.resize(dz, (wc, hc), interpolation=cv2.INTER_AREA)
-    c = cv2.resize(valid.view(np.uint8).astype(np.float32), (wc, hc), interpolation=cv2.INTER_AREA)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        out = s / c
+    z = np.ascontiguousarray(d[: hc * n, : wc * n], dtype=np.float32).copy()
+    cv2.patchNaNs(z, 0.0)
+    _, valid = cv2.threshold(z, 0.0, 1.0, cv2.THRESH_BINARY)
+    z = cv2.max(z, 0.0)
+    s = cv2.resize(z, (wc, hc), interpolation=cv2.INTER_AREA)
+    c = cv2.resize(valid, (wc, hc), interpolation=cv2.INTER_AREA)
+    out = cv2.divide(s, c)
     out[c < min_valid] = np.nan
     return out
 
