@@ -136,8 +136,11 @@ class Header:
 
 
 def _floats(value, name: str, n: int) -> tuple:
+    tolist = getattr(value, "tolist", None)      # numpy arrays: much faster than iterating
+    if tolist is not None:
+        value = tolist()
     try:
-        out = tuple(float(v) for v in value)
+        out = tuple(map(float, value))
     except TypeError:
         raise ValueError(f"{name}: expected {n} numbers, got {value!r}") from None
     if len(out) != n:

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import collections
 import threading
+import types
 import time
 from dataclasses import dataclass, field, replace
 from typing import Callable, Hashable, Protocol, runtime_checkable
@@ -227,6 +228,9 @@ def make_core(name: str, **options) -> JointCore:
 
 register_core("kinematic", KinematicCore)
 
+# StateFlags bits as plain ints: IntFlag arithmetic costs microseconds per operation.
+_F = types.SimpleNamespace(**{f.name: int(f) for f in P.StateFlags})
+
 
 # ------------------------------------------------------------------------ server
 @dataclass(frozen=True, kw_only=True)
@@ -353,7 +357,7 @@ class JointLayerServer:
         self._seq = 0
         self._mode = P.Mode(config.initial_mode)
         self._damping, self._collision = P.Damping.OFF, P.CollisionStrategy.NONE
-        self._flags = P.StateFlags.NONE
+        self._flags = 0
         self._last_command_seq = 0
         self._v_target = np.zeros(3)
         self._v_ref = np.zeros(3)
@@ -388,14 +392,13 @@ class JointLayerServer:
         """The state feedback message for the current core state."""
         with self._lock:
             cs = self._core_state
-            flags = self._flags & ~(P.StateFlags.SETTLED | P.StateFlags.MOVING
-                                    | P.StateFlags.COLLISION)
+            flags = self._flags & ~(_F.SETTLED | _F.MOVING | _F.COLLISION)
             if cs.settled:
-                flags |= P.StateFlags.SETTLED
+                flags |= _F.SETTLED
             if np.any(np.abs(cs.theta_dot) > self.config.rest_speed_rad_s):
-                flags |= P.StateFlags.MOVING
+                flags |= _F.MOVING
             if cs.collision:
-                flags |= P.StateFlags.COLLISION
+                flags |= _F.COLLISION
             return P.State(t=cs.t, theta=cs.theta, theta_dot=cs.theta_dot, strains=cs.strains,
                            residuals=cs.residuals, flags=flags, mode=self._mode,
                            damping=self._damping, collision=self._collision,
@@ -484,14 +487,14 @@ class JointLayerServer:
                 if self._armed and cs.t >= self._deadline:
                     self._armed = False
                     self._v_target = np.zeros(3)
-                    self._flags |= P.StateFlags.WATCHDOG_STOP
+                    self._flags |= _F.WATCHDOG_STOP
                     self._count(watchdog_stops=1)
                 braked = brake_velocity(cs.theta, self._v_target, self.limits, dt,
                                         theta_dot_now=self._v_ref)
                 if np.array_equal(braked, self._v_target):
-                    self._flags &= ~P.StateFlags.LIMIT_BRAKE
+                    self._flags &= ~_F.LIMIT_BRAKE
                 else:
-                    self._flags |= P.StateFlags.LIMIT_BRAKE
+                    self._flags |= _F.LIMIT_BRAKE
                 self._v_ref = ramp_velocity(self._v_ref, braked, self.limits.max_accel_rad_s2, dt)
                 self.core.apply_velocity(self._v_ref.copy())
             self.core.step(dt)
@@ -500,8 +503,8 @@ class JointLayerServer:
                                 > self.config.fault_speed_factor * self.limits.max_speed_rad_s)
             lim, tol = self.limits.joint_limits_rad, self.config.fault_range_tol_rad
             out = np.any(cs.theta < lim[:, 0] - tol) or np.any(cs.theta > lim[:, 1] + tol)
-            if (over_speed or out) and not self._flags & P.StateFlags.FAULT:
-                self._flags |= P.StateFlags.FAULT
+            if (over_speed or out) and not self._flags & _F.FAULT:
+                self._flags |= _F.FAULT
                 self._enter_mode(P.Mode.IDLE)
 
     def _enter_mode(self, mode: P.Mode) -> None:
@@ -547,7 +550,7 @@ class JointLayerServer:
                 h = err.header
                 if h is not None and h.msg_type in (P.MsgType.VELOCITY, P.MsgType.SETPOINT,
                                                     P.MsgType.MODE):
-                    self._flags |= P.StateFlags.REFUSED
+                    self._flags |= _F.REFUSED
                     self._send(P.Refusal(command_seq=h.seq, code=err.reason, text=str(err)), addr)
                 return
             if isinstance(msg, P.StateRequest):
@@ -586,15 +589,15 @@ class JointLayerServer:
 
     def _refuse(self, seq: int, code: P.Reason, text: str) -> P.Refusal:
         self._count(refused=1)
-        self._flags = (self._flags | P.StateFlags.REFUSED) & ~P.StateFlags.CLAMPED
+        self._flags = (self._flags | _F.REFUSED) & ~_F.CLAMPED
         return P.Refusal(command_seq=seq, code=code, text=text)
 
     def _accept(self, seq: int, code: P.Reason, text: str) -> P.Ack:
         self._count(accepted=1)
         self._last_command_seq = seq
-        self._flags &= ~(P.StateFlags.REFUSED | P.StateFlags.CLAMPED)
+        self._flags &= ~(_F.REFUSED | _F.CLAMPED)
         if code != P.Reason.OK:
-            self._flags |= P.StateFlags.CLAMPED
+            self._flags |= _F.CLAMPED
         return P.Ack(command_seq=seq, code=code, text=text)
 
     def _execute(self, msg, seq: int):
@@ -606,9 +609,9 @@ class JointLayerServer:
                 self._damping, self._collision = damping, collision
             if msg.mode is not None:
                 self._enter_mode(msg.mode)
-            self._flags &= ~(P.StateFlags.FAULT | P.StateFlags.WATCHDOG_STOP)
+            self._flags &= ~(_F.FAULT | _F.WATCHDOG_STOP)
             return self._accept(seq, P.Reason.OK, "")
-        if self._flags & P.StateFlags.FAULT:
+        if self._flags & _F.FAULT:
             return self._refuse(seq, P.Reason.FAULT, "fault stop; send a mode switch to clear")
         want = P.Mode.VELOCITY if isinstance(msg, P.JointVelocityCommand) else P.Mode.SETPOINT
         if self._mode != want:
@@ -622,7 +625,7 @@ class JointLayerServer:
             self._v_target = v.value
             self._deadline = self._core_state.t + self.config.watchdog_s
             self._armed = True
-            self._flags &= ~P.StateFlags.WATCHDOG_STOP
+            self._flags &= ~_F.WATCHDOG_STOP
             return self._accept(seq, v.code, v.text)
         s = check_setpoint(msg.theta, self.limits, max_speed=msg.max_speed,
                            max_accel=msg.max_accel, policy=self.config.policy)
