@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 from tudorvision.sim.camera import ray_directions_world
-from tudorvision.sim.lighting import apply_sensor, intensity_at, light_terms
+from tudorvision.sim.lighting import apply_sensor, intensity_at, light_terms, weighted_sum
 from tudorvision.sim.render import SensorModel, _surface, cast_rays, render_bgr, render_rgbd
 from tudorvision.sim.scenes import arm_geometry_from_joints, ball_throw, ballistic, stereo_lab
 from tudorvision.robot import load_robot_params
@@ -38,7 +38,7 @@ def naive_bgr(camera, scene, t, rng):
         rr, cc = np.nonzero(ids == i + 1)
         if rr.size:
             p, n, a = _surface(camera, shape, rr, cc, dist[rr, cc])
-            rad[rr, cc] = np.tensordot(gains, light_terms(scene.lights, p, n, a), axes=1)
+            rad[rr, cc] = weighted_sum(gains, light_terms(scene.lights, p, n, a))
     return apply_sensor(rad, SensorModel(), rng)
 
 

@@ -15,7 +15,7 @@ from .._checks import check_vector
 
 __all__ = [
     "Varying", "AmbientLight", "DirectionalLight", "PointLight", "intensity_at",
-    "light_terms", "SensorModel", "apply_sensor",
+    "light_terms", "SensorModel", "apply_sensor", "fast_standard_normal", "weighted_sum",
 ]
 
 Intensity = Union[float, Callable[[float], float]]
@@ -196,7 +196,7 @@ def apply_sensor(radiance_rgb: np.ndarray, sensor: SensorModel, rng: np.random.G
     if rng is not None:
         sigma = np.add(e, np.float32(sensor.read_noise_e ** 2))
         np.sqrt(sigma, out=sigma)
-        sigma *= rng.standard_normal(e.shape, dtype=np.float32)
+        sigma *= fast_standard_normal(rng, e.shape)
         e += sigma
     e *= np.float32(_ADC_MAX) / fw
     e += np.float32(0.5)
@@ -205,6 +205,32 @@ def apply_sensor(radiance_rgb: np.ndarray, sensor: SensorModel, rng: np.random.G
 
 
 _ADC_MAX = 4095
+_NORMAL_TABLE: np.ndarray | None = None
+
+
+def fast_standard_normal(rng: np.random.Generator, shape) -> np.ndarray:
+    """Standard-normal float32 samples via a 16-bit inverse-CDF table (about 3x faster than
+    ``rng.standard_normal`` for image-sized draws; tails beyond 4.3 sigma are cut, std 1 - 1e-5).
+
+    Examples
+    --------
+    >>> x = fast_standard_normal(np.random.default_rng(0), (100000,))
+    >>> bool(abs(x.std() - 1) < 0.01 and abs(x.mean()) < 0.01)
+    True
+    """
+    global _NORMAL_TABLE
+    if _NORMAL_TABLE is None:
+        from scipy.special import ndtri
+        _NORMAL_TABLE = ndtri((np.arange(65536) + 0.5) / 65536).astype(np.float32)
+    return _NORMAL_TABLE[rng.integers(0, 65536, size=shape, dtype=np.uint16)]
+
+
+def weighted_sum(weights, images: np.ndarray) -> np.ndarray:
+    """``sum_l weights[l] * images[l]`` in float32 without BLAS (images shape (L, ...))."""
+    out = np.multiply(images[0], np.float32(weights[0]), dtype=np.float32)
+    for w, img in zip(weights[1:], images[1:]):
+        out += np.float32(w) * img
+    return out
 
 
 def _gamma_lut(gamma: float) -> np.ndarray:

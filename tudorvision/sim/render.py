@@ -36,7 +36,7 @@ import numpy as np
 from .._checks import check_array, check_vector
 from .camera import (PinholeCamera, camera_center_world, distort_normalized, points_cam_from_world,
                      ray_directions_cam, ray_directions_world, _pixels_from_normalized)
-from .lighting import SensorModel, apply_sensor, intensity_at, light_terms
+from .lighting import SensorModel, apply_sensor, intensity_at, light_terms, weighted_sum
 
 __all__ = [
     "Sphere", "Rectangle", "Disc", "Box", "Capsule", "Cylinder", "Scene", "GBuffer",
@@ -764,7 +764,7 @@ def render_radiance(camera: PinholeCamera, scene: Scene, t: float, *, exposure_s
     st = _static(camera, scene)
     t_light = t + 0.5 * exposure_s + 0.5 * (H - 1) * line_time_s
     gains = np.array([intensity_at(light, t_light) for light in scene.lights], np.float32)
-    base = np.tensordot(gains, st.terms, axes=1)
+    base = weighted_sum(gains, st.terms)
     if scene.dynamic is None:
         return base
     K = int(n_subframes) if exposure_s > 0 else 1
@@ -791,7 +791,7 @@ def render_radiance(camera: PinholeCamera, scene: Scene, t: float, *, exposure_s
         shapes, boxes = cache[k]
         for j, shape, rr, cc, tj in _dynamic_hits(camera, shapes, boxes, st, rows):
             p, n, a = _surface(camera, shape, rr, cc, tj)
-            rad = np.tensordot(gains, light_terms(scene.lights, p, n, a), axes=1)
+            rad = weighted_sum(gains, light_terms(scene.lights, p, n, a))
             out[rr, cc] += (rad - base[rr, cc]) / K
     return out
 
