@@ -221,3 +221,22 @@ def test_bad_render_arguments_raise(kwargs, name):
     scene = _moving_scene([0, 0, 0])
     with pytest.raises(ValueError, match=name):
         render_bgr(cam, scene, 0.0, **kwargs)
+
+
+def test_blurred_sphere_centroid_is_mean_over_exposure():
+    """Coverage-weighted centroid of a blurred sphere = mean silhouette centroid over the sub-frame times."""
+    from tudorvision.sim.render import exposure_times
+    cam = look_at([0, -3, 0], [0, 0, 0], K=intrinsic_matrix(150.0, 79.5, 59.5), dist=[-0.1, 0.02, 0, 0, 0],
+                  width=160, height=120)
+    v = np.array([4.0, 0.0, 1.5])
+    scene = _moving_scene(v, radius=0.15)
+    rad = render_radiance(cam, scene, 0.0, exposure_s=0.05, n_subframes=10)
+    bg, fg = 0.5, 0.9  # ambient-only: radiance = albedo (red channel)
+    cover = np.clip((rad[..., 0] - bg) / (fg - bg), 0.0, 1.0)
+    vv, uu = np.mgrid[0:120, 0:160]
+    centroid = np.array([(cover * uu).sum(), (cover * vv).sum()]) / cover.sum()
+    times = exposure_times(0.0, exposure_s=0.05, n_subframes=10)
+    truth = np.mean([sphere_silhouette_centroid(cam, v * tt, 0.15) for tt in times], axis=0)
+    assert np.hypot(*(centroid - truth)) < 0.2
+    sharp = sphere_silhouette_centroid(cam, [0.0, 0.0, 0.0], 0.15)
+    assert np.hypot(*(truth - sharp)) > 3.0  # the blur moved the centroid by several pixels

@@ -41,7 +41,7 @@ from .lighting import SensorModel, apply_sensor, intensity_at, light_terms, weig
 __all__ = [
     "Sphere", "Rectangle", "Disc", "Box", "Capsule", "Cylinder", "Scene", "GBuffer",
     "render_gbuffer", "render_radiance", "render_bgr", "DepthModel", "depth_sigma_m",
-    "depth_mm_from_gbuffer", "render_rgbd", "cast_rays", "pixel_bbox", "pixel_bboxes",
+    "depth_mm_from_gbuffer", "render_rgbd", "exposure_times", "cast_rays", "pixel_bbox", "pixel_bboxes",
 ]
 
 _EPS = 1e-6
@@ -741,6 +741,27 @@ def _check_timing(exposure_s, n_subframes, line_time_s, band_rows):
         raise ValueError(f"line_time_s: expected >= 0, got {line_time_s!r}")
     if int(band_rows) != band_rows or band_rows < 1:
         raise ValueError(f"band_rows: expected a positive integer, got {band_rows!r}")
+
+
+def exposure_times(t: float, *, exposure_s: float = 0.0, n_subframes: int = 1, row: int = 0,
+                   line_time_s: float = 0.0) -> np.ndarray:
+    """Times at which :func:`render_radiance` samples the dynamic shapes for image row ``row``.
+
+    Average ground truth (e.g. a sphere's silhouette centroid) over these
+    times to match a blurred frame. With a rolling shutter the renderer
+    rounds them to its band grid (see :func:`render_radiance`).
+
+    Examples
+    --------
+    >>> exposure_times(1.0, exposure_s=0.02, n_subframes=4).round(4).tolist()
+    [1.0025, 1.0075, 1.0125, 1.0175]
+    """
+    _check_timing(exposure_s, n_subframes, line_time_s, 1)
+    start = t + row * line_time_s
+    if exposure_s == 0:
+        return np.array([start])
+    K = int(n_subframes)
+    return start + exposure_s * (np.arange(K) + 0.5) / K
 
 
 def render_radiance(camera: PinholeCamera, scene: Scene, t: float, *, exposure_s: float = 0.0,

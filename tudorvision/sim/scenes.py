@@ -359,7 +359,7 @@ def _robot_base_shapes(T, link1_height_m):
 def stereo_lab(rng: np.random.Generator, *, arm=None, T_world_base=np.eye(4),
                rig: StereoRigConfig = StereoRigConfig(), sphere_radius_m: float | None = None,
                link1_height_m: float | None = None, n_clutter: int = 8, n_distractors: int = 4,
-               jitter_rig: bool = False) -> SimSetup:
+               jitter_rig: bool = False, t0: float = 0.0) -> SimSetup:
     """The external stereo tracking set: ceiling rig, lab clutter, robot, red and green spheres.
 
     Parameters
@@ -374,6 +374,8 @@ def stereo_lab(rng: np.random.Generator, *, arm=None, T_world_base=np.eye(4),
     rig : StereoRigConfig
     sphere_radius_m, link1_height_m : float, optional
         Default to :func:`tudorvision.robot.load_robot_params`.
+    t0 : float
+        A time at which ``arm`` is defined (used once to list object names).
 
     Returns
     -------
@@ -406,7 +408,7 @@ def stereo_lab(rng: np.random.Generator, *, arm=None, T_world_base=np.eye(4),
             return arm_shapes(arm_at(t), T, sphere_radius_m=radius)
     scene = Scene(static=shapes, lights=lights, dynamic=dynamic)
     return SimSetup(scene=scene, cameras={"left": left, "right": right},
-                    meta={"T_world_base": T, "sphere_radius_m": radius, "object_ids": scene.object_ids(0.0),
+                    meta={"T_world_base": T, "sphere_radius_m": radius, "object_ids": scene.object_ids(t0),
                           "rate_hz": STEREO_RATE_HZ})
 
 
@@ -461,7 +463,7 @@ def planar_target(distance_m: float, rng: np.random.Generator, *, width: int = 6
 
 def wall_disc(disc_center_base, rng: np.random.Generator, *, T_world_base=np.eye(4), arm=None,
               disc_radius_m: float = 0.075, camera_standoff_m: float = 3.5, camera_height_m: float = 1.6,
-              width: int = 640, height: int = 480) -> SimSetup:
+              width: int = 640, height: int = 480, t0: float = 0.0) -> SimSetup:
     """Wall-mounted RGB-D camera facing the robot, a disc in the catching net (base calibration sweep).
 
     Parameters
@@ -510,7 +512,7 @@ def wall_disc(disc_center_base, rng: np.random.Generator, *, T_world_base=np.eye
 
     scene = Scene(static=shapes, lights=lights, dynamic=dynamic)
     return SimSetup(scene=scene, cameras={"rgbd": cam},
-                    meta={"object_ids": scene.object_ids(0.0), "T_world_base": T, "disc_center_world": disc_world,
+                    meta={"object_ids": scene.object_ids(t0), "T_world_base": T, "disc_center_world": disc_world,
                           "disc_radius_m": radius, "rate_hz": KINECT_RATE_HZ})
 
 
@@ -540,7 +542,8 @@ def ballistic(p0_world, v0_world, *, t0: float = 0.0, gravity_m_s2: float = 9.81
 
 def ball_throw(ball_center_world: Callable[[float], np.ndarray], rng: np.random.Generator, *,
                T_world_base=np.eye(4), arm=None, ball_radius_m: float = 0.045,
-               camera_position_world=(0.0, -6.8, 2.0), width: int = 640, height: int = 480) -> SimSetup:
+               camera_position_world=(0.0, -6.8, 2.0), width: int = 640, height: int = 480,
+               t0: float = 0.0) -> SimSetup:
     """RGB-D camera on the wall behind the thrower, looking at the robot; a 9 cm ball in flight.
 
     The ball is the only moving object within 4.5 m of the sensor (the arm,
@@ -577,7 +580,7 @@ def ball_throw(ball_center_world: Callable[[float], np.ndarray], rng: np.random.
 
     scene = Scene(static=shapes, lights=lights, dynamic=dynamic)
     return SimSetup(scene=scene, cameras={"rgbd": cam},
-                    meta={"object_ids": scene.object_ids(0.0), "ball_center_world": ball_center_world,
+                    meta={"object_ids": scene.object_ids(t0), "ball_center_world": ball_center_world,
                           "ball_radius_m": r, "T_world_base": T, "rate_hz": KINECT_RATE_HZ})
 
 
