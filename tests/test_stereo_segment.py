@@ -141,9 +141,14 @@ def test_rejections_name_the_reason(models):
     d = detect_sphere(img, m, motion_blur=True)  # elongation allowed when blur is expected
     assert d.valid and d.uv == pytest.approx((60.0, 94.0), abs=1e-6)
     img = _plain()
-    cv2.circle(img, (120, 100), 14, col, 5)  # a ring: round, but hollow
+    cv2.ellipse(img, (120, 100), (14, 14), 0, 40, 320, col, 5)  # an open ring: round, not compact
     d = detect_sphere(img, m)
     assert not d.valid and "fill" in d.reason
+    img = _plain()
+    cv2.circle(img, (120, 100), 14, col, 5)  # a closed ring: the hole is filled, so it is a disc
+    d = detect_sphere(img, m)
+    assert d.valid and d.area_px == pytest.approx(np.pi * 17.0 ** 2, rel=0.1)
+    assert d.uv == pytest.approx((120.0, 100.0), abs=0.05)
     img = _plain()
     cv2.circle(img, (4, 100), 10, col, -1)  # cut by the image border
     d = detect_sphere(img, m)

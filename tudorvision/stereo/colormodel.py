@@ -331,7 +331,7 @@ class ColorModel:
 def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_pixels: int = 12,
                     max_std: float = 45.0, max_hue_std: float = 20.0, min_saturation: float = 30.0,
                     background_margin: float = 1.5, llr_clip: float = 8.0, prior: float | None = None,
-                    verify: bool = True) -> ColorModel:
+                    min_std=(6.0, 6.0, 6.0, 2.0, 8.0, 6.0), verify: bool = True) -> ColorModel:
     """Fit a sphere's colour model from a picked centre and edge pixel.
 
     Parameters
@@ -357,6 +357,10 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
         radius`` from the centre (every second row and column of the frame).
     llr_clip : float
         Per-channel log-likelihood-ratio clip, see :class:`ColorModel`.
+    min_std : array_like, shape (6,)
+        Floor of the fitted standard deviations (R, G, B, H, S, V levels): a
+        small, evenly lit pick would otherwise give a model too narrow for
+        sensor noise and lighting changes over the sequence.
     prior : float, optional
         Prior sphere probability per pixel; default: circle area over frame
         area, limited to [1e-4, 0.2].
@@ -391,6 +395,9 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
     e = _check_uv(edge_uv, "edge_uv", w, h)
     if not (0 < shrink <= 1):
         raise TudorVisionError(f"shrink: must lie in (0, 1], got {shrink}")
+    min_std = np.asarray(min_std, dtype=np.float64).reshape(-1)
+    if min_std.shape != (6,) or not np.all(min_std > 0):
+        raise TudorVisionError(f"min_std: expected 6 positive values (R, G, B, H, S, V), got {min_std.tolist()}")
     radius = float(np.hypot(*(e - c)))
     if radius < 1.0:
         raise TudorVisionError(
@@ -419,8 +426,8 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
         raise TudorVisionError(
             f"center_uv, edge_uv: the picked circle is not one colour (std {', '.join(bad)} exceeds "
             f"max_std={max_std:g}/max_hue_std={max_hue_std:g}); is the pick on the sphere?")
-    # floor the spread: sensor noise and a different frame never reproduce the pick exactly
-    std = np.maximum(std, [3.0, 3.0, 3.0, 1.5, 4.0, 4.0])
+    # floor the spread: sensor noise and lighting changes over the sequence
+    std = np.maximum(std, min_std)
     if not use_hue:
         std[_HUE] = HUE_LEVELS  # unused, but a valid number
 

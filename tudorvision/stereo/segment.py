@@ -14,10 +14,12 @@ The pipeline of section 2.4, per camera and sphere:
 3. **Region growing.** Every 8-connected region of pixels with probability
    >= ``p_grow`` that contains a seed (hysteresis thresholding, computed
    with ``cv2.connectedComponentsWithStats``).
-4. **Centroid.** First moment of the region, each pixel weighted by its
-   probability (``weighting="probability"``, default: rim pixels that mix
-   sphere and background count partially, which gives sub-pixel accuracy) or
-   equally (``"binary"``). Image coordinates: ``u`` right, ``v`` down, pixel
+4. **Centroid.** Holes enclosed by the region (a specular highlight, a
+   marking) are filled: the region is the sphere's silhouette. Its first
+   moment, each pixel weighted by its probability (``weighting="probability"``,
+   default: rim pixels that mix sphere and background count partially, which
+   gives sub-pixel accuracy; filled hole pixels count fully) or equally
+   (``"binary"``). Image coordinates: ``u`` right, ``v`` down, pixel
    centres at integer coordinates (OpenCV). Under motion blur the region is
    the streak and its first moment is the mean position over the exposure.
 5. **Quality and plausibility.** Area, mean probability, circularity and a
@@ -25,8 +27,8 @@ The pipeline of section 2.4, per camera and sphere:
    of :class:`SegmentParams` are rejected with a reason. The best region is
    the valid one with the largest probability mass.
 
-Shape measures (from the central second moments, eigenvalues
-``lam1 >= lam2`` of the region's pixel covariance):
+Shape measures (area and the central second moments of the filled region,
+eigenvalues ``lam1 >= lam2`` of its pixel covariance):
 
 - ``circularity = sqrt(lam2 / lam1)``: 1 for a disc, ``1/elongation`` for
   an ellipse or a blur streak. It does not suffer from the pixel-staircase
@@ -118,8 +120,8 @@ class SegmentParams:
         Coarse candidates refined at full resolution.
     """
 
-    p_seed: float = 0.95
-    p_grow: float = 0.5
+    p_seed: float = 0.999
+    p_grow: float = 0.99
     erode_radius_px: int = 1
     min_area_px: float = 8.0
     max_area_px: float = 40000.0
@@ -329,6 +331,15 @@ def _erode_kernel(r: int):
     return _KERNELS[r]
 
 
+def _fill_holes(mask: np.ndarray) -> np.ndarray:
+    """``mask`` (bool, h x w) with every hole it encloses filled (4-connected background)."""
+    h, w = mask.shape
+    pad = np.zeros((h + 2, w + 2), np.uint8)
+    pad[1:-1, 1:-1] = mask
+    cv2.floodFill(pad, None, (0, 0), 1)  # everything outside the region becomes 1
+    return mask | (pad[1:-1, 1:-1] == 0)
+
+
 def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, image_size: tuple,
                 blur: bool, *, erode: int, scale: int = 1) -> list:
     """Seeds, region growing, centroid and checks on a log-odds window.
@@ -363,10 +374,17 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
                                        mean_prob=mean_prob, circularity=float("nan"), valid=False,
                                        reason="coarse", bbox=(x * scale, y * scale, w * scale, h * scale)))
             continue
-        vs, us = np.nonzero(lab)
+        # the silhouette: holes enclosed by the region (a specular highlight, markings) belong to it
+        filled = _fill_holes(lab)
+        area = int(np.count_nonzero(filled))
+        vs, us = np.nonzero(filled)
         us = us.astype(np.float64)
         vs = vs.astype(np.float64)
-        wgt = p if params.weighting == "probability" else np.ones_like(p)
+        if params.weighting == "probability":
+            p_box = 1.0 / (1.0 + np.exp(-log_odds[y:y + h, x:x + w].astype(np.float64)))
+            wgt = np.where(lab, p_box, 1.0)[filled]
+        else:
+            wgt = np.ones_like(us)
         mass = float(wgt.sum())
         cu = float(wgt @ us) / mass + (x + x0)
         cv_ = float(wgt @ vs) / mass + (y + y0)
