@@ -80,20 +80,19 @@ class JointAdapter:
         self.transport = transport
         self.retry_interval_s = float(retry_interval_s)
         self._seq = int(first_seq) & 0xFFFFFFFF
-        self._stats = AdapterStats()
+        self._counts = dict.fromkeys(AdapterStats.__dataclass_fields__, 0)
+        self._counts["rtt_s"] = None
         self.last_state: State | None = None
         self.last_reply: Ack | Refusal | None = None
         self._replies: collections.OrderedDict = collections.OrderedDict()
 
     # ------------------------------------------------------------- plumbing
-    def _count(self, **inc):
-        s = self._stats
-        self._stats = AdapterStats(**{**s.__dict__, **{k: getattr(s, k) + v
-                                                        for k, v in inc.items()}})
+    def _count(self, key: str) -> None:
+        self._counts[key] += 1
 
     def stats(self) -> AdapterStats:
         """Snapshot of the counters."""
-        return self._stats
+        return AdapterStats(**self._counts)
 
     def _next_seq(self) -> int:
         seq = self._seq
@@ -102,25 +101,25 @@ class JointAdapter:
 
     def _transmit(self, msg, seq: int) -> None:
         self.transport.send(P.encode(msg, seq, time.monotonic()))
-        self._count(sent=1)
+        self._count("sent")
 
     def _receive(self, timeout: float):
         """Receive and decode one datagram; update caches. ``None`` on timeout or junk."""
         item = self.transport.recv(max(timeout, 0.0))
         if item is None:
             return None
-        self._count(received=1)
+        self._count("received")
         try:
             header, msg = P.decode(item[0])
         except P.ProtocolError:
-            self._count(malformed=1)
+            self._count("malformed")
             return None
         if isinstance(msg, State):
-            self._count(states=1)
+            self._count("states")
             if self.last_state is None or msg.t >= self.last_state.t:
                 self.last_state = msg
         elif isinstance(msg, (Ack, Refusal)):
-            self._count(**{"acks" if isinstance(msg, Ack) else "refusals": 1})
+            self._count("acks" if isinstance(msg, Ack) else "refusals")
             self.last_reply = msg
             self._replies[msg.command_seq] = msg
             self._replies.move_to_end(msg.command_seq)
@@ -156,20 +155,19 @@ class JointAdapter:
         while True:
             now = time.monotonic()
             if now >= deadline:
-                self._count(timeouts=1)
+                self._count("timeouts")
                 return None
             if now >= next_retry:
                 if not command:            # queries get a fresh number, commands keep theirs
                     seq = self._next_seq()
                     seqs.add(seq)
                 self._transmit(msg, seq)
-                self._count(retransmissions=1)
+                self._count("retransmissions")
                 next_retry = now + self.retry_interval_s
                 continue
             got = self._receive(min(next_retry, deadline) - now)
             if got is not None and match(seqs, got[1]):
-                self._stats = AdapterStats(**{**self._stats.__dict__,
-                                              "rtt_s": time.monotonic() - t0})
+                self._counts["rtt_s"] = time.monotonic() - t0
                 return got[1]
 
     @staticmethod

@@ -251,13 +251,15 @@ class State:
     counters: Counters = field(default_factory=Counters)
 
     def __post_init__(self):
-        object.__setattr__(self, "t", float(self.t))
+        put = object.__setattr__
+        put(self, "t", float(self.t))
         for name, n in (("theta", 3), ("theta_dot", 3), ("strains", 4), ("residuals", 3)):
-            object.__setattr__(self, name, _floats(getattr(self, name), name, n))
-        object.__setattr__(self, "flags", StateFlags(int(self.flags)))
-        object.__setattr__(self, "mode", Mode(self.mode))
-        object.__setattr__(self, "damping", Damping(self.damping))
-        object.__setattr__(self, "collision", CollisionStrategy(self.collision))
+            put(self, name, _floats(getattr(self, name), name, n))
+        if type(self.flags) is not StateFlags:
+            put(self, "flags", StateFlags(int(self.flags)))
+        for name, cls in (("mode", Mode), ("damping", Damping), ("collision", CollisionStrategy)):
+            if type(getattr(self, name)) is not cls:
+                put(self, name, cls(getattr(self, name)))
 
     @property
     def settled(self) -> bool:
@@ -349,7 +351,7 @@ _ALL_FLAGS = int(sum(f.value for f in StateFlags))
 
 
 def _check_finite(values, what: str, strict: bool) -> None:
-    if strict and not all(math.isfinite(v) for v in values):
+    if strict and not all(map(math.isfinite, values)):
         raise NonFinite(f"{what}: NaN or infinite value")
 
 
@@ -444,7 +446,7 @@ def _unpack_payload(header: Header, payload: bytes):
         raise BadLength(f"{mtype.name} payload: expected {want} bytes, got {len(payload)}", header)
 
     def finite(values, what):
-        if not all(math.isfinite(v) for v in values):
+        if not all(map(math.isfinite, values)):
             raise NonFinite(f"{what}: NaN or infinite value", header)
 
     if mtype == MsgType.VELOCITY:

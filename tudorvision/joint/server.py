@@ -8,7 +8,7 @@ damping and collision handling is wired in with :func:`register_core`.
 
 Safety that the server owns, whatever the core:
 
-* velocity commands expire after ``watchdog_s`` of core time (default 0.1 s);
+* velocity commands expire after ``watchdog_s`` of control time (default 0.1 s);
   then the velocity reference ramps to zero at the acceleration limits
   (controlled stop) and ``WATCHDOG_STOP`` is flagged;
 * velocity references are speed-checked, acceleration-limited and braked so
@@ -39,7 +39,7 @@ import collections
 import threading
 import types
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Callable, Hashable, Protocol, runtime_checkable
 
 import numpy as np
@@ -242,7 +242,8 @@ class ServerConfig:
     rate_hz : float
         Control rate of the server loop (the core may sub-step faster).
     watchdog_s : float
-        Lifetime of a velocity command in core time.
+        Lifetime of a velocity command in control time (the sum of the steps
+        given to the core: wall time unless the loop falls behind).
     max_command_age_s : float or None
         Motion commands that arrive later than this relative to the fastest
         delivery seen from their sender are ignored as stale (None: off).
@@ -353,7 +354,7 @@ class JointLayerServer:
         self._thread = None
         self._clients: collections.OrderedDict = collections.OrderedDict()
         self._log = collections.deque(maxlen=config.log_size)
-        self._counters = P.Counters()
+        self._counts = dict.fromkeys(P.Counters.__dataclass_fields__, 0)
         self._seq = 0
         self._mode = P.Mode(config.initial_mode)
         self._damping, self._collision = P.Damping.OFF, P.CollisionStrategy.NONE
@@ -362,6 +363,7 @@ class JointLayerServer:
         self._v_target = np.zeros(3)
         self._v_ref = np.zeros(3)
         self._deadline = -np.inf
+        self._t_ctrl = 0.0          # control time: sum of the dt given to the core
         self._armed = False
         self._period = 1.0 / config.rate_hz
         core.set_modes(damping=self._damping, collision=self._collision)
@@ -376,8 +378,9 @@ class JointLayerServer:
 
     @property
     def counters(self) -> P.Counters:
+        """Snapshot of the event counters."""
         with self._lock:
-            return self._counters
+            return P.Counters(**self._counts)
 
     @property
     def mode(self) -> P.Mode:
@@ -403,7 +406,7 @@ class JointLayerServer:
                            residuals=cs.residuals, flags=flags, mode=self._mode,
                            damping=self._damping, collision=self._collision,
                            last_command_seq=self._last_command_seq, request_seq=request_seq,
-                           counters=self._counters)
+                           counters=P.Counters(**self._counts))
 
     # ------------------------------------------------------------- lifecycle
     def serve_forever(self, rate_hz: float | None = None) -> None:
@@ -477,14 +480,14 @@ class JointLayerServer:
                 item = self.transport.recv(0.0)
 
     def _count(self, **inc):
-        c = self._counters
-        self._counters = replace(c, **{k: getattr(c, k) + v for k, v in inc.items()})
+        for k, v in inc.items():
+            self._counts[k] += v
 
     def _tick(self, dt: float) -> None:
         with self._lock:
             cs = self._core_state
             if self._mode == P.Mode.VELOCITY:
-                if self._armed and cs.t >= self._deadline:
+                if self._armed and self._t_ctrl >= self._deadline:
                     self._armed = False
                     self._v_target = np.zeros(3)
                     self._flags |= _F.WATCHDOG_STOP
@@ -498,6 +501,7 @@ class JointLayerServer:
                 self._v_ref = ramp_velocity(self._v_ref, braked, self.limits.max_accel_rad_s2, dt)
                 self.core.apply_velocity(self._v_ref.copy())
             self.core.step(dt)
+            self._t_ctrl += dt
             self._core_state = cs = self.core.state()
             over_speed = np.any(np.abs(cs.theta_dot)
                                 > self.config.fault_speed_factor * self.limits.max_speed_rad_s)
@@ -623,7 +627,7 @@ class JointLayerServer:
             if not v.accepted:
                 return self._refuse(seq, v.code, v.text)
             self._v_target = v.value
-            self._deadline = self._core_state.t + self.config.watchdog_s
+            self._deadline = self._t_ctrl + self.config.watchdog_s
             self._armed = True
             self._flags &= ~_F.WATCHDOG_STOP
             return self._accept(seq, v.code, v.text)
