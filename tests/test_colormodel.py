@@ -11,8 +11,8 @@ import scipy.stats
 from test_stereo_segment_scenes import RED_BGR, make_frame, two_spheres
 from tudorvision._checks import TudorVisionError
 from tudorvision.stereo.colormodel import (
-    CHANNELS, ColorModel, ColorModelSet, circular_hue_stats, fit_color_model, load_color_models,
-    save_color_models)
+    CHANNELS, ColorModel, ColorModelSet, circular_hue_stats, fit_color_model, fit_color_model_set,
+    load_color_models, parse_pick, save_color_models)
 
 RED_UV, GREEN_UV, R = (200.3, 150.7), (420.2, 300.4), 10.0
 
@@ -210,3 +210,32 @@ def test_load_errors(tmp_path, models):
 def test_channels_constant():
     assert CHANNELS == ("R", "G", "B", "H", "S", "V")
     assert RED_BGR[2] > RED_BGR[0]
+
+
+def test_picks_to_model_set(pick_frame):
+    s = fit_color_model_set({"left": pick_frame, "right": pick_frame},
+                            ["left:red:200,151:210,151", "left:green:420,300:430,300",
+                             ("right", "red", (200, 151), (210, 151))])
+    assert s.cameras == ("left", "right") and s.spheres("left") == ("red", "green")
+    assert s.get("right", "red").center_uv == (200.0, 151.0)
+    assert parse_pick(" mono : ball : 1.5,2 : 3,4 ") == ("mono", "ball", (1.5, 2.0), (3.0, 4.0))
+
+
+def test_pick_errors(pick_frame):
+    with pytest.raises(TudorVisionError, match="--pick 'left:red:1,2': expected CAMERA:SPHERE:CU,CV:EU,EV"):
+        parse_pick("left:red:1,2")
+    with pytest.raises(TudorVisionError, match="expected CAMERA:SPHERE"):
+        parse_pick("left:red:1,x:3,4")
+    with pytest.raises(TudorVisionError, match="camera must be one of left, right, mono, got 'top'"):
+        parse_pick("top:red:1,2:3,4")
+    with pytest.raises(TudorVisionError, match="empty sphere name"):
+        parse_pick("left::1,2:3,4")
+    frames = {"left": pick_frame}
+    with pytest.raises(TudorVisionError, match="--pick 'right:red:200,151:210,151': no frame for camera 'right'"):
+        fit_color_model_set(frames, ["right:red:200,151:210,151"])
+    with pytest.raises(TudorVisionError, match="picked twice"):
+        fit_color_model_set(frames, ["left:red:200,151:210,151", "left:red:200,151:211,151"])
+    with pytest.raises(TudorVisionError, match="--pick 'left:red:900,151:910,151': center_uv: pixel"):
+        fit_color_model_set(frames, ["left:red:900,151:910,151"])
+    with pytest.raises(TudorVisionError, match="at least one --pick"):
+        fit_color_model_set(frames, [])

@@ -1,6 +1,9 @@
 """Tracking mode: windows around the prediction, full-frame fallback, image borders."""
 from __future__ import annotations
 
+import os
+
+import cv2
 import numpy as np
 import pytest
 
@@ -176,3 +179,32 @@ def test_tracker_errors(models):
         FrameTracker({})
     with pytest.raises(TudorVisionError, match="frame_bgr: expected a uint8 BGR image"):
         SphereTracker(models["red"]).update(np.zeros((10, 10), np.uint8))
+
+
+BALL2 = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "realdata", "ball_videos", "ball2.mp4")
+
+
+@pytest.mark.skipif(not os.path.exists(BALL2), reason="../shared/realdata/ball_videos/ball2.mp4 not present")
+def test_real_video_hand_held_ball():
+    """Real camera: a light-green striped ball moved by hand (partly occluded by the hand)."""
+    cap = cv2.VideoCapture(BALL2)
+    frames = []
+    while len(frames) < 220:
+        ok, f = cap.read()
+        if not ok:
+            break
+        frames.append(f)
+    cap.release()
+    assert len(frames) == 220
+    model = fit_color_model(frames[100], (487, 110), (509, 110))  # picked by eye on frame 100
+    trk = SphereTracker(model)
+    dets = [trk.update(f) for f in frames[60:220]]
+    valid = np.array([d.valid for d in dets])
+    assert valid.mean() > 0.8
+    uv = np.array([d.uv for d in dets])
+    k = 100 - 60
+    assert valid[k] and np.hypot(*(uv[k] - (487, 110))) < 12
+    steps = np.hypot(*np.diff(uv, axis=0).T)
+    both = valid[1:] & valid[:-1]
+    assert np.median(steps[both]) < 15  # a continuous track, not jumps between blobs
+    assert trk.n_window > trk.n_full

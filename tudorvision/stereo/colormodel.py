@@ -39,6 +39,8 @@ __all__ = [
     "ColorModel",
     "ColorModelSet",
     "fit_color_model",
+    "fit_color_model_set",
+    "parse_pick",
     "save_color_models",
     "load_color_models",
     "circular_hue_stats",
@@ -528,6 +530,93 @@ class ColorModelSet:
                 f"sphere: the colour model set has no sphere {sphere!r} for camera {camera!r} "
                 f"(has {', '.join(cam)})")
         return cam[sphere]
+
+
+def parse_pick(text: str) -> tuple:
+    """Parse a ``CAMERA:SPHERE:CU,CV:EU,EV`` pick (the CLI's ``--pick``).
+
+    Parameters
+    ----------
+    text : str
+        Camera (``left``, ``right`` or ``mono``), sphere name, centre pixel
+        and edge pixel, e.g. ``"left:red:320,240:331,240"``.
+
+    Returns
+    -------
+    camera : str
+    sphere : str
+    center_uv, edge_uv : tuple of float
+
+    Raises
+    ------
+    TudorVisionError
+        Naming ``--pick`` and the text when it does not parse.
+
+    Examples
+    --------
+    >>> parse_pick("left:red:320,240:331.5,240")
+    ('left', 'red', (320.0, 240.0), (331.5, 240.0))
+    """
+    parts = str(text).split(":")
+    usage = f"--pick {text!r}: expected CAMERA:SPHERE:CU,CV:EU,EV (e.g. left:red:320,240:331,240)"
+    if len(parts) != 4:
+        raise TudorVisionError(usage)
+    cam, sphere = parts[0].strip(), parts[1].strip()
+    if cam not in _CAMERAS:
+        raise TudorVisionError(f"--pick {text!r}: camera must be one of {', '.join(_CAMERAS)}, got {cam!r}")
+    if not sphere:
+        raise TudorVisionError(f"--pick {text!r}: empty sphere name")
+    pts = []
+    for part in parts[2:]:
+        try:
+            u, v = (float(x) for x in part.split(","))
+        except ValueError:
+            raise TudorVisionError(usage) from None
+        if not (math.isfinite(u) and math.isfinite(v)):
+            raise TudorVisionError(usage)
+        pts.append((u, v))
+    return cam, sphere, pts[0], pts[1]
+
+
+def fit_color_model_set(frames: Mapping, picks, **options) -> "ColorModelSet":
+    """Fit one colour model per pick and collect them per camera and sphere.
+
+    Parameters
+    ----------
+    frames : mapping of str to ndarray
+        ``{camera: BGR uint8 frame}`` (the frame the picks were made on).
+    picks : iterable
+        ``"CAMERA:SPHERE:CU,CV:EU,EV"`` strings (see :func:`parse_pick`) or
+        ``(camera, sphere, center_uv, edge_uv)`` tuples.
+    **options
+        Passed to :func:`fit_color_model`.
+
+    Returns
+    -------
+    ColorModelSet
+
+    Raises
+    ------
+    TudorVisionError
+        A pick that does not parse, names a camera without a frame or is given
+        twice, or whose fit fails; the message starts with the pick.
+    """
+    models: dict = {}
+    for pick in picks:
+        cam, sphere, c, e = parse_pick(pick) if isinstance(pick, str) else pick
+        label = pick if isinstance(pick, str) else f"{cam}:{sphere}"
+        if cam not in frames:
+            raise TudorVisionError(f"--pick {label!r}: no frame for camera {cam!r} (have {', '.join(frames)})")
+        if sphere in models.get(cam, {}):
+            raise TudorVisionError(f"--pick {label!r}: sphere {sphere!r} picked twice for camera {cam!r}")
+        try:
+            model = fit_color_model(frames[cam], c, e, **options)
+        except TudorVisionError as exc:
+            raise TudorVisionError(f"--pick {label!r}: {exc}") from None
+        models.setdefault(cam, {})[sphere] = model
+    if not models:
+        raise TudorVisionError("picks: at least one --pick is needed")
+    return ColorModelSet(models)
 
 
 def save_color_models(model_set: ColorModelSet, path) -> None:
