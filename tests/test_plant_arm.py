@@ -283,3 +283,26 @@ def test_sim_core_follows_the_joint_layer_interface():
     core.stop()
     core.step(1.0)
     assert np.all(np.abs(core.state().theta_dot) < 5e-3)
+
+
+def test_contact_on_the_middle_of_link3_blocks_the_motion():
+    theta0, goal = D([0, 60, -20]), D([0, 60, -70])
+    arm0 = ElasticArm(goal)
+    mid = arm0._probe_position(3, 0.25)
+    # a ball obstacle 6 cm beyond the probe's final position, on the path of link 3
+    start_mid = ElasticArm(theta0)._probe_position(3, 0.25)
+    direction = (mid - start_mid) / np.linalg.norm(mid - start_mid)
+    ob = SpringDamperObstacle(kind="sphere", point_base=start_mid + 0.6 * (mid - start_mid) + 0.05 * direction,
+                              radius_m=0.05, probe_radius_m=0.01, probe_link=3, probe_x_m=0.25,
+                              stiffness_N_m=5e3, damping_Ns_m=20.0)
+    free = simulate_ptp(theta0, goal, 2.0, t_move=0.1)
+    hit = simulate_ptp(theta0, goal, 2.0, t_move=0.1, obstacles=[ob])
+    assert np.all(free.contact_force == 0)
+    f = np.linalg.norm(hit.contact_force, axis=1)
+    assert f.max() > 1.0
+    assert abs(hit.theta[-1, 2] - goal[2]) < D(0.5)        # the stiff joint pushes on
+    # the blade bends against the ball: link-3 hub strain differs from the free run
+    assert abs(hit.strain[-1, 2] - free.strain[-1, 2]) > 20e-6
+    # the probe on link 2 side is untouched: an obstacle far away gives no force
+    with pytest.raises(ValueError, match="probe_link"):
+        SpringDamperObstacle(kind="plane", point_base=[0, 0, 0], probe_link=1)

@@ -7,8 +7,10 @@ Model (assumptions are listed in full in :data:`ASSUMPTIONS`)
   with lumped bodies (link-2 blade, actuator 3 at its tip, link-3 blade,
   payload at the end effector, base inertia), rotor inertia ``n^2 I_M`` on
   the diagonal, friction (3.1.3) with stick/slip and the merged amplifier
-  gain (3.1.2). Link oscillations do not feed back into the joints (the
-  seed's independent joint-link-module assumption, section 5.1).
+  gain (3.1.2). By default link oscillations do not feed back into the
+  joints (the seed's independent joint-link-module assumption, section 5.1);
+  with contacts (or ``PlantConfig.two_way=True``) joints and modes share one
+  energy-consistent assumed-modes mass matrix.
 * Links 2 and 3: Euler–Bernoulli blades clamped at their hubs with the
   distal bodies as tip mass and tip inertia (4.4.6). Deflection
   ``w = w_static + sum_r Phi_r (eta_r - eta_static_r)``: the exact static
@@ -40,7 +42,6 @@ from scipy.linalg import expm
 from .._checks import check_array, check_vector
 from ..joint.cascade import JointCascade, design_cascade, motor_gain, reflected_inertia
 from ..joint.planner import plan_motion
-from ..robot.kinematics import jacobian_ee
 from ..robot.params import RobotParams, load_robot_params
 from .beam import ModalBasis, cantilever_static, link_rho, modal_basis
 
@@ -70,7 +71,12 @@ Simulated TUDOR: assumptions
   and translational accelerations, joint-3 reaction on the link-2 tip and contact forces.
   Gravity stiffening/softening (axial load) and the backlash 'canyons' of fig. 4.8 are not
   modelled, so link-2 frequencies do not vary with the configuration.
-- One-way coupling: link oscillations do not act back on the joints (section 5.1).
+- Coupling: by default one-way (joints drive the links, link oscillations do not act back on
+  the joints, section 5.1). With obstacles (or two_way=True) the joints and modes share an
+  assumed-modes mass matrix built from the exact kinetic energy of the lumped bodies; the
+  servoed joints then load the links (frequencies shift from the BVP values, extra damping).
+- Contact: spring-damper obstacles act on probe spheres on link 2 or 3 (default: the end
+  effector); explicit in time (force of the previous step), no friction.
 - Encoders: 500 lines x 4 quadrature counts per motor revolution.
 """
 
@@ -101,6 +107,17 @@ class PlantConfig:
         Edge of a square payload plate (inertia ``m a^2 / 12``).
     modal_damping_ratio : tuple or None
         Damping ratio per mode; ``None`` takes the values of the parameter file.
+    two_way : bool or None
+        ``False``: the seed's independent joint-link modules (section 5.1): the
+        joints move the links, link oscillations do not act back on the joints;
+        frequencies are those of the BVP and oscillations last tens of seconds.
+        ``True``: energy-consistent assumed-modes model, joints and modes share
+        one mass matrix (exact kinetic energy of the lumped bodies with the BVP
+        shapes as Ritz functions); the joint servo then loads the links, which
+        shifts frequencies (the BVP ignores the offset centre of mass of the
+        distal bodies) and adds damping. ``None`` (default): two-way only when
+        obstacles are present, because contact forces need the consistent
+        model (the one-way coupling is not passive under contact).
     """
 
     dt: float = 0.0005
@@ -112,6 +129,7 @@ class PlantConfig:
     actuator3_inertia_kg_m2: float = 7.5e-5
     plate_size_m: float = 0.08
     modal_damping_ratio: tuple | None = None
+    two_way: bool | None = None
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -299,10 +317,13 @@ def link_static_loads(theta, bodies: ArmBodies, gravity_m_s2: float = 9.81):
 
 @dataclass(frozen=True, kw_only=True)
 class SpringDamperObstacle:
-    """A rigid obstacle touched by a sphere around the end effector.
+    """A rigid obstacle touched by a probe sphere on the arm.
 
     The contact force is ``F = max(0, k d + c d') n`` with penetration depth
-    ``d``, its rate ``d'`` and the outward surface normal ``n``.
+    ``d``, its rate ``d'`` and the outward surface normal ``n``. The probe
+    sphere sits on link ``probe_link`` (2 or 3) at ``probe_x_m`` from that
+    link's hub (default: the tip of link 3, i.e. the end effector). Use one
+    obstacle per probe point to let an object touch several places.
 
     Attributes
     ----------
@@ -316,7 +337,11 @@ class SpringDamperObstacle:
     stiffness_N_m, damping_Ns_m : float
         Contact spring and damper.
     probe_radius_m : float
-        Radius of the contact sphere around the end effector.
+        Radius of the probe sphere.
+    probe_link : {2, 3}
+        Link carrying the probe.
+    probe_x_m : float or None
+        Probe position along the link from its hub, metres; ``None`` = tip.
     """
 
     kind: str
@@ -326,10 +351,16 @@ class SpringDamperObstacle:
     stiffness_N_m: float = 2.0e4
     damping_Ns_m: float = 50.0
     probe_radius_m: float = 0.03
+    probe_link: int = 3
+    probe_x_m: float | None = None
 
     def __post_init__(self):
         if self.kind not in ("plane", "sphere"):
             raise ValueError(f"kind: expected 'plane' or 'sphere', got {self.kind!r}")
+        if self.probe_link not in (2, 3):
+            raise ValueError(f"probe_link: expected 2 or 3, got {self.probe_link!r}")
+        if self.probe_x_m is not None and self.probe_x_m < 0:
+            raise ValueError(f"probe_x_m: expected >= 0 or None, got {self.probe_x_m}")
         object.__setattr__(self, "point_base", check_vector(self.point_base, "point_base", 3))
         n = check_vector(self.normal_base, "normal_base", 3)
         if np.linalg.norm(n) < 1e-12:
@@ -431,8 +462,10 @@ class _LinkModel:
         d2 = basis.shape(self.gauges, 2)
         self.ddphi_g = [[float(d2[r, k]) for r in range(n)] for k in range(len(self.gauges))]
         self.zoh = []
+        self.cdamp = []
         for r in range(n):
             z = float(zeta[min(r, len(zeta) - 1)])
+            self.cdamp.append(2.0 * z * float(om[r]))
             A = expm(np.array([[0.0, 1.0], [-om[r] ** 2, -2.0 * z * om[r]]]) * dt)
             self.zoh.append(tuple(float(v) for v in A.ravel()))
         self.n = n
@@ -493,6 +526,7 @@ class ElasticArm:
         else:
             self._quant = None
         self.obstacles = tuple(obstacles)
+        self._two_way = bool(self.obstacles) if config.two_way is None else bool(config.two_way)
         th = check_vector(theta0, "theta0", 3)
         self.t = 0.0
         self.theta = [float(x) for x in th]
@@ -500,7 +534,10 @@ class ElasticArm:
         self.ddtheta = [0.0, 0.0, 0.0]
         self.tau = [0.0, 0.0, 0.0]
         self.contact_force = [0.0, 0.0, 0.0]
-        self._p_prev = None
+        self._in_contact = False
+        self._contact_tau = [0.0, 0.0, 0.0]
+        self._contact_q = ([], [])
+        self._probe_prev = None
         self.payload = payload or Payload.from_parts(p, camera=True)
         self._build(self.payload)
         n_m = config.n_modes
@@ -649,18 +686,26 @@ class ElasticArm:
         for j in range(3):          # viscous friction, explicit
             v = dth[j]
             rhs[j] -= (self._kvp[j] if v > 0 else self._kvn[j]) * v
-        fc = self.contact_force
-        if fc[0] != 0.0 or fc[1] != 0.0 or fc[2] != 0.0:
-            Jc = jacobian_ee(th, self.params)
-            tc = Jc.T @ np.asarray(fc)
+        if self._in_contact:
             for j in range(3):
-                rhs[j] += float(tc[j])
+                rhs[j] += self._contact_tau[j]
         m11 = f + b.rotor[0]
         m22 = b.J2 + J3 + 2 * l2 * s3 * c3 + b.rotor[1]
         m23 = J3 + l2 * s3 * c3
         m33 = J3 + b.rotor[2]
-        det = m22 * m33 - m23 * m23
-        acc = [rhs[0] / m11, (m33 * rhs[1] - m23 * rhs[2]) / det, (m22 * rhs[2] - m23 * rhs[1]) / det]
+        elastic = self.config.elastic
+        self._c3 = c3
+        if elastic:
+            loads = self._loads()
+            gforces = (self._gen_force(self.link2, *loads[0]), self._gen_force(self.link3, *loads[1]))
+            coupling = self._coupling(c3)
+        if elastic and self._two_way:
+            acc, self._eta_acc = self._coupled_accelerations(m22, m23, m33, rhs, gforces, coupling)
+            acc.insert(0, rhs[0] / m11)
+        else:
+            det = m22 * m33 - m23 * m23
+            acc = [rhs[0] / m11, (m33 * rhs[1] - m23 * rhs[2]) / det, (m22 * rhs[2] - m23 * rhs[1]) / det]
+            self._eta_acc = None
         mdiag = (m11, m22, m33)
         for j in range(3):          # Coulomb friction with sticking
             v_old = dth[j]
@@ -677,65 +722,116 @@ class ElasticArm:
             dth[j] = v_new
             th[j] += v_new * dt
         self.t += dt
-        if self.config.elastic:
-            self._outputs(*self._step_modes())
+        if elastic:
+            if self._eta_acc is not None:
+                for eta, deta, acc_ in ((self.eta2, self.deta2, self._eta_acc[0]),
+                                        (self.eta3, self.deta3, self._eta_acc[1])):
+                    for r in range(len(eta)):
+                        deta[r] += acc_[r] * dt
+                        eta[r] += deta[r] * dt
+            else:
+                self._step_modes(loads, gforces, coupling)
+            self._outputs(loads, gforces)
         else:
             self._outputs()
         if self.obstacles:
             self._contact()
 
-    def _step_modes(self):
-        dt = self.config.dt
-        b = self.bodies
+    def _coupling(self, c3: float):
+        """Mass-matrix coupling terms at the current elbow angle (one-way model).
+
+        Returns ``(c2_t2, c2_t3, c3_t2, c3_t3, E)``: couplings of the link-2
+        modes with theta2 and theta3, of the link-3 modes with theta2 and theta3,
+        and ``E[r][s]`` between link-2 mode r and link-3 mode s.
+        """
+        b, k2, k3 = self.bodies, self.link2, self.link3
+        c2_t2 = k2.gamma
+        c2_t3 = [b.s3 * c3 * k2.phiL[r] + b.J3 * k2.dphiL[r] for r in range(k2.n)]
+        c3_t2 = [k3.gamma[s] + k3.pi[s] * b.l2 * c3 for s in range(k3.n)]
+        c3_t3 = k3.gamma
+        E = [[k3.gamma[s] * k2.dphiL[r] + k3.pi[s] * k2.phiL[r] * c3 for s in range(k3.n)]
+             for r in range(k2.n)]
+        return c2_t2, c2_t3, c3_t2, c3_t3, E
+
+    def _coupled_accelerations(self, m22, m23, m33, rhs, gforces, coupling):
+        """Assumed-modes equations of joints 2, 3 and all modes (two-way coupling).
+
+        The mass matrix is the exact kinetic energy of the lumped bodies with the
+        BVP mode shapes as Ritz functions: beyond the BVP's tip mass and tip
+        inertia it contains the first moment ``s3`` of the distal body about
+        joint 3, which couples tip deflection and tip slope of link 2.
+        """
+        b, k2, k3 = self.bodies, self.link2, self.link3
+        n2, n3 = k2.n, k3.n
+        c2_t2, c2_t3, c3_t2, c3_t3, E = coupling
+        c3 = self._c3
+        sc = b.s3 * c3
+        N = 2 + n2 + n3
+        M = np.zeros((N, N))
+        M[0, 0], M[0, 1], M[1, 0], M[1, 1] = m22, m23, m23, m33
+        for r in range(n2):
+            M[0, 2 + r] = M[2 + r, 0] = c2_t2[r] + sc * (b.l2 * k2.dphiL[r] + k2.phiL[r])
+            M[1, 2 + r] = M[2 + r, 1] = c2_t3[r]
+            for q in range(n2):
+                M[2 + r, 2 + q] = (1.0 if r == q else 0.0) + sc * (k2.phiL[r] * k2.dphiL[q]
+                                                                   + k2.dphiL[r] * k2.phiL[q])
+            for q in range(n3):
+                M[2 + r, 2 + n2 + q] = M[2 + n2 + q, 2 + r] = E[r][q]
+        for q in range(n3):
+            M[0, 2 + n2 + q] = M[2 + n2 + q, 0] = c3_t2[q]
+            M[1, 2 + n2 + q] = M[2 + n2 + q, 1] = c3_t3[q]
+            M[2 + n2 + q, 2 + n2 + q] = 1.0
+        qc2, qc3 = self._contact_q if self._in_contact else ([0.0] * n2, [0.0] * n3)
+        r_ = [rhs[1], rhs[2]]
+        r_ += [gforces[0][i] + qc2[i] - k2.om2[i] * self.eta2[i] - k2.cdamp[i] * self.deta2[i]
+               for i in range(n2)]
+        r_ += [gforces[1][i] + qc3[i] - k3.om2[i] * self.eta3[i] - k3.cdamp[i] * self.deta3[i]
+               for i in range(n3)]
+        sol = np.linalg.solve(M, r_).tolist()
+        return sol[:2], (sol[2:2 + n2], sol[2 + n2:])
+
+    def _step_modes(self, loads, gforces, coupling):
+        """Advance the modal coordinates exactly (zero-order hold of their forcing)."""
         a2, a3 = self.ddtheta[1], self.ddtheta[2]
-        c3 = math.cos(self.theta[2])
-        l2s, l3s = self._loads()
-        f2g = self._gen_force(self.link2, *l2s)
-        f3g = self._gen_force(self.link3, *l3s)
-        fc = self.contact_force
-        contact = fc[0] != 0.0 or fc[1] != 0.0 or fc[2] != 0.0
+        c2_t2, c2_t3, c3_t2, c3_t3, E = coupling
+        f2g, f3g = gforces
+        k2, k3 = self.link2, self.link3
+        contact = self._in_contact
         if contact:
-            t1 = self.theta[0]
-            a_, bb = self.theta[1], self.theta[1] + self.theta[2] + self.tip2[1]
-            ey2 = (-math.sin(a_) * math.cos(t1), -math.sin(a_) * math.sin(t1), math.cos(a_))
-            ey3 = (-math.sin(bb) * math.cos(t1), -math.sin(bb) * math.sin(t1), math.cos(bb))
-            fy2 = sum(fc[i] * ey2[i] for i in range(3))
-            fy3 = sum(fc[i] * ey3[i] for i in range(3))
-        # link 2: hub rotation theta2, reaction of the joint-3 acceleration on the tip
-        lm = self.link2
-        f = f2g
-        react_F = -b.s3 * c3 * a3
-        react_M = -b.J3 * a3
-        acc2_tip = 0.0
-        acc2_slope = 0.0
-        for r in range(lm.n):
-            u = f[r] - lm.gamma[r] * a2 + lm.phiL[r] * react_F + lm.dphiL[r] * react_M
+            q2c, q3c = self._contact_q
+        if self._eta_acc is not None:
+            e2acc, e3acc = self._eta_acc
+        else:
+            e2acc, e3acc = None, [0.0] * k3.n
+        # link 2: hub rotation theta2, joint-3 reaction and link-3 vibration at the tip
+        new2 = []
+        for r in range(k2.n):
+            u = f2g[r] - c2_t2[r] * a2 - c2_t3[r] * a3
+            for s_ in range(k3.n):
+                u -= E[r][s_] * e3acc[s_]
             if contact:
-                u += lm.phiL[r] * fy2 + lm.dphiL[r] * b.l3 * fy3
-            xs = u / lm.om2[r]
-            A11, A12, A21, A22 = lm.zoh[r]
-            x, v = self.eta2[r] - xs, self.deta2[r]
-            v_new = A21 * x + A22 * v
-            self.eta2[r] = xs + A11 * x + A12 * v
-            acc = (v_new - v) / dt
-            self.deta2[r] = v_new
-            acc2_tip += lm.phiL[r] * acc
-            acc2_slope += lm.dphiL[r] * acc
+                u += q2c[r]
+            new2.append(self._zoh(k2, r, self.eta2, self.deta2, u))
+        if e2acc is None:          # one-way: link 3 sees link 2's average modal acceleration
+            e2acc = [acc for acc in new2]
         # link 3: hub rotation theta2 + theta3 + link-2 tip slope, hub translation
-        lm = self.link3
-        f = f3g
-        alpha = a2 + a3 + acc2_slope
-        a_perp = (b.l2 * a2 + acc2_tip) * c3
-        for r in range(lm.n):
-            u = f[r] - lm.gamma[r] * alpha - lm.pi[r] * a_perp
+        for s_ in range(k3.n):
+            u = f3g[s_] - c3_t2[s_] * a2 - c3_t3[s_] * a3
+            for r in range(k2.n):
+                u -= E[r][s_] * e2acc[r]
             if contact:
-                u += lm.phiL[r] * fy3
-            xs = u / lm.om2[r]
-            A11, A12, A21, A22 = lm.zoh[r]
-            x, v = self.eta3[r] - xs, self.deta3[r]
-            self.eta3[r] = xs + A11 * x + A12 * v
-            self.deta3[r] = A21 * x + A22 * v
-        return (l2s, l3s), (f2g, f3g)
+                u += q3c[s_]
+            self._zoh(k3, s_, self.eta3, self.deta3, u)
+
+    def _zoh(self, lm: _LinkModel, r: int, eta, deta, u: float) -> float:
+        """Exact step of ``eta'' + c eta' + w^2 eta = u``; returns the mean acceleration."""
+        xs = u / lm.om2[r]
+        A11, A12, A21, A22 = lm.zoh[r]
+        x, v = eta[r] - xs, deta[r]
+        v_new = A21 * x + A22 * v
+        eta[r] = xs + A11 * x + A12 * v
+        deta[r] = v_new
+        return (v_new - v) / self.config.dt
 
     def _outputs(self, loads=None, forces=None) -> None:
         if not self.config.elastic:
@@ -766,15 +862,71 @@ class ElasticArm:
         self.strain = strain
         self.tip2, self.tip3 = tips
 
+    def _probe_position(self, link: int, x: float) -> np.ndarray:
+        """Deflected position of the point ``x`` metres along ``link`` (2 or 3), base frame."""
+        th = self.theta
+        lm = self.link2 if link == 2 else self.link3
+        loads = self._loads()[0 if link == 2 else 1]
+        ws, _, _ = cantilever_static(x, lm.L, lm.EI, q_N_m=loads[0], tip_force_N=loads[1],
+                                     tip_moment_Nm=loads[2])
+        eta = self.eta2 if link == 2 else self.eta3
+        nu = np.asarray(eta) - lm.basis.static_coordinates(*loads)
+        w = float(ws) + float(nu @ lm.basis.shape([x])[:, 0]) if self.config.elastic else 0.0
+        a = th[1]
+        if link == 2:
+            r = x * math.cos(a) - w * math.sin(a)
+            z = x * math.sin(a) + w * math.cos(a)
+        else:
+            l2 = self.bodies.l2
+            w2, s2 = self.tip2
+            bb = a + th[2] + s2
+            r = l2 * math.cos(a) - w2 * math.sin(a) + x * math.cos(bb) - w * math.sin(bb)
+            z = l2 * math.sin(a) + w2 * math.cos(a) + x * math.sin(bb) + w * math.cos(bb)
+        return np.array([r * math.cos(th[0]), r * math.sin(th[0]), self.bodies.h1 + z])
+
     def _contact(self) -> None:
-        p = self.ee_position()
+        """Obstacle forces, their joint torques (rigid point Jacobians) and modal forces."""
         dt = self.config.dt
-        v = np.zeros(3) if self._p_prev is None else (p - self._p_prev) / dt
-        self._p_prev = p
+        th = self.theta
+        b = self.bodies
+        t1, a, bb = th[0], th[1], th[1] + th[2]
         total = np.zeros(3)
-        for ob in self.obstacles:
-            total += ob.force(p, v)
-        self.contact_force = [float(x) for x in total]
+        tau = np.zeros(3)
+        q2 = np.zeros(self.link2.n)
+        q3 = np.zeros(self.link3.n)
+        any_force = False
+        if self._probe_prev is None:
+            self._probe_prev = [None] * len(self.obstacles)
+        for i, ob in enumerate(self.obstacles):
+            x = ob.probe_x_m if ob.probe_x_m is not None else (b.l2 if ob.probe_link == 2 else b.l3)
+            p = self._probe_position(ob.probe_link, x)
+            prev = self._probe_prev[i]
+            v = np.zeros(3) if prev is None else (p - prev) / dt
+            self._probe_prev[i] = p
+            F = ob.force(p, v)
+            if not F.any():
+                continue
+            any_force = True
+            total += F
+            c1, s1 = math.cos(t1), math.sin(t1)
+            e_t = np.array([-s1, c1, 0.0])
+            ey2 = np.array([-math.sin(a) * c1, -math.sin(a) * s1, math.cos(a)])
+            if ob.probe_link == 2:
+                r = x * math.cos(a)
+                J = np.stack([r * e_t, x * ey2, np.zeros(3)], axis=1)
+                q2 += self.link2.basis.shape([x])[:, 0] * float(F @ ey2)
+            else:
+                r = b.l2 * math.cos(a) + x * math.cos(bb)
+                ey3 = np.array([-math.sin(bb) * c1, -math.sin(bb) * s1, math.cos(bb)])
+                J = np.stack([r * e_t, b.l2 * ey2 + x * ey3, x * ey3], axis=1)
+                fy3 = float(F @ ey3)
+                q3 += self.link3.basis.shape([x])[:, 0] * fy3
+                q2 += np.asarray(self.link2.phiL) * float(F @ ey2) + np.asarray(self.link2.dphiL) * x * fy3
+            tau += J.T @ F
+        self.contact_force = [float(v) for v in total]
+        self._in_contact = any_force
+        self._contact_tau = [float(v) for v in tau]
+        self._contact_q = ([float(v) for v in q2], [float(v) for v in q3])
 
 
 @dataclass(frozen=True, kw_only=True)
