@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -181,7 +182,7 @@ def test_tracker_errors(models):
         SphereTracker(models["red"]).update(np.zeros((10, 10), np.uint8))
 
 
-BALL2 = os.path.join(os.path.dirname(__file__), "..", "..", "shared", "realdata", "ball_videos", "ball2.mp4")
+BALL2 = str(Path(__file__).resolve().parents[1].parent / "shared" / "realdata" / "ball_videos" / "ball2.mp4")
 
 
 @pytest.mark.skipif(not os.path.exists(BALL2), reason="../shared/realdata/ball_videos/ball2.mp4 not present")
