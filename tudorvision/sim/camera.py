@@ -28,7 +28,7 @@ from .._checks import check_array, check_points, check_transform, check_vector
 __all__ = [
     "PinholeCamera", "intrinsic_matrix", "look_at", "distort_normalized",
     "undistort_normalized", "project_points", "points_cam_from_world",
-    "ray_directions_cam", "ray_directions_world", "camera_center_world", "with_pose",
+    "ray_directions_cam", "ray_directions_world", "camera_center_world", "with_pose", "ray_directions_world_soa",
     "sphere_silhouette_centroid",
 ]
 
@@ -327,20 +327,47 @@ def ray_directions_world(camera: PinholeCamera) -> np.ndarray:
     """
     rays = camera._cache.get("rays_world")
     if rays is None:
-        rays = ray_directions_cam(camera) @ camera.T_world_cam[:3, :3].T
-        rays = np.ascontiguousarray(rays)
+        rays = np.ascontiguousarray(np.moveaxis(ray_directions_world_soa(camera), 0, -1))
         rays.setflags(write=False)
         camera._cache["rays_world"] = rays
     return rays
 
 
-def with_pose(camera: PinholeCamera, T_world_cam) -> PinholeCamera:
-    """Copy of ``camera`` at a new pose (intrinsics and the camera-frame ray cache kept)."""
-    new = dataclasses.replace(camera, T_world_cam=T_world_cam)
-    if "rays_cam" in camera._cache:
-        new._cache["rays_cam"] = camera._cache["rays_cam"]
-    return new
+def ray_directions_world_soa(camera: PinholeCamera) -> np.ndarray:
+    """World ray directions stored component-first, shape (3, height, width), cached and read-only.
 
+    The renderer's layout: ``rays[:, v, u]`` is the direction of pixel (u, v).
+    Computed from the cached camera-frame rays with nine scalar multiply-adds
+    (numpy's threaded matmul is slow for an inner dimension of 3).
+    """
+    rays = camera._cache.get("rays_world_soa")
+    if rays is None:
+        cam = camera._cache.get("rays_cam_soa")
+        if cam is None:
+            cam = np.ascontiguousarray(np.moveaxis(ray_directions_cam(camera), -1, 0))
+            camera._cache["rays_cam_soa"] = cam
+        R = camera.T_world_cam[:3, :3]
+        rays = np.empty_like(cam)
+        for i in range(3):
+            np.multiply(cam[0], R[i, 0], out=rays[i])
+            rays[i] += R[i, 1] * cam[1]
+            rays[i] += R[i, 2] * cam[2]
+        rays.setflags(write=False)
+        camera._cache["rays_world_soa"] = rays
+    return rays
+
+
+def with_pose(camera: PinholeCamera, T_world_cam) -> PinholeCamera:
+    """Copy of ``camera`` at a new pose (intrinsics and the camera-frame ray cache kept).
+
+    Use it for a moving camera (eye-in-hand): the per-pixel undistortion is
+    not repeated.
+    """
+    new = dataclasses.replace(camera, T_world_cam=T_world_cam)
+    for key in ("rays_cam", "rays_cam_soa", "fov_box"):
+        if key in camera._cache:
+            new._cache[key] = camera._cache[key]
+    return new
 
 
 def sphere_silhouette_centroid(camera: PinholeCamera, center_world, radius: float, *,

@@ -35,7 +35,7 @@ import numpy as np
 
 from .._checks import check_array, check_vector
 from .camera import (PinholeCamera, camera_center_world, distort_normalized, points_cam_from_world,
-                     ray_directions_cam, ray_directions_world, _pixels_from_normalized)
+                     ray_directions_cam, ray_directions_world_soa, _pixels_from_normalized)
 from .lighting import SensorModel, apply_sensor, intensity_at, light_terms, weighted_sum
 
 __all__ = [
@@ -601,18 +601,13 @@ def cast_rays(camera: PinholeCamera, shapes: Sequence, *, cull: bool = True,
 
 
 def _rays_soa(camera: PinholeCamera) -> np.ndarray:
-    """World ray directions component-first, shape (3, H, W), cached on the camera."""
-    rays = camera._cache.get("rays_world_soa")
-    if rays is None:
-        rays = np.ascontiguousarray(np.moveaxis(ray_directions_world(camera), -1, 0))
-        rays.setflags(write=False)
-        camera._cache["rays_world_soa"] = rays
-    return rays
+    return ray_directions_world_soa(camera)
 
 
 def _surface(camera, shape, rr, cc, t):
     """Hit points (N, 3), camera-facing unit normals and albedo of ``shape`` at pixels (rr, cc)."""
-    d = _rays_soa(camera)[:, rr, cc]
+    flat = rr * camera.width + cc
+    d = _rays_soa(camera).reshape(3, -1)[:, flat]
     p = np.ascontiguousarray((camera_center_world(camera)[:, None] + t * d).T)
     n = np.array(np.broadcast_to(shape.normals(p), p.shape), dtype=np.float64)
     n /= np.sqrt(n[:, 0] ** 2 + n[:, 1] ** 2 + n[:, 2] ** 2)[:, None]
@@ -636,9 +631,9 @@ def _static(camera: PinholeCamera, scene: Scene) -> _StaticCache:
         return st
     H, W = camera.height, camera.width
     t, ids, bboxes = cast_rays(camera, scene.static)
-    normal = np.zeros((H, W, 3), np.float32)
-    albedo = np.zeros((H, W, 3), np.float32)
-    terms = np.zeros((len(scene.lights), H, W, 3), np.float32)
+    normal = np.zeros((H * W, 3), np.float32)
+    albedo = np.zeros((H * W, 3), np.float32)
+    t_flat = t.reshape(-1)
     for i, (shape, bb) in enumerate(zip(scene.static, bboxes)):
         if bb is None:
             continue
@@ -648,11 +643,16 @@ def _static(camera: PinholeCamera, scene: Scene) -> _StaticCache:
             continue
         rr += v0
         cc += u0
-        p, n, a = _surface(camera, shape, rr, cc, t[rr, cc])
-        normal[rr, cc] = n
-        albedo[rr, cc] = a
-        terms[:, rr, cc] = light_terms(scene.lights, p, n, a)
-    st = _StaticCache(t=t, ids=ids, normal=normal, albedo=albedo, terms=terms)
+        flat = rr * W + cc
+        _, n, a = _surface(camera, shape, rr, cc, t_flat[flat])
+        normal[flat] = n
+        albedo[flat] = a
+    # light terms over the whole frame at once (no per-object scatter)
+    d = _rays_soa(camera).reshape(3, -1)
+    tt = np.where(np.isfinite(t_flat), t_flat, 0.0)
+    p = np.ascontiguousarray((camera_center_world(camera)[:, None] + tt * d).T)
+    terms = light_terms(scene.lights, p, normal, albedo).reshape(len(scene.lights), H, W, 3)
+    st = _StaticCache(t=t, ids=ids, normal=normal.reshape(H, W, 3), albedo=albedo.reshape(H, W, 3), terms=terms)
     scene._cache[camera] = st
     return st
 
