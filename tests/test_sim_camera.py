@@ -147,3 +147,14 @@ def test_bad_look_at_and_silhouette_arguments_raise():
         sphere_silhouette_centroid(cam, [0, -2, 1], 0.1)
     with pytest.raises(ValueError, match="radius"):
         sphere_silhouette_centroid(cam, [0, 0, 1], -0.1)
+
+
+def test_with_pose_rays_match_a_fresh_camera():
+    rng = np.random.default_rng(5)
+    cam = _random_camera(rng, width=64, height=48, f=70.0)
+    ray_directions_world(cam)
+    T = look_at([0.3, -1.0, 2.0], [0.0, 0.5, 0.0], K=cam.K).T_world_cam
+    moved = with_pose(cam, T)
+    fresh = type(cam)(K=cam.K, dist=cam.dist, width=64, height=48, T_world_cam=T)
+    np.testing.assert_allclose(ray_directions_world(moved), ray_directions_world(fresh), atol=1e-15)
+    assert not np.allclose(ray_directions_world(moved), ray_directions_world(cam))

@@ -355,7 +355,7 @@ class Capsule(_Shape):
 
     def normals(self, p):
         ba = self.p1 - self.p0
-        s = np.clip(_rowdot(p - self.p0, ba) / (ba @ ba), 0.0, 1.0)
+        s = np.clip(_rowdot(p - self.p0, ba) / max(ba @ ba, 1e-300), 0.0, 1.0)
         return (p - self.p0 - s[:, None] * ba) / self.radius
 
 

@@ -120,17 +120,16 @@ def arm_shapes(arm: ArmGeometry, T_world_base, *, sphere_radius_m: float, link_r
     if len(links) > 1:
         shapes.append(Sphere(center=links[1][0], radius=0.035, color_rgb=dark, name="actuator3"))
     for k, pts in enumerate(links):
-        for i in range(len(pts) - 1):
-            if np.linalg.norm(pts[i + 1] - pts[i]) > 1e-9:
-                shapes.append(Capsule(p0=pts[i], p1=pts[i + 1], radius=link_radius_m, color_rgb=grey,
-                                      name=f"link{k + 2}_{i}"))
+        for i in range(len(pts) - 1):  # a zero-length segment is a sphere: the shape count never changes
+            shapes.append(Capsule(p0=pts[i], p1=pts[i + 1], radius=link_radius_m, color_rgb=grey,
+                                  name=f"link{k + 2}_{i}"))
     shapes.append(Capsule(p0=red, p1=green, radius=0.6 * link_radius_m, color_rgb=dark, name="ee_bar"))
     return shapes
 
 
 def _rand_color(rng, kind="any"):
     if kind == "reddish":
-        return np.clip([rng.uniform(0.5, 0.85), rng.uniform(0.05, 0.3), rng.uniform(0.03, 0.25)], 0, 1)
+        return np.clip([rng.uniform(0.45, 0.85), rng.uniform(0.08, 0.35), rng.uniform(0.05, 0.3)], 0, 1)
     if kind == "greenish":
         return np.clip([rng.uniform(0.05, 0.3), rng.uniform(0.4, 0.7), rng.uniform(0.05, 0.35)], 0, 1)
     return rng.uniform(0.15, 0.85, 3)
