@@ -558,8 +558,17 @@ class ElasticArm:
         basis3 = modal_basis(p.link3, b.mP, b.IP, cfg.n_modes)
         g2 = p.gauge_positions_m["link2"]
         g3 = p.gauge_positions_m["link3"]
-        self.link2 = _LinkModel(basis2, g2, zeta, cfg.dt)
-        self.link3 = _LinkModel(basis3, g3, zeta, cfg.dt)
+        self.link2 = k2 = _LinkModel(basis2, g2, zeta, cfg.dt)
+        self.link3 = k3 = _LinkModel(basis3, g3, zeta, cfg.dt)
+        # constant and cos(theta3) parts of the coupling terms (see _coupling)
+        self._kc = {
+            "c2_t2": k2.gamma,
+            "c2_t3": [(b.J3 * k2.dphiL[r], b.s3 * k2.phiL[r]) for r in range(k2.n)],
+            "c3_t2": [(k3.gamma[q], k3.pi[q] * b.l2) for q in range(k3.n)],
+            "c3_t3": k3.gamma,
+            "E": [[(k3.gamma[q] * k2.dphiL[r], k3.pi[q] * k2.phiL[r]) for q in range(k3.n)]
+                  for r in range(k2.n)],
+        }
 
     def _loads(self):
         th, b, g = self.theta, self.bodies, self.g
@@ -738,20 +747,17 @@ class ElasticArm:
             self._contact()
 
     def _coupling(self, c3: float):
-        """Mass-matrix coupling terms at the current elbow angle (one-way model).
+        """Mass-matrix coupling terms at the current elbow angle.
 
         Returns ``(c2_t2, c2_t3, c3_t2, c3_t3, E)``: couplings of the link-2
         modes with theta2 and theta3, of the link-3 modes with theta2 and theta3,
         and ``E[r][s]`` between link-2 mode r and link-3 mode s.
         """
-        b, k2, k3 = self.bodies, self.link2, self.link3
-        c2_t2 = k2.gamma
-        c2_t3 = [b.s3 * c3 * k2.phiL[r] + b.J3 * k2.dphiL[r] for r in range(k2.n)]
-        c3_t2 = [k3.gamma[s] + k3.pi[s] * b.l2 * c3 for s in range(k3.n)]
-        c3_t3 = k3.gamma
-        E = [[k3.gamma[s] * k2.dphiL[r] + k3.pi[s] * k2.phiL[r] * c3 for s in range(k3.n)]
-             for r in range(k2.n)]
-        return c2_t2, c2_t3, c3_t2, c3_t3, E
+        k = self._kc
+        c2_t3 = [a + b * c3 for a, b in k["c2_t3"]]
+        c3_t2 = [a + b * c3 for a, b in k["c3_t2"]]
+        E = [[a + b * c3 for a, b in row] for row in k["E"]]
+        return k["c2_t2"], c2_t3, c3_t2, k["c3_t3"], E
 
     def _coupled_accelerations(self, m22, m23, m33, rhs, gforces, coupling):
         """Assumed-modes equations of joints 2, 3 and all modes (two-way coupling).
