@@ -89,8 +89,13 @@ class JointCore(Protocol):
     """The minimal interface between the server and the arm's joint controller.
 
     The server calls these from one thread only. Per control tick in velocity
-    mode it calls :meth:`apply_velocity` then :meth:`step`; otherwise only
-    :meth:`step`. All vectors are float64 arrays of shape (3,), SI units.
+    mode it calls :meth:`apply_velocity` then :meth:`step` while a command is
+    live or the reference is still ramping down; once the reference is zero
+    with no live command it calls :meth:`stop` once (position hold) and then
+    only :meth:`step`. In the other modes it calls :meth:`step` each tick,
+    :meth:`apply_setpoint` per accepted setpoint and :meth:`stop` on entering
+    IDLE, on leaving VELOCITY and on a fault. All vectors are float64 arrays
+    of shape (3,), SI units; ``state().t`` should advance by the stepped ``dt``.
     """
 
     def apply_velocity(self, theta_dot: np.ndarray) -> None:
@@ -365,6 +370,7 @@ class JointLayerServer:
         self._deadline = -np.inf
         self._t_ctrl = 0.0          # control time: sum of the dt given to the core
         self._armed = False
+        self._holding = False       # velocity mode at rest: the core holds position via stop()
         self._period = 1.0 / config.rate_hz
         core.set_modes(damping=self._damping, collision=self._collision)
         core.stop()
@@ -499,7 +505,13 @@ class JointLayerServer:
                 else:
                     self._flags |= _F.LIMIT_BRAKE
                 self._v_ref = ramp_velocity(self._v_ref, braked, self.limits.max_accel_rad_s2, dt)
-                self.core.apply_velocity(self._v_ref.copy())
+                if not self._armed and not np.any(self._v_ref):
+                    if not self._holding:      # at rest without a live command: hold position
+                        self.core.stop()
+                        self._holding = True
+                else:
+                    self._holding = False
+                    self.core.apply_velocity(self._v_ref.copy())
             self.core.step(dt)
             self._t_ctrl += dt
             self._core_state = cs = self.core.state()
@@ -517,6 +529,7 @@ class JointLayerServer:
                 self._v_ref = np.asarray(self._core_state.theta_dot, dtype=float).copy()
                 self._v_target = np.zeros(3)   # ramps down from the current speed
                 self._armed = False
+                self._holding = False
         elif self._mode == P.Mode.VELOCITY or mode == P.Mode.IDLE:
             self.core.stop()
             self._v_ref = np.zeros(3)
