@@ -18,13 +18,14 @@ Model (assumptions are listed in full in :data:`ASSUMPTIONS`)
   dynamic deviation of ``n_modes`` modes (mode-acceleration method). The
   modal coordinates obey
   ``eta'' + 2 D w eta' + w^2 eta = Q_gravity - Gamma alpha_hub - Pi a_hub + Q_contact``,
-  so joint accelerations excite them as in (5.1.17); modes are integrated
-  exactly (zero-order hold) at the 2 kHz step.
+  so joint accelerations excite them as in (5.1.17); in the one-way model
+  the modes are integrated exactly (zero-order hold) at the 2 kHz step, in
+  the coupled model semi-implicitly from the joint solve.
 * Link-3 hub motion includes link-2's tip slope and deflection
   accelerations, so link-2 frequencies appear in link-3 strain.
-* Contacts: spring–damper obstacles pushing on a sphere around the end
-  effector; the force acts on the joints through the rigid Jacobian and on
-  the modes as tip force / moment.
+* Contacts: spring–damper obstacles pushing on probe spheres on link 2 or 3
+  (default: the end effector); the force acts on the joints through the
+  rigid point Jacobian and on the modes as generalised forces.
 
 Frames and signs: joint angles and the base frame follow
 :mod:`tudorvision.robot.kinematics`; link deflections and strains follow
@@ -497,7 +498,7 @@ class ElasticArm:
     tip2, tip3 : list of 2 floats
         Tip deflection (m) and slope (rad) of links 2 and 3.
     contact_force : list of 3 floats
-        Total obstacle force on the end effector, N, base frame.
+        Total obstacle force on the arm, N, base frame.
 
     Examples
     --------
