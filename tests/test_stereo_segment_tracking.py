@@ -45,7 +45,9 @@ def render_sequence(rng, paths, radius=9.0, *, visible=None, blur=None):
 def test_tracking_equals_full_frame(models):
     rng = np.random.default_rng(3)
     t = np.arange(24)
-    paths = {"red": np.c_[150 + 3.0 * t + 0.05 * t ** 2, 240 + 20 * np.sin(t / 5.0)],
+    # up to ~17 px/frame (faster than a radius per frame: blur is expected, yet the sharp
+    # sphere passes the strict tables first, so the result equals the full-frame one)
+    paths = {"red": np.c_[150 + 6.0 * t + 0.1 * t ** 2, 240 + 80 * np.sin(t / 5.0)],
              "green": np.c_[480 - 5.0 * t, 120 + 3.5 * t + 6 * np.cos(t / 3.0)]}
     frames = render_sequence(rng, paths)
     trk = FrameTracker(models)
@@ -58,7 +60,8 @@ def test_tracking_equals_full_frame(models):
             assert got[name].area_px == full[name].area_px
             assert np.hypot(*(np.subtract(got[name].uv, paths[name][k]))) < 0.5
     for t_ in trk.trackers.values():
-        assert t_.n_full == 1 and t_.n_window == len(frames) - 1  # only the first frame is searched in full
+        # the first frame, and at most once more right after it (velocity still unknown)
+        assert t_.n_full <= 2 and t_.n_window >= len(frames) - 2
 
 
 def test_recovers_after_disappearing(models):
@@ -117,14 +120,18 @@ def test_fast_motion_with_blur_uses_window(models):
     blur = {"red": speed[:, None] * direction}
     frames = render_sequence(rng, {"red": path}, blur=blur)
     trk = SphereTracker(models["red"])
-    errs = []
+    errs, strict_fails = [], 0
     for k, frame in enumerate(frames):
+        pred = trk.predict()
         d = trk.update(frame)
         assert d.valid, (k, d.reason)
         assert trk.mode == ("full" if k == 0 else "window")
         errs.append(np.subtract(d.uv, path[k]))
-        if speed[k] >= 20:
-            assert d.circularity < 0.85  # elongated streak, accepted
+        if pred is not None:
+            h = int(np.ceil(pred[1]))
+            u, v = np.rint(pred[0]).astype(int)
+            strict_fails += not detect_sphere(frame, models["red"], roi=(u - h, v - h, 2 * h + 1, 2 * h + 1)).valid
+    assert strict_fails >= 3  # the longest streaks need the blur-tolerant tables
     assert np.sqrt(np.mean(np.sum(np.array(errs) ** 2, axis=1))) < 0.4
 
 

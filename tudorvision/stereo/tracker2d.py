@@ -17,11 +17,12 @@ is clipped at the image border. Of the valid regions in the window the one
 nearest the prediction is taken. If there is none, or it touches the window's
 edge (the window was too small), the same frame is
 searched in full (coarse to fine); once lost, the tracker searches full frames
-until it finds the sphere again. Motion blur is expected in the window when the
-predicted speed exceeds ``blur_speed * r`` px/frame; then the window is
-segmented with the model's blur-tolerant colour tables and the looser
-circularity limit ``min_circularity_blur`` (see
-:mod:`tudorvision.stereo.segment`). Full-frame searches use the strict tables
+until it finds the sphere again. The window is segmented with the model's
+strict colour tables first (so a sharp sphere gives exactly the full-frame
+result); when that finds nothing and the predicted speed exceeds
+``blur_speed * r`` px/frame, motion blur is assumed and the window is segmented
+again with the blur-tolerant tables and the looser circularity limit
+``min_circularity_blur`` (see :mod:`tudorvision.stereo.segment`). Full-frame searches use the strict tables
 (unless ``segment.motion_blur`` is set), because the tolerant ones also accept
 darker objects of the sphere's hue anywhere in the frame. Only in the frame
 where a fast sphere (one expected to blur) is lost and the strict full search
@@ -194,25 +195,25 @@ class SphereTracker:
         self._index += 1
         p = self.params
         det = None
-        blur = p.segment.motion_blur
         if pred is not None:
             uv, half, speed, has_velocity = pred
             if has_velocity:
                 self._speed = speed
             self._fast = speed > p.blur_speed * self._radius
-            blur = blur or self._fast
             if half <= p.max_half_window_px:
                 h = int(math.ceil(half))
                 x0, y0 = int(round(uv[0])) - h, int(round(uv[1])) - h
                 x1, y1 = min(x0 + 2 * h + 1, frame.width), min(y0 + 2 * h + 1, frame.height)
                 x0, y0 = max(x0, 0), max(y0, 0)
                 if x1 - x0 >= 3 and y1 - y0 >= 3:
-                    found = _detect_window(frame, self.model, p.segment, (x0, y0, x1 - x0, y1 - y0), blur)
-                    ok = [d for d in found if d.valid]
-                    if ok:  # nearest to the prediction; a region cut by the window edge sends us to the full frame
-                        det = min(ok, key=lambda d: math.hypot(d.uv[0] - uv[0], d.uv[1] - uv[1]))
-                        if det.touches_window:
-                            det = None
+                    roi = (x0, y0, x1 - x0, y1 - y0)
+                    # strict tables first (exactly the full-frame result when the sphere is sharp);
+                    # the blur-tolerant ones only when that fails while the sphere moves fast
+                    passes = [p.segment.motion_blur] + ([True] if self._fast and not p.segment.motion_blur else [])
+                    for blur in passes:
+                        det = self._nearest(_detect_window(frame, self.model, p.segment, roi, blur), uv)
+                        if det is not None:
+                            break
         if det is not None:
             self.mode = "window"
             self.n_window += 1
@@ -237,6 +238,15 @@ class SphereTracker:
         self.last = det
         return det
 
+
+    @staticmethod
+    def _nearest(found, uv):
+        """The valid region nearest ``uv``; None if there is none or it touches the window edge."""
+        ok = [d for d in found if d.valid]
+        if not ok:
+            return None
+        det = min(ok, key=lambda d: math.hypot(d.uv[0] - uv[0], d.uv[1] - uv[1]))
+        return None if det.touches_window else det  # cut by the window edge: search the full frame
 
     def _reacquire_blurred(self, frame: _Frame, uv_pred, fallback: SphereDetection) -> SphereDetection:
         """Lost while fast: a blur streak may only pass the blur-tolerant tables.
