@@ -137,7 +137,7 @@ def _rand_color(rng, kind="any"):
 
 def lab_room(rng: np.random.Generator, *, size_m=(8.0, 7.0, 3.0), center_xy=(0.0, 0.0), keepout_xy=(0.0, 0.0),
              keepout_radius_m: float = 1.3, n_clutter: int = 8, n_distractors: int = 4,
-             clutter_region_y=(-1.0, 3.0)):
+             clutter_region_y=(-1.0, 3.0), clutter_max_radius_m: float = 2.6):
     """Static lab background and lights: floor, ceiling, four walls, tables, clutter, distractors.
 
     Parameters
@@ -148,6 +148,9 @@ def lab_room(rng: np.random.Generator, *, size_m=(8.0, 7.0, 3.0), center_xy=(0.0
         Room length (x), width (y), height (z).
     keepout_xy, keepout_radius_m
         No clutter within this horizontal radius (the robot's workspace).
+    clutter_max_radius_m : float
+        Clutter stands at most this far (horizontally) from ``keepout_xy``,
+        so that it is in the cameras' view behind and beside the robot.
     n_clutter : int
         Random boxes on the floor and on two tables.
     n_distractors : int
@@ -183,12 +186,15 @@ def lab_room(rng: np.random.Generator, *, size_m=(8.0, 7.0, 3.0), center_xy=(0.0
                   color_rgb=wall * 0.93, name="wall_right"),
     ]
 
-    def free_spot(half, z_top=0.0, tries=50):
+    def free_spot(half, tries=100):
+        r_lo = keepout_radius_m + half
+        r_hi = max(clutter_max_radius_m, r_lo + 0.2)
         for _ in range(tries):
-            x = rng.uniform(cx - Lx / 2 + half + 0.1, cx + Lx / 2 - half - 0.1)
-            y = rng.uniform(max(clutter_region_y[0], cy - Ly / 2 + half + 0.1),
-                            min(clutter_region_y[1], cy + Ly / 2 - half - 0.1))
-            if np.hypot(x - kx, y - ky) > keepout_radius_m + half:
+            r = np.sqrt(rng.uniform(r_lo ** 2, r_hi ** 2))
+            a = rng.uniform(0, 2 * np.pi)
+            x, y = kx + r * np.cos(a), ky + r * np.sin(a)
+            if (abs(x - cx) < Lx / 2 - half - 0.1 and abs(y - cy) < Ly / 2 - half - 0.1
+                    and clutter_region_y[0] <= y <= clutter_region_y[1]):
                 return x, y
         return None
 
