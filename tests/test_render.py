@@ -240,3 +240,33 @@ def test_blurred_sphere_centroid_is_mean_over_exposure():
     assert np.hypot(*(centroid - truth)) < 0.2
     sharp = sphere_silhouette_centroid(cam, [0.0, 0.0, 0.0], 0.15)
     assert np.hypot(*(truth - sharp)) > 3.0  # the blur moved the centroid by several pixels
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_culling_is_exact_for_shapes_around_and_behind_the_camera(seed):
+    """Random shapes straddling the image plane and behind the camera: culled casting = naive casting."""
+    rng = np.random.default_rng(50 + seed)
+    cam = look_at([0, 0, 0], [0, 1, 0.2], K=intrinsic_matrix(60.0, 39.5, 29.5), dist=[-0.2, 0.05, 1e-3, 0, 0],
+                  width=80, height=60)
+    shapes = []
+    for _ in range(25):
+        c = rng.uniform(-3, 3, 3)
+        kind = rng.integers(5)
+        if kind == 0:
+            shapes.append(Sphere(center=c, radius=rng.uniform(0.05, 1.0)))
+        elif kind == 1:
+            q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+            shapes.append(Box(center=c, half_extents=rng.uniform(0.05, 1.0, 3), R_world_box=q * np.sign(np.linalg.det(q))))
+        elif kind == 2:
+            shapes.append(Capsule(p0=c, p1=c + rng.uniform(-2, 2, 3), radius=rng.uniform(0.02, 0.3)))
+        elif kind == 3:
+            u = rng.standard_normal(3)
+            u /= np.linalg.norm(u)
+            v = np.cross(u, rng.standard_normal(3))
+            shapes.append(Rectangle(center=c, axis_u=u, axis_v=v, half_size=rng.uniform(0.1, 3.0, 2)))
+        else:
+            shapes.append(Disc(center=c, normal=rng.standard_normal(3), radius=rng.uniform(0.1, 1.5)))
+    t_fast, id_fast, _ = cast_rays(cam, shapes)
+    t_slow, id_slow, _ = cast_rays(cam, shapes, cull=False)
+    assert np.array_equal(id_fast, id_slow)
+    assert len(np.unique(id_fast)) > 3

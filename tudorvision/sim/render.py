@@ -483,13 +483,15 @@ def pixel_bboxes(camera: PinholeCamera, corners_list, *, pad: int = 2) -> list:
     idx = [i for i, c in enumerate(corners_list) if c is not None]
     if not idx:
         return out
-    pts = np.stack([np.concatenate([c, c[: 8 - len(c)]]) if len(c) < 8 else c[:8] for c in
-                    (np.asarray(corners_list[i], float) for i in idx)])          # (n, 8, 3)
+    corners = [np.asarray(corners_list[i], float).reshape(-1, 3) for i in idx]
+    m = max(8, max(len(c) for c in corners))
+    pts = np.stack([np.concatenate([c, np.repeat(c[:1], m - len(c), axis=0)]) for c in corners])  # (n, m, 3)
     T = camera.T_world_cam
     pc = (pts - T[:3, 3]) @ T[:3, :3]
     front = np.all(pc[..., 2] > _NEAR, axis=1)
     for k in np.nonzero(~front)[0]:
-        pc[k] = _clip_hull_near(pc[k])
+        clipped = _clip_hull_near(pc[k])
+        pc[k] = np.concatenate([clipped, np.repeat(clipped[:1], m - 8, axis=0)])
     front = np.all(np.isfinite(pc[..., 2]), axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
         xy = pc[..., :2] / pc[..., 2:]
