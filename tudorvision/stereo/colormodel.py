@@ -189,6 +189,11 @@ class ColorModel:
         ``cv2.LUT``.
     log_ratio_blur, plane_tables_blur : ndarray, shape (6, 256), float32
         The same with the blur-tolerant spreads.
+
+    Notes
+    -----
+    Instances compare by identity (``eq=False``: they hold arrays); compare
+    fields with ``numpy.testing`` where needed.
     """
 
     mean: np.ndarray
@@ -333,7 +338,8 @@ class ColorModel:
 def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_pixels: int = 12,
                     max_std: float = 45.0, max_hue_std: float = 20.0, min_saturation: float = 30.0,
                     background_margin: float = 1.5, llr_clip: float = 8.0, prior: float | None = None,
-                    min_std=(6.0, 6.0, 6.0, 2.0, 8.0, 6.0), verify: bool = True) -> ColorModel:
+                    min_std=(6.0, 6.0, 6.0, 2.0, 8.0, 6.0), verify: bool = True,
+                    verify_params=None) -> ColorModel:
     """Fit a sphere's colour model from a picked centre and edge pixel.
 
     Parameters
@@ -370,6 +376,9 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
         Segment the pick frame with the new model and require a valid
         detection at the pick (a model that cannot find its own sphere is
         useless).
+    verify_params : SegmentParams, optional
+        Segmentation parameters for that check (default ``SegmentParams()``);
+        pass the ones the sequence will be tracked with.
 
     Returns
     -------
@@ -455,7 +464,7 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
     if verify:
         from tudorvision.stereo.segment import detect_sphere  # segment imports this module
 
-        det = detect_sphere(img, model)
+        det = detect_sphere(img, model, params=verify_params)
         if not det.valid or np.hypot(det.uv[0] - c[0], det.uv[1] - c[1]) > radius:
             why = det.reason if not det.valid else (
                 f"the best region lies at ({det.uv[0]:.1f}, {det.uv[1]:.1f}), not at the pick")

@@ -5,10 +5,11 @@ The pipeline of section 2.4, per camera and sphere:
 1. **Probability image.** Naive Bayes over the six channels R, G, B, H, S, V:
    ``log_odds = log_prior_odds + sum_c llr_c(x_c)`` with the per-channel
    log-likelihood-ratio tables of :class:`~tudorvision.stereo.colormodel.ColorModel`
-   applied by ``cv2.LUT`` (one call for BGR, one for HSV; the HSV image is
-   computed once per frame and shared between spheres). The posterior
-   probability is ``sigmoid(log_odds)``; thresholds are applied to the
-   log-odds, so the sigmoid is evaluated only inside candidate regions.
+   applied by ``cv2.LUT`` to the six 8-bit planes B, G, R, H, S, V and
+   summed in float32 (no per-pixel Gaussian is evaluated; the HSV image and
+   the planes are computed once per frame and shared between spheres). The
+   posterior probability is ``sigmoid(log_odds)``; thresholds are applied to
+   the log-odds, so the sigmoid is evaluated only inside candidate regions.
 2. **Seeds.** Pixels with probability >= ``p_seed``, eroded by a disc of
    radius ``erode_radius_px`` (removes isolated clutter pixels).
 3. **Region growing.** Every 8-connected region of pixels with probability
@@ -21,11 +22,18 @@ The pipeline of section 2.4, per camera and sphere:
    gives sub-pixel accuracy; filled hole pixels count fully) or equally
    (``"binary"``). Image coordinates: ``u`` right, ``v`` down, pixel
    centres at integer coordinates (OpenCV). Under motion blur the region is
-   the streak and its first moment is the mean position over the exposure.
+   the part of the streak that passes the thresholds; the streak is
+   symmetric about the mid-exposure position, so its first moment is the
+   mean position over the exposure.
 5. **Quality and plausibility.** Area, mean probability, circularity and a
    fill ratio from the region's second moments; regions outside the limits
    of :class:`SegmentParams` are rejected with a reason. The best region is
-   the valid one with the largest probability mass.
+   the valid one with the largest probability mass (the tracker instead takes
+   the valid one nearest its prediction).
+
+Full frames are searched coarse to fine (``SegmentParams.coarse_step``):
+candidates on a decimated frame, then the steps above at full resolution in a
+window around each; windows (``roi``) are searched at full resolution.
 
 Shape measures (area and the central second moments of the filled region,
 eigenvalues ``lam1 >= lam2`` of its pixel covariance):
@@ -40,8 +48,9 @@ eigenvalues ``lam1 >= lam2`` of its pixel covariance):
 Motion blur: a streak mixes the sphere's colour with the background's (a
 pixel in the middle of a streak of length ``L`` sees the sphere for at most
 ``d / L`` of the exposure), which mostly moves R, G, B, S and V, much less the
-hue. With ``motion_blur=True`` (per call, or set by the tracker from the
-predicted image speed) the log-odds come from the model's blur-tolerant tables
+hue. With ``motion_blur=True`` (per call, or by the tracker when the strict
+tables find nothing in the window of a fast sphere) the log-odds come from the
+model's blur-tolerant tables
 (``ColorModel.plane_tables_blur``: spreads of at least ``blur_min_std``
 levels, hue kept tight) and the circularity limit drops to
 ``min_circularity_blur`` (a streak of length ``L`` behind a sphere of diameter
@@ -502,8 +511,8 @@ def detect_sphere(frame_bgr, model: ColorModel, *, params: SegmentParams | None 
         image. Without it the full frame is searched (coarse to fine when
         ``params.coarse_step > 1``).
     motion_blur : bool, optional
-        Overrides ``params.motion_blur`` for this call (the tracker sets it
-        from the predicted image speed).
+        Overrides ``params.motion_blur`` for this call: use the model's
+        blur-tolerant tables and ``min_circularity_blur``.
 
     Returns
     -------
