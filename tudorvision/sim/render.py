@@ -34,7 +34,7 @@ import cv2
 import numpy as np
 
 from .._checks import check_array, check_vector
-from .camera import (PinholeCamera, camera_center_world, distort_normalized, points_cam_from_world,
+from .camera import (PinholeCamera, camera_center_world, distort_normalized,
                      ray_directions_cam, ray_directions_world_soa, _pixels_from_normalized)
 from .lighting import SensorModel, apply_sensor, intensity_at, light_terms, weighted_sum
 
@@ -462,11 +462,12 @@ class GBuffer:
 
 
 def pixel_bbox(camera: PinholeCamera, corners_world, *, pad: int = 2):
-    """Pixel bounding box ``(v0, v1, u0, u1)`` (half-open) of a convex hull of points.
+    """Pixel bounding box ``(v0, v1, u0, u1)`` (half-open) of the convex hull of ``corners_world`` (N, 3).
 
-    Returns the full image when a corner is at or behind the optical centre or
-    ``corners_world`` is None (unbounded shape), and None when the box misses
-    the image. See :func:`pixel_bboxes` for many shapes at once.
+    Returns the full image when ``corners_world`` is None (an unbounded shape)
+    and None when the hull misses the image or lies behind the camera. A hull
+    that crosses the image plane is clipped at z = 1 mm first. See
+    :func:`pixel_bboxes` for many shapes at once.
     """
     return pixel_bboxes(camera, [corners_world], pad=pad)[0]
 
@@ -505,9 +506,7 @@ def pixel_bboxes(camera: PinholeCamera, corners_list, *, pad: int = 2) -> list:
     umin, umax = np.floor(uv[..., 0].min(axis=1)), np.ceil(uv[..., 0].max(axis=1))
     vmin, vmax = np.floor(uv[..., 1].min(axis=1)), np.ceil(uv[..., 1].max(axis=1))
     for k, i in enumerate(idx):
-        if not front[k]:
-            continue
-        if not visible[k]:
+        if not front[k] or not visible[k]:
             out[i] = None
             continue
         u0, u1 = max(int(umin[k]) - pad, 0), min(int(umax[k]) + pad + 1, W)
