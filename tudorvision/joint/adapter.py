@@ -222,9 +222,12 @@ class JointAdapter:
                              lambda seqs, m: isinstance(m, State) and m.request_seq in seqs)
 
     def wait_settled(self, theta, *, tol: float = np.deg2rad(0.5), timeout: float = 10.0,
-                     poll_interval_s: float = 0.02) -> State | None:
-        """Poll the state until the layer reports SETTLED within ``tol`` rad of ``theta``.
+                     strains: bool = True, poll_interval_s: float = 0.02) -> State | None:
+        """Poll the state until the arm rests within ``tol`` rad of ``theta``.
 
+        With ``strains=True`` the layer must report SETTLED (joints at rest and
+        link strains inside the settling band); with ``strains=False`` joints
+        at rest (no MOVING flag) suffice, though the links may still vibrate.
         Returns that state, or ``None`` when ``timeout`` s pass first.
         """
         target = check_array(theta, "theta", (3,))
@@ -234,8 +237,8 @@ class JointAdapter:
             if remaining <= 0:
                 return None
             st = self.request_state(timeout=min(remaining, 0.5))
-            if (st is not None and st.settled
-                    and np.max(np.abs(np.asarray(st.theta) - target)) <= tol):
+            if st is not None and np.max(np.abs(np.asarray(st.theta) - target)) <= tol and (
+                    st.settled if strains else not st.flags & P.StateFlags.MOVING):
                 return st
             pause = min(poll_interval_s, deadline - time.monotonic())
             if pause > 0:

@@ -54,6 +54,11 @@ def _degrees3(text: str) -> np.ndarray:
     return deg
 
 
+def _damping_names():
+    from .protocol import Damping
+    return list(Damping)
+
+
 def register(subparsers) -> None:
     """Add the ``joint`` command and its actions to the top-level parser."""
     p = subparsers.add_parser("joint", help="joint-control layer over UDP: serve, status, move",
@@ -89,6 +94,10 @@ def register(subparsers) -> None:
                    help="settling tolerance in degrees (default 0.5)")
     m.add_argument("--timeout", type=_positive, default=20.0,
                    help="seconds to wait for the arm to settle (default 20)")
+    m.add_argument("--joints-only", action="store_true",
+                   help="wait for the joints only, not for the link vibrations to decay")
+    m.add_argument("--damping", choices=[d.name.lower() for d in _damping_names()],
+                   default=None, help="also switch the damping law (default: keep)")
     m.set_defaults(func=_move)
 
 
@@ -150,13 +159,14 @@ def _status(args) -> int:
 
 
 def _move(args) -> int:
-    from .protocol import Ack, Mode
+    from .protocol import Ack, Damping, Mode
 
     target = np.deg2rad(args.to)
     speed = None if args.speed is None else float(np.deg2rad(args.speed))
     accel = None if args.accel is None else float(np.deg2rad(args.accel))
     with _client(args.port) as joints:
-        reply = joints.set_mode(Mode.SETPOINT, timeout=min(args.timeout, 2.0))
+        damping = None if args.damping is None else Damping[args.damping.upper()]
+        reply = joints.set_mode(Mode.SETPOINT, damping=damping, timeout=min(args.timeout, 2.0))
         if reply is None:
             return _fail("move", f"no answer from 127.0.0.1:{args.port}")
         if not isinstance(reply, Ack):
@@ -169,7 +179,8 @@ def _move(args) -> int:
             return _fail("move", f"setpoint refused: {reply.code.name}: {reply.text}")
         if reply.text:
             print(f"note: {reply.code.name}: {reply.text}")
-        st = joints.wait_settled(target, tol=float(np.deg2rad(args.tol)), timeout=args.timeout)
+        st = joints.wait_settled(target, tol=float(np.deg2rad(args.tol)), timeout=args.timeout,
+                                 strains=not args.joints_only)
     if st is None:
         return _fail("move", f"arm did not settle at {args.to.tolist()} deg "
                              f"within {args.timeout:g} s")

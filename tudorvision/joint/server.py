@@ -216,7 +216,7 @@ def core_names() -> list[str]:
 
 
 def make_core(name: str, **options) -> JointCore:
-    """Build a registered core by name (``"kinematic"``; the simulated arm registers ``"sim"``).
+    """Build a registered core by name: ``"kinematic"`` or ``"sim"`` (the elastic arm).
 
     Raises
     ------
@@ -231,7 +231,14 @@ def make_core(name: str, **options) -> JointCore:
     return factory(**options)
 
 
+def _sim_core(**options) -> JointCore:
+    """The simulated elastic TUDOR with its cascade (imported on first use)."""
+    from ..sim.arm import SimCore
+    return SimCore(**options)
+
+
 register_core("kinematic", KinematicCore)
+register_core("sim", _sim_core)
 
 # StateFlags bits as plain ints: IntFlag arithmetic costs microseconds per operation.
 _F = types.SimpleNamespace(**{f.name: int(f) for f in P.StateFlags})
