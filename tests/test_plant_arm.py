@@ -79,11 +79,13 @@ def _expected_static(theta, payload):
     return np.array(tip2), np.array(tip3), np.array(strain)
 
 
-def test_static_sag_after_payload_change_settles_to_cantilever_formula():
+@pytest.mark.parametrize("two_way", [False, True])
+def test_static_sag_after_payload_change_settles_to_cantilever_formula(two_way):
     """Heavy damping: after adding 600 g the links settle on the Euler-Bernoulli static solution."""
-    cfg = PlantConfig(modal_damping_ratio=(0.3, 0.3))
+    cfg = PlantConfig(modal_damping_ratio=(0.3, 0.3), two_way=two_way)
     rng = np.random.default_rng(5)
-    for theta in (D([0, 0, 0]), D([20, 40, -70]), rng.uniform([-1, 0, -1.5], [1, 2.5, 1.5])):
+    thetas = [D([0, 0, 0]), D([20, 40, -70]), rng.uniform([-1, 0, -1.5], [1, 2.5, 1.5])]
+    for theta in thetas[:2] if two_way else thetas:
         arm = ElasticArm(theta, payload=Payload.from_parts(P), config=cfg)
         heavy = Payload.from_parts(P, plates=6)
         arm.set_payload(heavy)
@@ -98,7 +100,8 @@ def test_static_sag_after_payload_change_settles_to_cantilever_formula():
         assert np.allclose(arm.strain, strain, rtol=2e-3, atol=5e-8)
         if abs(np.cos(theta[1])) > 0.2:
             assert abs(moved - tip2[0]) > 1e-3         # the shape really had to move
-        assert np.ptp(log.strain[-400:, 0]) < 1e-6     # and is at rest
+        # and is at rest (two-way: the joint servo's slow integrator still creeps a little)
+        assert np.ptp(log.strain[-400:, 0]) < (5e-6 if two_way else 1e-6)
 
 
 def test_end_effector_sag_is_centimetres_and_grows_with_payload():

@@ -20,7 +20,7 @@ Model (assumptions are listed in full in :data:`ASSUMPTIONS`)
   ``eta'' + 2 D w eta' + w^2 eta = Q_gravity - Gamma alpha_hub - Pi a_hub + Q_contact``,
   so joint accelerations excite them as in (5.1.17); in the one-way model
   the modes are integrated exactly (zero-order hold) at the 2 kHz step, in
-  the coupled model semi-implicitly from the joint solve.
+  the coupled model with Newmark's average-acceleration rule in the joint solve.
 * Link-3 hub motion includes link-2's tip slope and deflection
   accelerations, so link-2 frequencies appear in link-3 strain.
 * Contacts: spring–damper obstacles pushing on probe spheres on link 2 or 3
@@ -544,6 +544,7 @@ class ElasticArm:
         n_m = config.n_modes
         self.eta2, self.deta2 = [0.0] * n_m, [0.0] * n_m
         self.eta3, self.deta3 = [0.0] * n_m, [0.0] * n_m
+        self._eta_acc_prev = ([0.0] * n_m, [0.0] * n_m)
         self._settle()
         self._outputs()
 
@@ -608,6 +609,7 @@ class ElasticArm:
                 shapes.append(self._shape_on_grid(lm, eta, deta, loads))
         self.payload = payload
         self._build(payload)
+        self._eta_acc_prev = ([0.0] * self.link2.n, [0.0] * self.link3.n)
         if self.config.elastic:
             for lm, (xg, wg, w, dw, wL, sL, vL, svL), eta, deta in zip(
                     (self.link2, self.link3), shapes, (self.eta2, self.eta3), (self.deta2, self.deta3)):
@@ -734,11 +736,15 @@ class ElasticArm:
         self.t += dt
         if elastic:
             if self._eta_acc is not None:
-                for eta, deta, acc_ in ((self.eta2, self.deta2, self._eta_acc[0]),
-                                        (self.eta3, self.deta3, self._eta_acc[1])):
+                if abs(self.ddtheta[1] - acc[1]) > 1e-12 or abs(self.ddtheta[2] - acc[2]) > 1e-12:
+                    # friction changed the joint motion: the modes follow the actual joints
+                    self._eta_acc = self._modal_accelerations(self.ddtheta[1], self.ddtheta[2])
+                for eta, deta, a1, a0 in ((self.eta2, self.deta2, self._eta_acc[0], self._eta_acc_prev[0]),
+                                          (self.eta3, self.deta3, self._eta_acc[1], self._eta_acc_prev[1])):
                     for r in range(len(eta)):
-                        deta[r] += acc_[r] * dt
-                        eta[r] += deta[r] * dt
+                        eta[r] += dt * deta[r] + 0.25 * dt * dt * (a0[r] + a1[r])
+                        deta[r] += 0.5 * dt * (a0[r] + a1[r])
+                self._eta_acc_prev = (list(self._eta_acc[0]), list(self._eta_acc[1]))
             else:
                 self._step_modes(loads, gforces, coupling)
             self._outputs(loads, gforces)
@@ -789,13 +795,31 @@ class ElasticArm:
             M[1, 2 + n2 + q] = M[2 + n2 + q, 1] = c3_t3[q]
             M[2 + n2 + q, 2 + n2 + q] = 1.0
         qc2, qc3 = self._contact_q if self._in_contact else ([0.0] * n2, [0.0] * n3)
+        # Newmark average acceleration on the modal stiffness and damping (unconditionally
+        # stable, no numerical damping): solve for the end-of-step accelerations
+        h = self.config.dt
+        a0 = self._eta_acc_prev
         r_ = [rhs[1], rhs[2]]
-        r_ += [gforces[0][i] + qc2[i] - k2.om2[i] * self.eta2[i] - k2.cdamp[i] * self.deta2[i]
-               for i in range(n2)]
-        r_ += [gforces[1][i] + qc3[i] - k3.om2[i] * self.eta3[i] - k3.cdamp[i] * self.deta3[i]
-               for i in range(n3)]
+        for k, lm, eta, deta, qg, qc in ((0, k2, self.eta2, self.deta2, gforces[0], qc2),
+                                         (1, k3, self.eta3, self.deta3, gforces[1], qc3)):
+            off = 2 + (0 if k == 0 else n2)
+            for i in range(lm.n):
+                a_prev = a0[k][i]
+                x_pred = eta[i] + h * deta[i] + 0.25 * h * h * a_prev
+                v_pred = deta[i] + 0.5 * h * a_prev
+                r_.append(qg[i] + qc[i] - lm.om2[i] * x_pred - lm.cdamp[i] * v_pred)
+                M[off + i, off + i] += 0.5 * h * lm.cdamp[i] + 0.25 * h * h * lm.om2[i]
         sol = np.linalg.solve(M, r_).tolist()
+        self._coupled_system = (M, r_)
         return sol[:2], (sol[2:2 + n2], sol[2 + n2:])
+
+    def _modal_accelerations(self, a2: float, a3: float):
+        """Modal accelerations for given joint accelerations (after friction sticking)."""
+        M, r_ = self._coupled_system
+        n2 = self.link2.n
+        rhs = np.asarray(r_[2:]) - M[2:, 0] * a2 - M[2:, 1] * a3
+        sol = np.linalg.solve(M[2:, 2:], rhs).tolist()
+        return sol[:n2], sol[n2:]
 
     def _step_modes(self, loads, gforces, coupling):
         """Advance the modal coordinates exactly (zero-order hold of their forcing)."""
