@@ -81,7 +81,7 @@ def test_setpoint_profile_limits_clamped_per_joint_or_refused():
 def test_brake_lets_every_joint_stop_inside_its_range():
     """Simulate the server's brake + ramp loop pushing into each limit at full speed."""
     dt = 2e-3
-    soft, hard = LIM.soft_limits_rad, LIM.joint_limits_rad
+    soft = LIM.soft_limits_rad
     rng = np.random.default_rng(2)
     for _ in range(20):
         sign = rng.choice([-1.0, 1.0], 3)
@@ -91,12 +91,17 @@ def test_brake_lets_every_joint_stop_inside_its_range():
                  - sign * (d_stop + rng.uniform(0.0, 0.3, 3)))
         v_target = sign * vmax
         v = v_target.copy()            # already at full speed
-        for _ in range(2000):
+        for _ in range(1500):
             braked = brake_velocity(theta, v_target, LIM, dt, theta_dot_now=v)
             v = ramp_velocity(v, braked, LIM.max_accel_rad_s2, dt)
             theta = theta + v * dt
             assert np.all(theta <= soft[:, 1]) and np.all(theta >= soft[:, 0])
+            if not np.any(v):
+                break
         assert np.allclose(v, 0.0, atol=1e-9)      # stopped against the limit
+        for _ in range(20):                        # and stays there
+            v = ramp_velocity(v, brake_velocity(theta, v_target, LIM, dt), LIM.max_accel_rad_s2, dt)
+            assert not np.any(v)
         # stopped close to the soft limit, not far before it
         gap = np.where(sign > 0, soft[:, 1] - theta, theta - soft[:, 0])
         assert np.all(gap < np.deg2rad(1.0))
