@@ -26,6 +26,7 @@ evaluated at the middle of the exposure, pinhole rays through pixel centres
 """
 from __future__ import annotations
 
+import math
 import weakref
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
@@ -33,7 +34,7 @@ from typing import Callable, Sequence
 import cv2
 import numpy as np
 
-from .._checks import check_array, check_vector
+from .._checks import check_array
 from .camera import (PinholeCamera, camera_center_world, distort_normalized,
                      ray_directions_cam, ray_directions_world_soa, _pixels_from_normalized)
 from .lighting import SensorModel, apply_sensor, intensity_at, light_terms, weighted_sum
@@ -64,9 +65,20 @@ def _rowmat(p, M):
     return p[:, 0:1] * M[0] + p[:, 1:2] * M[1] + p[:, 2:3] * M[2]
 
 
+def _vec3(value, name):
+    """Fast check of a finite 3-vector (shapes are built per sub-frame, so this is a hot path)."""
+    a = np.asarray(value, dtype=np.float64)
+    if a.shape != (3,):
+        raise ValueError(f"{name}: expected shape (3,), got {a.shape}")
+    x, y, z = a.tolist()
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
+        raise ValueError(f"{name}: contains NaN or infinite values")
+    return a
+
+
 def _color(value, name):
-    c = check_vector(value, name, 3)
-    if np.any(c < 0) or np.any(c > 1):
+    c = _vec3(value, name)
+    if not all(0.0 <= x <= 1.0 for x in c.tolist()):
         raise ValueError(f"{name}: expected linear RGB in [0, 1], got {c.tolist()}")
     return c
 
@@ -79,8 +91,8 @@ def _positive(value, name):
 
 
 def _unit(value, name):
-    v = check_vector(value, name, 3)
-    n = np.linalg.norm(v)
+    v = _vec3(value, name)
+    n = math.sqrt(v @ v)
     if n < 1e-12:
         raise ValueError(f"{name}: must be non-zero")
     return v / n
@@ -114,7 +126,7 @@ class Sphere(_Shape):
 
     def __post_init__(self):
         self._init_color()
-        object.__setattr__(self, "center", check_vector(self.center, "center", 3))
+        object.__setattr__(self, "center", _vec3(self.center, "center"))
         object.__setattr__(self, "radius", _positive(self.radius, "radius"))
 
     def corners(self):
@@ -167,7 +179,7 @@ class Rectangle(_Shape):
     def __post_init__(self):
         self._init_color()
         object.__setattr__(self, "color2_rgb", _color(self.color2_rgb, "color2_rgb"))
-        object.__setattr__(self, "center", check_vector(self.center, "center", 3))
+        object.__setattr__(self, "center", _vec3(self.center, "center"))
         u, v = _unit(self.axis_u, "axis_u"), _unit(self.axis_v, "axis_v")
         if abs(u @ v) > 1e-6:
             raise ValueError("axis_v: must be orthogonal to axis_u")
@@ -250,7 +262,7 @@ class Disc(_Shape):
 
     def __post_init__(self):
         self._init_color()
-        object.__setattr__(self, "center", check_vector(self.center, "center", 3))
+        object.__setattr__(self, "center", _vec3(self.center, "center"))
         object.__setattr__(self, "normal", _unit(self.normal, "normal"))
         object.__setattr__(self, "radius", _positive(self.radius, "radius"))
 
@@ -279,8 +291,8 @@ class Box(_Shape):
 
     def __post_init__(self):
         self._init_color()
-        object.__setattr__(self, "center", check_vector(self.center, "center", 3))
-        h = check_vector(self.half_extents, "half_extents", 3)
+        object.__setattr__(self, "center", _vec3(self.center, "center"))
+        h = _vec3(self.half_extents, "half_extents")
         if np.any(h <= 0):
             raise ValueError(f"half_extents: expected positive values, got {h.tolist()}")
         object.__setattr__(self, "half_extents", h)
@@ -323,8 +335,8 @@ class Capsule(_Shape):
 
     def __post_init__(self):
         self._init_color()
-        object.__setattr__(self, "p0", check_vector(self.p0, "p0", 3))
-        object.__setattr__(self, "p1", check_vector(self.p1, "p1", 3))
+        object.__setattr__(self, "p0", _vec3(self.p0, "p0"))
+        object.__setattr__(self, "p1", _vec3(self.p1, "p1"))
         object.__setattr__(self, "radius", _positive(self.radius, "radius"))
 
     def corners(self):
