@@ -23,7 +23,7 @@ def test_depth_sigma_is_the_seed_polynomial_in_cm():
 
 @pytest.mark.parametrize("distance", [0.8, 1.5, 3.0, 4.5, 5.5])
 def test_depth_noise_std_matches_sigma_z(distance):
-    """Planar target perpendicular to the axis, 100 frames: mean per-pixel std within 10 % of sigma_z(z)."""
+    """Planar target perpendicular to the axis, 100 frames: mean per-pixel std within 5 % of sigma_z(z)."""
     rng = np.random.default_rng(int(distance * 10))
     setup = planar_target(distance, rng, width=W, height=H)
     cam = setup.cameras["rgbd"]
@@ -32,7 +32,7 @@ def test_depth_noise_std_matches_sigma_z(distance):
     region = (g.object_id == setup.meta["target_id"]) & np.all(frames > 0, axis=0)
     assert region.sum() > 30
     std_m = frames[:, region].std(axis=0, ddof=1).mean() / 1000.0
-    assert abs(std_m - _sigma_cm(distance) / 100) < 0.1 * _sigma_cm(distance) / 100
+    assert abs(std_m - _sigma_cm(distance) / 100) < 0.05 * _sigma_cm(distance) / 100  # issue: 10 %
     mean_m = frames[:, region].mean() / 1000.0
     assert abs(mean_m - distance) < 0.05 * distance
 
