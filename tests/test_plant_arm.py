@@ -311,19 +311,23 @@ def test_contact_on_the_middle_of_link3_blocks_the_motion():
         SpringDamperObstacle(kind="plane", point_base=[0, 0, 0], probe_link=1)
 
 
-def test_two_way_coupling_is_stable_and_close_to_the_bvp():
-    """The coupled assumed-modes model: oscillation decays, first frequency near the BVP value."""
-    theta = D([0, 20, -90])                           # link 3 across link 2: no first-moment coupling
+@pytest.mark.parametrize("theta3_deg", [-90.0, 30.0])
+def test_two_way_coupling_decays_at_its_coupled_frequencies(theta3_deg):
+    """Coupled assumed-modes model: the oscillation decays at the predicted held-joint frequency."""
+    theta = D([0, 20, theta3_deg])
     cfg = PlantConfig(two_way=True)
     arm = ElasticArm(theta, payload=Payload.from_parts(P, plates=3), config=cfg)
     gains = design_cascade(P, zero_config_inertia(arm))
     ctrl = JointCascade(gains, cfg.dt, arm.measured_theta())
     arm.set_payload(Payload.from_parts(P, plates=4))   # a load step excites the links
+    f_pred = arm.coupled_frequencies_hz()
     log = simulate(arm, ctrl, plan_motion(theta, theta, v_max=1.0, a_max=1.0), 6.0)
     s = log.strain[:, 0] - log.strain[-2000:, 0].mean()
     early = np.ptp(s[(log.t > 0.5) & (log.t < 2.0)])
     late = np.ptp(s[(log.t > 4.5) & (log.t < 6.0)])
     assert 0 < late < early                           # decays, never grows
+    f_meas, ok, _ = _peak(log.strain[log.t > 0.3, 0], 0.0005, f_pred[0])
+    assert ok and abs(f_meas / f_pred[0] - 1) < 0.03
+    # the BVP ignores the distal first moment and link-3 flexibility: same range, not equal
     f_bvp = arm.link2.basis.frequency_hz[0]
-    f_meas, ok, _ = _peak(log.strain[log.t > 0.3, 0], 0.0005, f_bvp)
-    assert abs(f_meas / f_bvp - 1) < 0.15
+    assert 0.6 < f_pred[0] / f_bvp < 1.1

@@ -75,7 +75,9 @@ Simulated TUDOR: assumptions
 - Coupling: by default one-way (joints drive the links, link oscillations do not act back on
   the joints, section 5.1). With obstacles (or two_way=True) the joints and modes share an
   assumed-modes mass matrix built from the exact kinetic energy of the lumped bodies; the
-  servoed joints then load the links (frequencies shift from the BVP values, extra damping).
+  servoed joints then load the links: with 300 g the first held-joint frequency is 2.0-2.6 Hz
+  depending on theta3 (ElasticArm.coupled_frequencies_hz; the seed measured 1.56-2.74 Hz over
+  the workspace), below the BVP value, and the servo adds damping.
 - Contact: spring-damper obstacles act on probe spheres on link 2 or 3 (default: the end
   effector); explicit in time (force of the previous step), no friction.
 - Encoders: 500 lines x 4 quadrature counts per motor revolution.
@@ -766,7 +768,7 @@ class ElasticArm:
         E = [[a + b * c3 for a, b in row] for row in k["E"]]
         return k["c2_t2"], c2_t3, c3_t2, k["c3_t3"], E
 
-    def _coupled_accelerations(self, m22, m23, m33, rhs, gforces, coupling):
+    def _coupled_accelerations(self, m22, m23, m33, rhs, gforces, coupling, h=None):
         """Assumed-modes equations of joints 2, 3 and all modes (two-way coupling).
 
         The mass matrix is the exact kinetic energy of the lumped bodies with the
@@ -797,7 +799,7 @@ class ElasticArm:
         qc2, qc3 = self._contact_q if self._in_contact else ([0.0] * n2, [0.0] * n3)
         # Newmark average acceleration on the modal stiffness and damping (unconditionally
         # stable, no numerical damping): solve for the end-of-step accelerations
-        h = self.config.dt
+        h = self.config.dt if h is None else h
         a0 = self._eta_acc_prev
         r_ = [rhs[1], rhs[2]]
         for k, lm, eta, deta, qg, qc in ((0, k2, self.eta2, self.deta2, gforces[0], qc2),
@@ -812,6 +814,37 @@ class ElasticArm:
         sol = np.linalg.solve(M, r_).tolist()
         self._coupled_system = (M, r_)
         return sol[:2], (sol[2:2 + n2], sol[2 + n2:])
+
+    def coupled_frequencies_hz(self) -> np.ndarray:
+        """Natural frequencies of the coupled links with the joints held, at the current pose.
+
+        Generalised eigenvalues of the modal block of the assumed-modes mass
+        matrix (two-way model) and the modal stiffness ``diag(omega_r^2)``.
+        Unlike the BVP values they depend on theta3 (first moment of the
+        distal bodies) and include the flexibility of link 3.
+
+        Returns
+        -------
+        ndarray, shape (2 n_modes,)
+            Increasing, Hz.
+        """
+        from scipy.linalg import eigh
+        b = self.bodies
+        c3 = math.cos(self.theta[2])
+        saved = (getattr(self, "_c3", c3), self._eta_acc_prev, getattr(self, "_coupled_system", None))
+        self._c3 = c3
+        self._eta_acc_prev = ([0.0] * self.link2.n, [0.0] * self.link3.n)
+        m22 = b.J2 + b.J3 + 2 * b.l2 * b.s3 * c3 + b.rotor[1]
+        m23 = b.J3 + b.l2 * b.s3 * c3
+        m33 = b.J3 + b.rotor[2]
+        loads = self._loads()
+        gf = (self._gen_force(self.link2, *loads[0]), self._gen_force(self.link3, *loads[1]))
+        self._coupled_accelerations(m22, m23, m33, [0.0, 0.0, 0.0], gf, self._coupling(c3), h=0.0)
+        M = self._coupled_system[0]
+        self._c3, self._eta_acc_prev, self._coupled_system = saved
+        K = np.diag(self.link2.om2 + self.link3.om2)
+        w2 = eigh(K, M[2:, 2:], eigvals_only=True)
+        return np.sqrt(np.maximum(w2, 0.0)) / (2 * np.pi)
 
     def _modal_accelerations(self, a2: float, a3: float):
         """Modal accelerations for given joint accelerations (after friction sticking)."""
