@@ -125,7 +125,8 @@ def main(argv=None):
     end = UdpTransport.server(0)
     with JointLayerServer(end, KinematicCore(), config=cfg):
         with JointAdapter(UdpTransport.client(end.address[1])) as a:
-            res["adapter/udp"] = _row("adapter/udp (thread)", _adapter_times(a, args.n, args.warmup))
+            res["adapter/udp"] = _row("adapter/udp (thread)",
+                                      _adapter_times(a, args.n, args.warmup))
     end.close()
 
     client, end = InProcessTransport.pair()

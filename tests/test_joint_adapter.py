@@ -261,3 +261,16 @@ def test_request_state_times_out_without_server():
         assert adapter.set_mode(Mode.IDLE, timeout=0.1) is None
         stats = adapter.stats()
     assert stats.timeouts == 2 and stats.retransmissions >= 4 and stats.received == 0
+
+
+def test_command_age_tolerates_clock_offset_and_drift():
+    from tudorvision.joint.server import _Client
+    c = _Client()
+    ages = []
+    for k in range(20000):                    # 100 Hz for 200 s; sender clock 500 ppm slow
+        t_recv = 1000.0 + 0.01 * k
+        t_sent = -5e4 + 0.01 * k * (1 - 5e-4)   # unrelated epoch
+        ages.append(c.age(t_recv + 0.0002 * (k % 7), t_sent))
+    assert max(ages) < 0.005
+    late = c.age(1000.0 + 0.01 * 20000 + 0.3, -5e4 + 0.01 * 20000 * (1 - 5e-4))
+    assert late == pytest.approx(0.3, abs=0.01)

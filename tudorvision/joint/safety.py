@@ -110,7 +110,8 @@ class SafetyPolicy:
     def __post_init__(self):
         for name in ("velocity_over_speed", "setpoint_out_of_range", "setpoint_over_limits"):
             if getattr(self, name) not in ("clamp", "refuse"):
-                raise ValueError(f"{name}: expected 'clamp' or 'refuse', got {getattr(self, name)!r}")
+                raise ValueError(f"{name}: expected 'clamp' or 'refuse', "
+                                 f"got {getattr(self, name)!r}")
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -183,7 +184,8 @@ def check_velocity_command(theta_dot, limits: SafetyLimits, *,
         return Verdict(value=None, code=Reason.OVER_SPEED, text=text)
     scaled = v / worst
     scaled = np.clip(scaled, -limits.max_speed_rad_s, limits.max_speed_rad_s)  # rounding
-    return Verdict(value=scaled, code=Reason.CLAMPED_SPEED, text=text + f"; scaled by {1 / worst:.4g}")
+    return Verdict(value=scaled, code=Reason.CLAMPED_SPEED,
+                   text=text + f"; scaled by {1 / worst:.4g}")
 
 
 def check_setpoint(theta, limits: SafetyLimits, *, max_speed: float | None = None,

@@ -197,7 +197,8 @@ class KinematicCore:
 
     def state(self) -> CoreState:
         at_rest = bool(np.all(np.abs(self._v) < 1e-6))
-        reached = self._mode != "setpoint" or bool(np.all(np.abs(self._target - self._theta) < 1e-6))
+        reached = (self._mode != "setpoint"
+                   or bool(np.all(np.abs(self._target - self._theta) < 1e-6)))
         return CoreState(t=self._t, theta=self._theta.copy(), theta_dot=self._v.copy(),
                          settled=at_rest and reached and self._mode != "velocity")
 
@@ -304,17 +305,33 @@ class CommandRecord:
     code: P.Reason
 
 
+_DRIFT = 1e-3   # tolerated clock drift between sender and layer, s/s (1000 ppm)
+
+
 class _Client:
     """Sequence-number bookkeeping for one sender address."""
 
-    __slots__ = ("newest", "window", "seen", "last_reply", "min_delay")
+    __slots__ = ("newest", "window", "seen", "last_reply", "floor", "floor_t")
 
     def __init__(self):
         self.newest = None
         self.window = collections.deque()
         self.seen = set()
         self.last_reply = None     # (seq, datagram)
-        self.min_delay = None
+        self.floor = None          # lowest (receive - send) time seen, drifting up slowly
+        self.floor_t = 0.0
+
+    def age(self, t_recv: float, t_sent: float) -> float:
+        """Delay of this datagram beyond the fastest delivery seen from this sender.
+
+        The sender's clock is unrelated to ours; only differences matter. The
+        floor rises by ``_DRIFT`` s per s so clock drift between two PCs never
+        makes fresh commands look old.
+        """
+        delay = t_recv - t_sent
+        if self.floor is None or delay < self.floor + _DRIFT * (t_recv - self.floor_t):
+            self.floor, self.floor_t = delay, t_recv
+        return delay - self.floor - _DRIFT * (t_recv - self.floor_t)
 
     def classify(self, seq: int, window: int) -> str:
         """Return "new", "duplicate" or "stale" and record ``seq`` if new."""
@@ -596,9 +613,7 @@ class JointLayerServer:
             if verdict == "stale":
                 self._count(stale=1)
                 return
-            delay = t_recv - header.t_sent
-            client.min_delay = delay if client.min_delay is None else min(client.min_delay, delay)
-            age = delay - client.min_delay
+            age = client.age(t_recv, header.t_sent)
             max_age = self.config.max_command_age_s
             if (max_age is not None and age > max_age
                     and isinstance(msg, (P.JointVelocityCommand, P.JointSetpoint))):
