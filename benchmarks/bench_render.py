@@ -111,7 +111,8 @@ def main():
         print(f"  {name:50s} {sec * 1000:8.1f} ms")
     naive = res["stereo pair, naive peer (no culling, no cache)"]
     print(f"  ratio naive / cached (no blur):      {naive / res['stereo pair, cached background, no blur']:6.1f}x")
-    print(f"  ratio naive / from scratch (culling): {naive / res['stereo pair, from scratch (culling, no cache)']:6.1f}x")
+    scratch = res["stereo pair, from scratch (culling, no cache)"]
+    print(f"  ratio naive / from scratch (culling): {naive / scratch:6.1f}x")
 
 
 if __name__ == "__main__":

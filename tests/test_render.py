@@ -256,7 +256,8 @@ def test_culling_is_exact_for_shapes_around_and_behind_the_camera(seed):
             shapes.append(Sphere(center=c, radius=rng.uniform(0.05, 1.0)))
         elif kind == 1:
             q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
-            shapes.append(Box(center=c, half_extents=rng.uniform(0.05, 1.0, 3), R_world_box=q * np.sign(np.linalg.det(q))))
+            R = q * np.sign(np.linalg.det(q))
+            shapes.append(Box(center=c, half_extents=rng.uniform(0.05, 1.0, 3), R_world_box=R))
         elif kind == 2:
             shapes.append(Capsule(p0=c, p1=c + rng.uniform(-2, 2, 3), radius=rng.uniform(0.02, 0.3)))
         elif kind == 3:

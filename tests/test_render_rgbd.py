@@ -151,3 +151,19 @@ def test_eye_in_hand_square_and_checkerboard_corners():
 def test_bad_rgbd_and_scene_arguments_raise(make, name):
     with pytest.raises(ValueError, match=name):
         make()
+
+
+def test_moving_checkerboard_matches_static_boards():
+    """A board given as a function of time renders like a static board at that pose."""
+    from tudorvision.sim.render import render_gbuffer as gbuf
+    poses = [look_at([x, 0.2, 1.0], [0.3, -3.0, 3.0], K=np.eye(3)).T_world_cam for x in (-0.3, 0.3)]
+    moving = checkerboard_lab(lambda t: poses[int(round(t))], np.random.default_rng(5), squares=(5, 4))
+    cam = moving.cameras["left"]
+    for k, T in enumerate(poses):
+        still = checkerboard_lab(T, np.random.default_rng(5), squares=(5, 4))
+        g_move = gbuf(cam, moving.scene, float(k))
+        g_still = gbuf(still.cameras["left"], still.scene, 0.0)
+        m_move = g_move.object_id == moving.meta["object_ids"]["board"]
+        m_still = g_still.object_id == still.meta["object_ids"]["board"]
+        assert m_move.sum() > 100 and np.array_equal(m_move, m_still)
+        np.testing.assert_allclose(moving.meta["inner_corners_world"](k), still.meta["inner_corners_world"])

@@ -68,7 +68,8 @@ class ArmGeometry:
                 raise ValueError(f"link_points_base[{i}]: expected at least 2 points, got {len(p)}")
         object.__setattr__(self, "link_points_base", links)
         if set(self.sphere_centers_base) != {"red", "green"}:
-            raise ValueError(f"sphere_centers_base: expected keys 'red' and 'green', got {sorted(self.sphere_centers_base)}")
+            raise ValueError("sphere_centers_base: expected keys 'red' and 'green', "
+                             f"got {sorted(self.sphere_centers_base)}")
         object.__setattr__(self, "sphere_centers_base", {
             k: check_vector(v, f"sphere_centers_base[{k!r}]", 3) for k, v in self.sphere_centers_base.items()})
 
@@ -628,9 +629,11 @@ def checkerboard_lab(T_world_board, rng: np.random.Generator, *, squares=(9, 7),
 
     Parameters
     ----------
-    T_world_board : ndarray, shape (4, 4)
+    T_world_board : ndarray, shape (4, 4), or callable t -> (4, 4)
         Board pose: origin at the board centre, x along the ``squares[0]``
-        direction, y along ``squares[1]``, z the board normal.
+        direction, y along ``squares[1]``, z the board normal. A callable
+        makes the board a dynamic shape (e.g. ``lambda t: poses[int(t)]``), so
+        a series of poses re-casts only the board, not the lab.
     squares : (int, int)
         Number of squares; OpenCV's pattern size is ``(squares[0] - 1, squares[1] - 1)``.
 
@@ -638,24 +641,41 @@ def checkerboard_lab(T_world_board, rng: np.random.Generator, *, squares=(9, 7),
     -------
     SimSetup
         ``cameras = {"left", "right"}``; ``meta``: ``inner_corners_world``
-        (N, 3) in the row-major order of ``Rectangle.inner_corners``,
-        ``pattern_size``, ``square_m``, ``T_world_board``.
+        (N, 3) in the row-major order of ``Rectangle.inner_corners`` (a
+        function of t for a moving board), ``pattern_size``, ``square_m``,
+        ``T_world_board``, ``object_ids``.
+
+    Examples
+    --------
+    >>> Tb = np.eye(4); Tb[:3, 3] = [0.0, 0.0, 1.0]
+    >>> cb = checkerboard_lab(Tb, np.random.default_rng(0), squares=(4, 3), square_m=0.1)
+    >>> cb.meta["pattern_size"], cb.meta["inner_corners_world"].shape
+    ((3, 2), (6, 3))
     """
-    Tb = check_transform(T_world_board, "T_world_board")
     T = check_transform(T_world_base, "T_world_base")
     sq = _positive(square_m, "square_m")
     n = np.asarray(squares)
     if n.shape != (2,) or np.any(n < 2):
         raise ValueError(f"squares: expected two integers >= 2, got {squares!r}")
-    board = Rectangle(center=Tb[:3, 3], axis_u=Tb[:3, 0], axis_v=Tb[:3, 1],
-                      half_size=(n[0] * sq / 2 + border_m, n[1] * sq / 2 + border_m), checker_square_m=sq,
-                      checker_squares=tuple(int(k) for k in n), color_rgb=(0.88, 0.88, 0.86),
-                      color2_rgb=(0.04, 0.04, 0.04), name="board")
+
+    def board_at(Tb):
+        Tb = check_transform(Tb, "T_world_board")
+        return Rectangle(center=Tb[:3, 3], axis_u=Tb[:3, 0], axis_v=Tb[:3, 1],
+                         half_size=(n[0] * sq / 2 + border_m, n[1] * sq / 2 + border_m), checker_square_m=sq,
+                         checker_squares=tuple(int(k) for k in n), color_rgb=(0.88, 0.88, 0.86),
+                         color2_rgb=(0.04, 0.04, 0.04), name="board")
+
     left, right = stereo_rig(T, config=rig)
     shapes, lights = lab_room(rng, center_xy=T[:2, 3], keepout_xy=T[:2, 3], n_clutter=n_clutter,
                               size_m=(8.0, 7.0, rig.height_m + 0.3), clutter_region_y=(T[1, 3] - 0.8, T[1, 3] + 3.4))
-    scene = Scene(static=[board] + shapes, lights=lights)
-    return SimSetup(scene=scene, cameras={"left": left, "right": right},
-                    meta={"inner_corners_world": board.inner_corners(),
-                          "pattern_size": (int(n[0]) - 1, int(n[1]) - 1), "square_m": sq, "T_world_board": Tb,
-                          "object_ids": {"board": 1}})
+    meta = {"pattern_size": (int(n[0]) - 1, int(n[1]) - 1), "square_m": sq}
+    if callable(T_world_board):
+        scene = Scene(static=shapes, lights=lights, dynamic=lambda t: [board_at(T_world_board(t))])
+        meta.update(inner_corners_world=lambda t: board_at(T_world_board(t)).inner_corners(),
+                    T_world_board=T_world_board, object_ids={"board": len(shapes) + 1})
+    else:
+        board = board_at(T_world_board)
+        scene = Scene(static=[board] + shapes, lights=lights)
+        meta.update(inner_corners_world=board.inner_corners(),
+                    T_world_board=check_transform(T_world_board, "T_world_board"), object_ids={"board": 1})
+    return SimSetup(scene=scene, cameras={"left": left, "right": right}, meta=meta)
