@@ -274,3 +274,36 @@ def test_command_age_tolerates_clock_offset_and_drift():
     assert max(ages) < 0.005
     late = c.age(1000.0 + 0.01 * 20000 + 0.3, -5e4 + 0.01 * 20000 * (1 - 5e-4))
     assert late == pytest.approx(0.3, abs=0.01)
+
+
+def test_transports_filter_foreign_senders_and_refuse_after_close():
+    import socket
+
+    from tudorvision.joint.transport import TransportClosed
+    server = UdpTransport.server(0)
+    client = UdpTransport.client(server.address[1])
+    stranger = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        client.send(b"hello")
+        data, addr = server.recv(2.0)
+        assert data == b"hello" and addr == client.address
+        stranger.sendto(b"spoof", client.address)          # not from the peer: dropped
+        server.send(b"answer", addr)
+        assert client.recv(2.0)[0] == b"answer"
+        assert client.recv(0.05) is None and client.foreign == 1
+        with pytest.raises(ValueError, match="addr: required"):
+            server.send(b"x")
+    finally:
+        stranger.close()
+        server.close()
+        client.close()
+    with pytest.raises(TransportClosed):
+        client.send(b"late")
+    a, b = InProcessTransport.pair()
+    with pytest.raises(ValueError, match="is not the peer"):
+        b.send(b"x", "somebody-else")
+    a.close()
+    with pytest.raises(TransportClosed):
+        a.recv(0.0)
+    with pytest.raises(ValueError, match="port: expected 1..65535"):
+        UdpTransport.client(0)
