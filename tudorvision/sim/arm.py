@@ -553,6 +553,8 @@ class ElasticArm:
     # -- model set-up -------------------------------------------------------------------------
     def _build(self, payload: Payload) -> None:
         p, cfg = self.params, self.config
+        self._build_id = getattr(self, "_build_id", 0) + 1
+        self._mass_cache = None
         b = arm_bodies(p, payload, cfg)
         self.bodies = b
         zeta = cfg.modal_damping_ratio or tuple(float(z) for z in p.modal_damping_ratio)
@@ -778,9 +780,42 @@ class ElasticArm:
         """
         b, k2, k3 = self.bodies, self.link2, self.link3
         n2, n3 = k2.n, k3.n
+        h = self.config.dt if h is None else h
+        # M depends on the pose only through theta3: reuse it (and its inverse) while
+        # theta3 stays within 1e-4 rad
+        key = (self._build_id, h, round(self.theta[2] * 1e4))
+        cache = self._mass_cache
+        if cache is None or cache[0] != key:
+            M = self._coupled_mass(m22, m23, m33, coupling)
+            for k, lm in ((0, k2), (1, k3)):
+                off = 2 + (0 if k == 0 else n2)
+                for i in range(lm.n):
+                    M[off + i, off + i] += 0.5 * h * lm.cdamp[i] + 0.25 * h * h * lm.om2[i]
+            cache = self._mass_cache = (key, M, np.linalg.inv(M), np.linalg.inv(M[2:, 2:]))
+        M, Minv = cache[1], cache[2]
+        qc2, qc3 = self._contact_q if self._in_contact else ([0.0] * n2, [0.0] * n3)
+        # Newmark average acceleration on the modal stiffness and damping (unconditionally
+        # stable, no numerical damping): solve for the end-of-step accelerations
+        a0 = self._eta_acc_prev
+        r_ = [rhs[1], rhs[2]]
+        for k, lm, eta, deta, qg, qc in ((0, k2, self.eta2, self.deta2, gforces[0], qc2),
+                                         (1, k3, self.eta3, self.deta3, gforces[1], qc3)):
+            off = 2 + (0 if k == 0 else n2)
+            for i in range(lm.n):
+                a_prev = a0[k][i]
+                x_pred = eta[i] + h * deta[i] + 0.25 * h * h * a_prev
+                v_pred = deta[i] + 0.5 * h * a_prev
+                r_.append(qg[i] + qc[i] - lm.om2[i] * x_pred - lm.cdamp[i] * v_pred)
+        sol = (Minv @ np.asarray(r_)).tolist()
+        self._coupled_system = (M, r_)
+        return sol[:2], (sol[2:2 + n2], sol[2 + n2:])
+
+    def _coupled_mass(self, m22, m23, m33, coupling) -> np.ndarray:
+        """Assumed-modes mass matrix over (theta2, theta3, eta2, eta3)."""
+        b, k2, k3 = self.bodies, self.link2, self.link3
+        n2, n3 = k2.n, k3.n
         c2_t2, c2_t3, c3_t2, c3_t3, E = coupling
-        c3 = self._c3
-        sc = b.s3 * c3
+        sc = b.s3 * self._c3
         N = 2 + n2 + n3
         M = np.zeros((N, N))
         M[0, 0], M[0, 1], M[1, 0], M[1, 1] = m22, m23, m23, m33
@@ -796,24 +831,7 @@ class ElasticArm:
             M[0, 2 + n2 + q] = M[2 + n2 + q, 0] = c3_t2[q]
             M[1, 2 + n2 + q] = M[2 + n2 + q, 1] = c3_t3[q]
             M[2 + n2 + q, 2 + n2 + q] = 1.0
-        qc2, qc3 = self._contact_q if self._in_contact else ([0.0] * n2, [0.0] * n3)
-        # Newmark average acceleration on the modal stiffness and damping (unconditionally
-        # stable, no numerical damping): solve for the end-of-step accelerations
-        h = self.config.dt if h is None else h
-        a0 = self._eta_acc_prev
-        r_ = [rhs[1], rhs[2]]
-        for k, lm, eta, deta, qg, qc in ((0, k2, self.eta2, self.deta2, gforces[0], qc2),
-                                         (1, k3, self.eta3, self.deta3, gforces[1], qc3)):
-            off = 2 + (0 if k == 0 else n2)
-            for i in range(lm.n):
-                a_prev = a0[k][i]
-                x_pred = eta[i] + h * deta[i] + 0.25 * h * h * a_prev
-                v_pred = deta[i] + 0.5 * h * a_prev
-                r_.append(qg[i] + qc[i] - lm.om2[i] * x_pred - lm.cdamp[i] * v_pred)
-                M[off + i, off + i] += 0.5 * h * lm.cdamp[i] + 0.25 * h * h * lm.om2[i]
-        sol = np.linalg.solve(M, r_).tolist()
-        self._coupled_system = (M, r_)
-        return sol[:2], (sol[2:2 + n2], sol[2 + n2:])
+        return M
 
     def coupled_frequencies_hz(self) -> np.ndarray:
         """Natural frequencies of the coupled links with the joints held, at the current pose.
@@ -831,17 +849,11 @@ class ElasticArm:
         from scipy.linalg import eigh
         b = self.bodies
         c3 = math.cos(self.theta[2])
-        saved = (getattr(self, "_c3", c3), self._eta_acc_prev, getattr(self, "_coupled_system", None))
+        saved = getattr(self, "_c3", c3)
         self._c3 = c3
-        self._eta_acc_prev = ([0.0] * self.link2.n, [0.0] * self.link3.n)
-        m22 = b.J2 + b.J3 + 2 * b.l2 * b.s3 * c3 + b.rotor[1]
-        m23 = b.J3 + b.l2 * b.s3 * c3
-        m33 = b.J3 + b.rotor[2]
-        loads = self._loads()
-        gf = (self._gen_force(self.link2, *loads[0]), self._gen_force(self.link3, *loads[1]))
-        self._coupled_accelerations(m22, m23, m33, [0.0, 0.0, 0.0], gf, self._coupling(c3), h=0.0)
-        M = self._coupled_system[0]
-        self._c3, self._eta_acc_prev, self._coupled_system = saved
+        M = self._coupled_mass(b.J2 + b.J3 + 2 * b.l2 * b.s3 * c3 + b.rotor[1],
+                               b.J3 + b.l2 * b.s3 * c3, b.J3 + b.rotor[2], self._coupling(c3))
+        self._c3 = saved
         K = np.diag(self.link2.om2 + self.link3.om2)
         w2 = eigh(K, M[2:, 2:], eigvals_only=True)
         return np.sqrt(np.maximum(w2, 0.0)) / (2 * np.pi)
@@ -851,7 +863,7 @@ class ElasticArm:
         M, r_ = self._coupled_system
         n2 = self.link2.n
         rhs = np.asarray(r_[2:]) - M[2:, 0] * a2 - M[2:, 1] * a3
-        sol = np.linalg.solve(M[2:, 2:], rhs).tolist()
+        sol = (self._mass_cache[3] @ rhs).tolist()
         return sol[:n2], sol[n2:]
 
     def _step_modes(self, loads, gforces, coupling):
