@@ -59,9 +59,9 @@ def test_arm_stays_safe_through_a_faulty_link(name):
     rng = np.random.default_rng(5)
     try:
         assert isinstance(adapter.set_mode(Mode.VELOCITY, timeout=5.0), Ack)
-        # ---- servoing: 0.6 s of velocity commands at 100 Hz, some too fast, pushing joint 3 up
+        # ---- servoing: 0.5 s of velocity commands at 100 Hz, some too fast, pushing joint 3 up
         sent = {}
-        for _ in range(60):
+        for _ in range(50):
             v = rng.uniform(-1.3, 1.3, 3) * VMAX
             v[0] = 1.3 * VMAX[0]       # held: the speed clamp must act
             v[2] = abs(v[2])
