@@ -331,3 +331,14 @@ def test_two_way_coupling_decays_at_its_coupled_frequencies(theta3_deg):
     # the BVP ignores the distal first moment and link-3 flexibility: same range, not equal
     f_bvp = arm.link2.basis.frequency_hz[0]
     assert 0.6 < f_pred[0] / f_bvp < 1.1
+
+
+def test_measured_strain_noise_is_seeded_and_has_the_requested_spread():
+    cfg = PlantConfig(strain_noise_m_m=2e-6, noise_seed=3)
+    a, b = ElasticArm(D([0, 30, 0]), config=cfg), ElasticArm(D([0, 30, 0]), config=cfg)
+    ra = np.array([a.measured_strain() for _ in range(4000)])
+    rb = np.array([b.measured_strain() for _ in range(4000)])
+    assert np.array_equal(ra, rb)
+    assert np.allclose(ra.mean(axis=0), a.strain, atol=2e-7)
+    assert np.allclose(ra.std(axis=0), 2e-6, rtol=0.06)
+    assert ElasticArm(D([0, 30, 0])).measured_strain() == ElasticArm(D([0, 30, 0])).strain

@@ -35,6 +35,7 @@ top-surface strain positive in tension).
 from __future__ import annotations
 
 import math
+import random
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -121,6 +122,10 @@ class PlantConfig:
         distal bodies) and adds damping. ``None`` (default): two-way only when
         obstacles are present, because contact forces need the consistent
         model (the one-way coupling is not passive under contact).
+    strain_noise_m_m : float
+        Standard deviation of the white noise on :meth:`ElasticArm.measured_strain`, m/m.
+    noise_seed : int
+        Seed of the measurement-noise generator (deterministic runs).
     """
 
     dt: float = 0.0005
@@ -133,6 +138,8 @@ class PlantConfig:
     plate_size_m: float = 0.08
     modal_damping_ratio: tuple | None = None
     two_way: bool | None = None
+    strain_noise_m_m: float = 0.0
+    noise_seed: int = 0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -528,6 +535,7 @@ class ElasticArm:
             self._quant = [float(2 * np.pi / (config.encoder_counts_per_rev * nj)) for nj in n]
         else:
             self._quant = None
+        self._noise = random.Random(config.noise_seed)
         self.obstacles = tuple(obstacles)
         self._two_way = bool(self.obstacles) if config.two_way is None else bool(config.two_way)
         th = check_vector(theta0, "theta0", 3)
@@ -651,6 +659,14 @@ class ElasticArm:
         if self._quant is None:
             return list(self.theta)
         return [round(self.theta[j] / self._quant[j]) * self._quant[j] for j in range(3)]
+
+    def measured_strain(self) -> list:
+        """Gauge readings: :attr:`strain` plus white noise of ``config.strain_noise_m_m``, m/m."""
+        sd = self.config.strain_noise_m_m
+        if not sd:
+            return list(self.strain)
+        g = self._noise.gauss
+        return [x + g(0.0, sd) for x in self.strain]
 
     def T_base_ee(self) -> np.ndarray:
         """Current deflected end-effector pose, shape (4, 4)."""
@@ -1360,7 +1376,7 @@ class SimCore:
     def state(self):
         from ..joint.server import CoreState
         arm = self.arm
-        strain = np.asarray(arm.strain)
+        strain = np.asarray(arm.measured_strain())
         calm = max(self._env) < self._band
         at_rest = bool(np.all(np.abs(np.asarray(arm.dtheta)) < 1e-3))
         reached = self._goal is None or bool(np.all(np.abs(np.asarray(arm.theta) - self._goal) < 1e-3))
