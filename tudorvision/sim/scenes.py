@@ -13,6 +13,7 @@ constant or as a function of time.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -86,8 +87,8 @@ def arm_geometry_from_joints(theta, params=None, *, n_points: int = 2) -> ArmGeo
     >>> np.round(g.link_points_base[1][-1], 3).tolist()
     [0.0, 0.0, 1.19]
     """
-    from ..robot import fk_ee, fk_spheres, load_robot_params
-    p = params or load_robot_params()
+    from ..robot import fk_ee, fk_spheres
+    p = params or _default_params()
     th = check_vector(theta, "theta", 3)
     joint2 = np.array([0.0, 0.0, p.link1_height_m])
     c1, s1 = np.cos(th[0]), np.sin(th[0])
@@ -96,6 +97,12 @@ def arm_geometry_from_joints(theta, params=None, *, n_points: int = 2) -> ArmGeo
     s = np.linspace(0.0, 1.0, max(int(n_points), 2))[:, None]
     links = (joint2 + s * (elbow - joint2), elbow + s * (ee - elbow))
     return ArmGeometry(link_points_base=links, sphere_centers_base=fk_spheres(th, p))
+
+
+@functools.lru_cache(maxsize=1)
+def _default_params():
+    from ..robot import load_robot_params
+    return load_robot_params()
 
 
 def _to_world(T, p):
@@ -347,8 +354,7 @@ def _arm_fn(arm):
 
 def _sphere_radius(sphere_radius_m):
     if sphere_radius_m is None:
-        from ..robot import load_robot_params
-        return load_robot_params().sphere_radius_m
+        return _default_params().sphere_radius_m
     if not sphere_radius_m > 0:
         raise ValueError(f"sphere_radius_m: expected > 0, got {sphere_radius_m!r}")
     return float(sphere_radius_m)
@@ -399,8 +405,7 @@ def stereo_lab(rng: np.random.Generator, *, arm=None, T_world_base=np.eye(4),
     T = check_transform(T_world_base, "T_world_base")
     radius = _sphere_radius(sphere_radius_m)
     if link1_height_m is None:
-        from ..robot import load_robot_params
-        link1_height_m = load_robot_params().link1_height_m
+        link1_height_m = _default_params().link1_height_m
     left, right = stereo_rig(T, config=rig, rng=rng if jitter_rig else None)
     base_xy = T[:2, 3]
     shapes, lights = lab_room(rng, center_xy=base_xy + [0.0, 0.0], keepout_xy=base_xy, n_clutter=n_clutter,
@@ -502,7 +507,7 @@ def wall_disc(disc_center_base, rng: np.random.Generator, *, T_world_base=np.eye
     shapes, lights = _room_for_rgbd(rng, size_m=(8.0, 2 * camera_standoff_m + 2.0, 3.0), center_xy=T[:2, 3],
                                     keepout_xy=T[:2, 3], keepout_radius_m=1.4, n_clutter=6, n_distractors=2,
                                     region_y=(T[1, 3] - 0.5, T[1, 3] + camera_standoff_m))
-    shapes += _robot_base_shapes(T, 0.35)
+    shapes += _robot_base_shapes(T, _default_params().link1_height_m)
     arm_at = _arm_fn(arm)
     sphere_r = _sphere_radius(None)
 
@@ -573,7 +578,7 @@ def ball_throw(ball_center_world: Callable[[float], np.ndarray], rng: np.random.
     shapes, lights = _room_for_rgbd(rng, size_m=(8.0, span + 3.0, 3.2), center_xy=(T[0, 3], (eye[1] + T[1, 3]) / 2),
                                     keepout_xy=T[:2, 3], keepout_radius_m=1.4, n_clutter=8, n_distractors=2,
                                     region_y=(T[1, 3] - 1.0, T[1, 3] + 1.5))
-    shapes += _robot_base_shapes(T, 0.35)
+    shapes += _robot_base_shapes(T, _default_params().link1_height_m)
     ball_rgb = rng.choice([(0.9, 0.8, 0.1), (0.95, 0.45, 0.05), (0.2, 0.5, 0.9)])
     arm_at = _arm_fn(arm)
     sphere_r = _sphere_radius(None)
