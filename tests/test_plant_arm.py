@@ -295,7 +295,8 @@ def test_contact_on_the_middle_of_link3_blocks_the_motion():
     # a ball obstacle 6 cm beyond the probe's final position, on the path of link 3
     start_mid = ElasticArm(theta0)._probe_position(3, 0.25)
     direction = (mid - start_mid) / np.linalg.norm(mid - start_mid)
-    ob = SpringDamperObstacle(kind="sphere", point_base=start_mid + 0.6 * (mid - start_mid) + 0.05 * direction,
+    centre = start_mid + 0.6 * (mid - start_mid) + 0.05 * direction
+    ob = SpringDamperObstacle(kind="sphere", point_base=centre,
                               radius_m=0.05, probe_radius_m=0.01, probe_link=3, probe_x_m=0.25,
                               stiffness_N_m=5e3, damping_Ns_m=20.0)
     free = simulate_ptp(theta0, goal, 2.0, t_move=0.1)

@@ -617,7 +617,8 @@ class ElasticArm:
         shapes = []
         if self.config.elastic:
             l2, l3 = self._loads()
-            for lm, eta, deta, loads in ((old2, self.eta2, self.deta2, l2), (old3, self.eta3, self.deta3, l3)):
+            for lm, eta, deta, loads in ((old2, self.eta2, self.deta2, l2),
+                                         (old3, self.eta3, self.deta3, l3)):
                 shapes.append(self._shape_on_grid(lm, eta, deta, loads))
         self.payload = payload
         self._build(payload)
@@ -1164,7 +1165,8 @@ def simulate_ptp(theta_start, theta_goal, duration_s: float, *, payload: Payload
     lo, hi = p.joint_limits_rad[:, 0], p.joint_limits_rad[:, 1]
     for name, th in (("theta_start", start), ("theta_goal", goal)):
         if np.any(th < lo - 1e-9) or np.any(th > hi + 1e-9):
-            raise ValueError(f"{name}: {np.round(np.rad2deg(th), 2).tolist()} deg is outside the joint ranges")
+            raise ValueError(f"{name}: {np.round(np.rad2deg(th), 2).tolist()} deg "
+                             "is outside the joint ranges")
     vmax = np.minimum(p.experiment_speed_rad_s, p.max_speed_rad_s) if v_max is None \
         else np.broadcast_to(np.asarray(v_max, float), (3,))
     amax = np.minimum(p.experiment_accel_rad_s2, p.max_accel_rad_s2) if a_max is None \
@@ -1240,7 +1242,8 @@ class ControlledArm:
         goal = check_vector(theta_goal, "theta_goal", 3)
         p = self.arm.params
         if np.any(goal < p.joint_limits_rad[:, 0]) or np.any(goal > p.joint_limits_rad[:, 1]):
-            raise ValueError(f"theta_goal: {np.round(np.rad2deg(goal), 2).tolist()} deg is outside the joint ranges")
+            raise ValueError(f"theta_goal: {np.round(np.rad2deg(goal), 2).tolist()} deg "
+                             "is outside the joint ranges")
         vmax = self.v_max if v_max is None else np.broadcast_to(np.asarray(v_max, float), (3,))
         amax = self.a_max if a_max is None else np.broadcast_to(np.asarray(a_max, float), (3,))
         if np.any(vmax > p.max_speed_rad_s + 1e-9) or np.any(amax > p.max_accel_rad_s2 + 1e-9):

@@ -331,7 +331,8 @@ def modal_basis(link: LinkParams, tip_mass_kg: float, tip_inertia_kg_m2: float,
     if tip_mass_kg < 0 or tip_inertia_kg_m2 < 0:
         raise ValueError(f"tip load: expected mass and inertia >= 0, got {tip_mass_kg}, {tip_inertia_kg_m2}")
     return _modal_basis_cached(float(link.length_m), link_rho(link), link_rigidity(link),
-                               float(link.height_m), float(tip_mass_kg), float(tip_inertia_kg_m2), int(n_modes))
+                               float(link.height_m), float(tip_mass_kg), float(tip_inertia_kg_m2),
+                               int(n_modes))
 
 
 @functools.lru_cache(maxsize=256)
