@@ -343,3 +343,16 @@ def test_measured_strain_noise_is_seeded_and_has_the_requested_spread():
     assert np.allclose(ra.mean(axis=0), a.strain, atol=2e-7)
     assert np.allclose(ra.std(axis=0), 2e-6, rtol=0.06)
     assert ElasticArm(D([0, 30, 0])).measured_strain() == ElasticArm(D([0, 30, 0])).strain
+
+
+def test_controlled_arm_records_a_log_matching_simulate():
+    from tudorvision.sim.arm import ControlledArm
+    start, goal = D([0, 40, -30]), D([10, 60, -10])
+    a = ControlledArm(ElasticArm(start))
+    a.set_goal(goal)
+    log_a = a.run(1.0, record=True)
+    log_b = simulate_ptp(start, goal, 1.0)
+    assert log_a.theta.shape == log_b.theta.shape == (2000, 3)
+    assert np.allclose(log_a.theta, log_b.theta, atol=1e-9)
+    assert np.allclose(log_a.strain, log_b.strain, atol=1e-12)
+    assert a.run(0.01) is None

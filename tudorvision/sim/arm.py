@@ -1103,27 +1103,43 @@ def simulate(arm: ElasticArm, controller: JointCascade, reference, duration_s: f
     times = arm.t + dt * np.arange(n)          # reference at the sample instant
     ref_th, ref_dth, _ = reference.sample(times)
     ref_th, ref_dth = ref_th.tolist(), ref_dth.tolist()
-    cols = {k: [] for k in ("t", "theta", "dtheta", "ddtheta", "tau", "strain", "tip2", "tip3", "fc")}
+    rec = _Recorder()
     zero = (0.0, 0.0, 0.0)
     for k in range(n):
         extra = dtheta_extra(arm) if dtheta_extra is not None else zero
         v = controller.step(arm.measured_theta(), ref_th[k], ref_dth[k], extra)
         arm.step(v)
-        cols["t"].append(arm.t)
-        cols["theta"].append(list(arm.theta))
-        cols["dtheta"].append(list(arm.dtheta))
-        cols["ddtheta"].append(list(arm.ddtheta))
-        cols["tau"].append(arm.tau)
-        cols["strain"].append(arm.strain)
-        cols["tip2"].append(arm.tip2)
-        cols["tip3"].append(arm.tip3)
-        cols["fc"].append(arm.contact_force)
-    return SimLog(t=np.asarray(cols["t"]), theta=np.asarray(cols["theta"]),
-                  dtheta=np.asarray(cols["dtheta"]), ddtheta=np.asarray(cols["ddtheta"]),
-                  theta_ref=np.asarray(ref_th), dtheta_ref=np.asarray(ref_dth),
-                  tau=np.asarray(cols["tau"]), strain=np.asarray(cols["strain"]),
-                  tip2=np.asarray(cols["tip2"]), tip3=np.asarray(cols["tip3"]),
-                  contact_force=np.asarray(cols["fc"]), params=arm.params)
+        rec.add(arm, ref_th[k], ref_dth[k])
+    return rec.log(arm.params)
+
+
+class _Recorder:
+    """Collects the per-step state of an :class:`ElasticArm` into a :class:`SimLog`."""
+
+    _KEYS = ("t", "theta", "dtheta", "ddtheta", "ref", "dref", "tau", "strain", "tip2", "tip3", "fc")
+
+    def __init__(self):
+        self.cols = {k: [] for k in self._KEYS}
+
+    def add(self, arm: "ElasticArm", theta_ref, dtheta_ref) -> None:
+        c = self.cols
+        c["t"].append(arm.t)
+        c["theta"].append(list(arm.theta))
+        c["dtheta"].append(list(arm.dtheta))
+        c["ddtheta"].append(list(arm.ddtheta))
+        c["ref"].append(theta_ref)
+        c["dref"].append(dtheta_ref)
+        c["tau"].append(arm.tau)
+        c["strain"].append(arm.strain)
+        c["tip2"].append(arm.tip2)
+        c["tip3"].append(arm.tip3)
+        c["fc"].append(arm.contact_force)
+
+    def log(self, params: RobotParams) -> SimLog:
+        c = {k: np.asarray(v, dtype=np.float64) for k, v in self.cols.items()}
+        return SimLog(t=c["t"], theta=c["theta"], dtheta=c["dtheta"], ddtheta=c["ddtheta"],
+                      theta_ref=c["ref"], dtheta_ref=c["dref"], tau=c["tau"], strain=c["strain"],
+                      tip2=c["tip2"], tip3=c["tip3"], contact_force=c["fc"], params=params)
 
 
 def simulate_ptp(theta_start, theta_goal, duration_s: float, *, payload: Payload | None = None,
@@ -1291,10 +1307,18 @@ class ControlledArm:
         extra = self.damping(arm) if self.damping is not None else (0.0, 0.0, 0.0)
         arm.step(self.controller.step(arm.measured_theta(), th_ref, dth_ref, extra))
 
-    def run(self, duration_s: float) -> None:
-        """Advance ``duration_s`` seconds (rounded to whole samples)."""
+    def run(self, duration_s: float, *, record: bool = False):
+        """Advance ``duration_s`` seconds (rounded to whole samples).
+
+        With ``record=True`` the states after every sample are returned as a
+        :class:`SimLog` (e.g. to change goals between calls and concatenate).
+        """
+        rec = _Recorder() if record else None
         for _ in range(int(round(duration_s / self.arm.config.dt))):
             self.step()
+            if rec is not None:
+                rec.add(self.arm, self.theta_ref, self.dtheta_ref)
+        return rec.log(self.arm.params) if rec is not None else None
 
 
 class SimCore:
