@@ -20,14 +20,15 @@ from typing import Callable
 import numpy as np
 
 from .._checks import check_points, check_transform, check_vector
-from .camera import PinholeCamera, intrinsic_matrix, look_at
+from .camera import PinholeCamera, intrinsic_matrix, look_at, sphere_silhouette_centroid
 from .lighting import AmbientLight, DirectionalLight, PointLight, Varying
-from .render import Box, Capsule, Cylinder, Disc, Rectangle, Scene, Sphere
+from .render import Box, Capsule, Cylinder, Disc, Rectangle, Scene, Sphere, exposure_times
 
 __all__ = [
     "ArmGeometry", "arm_geometry_from_joints", "arm_shapes", "SimSetup", "StereoRigConfig",
     "stereo_rig", "stereo_lab", "kinect_camera", "planar_target", "wall_disc", "ball_throw",
-    "ballistic", "eye_in_hand", "checkerboard_lab", "lab_room", "KINECT_RATE_HZ", "STEREO_RATE_HZ",
+    "ballistic", "eye_in_hand", "checkerboard_lab", "lab_room", "sphere_image_truth", "KINECT_RATE_HZ",
+    "STEREO_RATE_HZ",
 ]
 
 KINECT_RATE_HZ = 30.0
@@ -684,3 +685,41 @@ def checkerboard_lab(T_world_board, rng: np.random.Generator, *, squares=(9, 7),
         meta.update(inner_corners_world=board.inner_corners(),
                     T_world_board=check_transform(T_world_board, "T_world_board"), object_ids={"board": 1})
     return SimSetup(scene=scene, cameras={"left": left, "right": right}, meta=meta)
+
+
+def sphere_image_truth(camera: PinholeCamera, center_world_at: Callable[[float], np.ndarray], radius_m: float,
+                       t: float, *, exposure_s: float = 0.0, n_subframes: int = 1, line_time_s: float = 0.0,
+                       iterations: int = 3, n_radial: int = 16, n_angular: int = 32) -> np.ndarray:
+    """Ground-truth image position (pixels) of a moving sphere in a frame starting at ``t``.
+
+    The exact silhouette centroid (:func:`~tudorvision.sim.camera.sphere_silhouette_centroid`)
+    averaged over the sub-frame times of :func:`~tudorvision.sim.render.exposure_times`,
+    i.e. the first moment of the blurred silhouette. With a rolling shutter
+    the sphere is sampled at the read-out time of the row of its own
+    centroid, found by fixed-point iteration (exact to first order in the
+    image-plane motion during the read-out of the silhouette).
+
+    Parameters
+    ----------
+    center_world_at : callable
+        ``t -> (3,)`` sphere centre in the world (metres).
+
+    Returns
+    -------
+    ndarray, shape (2,)
+        ``(u, v)`` pixels.
+
+    Examples
+    --------
+    >>> from tudorvision.sim.camera import intrinsic_matrix
+    >>> cam = look_at([0, -2, 0], [0, 0, 0], K=intrinsic_matrix(100, 49.5, 49.5), width=100, height=100)
+    >>> sphere_image_truth(cam, lambda t: np.array([t, 0.0, 0.0]), 0.1, 0.0, exposure_s=0.2).round(2).tolist()
+    [54.51, 49.5]
+    """
+    row = 0.0
+    for _ in range(int(iterations) if line_time_s > 0 else 1):
+        times = exposure_times(t + row * line_time_s, exposure_s=exposure_s, n_subframes=n_subframes)
+        uv = np.mean([sphere_silhouette_centroid(camera, center_world_at(tt), radius_m, n_radial=n_radial,
+                                                 n_angular=n_angular) for tt in times], axis=0)
+        row = float(uv[1])
+    return uv
