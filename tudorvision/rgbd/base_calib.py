@@ -60,8 +60,26 @@ def _inliers(pts: np.ndarray, fit, k: float) -> tuple[np.ndarray, np.ndarray]:
     return (h / sh) ** 2 + (dr / sr) ** 2 <= k * k, np.hypot(h, dr)
 
 
+def _measured_weight(pts: np.ndarray, centre: np.ndarray, normal: np.ndarray, pv: np.ndarray, m: int) -> float:
+    """Weight of the measured out-of-plane offset of the vertical point against the plane's prediction."""
+    a = np.array([1.0, 0.0, 0.0]) if abs(normal[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(normal, a)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(normal, e1)
+    d = pts - centre
+    A = np.column_stack([np.ones(len(d)), d @ e1, d @ e2])
+    h = d @ normal
+    s2 = (1.4826 * float(np.median(np.abs(h - np.median(h))))) ** 2
+    if not s2 > 0:
+        return 0.0
+    q = np.array([1.0, (pv - centre) @ e1, (pv - centre) @ e2])
+    var_plane = s2 * float(q @ np.linalg.solve(A.T @ A, q))
+    var_meas = s2 / max(m, 1)
+    return var_plane / (var_plane + var_meas)
+
+
 def base_frame_from_sweep(points_cam, vertical_cam, *, theta2_rad=None, link1_height_m: float | None = None,
-                          origin: str = "base", project_vertical: bool = False, min_points: int = 6,
+                          origin: str = "base", vertical: str = "combined", min_points: int = 6,
                           loss: str = "soft_l1", inlier_sigma: float = 3.5, max_rejected_fraction: float = 0.3):
     """Robot base frame in the camera frame from disc centroids of a theta2 sweep.
 
@@ -72,7 +90,8 @@ def base_frame_from_sweep(points_cam, vertical_cam, *, theta2_rad=None, link1_he
         order. Rows with NaN (lost samples) are skipped and reported.
     vertical_cam : array_like, shape (3,) or (M, 3)
         End-effector (disc) position(s) in the vertical posture [0, 90, 0] deg;
-        several rows are averaged.
+        several rows are averaged (NaN rows skipped). Average many frames: the
+        depth noise of this point tilts z.
     theta2_rad : array_like, shape (N,), optional
         theta2 per sample; gives the sweep direction. Without it the samples
         are taken to be in increasing theta2.
@@ -82,9 +101,16 @@ def base_frame_from_sweep(points_cam, vertical_cam, *, theta2_rad=None, link1_he
     origin : {"base", "joint2"}
         ``"base"``: base-plate origin of :mod:`tudorvision.robot`;
         ``"joint2"``: the circle centre (the seed's origin).
-    project_vertical : bool
-        Replace the vertical point by its nearest point on the fitted circle
-        before taking z (reduces depth noise; the seed uses the raw point).
+    vertical : {"combined", "seed", "plane"}
+        Estimate of the vertical-posture point whose direction from the centre
+        is z. ``"seed"``: the measured mean point. ``"plane"``: its offset out
+        of the fitted circle plane removed (the vertical posture lies on the
+        sweep circle). ``"combined"`` (default): the out-of-plane offset is the
+        variance-weighted mean of the measured offset (variance ``s^2 / M`` for
+        M vertical frames) and zero (the plane's variance at that spot from the
+        plane fit of the sweep), with ``s`` the robust out-of-plane scatter of
+        the sweep samples. Depth noise acts mostly out of the plane when the
+        camera faces the sweep, so few vertical frames tilt a raw z by degrees.
     min_points : int
         Minimum number of valid inlier samples.
     loss : str
@@ -151,13 +177,19 @@ def base_frame_from_sweep(points_cam, vertical_cam, *, theta2_rad=None, link1_he
     y_hat = -omega
     c = fit.centre
 
-    pv = check_points(vertical_cam, "vertical_cam").mean(axis=0)
-    if project_vertical:
-        d = pv - c
-        d_in = d - (d @ omega) * omega
-        if np.linalg.norm(d_in) < 1e-9:
-            raise TudorVisionError("vertical_cam: the vertical point projects onto the circle centre")
-        pv = c + fit.radius * d_in / np.linalg.norm(d_in)
+    pv_all = check_points(vertical_cam, "vertical_cam", finite=False)
+    pv_ok = np.all(np.isfinite(pv_all), axis=1)
+    if not np.any(pv_ok):
+        raise TudorVisionError("vertical_cam: no valid vertical-posture point (disc lost in every vertical frame)")
+    pv = pv_all[pv_ok].mean(axis=0)
+    if vertical not in ("combined", "seed", "plane"):
+        raise ValueError(f"vertical: expected 'combined', 'seed' or 'plane', got {vertical!r}")
+    h_v = float((pv - c) @ omega)
+    w_meas = 1.0
+    if vertical != "seed":
+        w_meas = 0.0 if vertical == "plane" else _measured_weight(pts_used, fit.centre, omega, pv,
+                                                                  int(pv_ok.sum()))
+        pv = pv - (1.0 - w_meas) * h_v * omega
     dz = pv - c
     nz = float(np.linalg.norm(dz))
     if nz < 0.1 * fit.radius:
@@ -187,6 +219,10 @@ def base_frame_from_sweep(points_cam, vertical_cam, *, theta2_rad=None, link1_he
         "circle_centre_cam": c.tolist(),
         "normal_cam": y_hat.tolist(),
         "vertical_cam": pv.tolist(),
+        "n_vertical": int(pv_ok.sum()),
+        "vertical_mode": vertical,
+        "vertical_offset_from_plane_m": h_v,
+        "vertical_measured_weight": float(w_meas),
         "vertical_distance_m": nz,
         "z_tilt_from_plane_deg": float(np.degrees(np.arcsin(np.clip(abs(z @ y_hat), 0.0, 1.0)))),
         "n_samples": n_all,

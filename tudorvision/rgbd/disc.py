@@ -10,9 +10,10 @@ disc: the next seed is the previous centroid's pixel.
 
 Depth noise at 5 m is tens of centimetres per pixel (seed model), so growing
 runs on a median-filtered depth image (``smooth_px``). The centroid is the
-region's mean pixel back-projected at the robust mean raw depth inside the
-region's shrunk moment ellipse (averaging the noise down without the mixed rim
-pixels, and without selection bias from the noisy region boundary).
+region's mean pixel back-projected at the robust mean raw depth of an elliptic
+annulus of the region (averaging the noise down without the mixed rim pixels,
+without whatever stands in front of the disc centre, and without selection
+bias from the noisy region boundary).
 """
 from __future__ import annotations
 
@@ -51,10 +52,10 @@ class DiscOptions:
         Disc radius; when given, the region must also cover between
         ``area_ratio[0]`` and ``area_ratio[1]`` times the disc's
         fronto-parallel image area at its depth.
-    inner_scale : float
-        The centroid depth is the robust mean raw depth of the pixels inside
-        the region's moment ellipse scaled by this factor (rim pixels mix disc
-        and background).
+    depth_annulus : tuple of float
+        The centroid depth is the robust mean raw depth of the pixels between
+        these fractions of the region's moment ellipse (the rim mixes disc and
+        background; the centre may be hidden by end-effector hardware).
     depth_model : DepthNoiseModel
         ``sigma_z(z)`` used for the tolerance.
     """
@@ -69,7 +70,7 @@ class DiscOptions:
     max_pixels: int = 40000
     disc_radius_m: float | None = None
     area_ratio: tuple = (0.25, 2.5)
-    inner_scale: float = 0.7
+    depth_annulus: tuple = (0.7, 1.0)
     depth_model: DepthNoiseModel = field(default=SEED_DEPTH_MODEL)
 
     def __post_init__(self):
@@ -172,7 +173,8 @@ def segment_uniform_depth(depth_m, seed_uv, options: DiscOptions = DiscOptions()
     noise = float(options.depth_model.sigma(z_ref)) * (1.0 if options.smooth_px == 1 else 1.25 / options.smooth_px)
     tol = float(np.clip(options.n_sigma * noise, options.min_tol_m, options.max_tol_m))
     with np.errstate(invalid="ignore"):
-        cand = np.abs(ds - z_ref) <= tol
+        # pixels without a raw depth stay barriers (sensors drop depth at object edges)
+        cand = (np.abs(ds - z_ref) <= tol) & np.isfinite(d)
     _, labels = cv2.connectedComponents(cand.astype(np.uint8), connectivity=options.connectivity)
     lab = labels[v, u]
     if lab == 0:
@@ -247,21 +249,26 @@ def observe_disc(depth_m, intrinsics: Intrinsics, seed_uv, options: DiscOptions 
         return _lost((u, v), z_ref, n, reason)
     import cv2
 
-    # pixel centroid and shape (second moments) from the region; the depth from all
-    # pixels inside the region's ellipse shrunk by ``inner_scale``. Taking the
-    # interior geometrically (not the noisy mask itself) keeps the depth mean free of
-    # selection bias, and leaves out the rim pixels that mix disc and background.
+    # pixel centroid and shape (second moments) from the region; the depth from the
+    # pixels of an elliptic annulus of the region's moment ellipse. Taking the pixels
+    # geometrically (not the noisy mask itself) keeps the depth mean free of selection
+    # bias; the annulus leaves out the rim (mixed disc/background pixels) and the
+    # centre, where the end-effector hardware can stand in front of the disc.
     vv, uu = np.nonzero(mask)
     uv = np.array([uu.mean(), vv.mean()])
     C = np.cov(np.stack([uu, vv]).astype(np.float64)) + 0.25 * np.eye(2)
     Ci = np.linalg.inv(C)
-    half = int(np.ceil(2.0 * options.inner_scale * np.sqrt(np.max(np.linalg.eigvalsh(C))))) + 1
+    lo, hi = options.depth_annulus
+    half = int(np.ceil(2.0 * hi * np.sqrt(np.max(np.linalg.eigvalsh(C))))) + 1
     u0, u1 = max(0, int(uv[0]) - half), min(d.shape[1], int(uv[0]) + half + 2)
     v0, v1 = max(0, int(uv[1]) - half), min(d.shape[0], int(uv[1]) + half + 2)
     gv, gu = np.mgrid[v0:v1, u0:u1]
     du, dv = gu - uv[0], gv - uv[1]
-    inside = Ci[0, 0] * du * du + 2 * Ci[0, 1] * du * dv + Ci[1, 1] * dv * dv <= 4.0 * options.inner_scale ** 2
-    z = d[v0:v1, u0:u1][inside]
+    m2 = (Ci[0, 0] * du * du + 2 * Ci[0, 1] * du * dv + Ci[1, 1] * dv * dv) / 4.0
+    win = d[v0:v1, u0:u1]
+    z = win[(m2 >= lo * lo) & (m2 <= hi * hi)]
+    if np.isfinite(z).sum() < 10:                      # tiny region: use all of it
+        z = win[m2 <= hi * hi]
     z = z[np.isfinite(z)]
     if len(z) < 3:
         reason = f"disc region at seed ({u}, {v}) has only {len(z)} valid raw depths"
@@ -283,6 +290,12 @@ def _lost(seed, z, n, reason) -> DiscObservation:
 
 class DiscTracker:
     """Follow the disc through a sweep: each seed is the previous centroid's pixel.
+
+    The seed is first the constant-velocity prediction (previous centroid plus
+    the last displacement), then the previous centroid; when neither grows a
+    plausible disc at about the previous depth, seeds on rings around the
+    prediction (one and two disc radii) are tried. A frame where all fail is a
+    lost sample.
 
     Parameters
     ----------
@@ -312,6 +325,29 @@ class DiscTracker:
         self.seed_uv = (u, v)
         self.n_lost = 0
         self.frame = 0
+        self._velocity = np.zeros(2)
+        self._last_uv: np.ndarray | None = None
+        self._last_z: float | None = None
+
+    def _candidates(self):
+        K = self.intrinsics
+        base = np.array(self.seed_uv, float)
+        pred = base + self._velocity
+        out = [pred, base]
+        if self.options.disc_radius_m is not None and self._last_z:
+            r = float(np.sqrt(K.fx * K.fy) * self.options.disc_radius_m / self._last_z)
+        else:
+            r = 5.0
+        ang = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+        for rad in (r, 2 * r):
+            out += [pred + rad * np.array([np.cos(a), np.sin(a)]) for a in ang]
+        seen, uniq = set(), []
+        for c in out:
+            q = (int(round(c[0])), int(round(c[1])))
+            if q not in seen and 0 <= q[0] < K.width and 0 <= q[1] < K.height:
+                seen.add(q)
+                uniq.append(q)
+        return uniq
 
     def update(self, depth_m) -> DiscObservation:
         """Observe the disc in the next frame; returns the (possibly invalid) observation.
@@ -322,18 +358,37 @@ class DiscTracker:
             When the disc has been lost ``max_consecutive_lost`` frames in a row,
             or the depth frame has no valid pixel.
         """
-        obs = observe_disc(depth_m, self.intrinsics, self.seed_uv, self.options, strict=False)
+        d = check_depth(depth_m, intrinsics=self.intrinsics)
+        first = None
+        obs = None
+        for seed in self._candidates():
+            o = observe_disc(d, self.intrinsics, seed, self.options, strict=False)
+            first = first or o
+            if not o.valid:
+                continue
+            if self._last_z is not None:
+                gate = max(0.3, 3.0 * float(self.options.depth_model.sigma(self._last_z)) / 4.0)
+                if abs(o.centroid_cam[2] - self._last_z) > gate:
+                    continue
+            obs = o
+            break
         self.frame += 1
-        if obs.valid:
-            self.n_lost = 0
-            u, v = (int(round(x)) for x in obs.centroid_uv)
-            if 0 <= u < self.intrinsics.width and 0 <= v < self.intrinsics.height:
-                self.seed_uv = (u, v)
-        else:
+        if obs is None:
             self.n_lost += 1
+            self._velocity = np.zeros(2)
             if self.n_lost >= self.max_consecutive_lost:
                 raise TudorVisionError(f"disc lost in {self.n_lost} consecutive frames up to frame "
-                                       f"{self.frame - 1}: {obs.reason}")
+                                       f"{self.frame - 1}: {first.reason}")
+            return first
+        self.n_lost = 0
+        uv = obs.centroid_uv
+        if self._last_uv is not None:
+            self._velocity = uv - self._last_uv
+        self._last_uv = uv.copy()
+        self._last_z = float(obs.centroid_cam[2])
+        u, v = (int(round(x)) for x in uv)
+        if 0 <= u < self.intrinsics.width and 0 <= v < self.intrinsics.height:
+            self.seed_uv = (u, v)
         return obs
 
 
