@@ -149,8 +149,8 @@ def load_robot_params(path: str | Path | None = None) -> RobotParams:
             amplifier_cutoff_hz=_arr(jnt["amplifier_cutoff_hz"]),
             max_intermittent_torque_Nm=_arr(jnt["max_intermittent_torque_Nm"]),
             actuator_mass_kg=_arr(jnt["actuator_mass_kg"]),
-            link2=LinkParams(**lnk["link2"]),
-            link3=LinkParams(**lnk["link3"]),
+            link2=LinkParams(**{k: float(v) for k, v in lnk["link2"].items()}),
+            link3=LinkParams(**{k: float(v) for k, v in lnk["link3"].items()}),
             gauge_positions_m={k: _arr(v) for k, v in lnk["gauge_positions_m"].items()},
             modal_damping_ratio=_arr(lnk["modal_damping_ratio"]),
             plate_mass_kg=float(pay["plate_mass_kg"]),
@@ -158,5 +158,5 @@ def load_robot_params(path: str | Path | None = None) -> RobotParams:
             end_effector_mount_mass_kg=float(pay["end_effector_mount_mass_kg"]),
             ball_mass_kg=float(pay["ball_mass_kg"]),
         )
-    except (KeyError, TypeError) as exc:
+    except (KeyError, TypeError, ValueError) as exc:
         raise TudorVisionError(f"{path}: missing or invalid robot parameter {exc}") from None
