@@ -33,10 +33,10 @@ from .._progress import progress
 from ..robot import load_robot_params, T_base_ee
 from ..robot.params import RobotParams
 from .arm import Payload, fk_elastic, simulate_ptp, spheres_from_T, ElasticArm
-from .camera import PinholeCamera, look_at, sphere_silhouette_centroid
+from .camera import PinholeCamera, look_at
 from .render import render_bgr, render_rgbd
 from .scenes import (ArmGeometry, StereoRigConfig, ball_throw, checkerboard_lab, eye_in_hand, planar_target,
-                     stereo_lab, wall_disc, KINECT_RATE_HZ, STEREO_RATE_HZ)
+                     sphere_image_truth, stereo_lab, wall_disc, KINECT_RATE_HZ, STEREO_RATE_HZ)
 
 __all__ = ["RecordOptions", "KINDS", "record", "elastic_arm_geometry", "T_WORLD_BASE",
            "calibration_from_cameras", "static_arm_state"]
@@ -189,26 +189,31 @@ def _rig_cameras(setup):
     return setup.cameras["left"], setup.cameras["right"]
 
 
-def _stereo_truth_rows(cams, T_world_base, T_ee_fn, params, times, exposure_s, n_sub):
-    """Ground-truth rows: EE and sphere centres (base frame) and exposure-averaged silhouette centroids."""
+def _stereo_truth_rows(cams, T_world_base, T_ee_fn, params, times, exposure_s, n_sub, line_time_s=0.0):
+    """Ground-truth rows: EE and sphere centres (base frame, mid-exposure) and image centroids.
+
+    Image positions are the first moments of the exact (blurred, rolling-shutter
+    timed) silhouettes, :func:`tudorvision.sim.scenes.sphere_image_truth`.
+    """
     rows = []
     r = params.sphere_radius_m
+    R, o = T_world_base[:3, :3], T_world_base[:3, 3]
+
+    def centre_world(name):
+        return lambda ts: R @ spheres_from_T(T_ee_fn(ts), params)[name] + o
+
     for t in times:
-        sub = t + (exposure_s * (np.arange(n_sub) + 0.5) / n_sub if exposure_s > 0 else np.zeros(1))
         T_mid = T_ee_fn(t + exposure_s / 2)
         sph_mid = spheres_from_T(T_mid, params)
         row = [t, *T_mid[:3, 3], *sph_mid["red"], *sph_mid["green"]]
         for cam in cams:
             for name in ("red", "green"):
-                uv = []
-                for ts in sub:
-                    c_base = spheres_from_T(T_ee_fn(ts), params)[name]
-                    c_world = T_world_base[:3, :3] @ c_base + T_world_base[:3, 3]
-                    try:
-                        uv.append(sphere_silhouette_centroid(cam, c_world, r, n_radial=12, n_angular=24))
-                    except ValueError:
-                        uv.append([np.nan, np.nan])
-                row += list(np.mean(uv, axis=0))
+                try:
+                    uv = sphere_image_truth(cam, centre_world(name), r, float(t), exposure_s=exposure_s,
+                                            n_subframes=n_sub, line_time_s=line_time_s)
+                except ValueError:
+                    uv = [np.nan, np.nan]
+                row += list(uv)
         rows.append(row)
     names = ["t", "ee_x_m", "ee_y_m", "ee_z_m", "red_x_m", "red_y_m", "red_z_m", "green_x_m", "green_y_m",
              "green_z_m"]
@@ -262,7 +267,8 @@ def _record_stereo_motion(out: Path, opts: RecordOptions, *, start_deg, goal_deg
         for k in range(0, len(log.t), 10):       # joint log at 200 Hz
             w.add_joints(float(log.t[k]), log.theta[k])
         names, rows = _stereo_truth_rows((left, right), T_WORLD_BASE, interp.T_base_ee, p, times,
-                                         opts.exposure_s, max(2, opts.n_subframes))
+                                         opts.exposure_s, opts.n_subframes,
+                                         opts.line_time_s if opts.rolling_shutter else 0.0)
         w.write_groundtruth("ee", (names, rows), comment="positions in the robot base frame, metres, averaged "
                             "over the exposure; pixel centroids are exposure-averaged exact silhouette centroids")
         _stereo_truth_transforms(w, left, right, T_WORLD_BASE)
