@@ -1,0 +1,224 @@
+"""``tudorvision calib rgbd-depth`` and ``tudorvision calib rgbd-base``.
+
+Thin shells over :mod:`tudorvision.rgbd.depth_model`,
+:mod:`tudorvision.rgbd.disc` and :mod:`tudorvision.rgbd.base_calib`;
+sequences and calibration files go through :mod:`tudorvision.io`.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .._checks import TudorVisionError
+
+__all__ = ["register"]
+
+
+def _parse_floats(text: str, name: str, n: int | None = None) -> list[float]:
+    try:
+        vals = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise TudorVisionError(f"{name}: expected comma-separated numbers, got {text!r}") from None
+    if n is not None and len(vals) != n:
+        raise TudorVisionError(f"{name}: expected {n} comma-separated numbers, got {text!r}")
+    return vals
+
+
+def _save(out, base_cal, camera, **updates):
+    from ..io import Calibration, load_calibration, save_calibration
+
+    out = Path(out)
+    cal = load_calibration(out) if out.is_file() else (base_cal or Calibration())
+    if camera is not None and "rgbd" not in cal.cameras:
+        cal = cal.with_updates(cameras={"rgbd": camera})
+    return save_calibration(cal.with_updates(**updates), out)
+
+
+def _camera(seq, calib):
+    from .cli import _camera_from_file, _pick_camera
+    if calib is not None:
+        return _camera_from_file(calib)
+    cal = seq.calibration
+    if cal is None or not cal.cameras:
+        raise TudorVisionError(f"{seq.path}: the sequence has no camera intrinsics; pass --calib FILE")
+    return _pick_camera(cal, seq.path), cal
+
+
+def _nominal_distance(seq):
+    """Target distance from the sequence's ground truth or metadata, if recorded."""
+    if "target" in getattr(seq, "groundtruth_names", []):
+        gt = seq.groundtruth("target")
+        if "distance_m" in gt:
+            return float(np.median(gt["distance_m"]))
+    meta = getattr(seq, "meta", None) or {}
+    if "distance_m" in meta:
+        return float(meta["distance_m"])
+    return None
+
+
+def _cmd_depth(args) -> int:
+    from .._progress import progress
+    from ..io import DepthModel, open_sequence
+    from .depth_model import calibrate_depth_model, plot_depth_model, write_depth_table_csv
+    from .frames import Intrinsics
+
+    distances = None if args.distances is None else _parse_floats(args.distances, "--distances", len(args.seq))
+    roi = None if args.roi is None else tuple(int(v) for v in _parse_floats(args.roi, "--roi", 4))
+    stacks, nominal, cam, cal0 = [], [], None, None
+    for i, path in enumerate(args.seq):
+        seq = open_sequence(path)
+        if seq.kind != "rgbd":
+            raise TudorVisionError(f"{path}: expected an RGB-D sequence, got kind {seq.kind!r}")
+        if cam is None:
+            cam, cal0 = _camera(seq, args.calib)
+        stacks.append(np.stack([f.depth_m for f in progress(seq, total=len(seq), desc=Path(path).name)]))
+        nominal.append(distances[i] if distances is not None else _nominal_distance(seq))
+    K = Intrinsics.from_matrix(cam.K, cam.width, cam.height)
+    if any(d is None for d in nominal):
+        nominal = None          # bias needs every distance; plane depth gives the distance column
+    model, table = calibrate_depth_model(stacks, K, nominal_distances_m=nominal,
+                                         rois=None if roi is None else [roi] * len(stacks))
+    for r in table:
+        print(f"z {r.distance_m:6.3f} m  sigma {r.sigma_m * 100:7.3f} cm  bias {r.bias_m * 100:+7.3f} cm  "
+              f"pixels {r.n_pixels}")
+    print("sigma_z(z) [m] = " + " ".join(f"{c:+.5g}" for c in model.coeffs) + " (z in m, highest power first)")
+    if args.out:
+        dm = DepthModel(sigma_z_poly=list(model.coeffs), z_unit="m", sigma_unit="m",
+                        valid_range_m=tuple(model.z_range_m))
+        print(f"wrote {_save(args.out, cal0, cam, depth_model=dm)}")
+    if args.report:
+        print(f"wrote {write_depth_table_csv(args.report, table)}")
+    if args.plot:
+        print(f"wrote {plot_depth_model(args.plot, table, model)}")
+    return 0
+
+
+def _is_vertical(theta, tol):
+    return abs(theta[0]) < tol and abs(theta[1] - np.pi / 2) < tol and abs(theta[2]) < tol
+
+
+def _cmd_base(args) -> int:
+    from .._progress import progress
+    from ..io import open_sequence
+    from .base_calib import base_frame_from_sweep
+    from .cli import noise_model_from_calibration
+    from .disc import DiscOptions, DiscTracker, observe_disc
+    from .frames import Intrinsics
+
+    seed = _parse_floats(args.seed, "--seed", 2)
+    seq = open_sequence(args.seq)
+    if seq.kind != "rgbd":
+        raise TudorVisionError(f"{args.seq}: expected an RGB-D sequence, got kind {seq.kind!r}")
+    cam, cal0 = _camera(seq, args.calib)
+    K = Intrinsics.from_matrix(cam.K, cam.width, cam.height)
+    tol = np.radians(args.joint_tol_deg)
+    thetas = None
+    if "joints" in seq.streams:
+        thetas = seq.joints().at(seq.timestamps)
+    if thetas is None and args.vertical_frame is None:
+        raise TudorVisionError(f"{args.seq}: no joints.txt to find the vertical posture; pass --vertical-frame I")
+    n = len(seq)
+    vertical = np.zeros(n, bool)
+    if args.vertical_frame is not None:
+        if not 0 <= args.vertical_frame < n:
+            raise TudorVisionError(f"--vertical-frame: {args.vertical_frame} is outside 0..{n - 1}")
+        vertical[args.vertical_frame] = True
+    else:
+        vertical = np.array([_is_vertical(th, tol) for th in thetas])
+        if not vertical.any():
+            raise TudorVisionError(f"{args.seq}: joints.txt never reaches the vertical posture [0, 90, 0] deg "
+                                   f"(within {args.joint_tol_deg} deg); pass --vertical-frame I")
+    sweep = np.ones(n, bool)
+    if thetas is not None:
+        sweep = (np.abs(thetas[:, 0]) < tol) & (np.abs(thetas[:, 2]) < tol)
+    opts = DiscOptions(disc_radius_m=args.disc_radius, depth_model=noise_model_from_calibration(cal0))
+    tracker = DiscTracker(K, seed, opts, max_consecutive_lost=10 ** 9)
+    samples = {}          # frame -> (centroid_cam, centroid_uv)
+    lost = {}
+    for f in progress(seq, total=n, desc="disc"):
+        i = f.index
+        if not (sweep[i] or vertical[i]):
+            continue
+        obs = tracker.update(f.depth_m)
+        if not obs.valid and thetas is not None and samples:
+            # the arm jumped (e.g. back to the vertical posture): re-seed at the sample of the nearest theta2
+            j = min(samples, key=lambda k: abs(thetas[k, 1] - thetas[i, 1]))
+            if abs(thetas[j, 1] - thetas[i, 1]) < 3 * tol:
+                retry = observe_disc(f.depth_m, K, samples[j][1], opts, strict=False)
+                if retry.valid:
+                    obs = retry
+                    tracker.seed_uv = tuple(int(round(x)) for x in retry.centroid_uv)
+                    tracker._last_uv, tracker._last_z = retry.centroid_uv.copy(), float(retry.centroid_cam[2])
+                    tracker._velocity = np.zeros(2)
+        if obs.valid:
+            samples[i] = (obs.centroid_cam, obs.centroid_uv)
+        else:
+            lost[i] = obs.reason
+    idx = [i for i in range(n) if sweep[i] and i in samples]
+    vidx = [i for i in range(n) if vertical[i] and i in samples]
+    if not vidx:
+        raise TudorVisionError("disc lost in every vertical-posture frame")
+    circle_idx = [i for i in range(n) if sweep[i] and (args.vertical_frame is None or not vertical[i])]
+    pts = np.array([samples[i][0] if i in samples else [np.nan] * 3 for i in circle_idx])
+    th2 = None if thetas is None else thetas[circle_idx, 1]
+    T_base_cam, rep = base_frame_from_sweep(pts, np.array([samples[i][0] for i in vidx]), theta2_rad=th2,
+                                            origin=args.origin, vertical=args.vertical)
+    # report indices as sequence frame numbers
+    rep["points_used"] = [int(circle_idx[k]) for k in rep["points_used"]]
+    rep["rejected"] = [dict(r, frame=int(circle_idx[r.pop("index")])) for r in rep["rejected"]]
+    for r in rep["rejected"]:
+        if r["frame"] in lost:
+            r["reason"] = "lost: " + lost[r["frame"]]
+    rep["vertical_frames"] = [int(i) for i in vidx]
+    rep["sequence"] = str(seq.path)
+    print(f"circle RMSE {rep['circle_rmse_m'] * 100:.2f} cm over {len(rep['points_used'])} samples "
+          f"({len(rep['rejected'])} rejected), radius {rep['circle_radius_m']:.3f} m, "
+          f"{len(vidx)} vertical frames")
+    print("T_base_cam =\n" + np.array2string(T_base_cam, precision=4, suppress_small=True))
+    if args.out:
+        print(f"wrote {_save(args.out, cal0, cam, transforms={'T_base_cam': T_base_cam}, circle_rmse_m=rep['circle_rmse_m'])}")
+    if args.report:
+        Path(args.report).write_text(json.dumps(rep, indent=2))
+        print(f"wrote {args.report}")
+    return 0
+
+
+def register(calib_sub) -> None:
+    """Add ``rgbd-depth`` and ``rgbd-base`` to the ``calib`` group."""
+    p = calib_sub.add_parser(
+        "rgbd-depth", help="depth noise model sigma_z(z) from planar-target sequences",
+        description="Planar target perpendicular to the optical axis, one sequence per distance (about 100 "
+                    "frames each). Per distance: mean per-pixel temporal std inside the planar region and the "
+                    "bias of the plane fit against the nominal distance; fit of sigma_z(z) as a cubic.")
+    p.add_argument("seq", metavar="SEQ", nargs="+", help="one RGB-D sequence per target distance")
+    p.add_argument("--distances", help="nominal distances in metres, comma-separated, one per SEQ "
+                                       "(default: the sequences' ground truth, if any)")
+    p.add_argument("--roi", help="planar region u0,v0,u1,v1 in pixels (default: automatic at the image centre)")
+    p.add_argument("--calib", help="intrinsics file when the sequences have none")
+    p.add_argument("--out", help="calibration file to write or update (depth_model)")
+    p.add_argument("--report", help="CSV table: distance_m, sigma_m, bias_m, n_pixels")
+    p.add_argument("--plot", help="PNG plot of sigma_z(z)")
+    p.set_defaults(func=_cmd_depth)
+
+    b = calib_sub.add_parser(
+        "rgbd-base", help="wall camera to robot base from a theta2 sweep with a disc in the net",
+        description="Track the disc (uniform-depth region grown from --seed) through the theta2 sweep "
+                    "(theta1 = theta3 = 0), fit the circle of its centroids and build the base frame as the "
+                    "seed does: origin = circle centre (shifted to the base plate by link1_height with "
+                    "--origin base), z towards the end effector at [0, 90, 0] deg, y from the circle normal, "
+                    "x = y x z, y = z x x.")
+    b.add_argument("seq", metavar="SEQ", help="RGB-D sequence of the sweep (with joints.txt, or --vertical-frame)")
+    b.add_argument("--seed", required=True, help="pixel U,V on the disc in the first frame")
+    b.add_argument("--vertical-frame", type=int, help="frame index of the vertical posture (default: from joints.txt)")
+    b.add_argument("--calib", help="intrinsics file when the sequence has none")
+    b.add_argument("--disc-radius", type=float, default=0.075, help="disc radius in metres (default 0.075)")
+    b.add_argument("--origin", choices=("base", "joint2"), default="base",
+                   help="'base': base plate (matches tudorvision.robot); 'joint2': the circle centre (default base)")
+    b.add_argument("--vertical", choices=("combined", "seed", "plane"), default="combined",
+                   help="estimate of the vertical point (default combined; see base_frame_from_sweep)")
+    b.add_argument("--joint-tol-deg", type=float, default=0.5, help="joint tolerance for sweep/vertical frames")
+    b.add_argument("--out", help="calibration file to write or update (transforms: T_base_cam)")
+    b.add_argument("--report", help="JSON report")
+    b.set_defaults(func=_cmd_base)

@@ -1,0 +1,192 @@
+"""``tudorvision rgbd cloud`` and ``tudorvision detect ball``.
+
+Thin shells over :mod:`tudorvision.rgbd.cloud` and :mod:`tudorvision.rgbd.ball`;
+sequences are read with :mod:`tudorvision.io`.
+"""
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from .._checks import TudorVisionError
+from .depth_model import SEED_DEPTH_MODEL, DepthNoiseModel
+from .frames import Intrinsics
+
+__all__ = ["register", "intrinsics_for", "noise_model_from_calibration", "BALL_CSV_COLUMNS"]
+
+BALL_CSV_COLUMNS = ("frame", "t", "u", "v", "x", "y", "z", "valid")
+
+
+def _camera_from_file(path):
+    """A CameraModel from a project calibration file or a ROS camera_info YAML."""
+    import yaml
+
+    from ..io import load_calibration, load_ros_camera_info
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(2, "no such calibration file", str(path))
+    try:
+        doc = yaml.safe_load(path.read_text())
+    except yaml.YAMLError:
+        doc = None
+    if isinstance(doc, dict) and "camera_matrix" in doc:
+        return load_ros_camera_info(path).camera, None
+    cal = load_calibration(path)
+    return _pick_camera(cal, path), cal
+
+
+def _pick_camera(cal, where):
+    cams = dict(cal.cameras)
+    if "rgbd" in cams:
+        return cams["rgbd"]
+    if len(cams) == 1:
+        return next(iter(cams.values()))
+    raise TudorVisionError(f"{where}: no camera named 'rgbd' (have {sorted(cams)})")
+
+
+def intrinsics_for(seq, calib=None) -> tuple[Intrinsics, object]:
+    """Intrinsics of an RGB-D sequence: from ``calib`` (project YAML or ROS camera_info) or the sequence.
+
+    Returns
+    -------
+    intrinsics : Intrinsics
+    calibration : tudorvision.io.Calibration or None
+        The calibration the camera came from (for the depth model), if any.
+
+    Raises
+    ------
+    TudorVisionError
+        No intrinsics anywhere (the message suggests ``--calib``).
+    """
+    if calib is not None:
+        cam, cal = _camera_from_file(calib)
+    else:
+        cal = seq.calibration
+        if cal is None or not cal.cameras:
+            raise TudorVisionError(f"{seq.path}: the sequence has no camera intrinsics; pass --calib FILE "
+                                   "(project calibration or ROS camera_info YAML)")
+        cam = _pick_camera(cal, seq.path)
+    return Intrinsics.from_matrix(cam.K, cam.width, cam.height), cal
+
+
+def noise_model_from_calibration(cal) -> DepthNoiseModel:
+    """:class:`DepthNoiseModel` from a calibration's ``depth_model`` (any units); the seed's fit if absent."""
+    dm = getattr(cal, "depth_model", None) if cal is not None else None
+    if dm is None:
+        return SEED_DEPTH_MODEL
+    units = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+    zu, su = units[dm.z_unit], units[dm.sigma_unit]
+    poly = np.asarray(dm.sigma_z_poly, dtype=np.float64)
+    deg = len(poly) - 1
+    coeffs = tuple(float(c) * su / zu ** (deg - i) for i, c in enumerate(poly))
+    rng = tuple(dm.valid_range_m) if dm.valid_range_m is not None else (0.6, 6.0)
+    return DepthNoiseModel(coeffs=coeffs, z_range_m=rng)
+
+
+def _open(path):
+    from ..io import open_sequence
+    return open_sequence(path)
+
+
+def _cmd_cloud(args) -> int:
+    import cv2
+
+    from .cloud import cloud_from_rgbd, points_colors_from_cloud, write_ply
+
+    seq = _open(args.seq)
+    if seq.kind != "rgbd":
+        raise TudorVisionError(f"{args.seq}: expected an RGB-D sequence, got kind {seq.kind!r}")
+    if not 0 <= args.frame < len(seq):
+        raise TudorVisionError(f"--frame: {args.frame} is outside 0..{len(seq) - 1}")
+    K, _ = intrinsics_for(seq, args.calib)
+    frame = seq[args.frame]
+    if frame.depth_raw.shape != K.shape:
+        raise TudorVisionError(f"{args.seq}: frame size {frame.depth_raw.shape[::-1]} differs from the "
+                               f"intrinsics' {K.width}x{K.height}")
+    color = None if args.no_color else cv2.cvtColor(frame.bgr, cv2.COLOR_BGR2RGB)
+    pcd = cloud_from_rgbd(color, frame.depth_raw, K, depth_scale=seq.depth_scale, depth_trunc=args.depth_trunc)
+    pts, cols = points_colors_from_cloud(pcd)
+    out = write_ply(args.out, pts, cols)
+    z = pts[:, 2]
+    print(f"wrote {len(pts)} points (z {z.min():.2f}-{z.max():.2f} m, camera frame) to {out}")
+    return 0
+
+
+def _cmd_detect_ball(args) -> int:
+    from .._progress import progress
+    from .ball import BallDetector, BallDetectorOptions, ColorBallDetector, ColorBallOptions
+
+    seq = _open(args.seq)
+    rows = []
+    if seq.kind == "rgbd":
+        K, cal = intrinsics_for(seq, args.calib)
+        opts = BallDetectorOptions(ball_radius_m=args.ball_diameter / 2.0, max_range_m=args.max_range,
+                                   depth_model=noise_model_from_calibration(cal))
+        det = BallDetector(K, opts, n_background=args.background)
+        for f in progress(seq, total=len(seq), desc="detect ball"):
+            d = det.update(f.depth_m)
+            if d is None:
+                rows.append([f.index, f.t, *([np.nan] * 5), 0])
+            else:
+                rows.append([f.index, f.t, *d.uv, *d.p_cam, 1])
+    elif seq.kind == "mono":
+        det = ColorBallDetector(ColorBallOptions(n_background=args.background))
+        for f in progress(seq, total=len(seq), desc="detect ball"):
+            d = det.update(f.image)
+            if d is None:
+                rows.append([f.index, f.t, *([np.nan] * 5), 0])
+            else:
+                rows.append([f.index, f.t, *d.uv, np.nan, np.nan, np.nan, 1])
+    else:
+        raise TudorVisionError(f"{args.seq}: ball detection needs an RGB-D sequence or a video, got kind {seq.kind!r}")
+    out = Path(args.out)
+    with out.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(BALL_CSV_COLUMNS)
+        for r in rows:
+            w.writerow([int(r[0]), f"{r[1]:.6f}"] + ["" if not np.isfinite(x) else f"{x:.6f}" for x in r[2:7]]
+                       + [int(r[7])])
+    n = sum(r[7] for r in rows)
+    mode = "3D (RGB-D)" if seq.kind == "rgbd" else "pixels only (colour video)"
+    print(f"ball found in {n} of {len(rows)} frames, {mode}; wrote {out}")
+    return 0
+
+
+def register(subparsers) -> None:
+    """Add ``rgbd cloud`` and ``detect ball``."""
+    p = subparsers.add_parser("rgbd", help="RGB-D frames: point clouds",
+                              description="RGB-D frame tools.")
+    sub = p.add_subparsers(dest="rgbd_command", metavar="ACTION")
+    c = sub.add_parser("cloud", help="export one frame as a PLY point cloud (camera frame, metres)",
+                       description="Back-project one RGB-D frame with Open3D (create_from_rgbd_image) and "
+                                   "write a coloured PLY point cloud in the camera optical frame.")
+    c.add_argument("seq", metavar="SEQ", help="RGB-D sequence (project layout, TUM, Kinect folders)")
+    c.add_argument("--frame", type=int, default=0, help="0-based frame index (default 0)")
+    c.add_argument("--out", required=True, help="output .ply file")
+    c.add_argument("--calib", help="intrinsics file when the sequence has none (project calibration or "
+                                   "ROS camera_info YAML)")
+    c.add_argument("--depth-trunc", type=float, default=6.0, help="drop points farther than this, metres "
+                                                                  "(default 6)")
+    c.add_argument("--no-color", action="store_true", help="write points without colours")
+    c.set_defaults(func=_cmd_cloud)
+    p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
+
+    d = subparsers.add_parser("detect", help="object detection in recordings (ball)",
+                              description="Detectors over whole sequences.")
+    dsub = d.add_subparsers(dest="detect_command", metavar="OBJECT")
+    b = dsub.add_parser("ball", help="ball detection by background subtraction -> CSV",
+                        description="Detect the thrown ball by background subtraction. RGB-D sequences give "
+                                    "3D centres in the camera frame (metres); colour videos give pixel "
+                                    "positions. CSV columns: frame, t, u, v, x, y, z, valid.")
+    b.add_argument("seq", metavar="SEQ", help="RGB-D sequence or video file")
+    b.add_argument("--out", required=True, help="output CSV")
+    b.add_argument("--calib", help="intrinsics file when the sequence has none")
+    b.add_argument("--background", type=int, default=10, help="initial frames for the background (default 10)")
+    b.add_argument("--max-range", type=float, default=4.5, help="search range from the sensor, metres "
+                                                                "(default 4.5)")
+    b.add_argument("--ball-diameter", type=float, default=0.09, help="ball diameter, metres (default 0.09)")
+    b.set_defaults(func=_cmd_detect_ball)
+    d.set_defaults(func=lambda args: (d.print_help(), 2)[1])
