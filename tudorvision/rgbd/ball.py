@@ -331,6 +331,24 @@ def _refine(d: np.ndarray, bg: DepthBackground, uc: float, vc: float, z0: float,
     ratio = n_px / (np.pi * r_px ** 2)
     if not o.area_ratio[0] <= ratio <= o.area_ratio[1]:
         return None
+    # silhouette test free of selection: every valid pixel inside the expected
+    # silhouette must be nearer than the background on average (noise blobs made of
+    # the pixels that happen to pass the per-pixel test average out here)
+    rr = max(0.8 * r_px, 1.0)
+    u0, u1 = max(0, int(uc - rr)), min(K.width, int(uc + rr) + 2)
+    v0, v1 = max(0, int(vc - rr)), min(K.height, int(vc + rr) + 2)
+    vv, uu = np.mgrid[v0:v1, u0:u1]
+    inside = (uu - uc) ** 2 + (vv - vc) ** 2 <= rr * rr
+    dd = d[v0:v1, u0:u1][inside]
+    bb = bg.depth_m[v0:v1, u0:u1][inside]
+    ok = dd > 0
+    if ok.sum() < 3:
+        return None
+    diff = np.where(np.isfinite(bb[ok]), bb[ok], o.max_range_m + 2.0) - dd[ok]
+    sig = float(o.depth_model.sigma(min(float(np.nanmedian(np.where(np.isfinite(bb[ok]), bb[ok], np.nan)))
+                                        if np.isfinite(bb[ok]).any() else p[2], o.max_range_m + 2.0)))
+    if float(diff.mean()) < max(o.min_depth_diff_m, 1.5 * o.n_sigma * sig / np.sqrt(ok.sum())):
+        return None
     return BallDetection(np.array([uc, vc]), p, _covariance(p, n_px, K, o), n_px, float(ratio), float(r_px))
 
 
