@@ -6,7 +6,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test env system-deps clean
+.PHONY: demo test env system-deps clean sample-data
 
 # open3d links against libusb-1.0 at import time; Debian ships it as libusb-1.0-0.
 system-deps:
@@ -33,3 +33,10 @@ test: $(STAMP)
 
 clean:
 	rm -rf $(VENV) out
+
+# Regenerate the committed sample recordings (deterministic, seed 0).
+SAMPLE_KINDS := stereo-step stereo-sweep stereo-checkerboard stereo-static rgbd-plane rgbd-disc rgbd-throws servo-views
+sample-data: $(STAMP)
+	rm -rf sample_data/*/
+	for k in $(SAMPLE_KINDS); do $(BIN)/tudorvision sim record $$k --small --seed 0 --out sample_data/$$k || exit 1; done
+	du -sh sample_data

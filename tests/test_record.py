@@ -53,7 +53,7 @@ def test_stereo_static_truth_matches_rendered_spheres(tmp_path):
 def test_rgbd_plane_depth_is_the_true_distance(tmp_path):
     out = record("rgbd-plane", tmp_path / "p", RecordOptions(seed=2, frames=3, small=True))
     subs = sorted(p for p in out.iterdir() if p.is_dir())
-    assert len(subs) == 5
+    assert len(subs) == 4
     seq = open_sequence(subs[1])
     d = seq.groundtruth("target")["distance_m"][0]
     fr = seq[0]

@@ -353,7 +353,7 @@ def record_stereo_checkerboard(out, opts: RecordOptions):
     cal = calibration_from_cameras({"left": left, "right": right}, stereo=("left", "right"),
                                    note="nominal models; re-derive with 'tudorvision calib stereo'")
     rows = []
-    with _writer(out, "stereo", 1.0, RecordOptions(**{**opts.__dict__, "image_ext": ".png"}), calibration=cal,
+    with _writer(out, "stereo", 1.0, RecordOptions(**{**opts.__dict__, "jpeg_quality": 95}), calibration=cal,
                  description=f"checkerboard pairs: 9x7 squares (8x6 inner corners), {SQUARE_M * 1000:.0f} mm squares") as w:
         for k, T in enumerate(progress(poses, desc="checkerboard pairs", enabled=opts.show_progress)):
             setup = checkerboard_lab(T, np.random.default_rng([opts.seed, k]), rig=cfg, square_m=SQUARE_M)
@@ -378,9 +378,9 @@ def record_rgbd_plane(out, opts: RecordOptions):
     """Planar target at stepped distances; one sequence per distance under ``out``."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    distances = [0.6, 1.5, 3.0, 4.5, 6.0] if opts.small else [0.6, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0,
+    distances = [0.6, 2.0, 4.0, 6.0] if opts.small else [0.6, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 4.5, 5.0,
                                                                 5.5, 6.0]
-    n = opts.frames or (6 if opts.small else 100)
+    n = opts.frames or (5 if opts.small else 100)
     for i, d in enumerate(distances):
         rng = np.random.default_rng([opts.seed, i])
         setup = planar_target(d, rng)
@@ -411,11 +411,11 @@ def record_rgbd_disc(out, opts: RecordOptions):
     p = load_robot_params()
     rng = np.random.default_rng(opts.seed)
     payload = Payload.from_parts(p, plates=opts.payload_plates)
-    n = opts.frames or (15 if opts.small else 41)
+    n = opts.frames or (11 if opts.small else 41)
     t2 = np.deg2rad(np.linspace(-10.0, 190.0, n))
     thetas = [np.array([0.0, a, 0.0]) for a in t2] + [np.deg2rad([0.0, 90.0, 0.0])]
     states = [(th, *static_arm_state(th, payload, p)) for th in thetas]
-    per = 2
+    per = 1 if opts.small else 2          # frames per pose
     idx = lambda t: min(int(round(t * KINECT_RATE_HZ)) // per, len(states) - 1)
     disc = lambda t: fk_elastic(*states[idx(t)], p)[:3, 3]
     geom = lambda t: elastic_arm_geometry(*states[idx(t)], p)
@@ -490,7 +490,7 @@ def record_rgbd_throws(out, opts: RecordOptions):
     p = load_robot_params()
     geom0 = elastic_arm_geometry(np.deg2rad([0.0, 90.0, 0.0]), *static_arm_state(np.deg2rad([0.0, 90.0, 0.0]),
                                  Payload.from_parts(p), p), p)
-    gap_s, bg_s = 0.5, 0.5
+    gap_s, bg_s = (0.1, 0.25) if opts.small else (0.5, 0.5)
     flights = []
     t_cursor = bg_s
     for _ in range(n_throws):
