@@ -99,6 +99,27 @@ def _is_vertical(theta, tol):
     return abs(theta[0]) < tol and abs(theta[1] - np.pi / 2) < tol and abs(theta[2]) < tol
 
 
+def _predict_uv(samples, thetas, th2, max_gap=np.radians(30.0)):
+    """Pixel and depth of the disc at ``th2``, interpolated between the sweep samples around it."""
+    keys = sorted(samples, key=lambda k: thetas[k, 1])
+    t = np.array([thetas[k, 1] for k in keys])
+    lo = [k for k, tk in zip(keys, t) if tk <= th2]
+    hi = [k for k, tk in zip(keys, t) if tk >= th2]
+    if lo and hi:
+        a, b = lo[-1], hi[0]
+        ta, tb = thetas[a, 1], thetas[b, 1]
+        if tb - ta > max_gap:
+            return None
+        w = 0.0 if tb == ta else (th2 - ta) / (tb - ta)
+        uv = (1 - w) * samples[a][1] + w * samples[b][1]
+        z = (1 - w) * samples[a][0][2] + w * samples[b][0][2]
+        return uv, float(z)
+    k = lo[-1] if lo else hi[0]
+    if abs(thetas[k, 1] - th2) > max_gap / 2:
+        return None
+    return samples[k][1], float(samples[k][0][2])
+
+
 def _cmd_base(args) -> int:
     from .._progress import progress
     from ..io import open_sequence
@@ -143,15 +164,14 @@ def _cmd_base(args) -> int:
             continue
         obs = tracker.update(f.depth_m)
         if not obs.valid and thetas is not None and samples:
-            # the arm jumped (e.g. back to the vertical posture): re-seed at the sample of the nearest theta2
-            j = min(samples, key=lambda k: abs(thetas[k, 1] - thetas[i, 1]))
-            if abs(thetas[j, 1] - thetas[i, 1]) < 3 * tol:
-                retry = observe_disc(f.depth_m, K, samples[j][1], opts, strict=False)
-                if retry.valid:
-                    obs = retry
-                    tracker.seed_uv = tuple(int(round(x)) for x in retry.centroid_uv)
-                    tracker._last_uv, tracker._last_z = retry.centroid_uv.copy(), float(retry.centroid_cam[2])
-                    tracker._velocity = np.zeros(2)
+            # the arm jumped (e.g. back to the vertical posture): re-seed where the sweep saw
+            # the disc at this theta2 (interpolated between the nearest samples) and retry
+            guess = _predict_uv(samples, thetas, thetas[i, 1])
+            if guess is not None:
+                tracker.seed_uv = tuple(int(round(x)) for x in guess[0])
+                tracker._last_uv, tracker._last_z = None, guess[1]
+                tracker._velocity = np.zeros(2)
+                obs = tracker.update(f.depth_m)
         if obs.valid:
             samples[i] = (obs.centroid_cam, obs.centroid_uv)
         else:

@@ -294,7 +294,7 @@ class DiscTracker:
     The seed is first the constant-velocity prediction (previous centroid plus
     the last displacement), then the previous centroid; when neither grows a
     plausible disc at about the previous depth, seeds on rings around the
-    prediction (one and two disc radii) are tried. A frame where all fail is a
+    prediction (1, 2, 3.5 and 5 disc radii) are tried. A frame where all fail is a
     lost sample.
 
     Parameters
@@ -338,8 +338,8 @@ class DiscTracker:
             r = float(np.sqrt(K.fx * K.fy) * self.options.disc_radius_m / self._last_z)
         else:
             r = 5.0
-        ang = np.linspace(0, 2 * np.pi, 8, endpoint=False)
-        for rad in (r, 2 * r):
+        for rad, n_dir in ((r, 8), (2 * r, 8), (3.5 * r, 12), (5 * r, 16)):
+            ang = np.linspace(0, 2 * np.pi, n_dir, endpoint=False)
             out += [pred + rad * np.array([np.cos(a), np.sin(a)]) for a in ang]
         seen, uniq = set(), []
         for c in out:
