@@ -1,2 +1,50 @@
-"""tudorvision.stereo"""
-__all__: list[str] = []
+"""External stereo tracking of the end effector (section 2.4 of the seed).
+
+Colour models (:mod:`.colormodel`), sphere segmentation (:mod:`.segment`),
+tracking mode (:mod:`.tracker2d`), triangulation with rolling-shutter
+compensation (:mod:`.triangulate`), trajectories (:mod:`.trajectory`), the
+per-frame tracking loop (:mod:`.pipeline`), checkerboard stereo calibration
+(:mod:`.calibrate`) and the robot base frame from a theta1 sweep
+(:mod:`.base_frame`). :class:`RerunStereoLog` writes rerun recordings (rerun itself is
+imported only when one is made).
+"""
+from .base_frame import BaseFrameReport, base_frame_from_sweep
+from .calibrate import (BoardDetections, StereoCalibrationResult, board_object_points, calibrate_stereo,
+                        calibrate_stereo_from_images, detect_board_pairs, find_board_corners, parse_board,
+                        plot_view_errors)
+from .colormodel import (CHANNELS, HUE_LEVELS, ColorModel, ColorModelSet, circular_hue_stats, fit_color_model,
+                         fit_color_model_set, load_color_models, parse_pick, save_color_models)
+from .rerun_log import RerunStereoLog
+from .pipeline import (MonoTrackResult, PipelineOptions, StereoFrameResult, StereoPipeline, StereoTrackResult,
+                       TrackStats, iter_stereo, read_mono_track_csv, track_mono, track_stereo,
+                       write_mono_track_csv)
+from .segment import (SegmentParams, SphereDetection, detect_sphere, detect_spheres, hsv_from_bgr,
+                      log_odds_image, probability_image)
+from .tracker2d import FrameTracker, SphereTracker, TrackerParams
+from .trajectory import (FRAME_DESCRIPTIONS, Trajectory, finite_differences, plot_trajectory,
+                         read_trajectory_csv, trajectory_from_points, write_trajectory_csv)
+from .triangulate import (SphereTriangulation, compensate_rolling_shutter, projection_matrices,
+                          rolling_shutter_times, triangulate_dlt, triangulate_points, triangulate_spheres,
+                          triangulate_stereo, undistort_points)
+
+__all__ = [
+    # colour models
+    "CHANNELS", "HUE_LEVELS", "ColorModel", "ColorModelSet", "circular_hue_stats", "fit_color_model",
+    "fit_color_model_set", "load_color_models", "parse_pick", "save_color_models",
+    # segmentation and tracking mode
+    "SegmentParams", "SphereDetection", "detect_sphere", "detect_spheres", "hsv_from_bgr", "log_odds_image",
+    "probability_image", "FrameTracker", "SphereTracker", "TrackerParams",
+    # triangulation and trajectories
+    "SphereTriangulation", "compensate_rolling_shutter", "projection_matrices", "rolling_shutter_times",
+    "triangulate_dlt", "triangulate_points", "triangulate_spheres", "triangulate_stereo", "undistort_points",
+    "FRAME_DESCRIPTIONS", "Trajectory", "finite_differences", "plot_trajectory", "read_trajectory_csv",
+    "trajectory_from_points", "write_trajectory_csv",
+    # the tracking loop
+    "PipelineOptions", "StereoFrameResult", "StereoPipeline", "StereoTrackResult", "TrackStats", "iter_stereo",
+    "track_stereo", "MonoTrackResult", "track_mono", "write_mono_track_csv", "read_mono_track_csv",
+    "RerunStereoLog",
+    # calibration
+    "BaseFrameReport", "base_frame_from_sweep", "BoardDetections", "StereoCalibrationResult",
+    "board_object_points", "calibrate_stereo", "calibrate_stereo_from_images", "detect_board_pairs",
+    "find_board_corners", "parse_board", "plot_view_errors",
+]

@@ -52,10 +52,13 @@ def register(calib_sub) -> None:
         description="Robot base frame in the left camera frame from a theta1 sweep (theta2 = theta3 = 0): "
                     "circle fit of the end-effector trajectory, z = circle normal (up), x toward "
                     "theta1 = 0, gravity sag removed with the vertical posture [0, 90, 0] deg. Input is a "
-                    "trajectory CSV in the left camera frame (from 'tudorvision track stereo' without a "
-                    "base calibration) and the joint log.")
+                    "trajectory CSV in the left camera frame (--traj, from 'tudorvision track stereo' without "
+                    "a base calibration), or the sequence SEQ itself, tracked here with --calib and "
+                    "--colormodel; and the joint log.")
     b.add_argument("seq", nargs="?", help="sequence directory (its joints.txt is used unless --joints)")
-    b.add_argument("--traj", required=True, help="trajectory CSV in the left camera frame")
+    b.add_argument("--traj", help="trajectory CSV in the left camera frame (default: track SEQ)")
+    b.add_argument("--calib", help="stereo calibration to track SEQ with (default: the sequence's calibration)")
+    b.add_argument("--colormodel", help="colour model file to track SEQ with (needed without --traj)")
     b.add_argument("--joints", help="joints.txt: 'timestamp theta1 theta2 theta3' per line")
     b.add_argument("--joints-deg", action="store_true", help="joint angles in the file are degrees")
     b.add_argument("--vertical-frame", type=int, default=None, metavar="I",
@@ -159,15 +162,50 @@ def _joint_log(args):
     return t, th
 
 
+def _track_sweep(args):
+    """Track SEQ in the left camera frame: (Trajectory, Calibration used)."""
+    from ..io import load_calibration
+    from ..io.sequence import open_sequence
+    from .colormodel import load_color_models
+    from .pipeline import track_stereo
+
+    if not args.seq:
+        raise TudorVisionError("give SEQ (tracked with --calib and --colormodel) or --traj CSV")
+    if not args.colormodel:
+        raise TudorVisionError("--colormodel: needed to track SEQ (or give --traj CSV)")
+    if not Path(args.colormodel).is_file():
+        raise TudorVisionError(f"{args.colormodel}: colour model file not found")
+    seq = open_sequence(args.seq, strict=False)
+    try:
+        if args.calib:
+            if not Path(args.calib).is_file():
+                raise TudorVisionError(f"{args.calib}: calibration file not found")
+            cal = load_calibration(args.calib)
+        else:
+            cal = seq.calibration
+            if cal is None:
+                raise TudorVisionError(f"{args.seq}: no calibration in the sequence; give --calib FILE")
+        res = track_stereo(seq, cal, load_color_models(args.colormodel), show_progress=None)
+    finally:
+        seq.close()
+    print(f"tracked {args.seq}: {res.stats.summary()}")
+    return res.trajectory, cal
+
+
 def run_base_stereo(args) -> int:
     from ..io.calibration import Calibration, load_calibration, save_calibration
     from ..robot import load_robot_params
     from .base_frame import base_frame_from_sweep
     from .trajectory import read_trajectory_csv
 
-    traj = read_trajectory_csv(args.traj)
+    tracked_cal = None
+    if args.traj:
+        traj = read_trajectory_csv(args.traj)
+    else:
+        traj, tracked_cal = _track_sweep(args)
+    src = args.traj or args.seq
     if traj.frame not in ("left", "unknown"):
-        raise TudorVisionError(f"{args.traj}: trajectory is in frame {traj.frame!r}; base-stereo needs "
+        raise TudorVisionError(f"{src}: trajectory is in frame {traj.frame!r}; base-stereo needs "
                                "the left camera frame (track without a base calibration)")
     t_j, th_j = _joint_log(args)
     params = load_robot_params(args.robot_params)
@@ -177,7 +215,7 @@ def run_base_stereo(args) -> int:
     ok = traj.valid & inside
     sweep = ok & (np.abs(theta[:, 1]) < tol) & (np.abs(theta[:, 2]) < tol)
     if sweep.sum() < 10:
-        raise TudorVisionError(f"{args.traj}: only {int(sweep.sum())} valid trajectory rows with "
+        raise TudorVisionError(f"{src}: only {int(sweep.sum())} valid trajectory rows with "
                                f"theta2 = theta3 = 0 (within {args.tol_deg} deg); need at least 10")
     if args.vertical_frame is not None:
         i = args.vertical_frame
@@ -192,7 +230,7 @@ def run_base_stereo(args) -> int:
         vmask = ok & np.all(np.abs(theta - target) < tol, axis=1)
         n_vert = int(vmask.sum())
         if n_vert == 0:
-            raise TudorVisionError(f"{args.traj}: no valid rows in the vertical posture [0, 90, 0] deg "
+            raise TudorVisionError(f"{src}: no valid rows in the vertical posture [0, 90, 0] deg "
                                    f"(within {args.tol_deg} deg); record it or give --vertical-frame I")
         vertical = np.median(traj.p[vmask], axis=0)
     T, rep = base_frame_from_sweep(traj.p[sweep], theta[sweep], vertical, params,
@@ -200,12 +238,12 @@ def run_base_stereo(args) -> int:
     print(f"vertical posture from {n_vert} trajectory row(s)")
     print(rep.summary())
     out = Path(args.out)
-    base = load_calibration(out) if out.is_file() else Calibration()
+    base = load_calibration(out) if out.is_file() else (tracked_cal or Calibration())
     cal = base.with_updates(transforms={"T_base_left": T}, circle_rmse_m=rep.circle_rmse_m,
                             metadata={"base_stereo": {"sweep_points": rep.n_points,
                                                       "inliers": rep.n_inliers,
                                                       "sag_m": float(rep.sag_m),
                                                       "radius_m": float(rep.radius_m),
-                                                      "trajectory": str(args.traj)}})
+                                                      "trajectory": str(args.traj or args.seq)}})
     print(f"wrote {save_calibration(cal, out)}")
     return 0

@@ -1,0 +1,272 @@
+"""``tudorvision colormodel``, ``tudorvision track stereo`` and ``tudorvision track mono``.
+
+Thin shells over :mod:`tudorvision.stereo.colormodel` and
+:mod:`tudorvision.stereo.pipeline`. Sequences are opened leniently: corrupt
+frames are skipped, counted and listed, and the partial result is written.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .._checks import TudorVisionError
+
+__all__ = ["register"]
+
+
+def register(subparsers) -> None:
+    """Add ``colormodel`` and ``track`` (``stereo``, ``mono``) to the top-level command."""
+    c = subparsers.add_parser(
+        "colormodel", help="fit sphere colour models from picked pixels on one frame",
+        description="Fit one colour model (a Gaussian per channel of R, G, B, H, S, V) per camera and sphere "
+                    "from a picked centre pixel and edge pixel on one frame. Without --pick, --save-frame "
+                    "writes the frame as a PNG to pick the pixels on.")
+    c.add_argument("seq", help="sequence directory, or a video file (camera 'mono')")
+    c.add_argument("--frame", type=int, default=0, metavar="I", help="0-based frame index to pick on (default 0)")
+    c.add_argument("--pick", action="append", default=[], metavar="CAMERA:SPHERE:CU,CV:EU,EV",
+                   help="camera (left, right or mono), sphere name, centre pixel and edge pixel (u right, "
+                        "v down); repeat for every camera and sphere, e.g. left:red:320,240:331,240")
+    c.add_argument("--out", help="colour model file to write (.yaml or .json)")
+    c.add_argument("--save-frame", metavar="PNG",
+                   help="write the pick frame (stereo: left | right side by side, right starting at u = width)")
+    c.set_defaults(func=run_colormodel)
+
+    t = subparsers.add_parser("track", help="track the end effector (stereo) or one sphere (mono)",
+                              description="Track the coloured spheres in recorded sequences.")
+    tsub = t.add_subparsers(dest="track_command", metavar="KIND")
+    t.set_defaults(func=lambda args: (t.print_help(), 2)[1])
+
+    s = tsub.add_parser(
+        "stereo", help="end-effector trajectory from a stereo sequence -> CSV",
+        description="Track both spheres in both cameras, triangulate, and write the end-effector trajectory "
+                    "(t, x, y, z, vx, vy, vz, ax, ay, az, valid; SI units). The frame is the robot base frame "
+                    "when T_base_left is known (--base-calib, or in --calib), else the left camera optical "
+                    "frame. Frames where a sphere is missing in either camera are written with valid = 0.")
+    s.add_argument("seq", help="stereo sequence directory")
+    s.add_argument("--calib", help="stereo calibration file (default: the sequence's calibration)")
+    s.add_argument("--colormodel", required=True, help="colour model file (from 'tudorvision colormodel')")
+    s.add_argument("--out", required=True, help="trajectory CSV to write")
+    s.add_argument("--base-calib", metavar="FILE",
+                   help="calibration file holding T_base_left (from 'tudorvision calib base-stereo'); "
+                        "default: T_base_left of --calib when present")
+    s.add_argument("--no-base", action="store_true", help="ignore T_base_left: write the left camera frame")
+    s.add_argument("--plot", metavar="PNG", help="draw trajectory, speed and acceleration")
+    s.add_argument("--rerun", metavar="RRD", help="write a rerun recording of images, detections and the 3D track")
+    s.add_argument("--rerun-image-every", type=int, default=1, metavar="N",
+                   help="log the images of every N-th frame only (default 1)")
+    s.add_argument("--live", action="store_true",
+                   help="pace playback at the recorded rate, drop frames when behind, report latency")
+    s.add_argument("--speed", type=float, default=1.0, help="live playback speed factor (default 1)")
+    s.add_argument("--full-frame", action="store_true", help="search every full frame (no tracking windows)")
+    s.add_argument("--no-rolling-shutter", action="store_true",
+                   help="do not compensate the rolling shutter even if the calibration has line_time_s")
+    s.add_argument("--method", choices=("normalized", "rectified"), default="normalized",
+                   help="triangulation route (default normalized)")
+    s.add_argument("--strict", action="store_true", help="stop at the first corrupt frame instead of skipping it")
+    s.set_defaults(func=run_track_stereo)
+
+    m = tsub.add_parser(
+        "mono", help="pixel track of one sphere in a video or image sequence -> CSV",
+        description="Track one sphere in a single camera and write frame, t, u, v, valid (frame is the "
+                    "0-based decode index; u right, v down, pixels).")
+    m.add_argument("video", help="video file or mono sequence directory")
+    m.add_argument("--colormodel", required=True, help="colour model file")
+    m.add_argument("--sphere", required=True, help="sphere name in the colour model file")
+    m.add_argument("--camera", default="mono", help="camera of the model to use (default mono)")
+    m.add_argument("--out", required=True, help="pixel track CSV to write")
+    m.add_argument("--full-frame", action="store_true", help="search every full frame (no tracking windows)")
+    m.add_argument("--strict", action="store_true", help="stop at the first undecodable frame")
+    m.set_defaults(func=run_track_mono)
+
+
+# ----------------------------------------------------------------------------- helpers
+def _open(path, *, strict: bool = False):
+    from ..io import open_sequence
+
+    p = Path(path)
+    if not p.exists():
+        raise TudorVisionError(f"{p}: no such file or directory")
+    return open_sequence(p, strict=strict)
+
+
+def _report_problems(seq, limit: int = 5) -> None:
+    for prob in seq.report[:limit]:
+        print(f"skipped: {prob}")
+    if len(seq.report) > limit:
+        print(f"... and {len(seq.report) - limit} more problem(s)")
+
+
+def _load_models(path):
+    from .colormodel import load_color_models
+
+    if not Path(path).is_file():
+        raise TudorVisionError(f"{path}: colour model file not found")
+    return load_color_models(path)
+
+
+# ----------------------------------------------------------------------------- colormodel
+def run_colormodel(args) -> int:
+    import cv2
+
+    from .colormodel import fit_color_model_set, save_color_models
+
+    if not args.pick and not args.save_frame:
+        raise TudorVisionError("give at least one --pick CAMERA:SPHERE:CU,CV:EU,EV (or --save-frame PNG)")
+    if args.pick and not args.out:
+        raise TudorVisionError("--out: needed to write the colour models")
+    seq = _open(args.seq, strict=True)
+    try:
+        n = len(seq)
+        if not 0 <= args.frame < n:
+            raise TudorVisionError(f"--frame: {args.frame} is outside the sequence (0..{n - 1})")
+        f = seq[args.frame]
+        if seq.kind == "stereo":
+            frames = {"left": f.left, "right": f.right}
+        elif seq.kind == "mono":
+            frames = {"mono": f.image}
+        else:
+            raise TudorVisionError(f"{args.seq}: colour models need a stereo or mono sequence, got {seq.kind}")
+    finally:
+        seq.close()
+    for cam, img in frames.items():
+        if img.ndim != 3:
+            raise TudorVisionError(f"{args.seq}: frame {args.frame} ({cam}) is a grey image; colour models "
+                                   "need colour frames")
+    if args.save_frame:
+        img = np.hstack(list(frames.values())) if len(frames) > 1 else next(iter(frames.values()))
+        Path(args.save_frame).parent.mkdir(parents=True, exist_ok=True)
+        if not cv2.imwrite(str(args.save_frame), img):
+            raise TudorVisionError(f"{args.save_frame}: cannot write the image")
+        print(f"wrote {args.save_frame} (frame {args.frame}, cameras {' | '.join(frames)})")
+    if not args.pick:
+        return 0
+    models = fit_color_model_set(frames, args.pick)
+    for cam in models.cameras:
+        for name in models.spheres(cam):
+            mdl = models.get(cam, name)
+            r, g, b = (round(x) for x in mdl.mean[:3])
+            print(f"{cam}/{name}: centre ({mdl.center_uv[0]:.1f}, {mdl.center_uv[1]:.1f}), radius "
+                  f"{mdl.radius_px:.1f} px, {mdl.n_pixels} pixels, mean RGB ({r}, {g}, {b}), hue "
+                  f"{mdl.mean[3]:.1f}{'' if mdl.use_hue else ' (unused: unsaturated)'}")
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    save_color_models(models, args.out)
+    print(f"wrote {args.out}")
+    return 0
+
+
+# ----------------------------------------------------------------------------- track stereo
+def _calibrations(args, seq):
+    from ..io import load_calibration
+
+    if args.calib:
+        if not Path(args.calib).is_file():
+            raise TudorVisionError(f"{args.calib}: calibration file not found")
+        cal = load_calibration(args.calib)
+        cal_name = args.calib
+    else:
+        cal = seq.calibration
+        cal_name = "the sequence's calibration"
+        if cal is None:
+            raise TudorVisionError(f"{args.seq}: no calibration in the sequence; give --calib FILE")
+    if cal.stereo is None:
+        raise TudorVisionError(f"{cal_name}: has no stereo extrinsics (run 'tudorvision calib stereo')")
+    T, source = None, None
+    if args.base_calib:
+        if not Path(args.base_calib).is_file():
+            raise TudorVisionError(f"{args.base_calib}: calibration file not found")
+        base = load_calibration(args.base_calib)
+        if "T_base_left" not in base.transforms:
+            raise TudorVisionError(f"{args.base_calib}: has no transforms.T_base_left "
+                                   "(run 'tudorvision calib base-stereo')")
+        T, source = base.transforms["T_base_left"], args.base_calib
+    elif "T_base_left" in cal.transforms:
+        T, source = cal.transforms["T_base_left"], cal_name
+    if args.no_base:
+        T, source = None, None
+    # image size check against the recording's declared size, before any frame is decoded
+    size = (seq.size or {})
+    for cam in ("left", "right"):
+        cm = cal.camera(getattr(cal.stereo, cam))
+        if cam in size and tuple(size[cam]) != (cm.width, cm.height):
+            w, h = size[cam]
+            raise TudorVisionError(f"{cal_name}: the {cam} camera is calibrated for {cm.width}x{cm.height}, "
+                                   f"but the sequence's images are {w}x{h}")
+    return cal, cal_name, T, source
+
+
+def run_track_stereo(args) -> int:
+    from .pipeline import PipelineOptions, track_stereo
+    from .trajectory import plot_trajectory, write_trajectory_csv
+
+    if not args.speed > 0:
+        raise TudorVisionError(f"--speed: must be positive, got {args.speed}")
+    seq = _open(args.seq, strict=args.strict)
+    if seq.kind != "stereo":
+        raise TudorVisionError(f"{args.seq}: expected a stereo sequence, got kind {seq.kind!r}")
+    models = _load_models(args.colormodel)
+    cal, cal_name, T_base_left, base_source = _calibrations(args, seq)
+    options = PipelineOptions(tracking=not args.full_frame, method=args.method,
+                              rolling_shutter=not args.no_rolling_shutter)
+    log = None
+    if args.rerun:
+        from .rerun_log import RerunStereoLog
+        log = RerunStereoLog(args.rerun, image_every=args.rerun_image_every)
+    try:
+        res = track_stereo(seq, cal, models, T_base_left=T_base_left, options=options, live=args.live,
+                           speed=args.speed, show_progress=None if not args.live else False,
+                           on_result=log.log_frame if log is not None else None)
+    except BaseException:
+        if log is not None:
+            log.close()
+        raise
+    finally:
+        seq.close()
+    traj = res.trajectory
+    comment = [f"sequence: {args.seq}", f"calibration: {cal_name}",
+               f"colour models: {args.colormodel}",
+               f"mode: {'full frame' if args.full_frame else 'tracking'}; triangulation {args.method}; "
+               f"rolling shutter {'compensated' if res.rolling_shutter else 'not compensated'}"]
+    if base_source:
+        comment.append(f"T_base_left: {base_source}")
+    if res.stats.skipped:
+        comment.append(f"{res.stats.skipped} corrupt frame(s) skipped")
+    if res.stats.dropped:
+        comment.append(f"{res.stats.dropped} frame(s) dropped by live playback")
+    _report_problems(seq)
+    out = write_trajectory_csv(args.out, traj, comment="\n".join(comment))
+    frame_desc = "robot base frame" if traj.frame == "base" else "left camera optical frame"
+    print(f"wrote {out} ({len(traj.t)} rows, {frame_desc})")
+    if args.plot:
+        print(f"wrote {plot_trajectory(traj, args.plot, title=f'end effector: {Path(args.seq).name}')}")
+    if log is not None:
+        log.log_trajectory(traj, res.index)
+        log.close()
+        print(f"wrote {args.rerun}")
+    if res.stats.processed and res.stats.valid == 0:
+        print("warning: no frame has both spheres in both cameras: check the colour models "
+              "(tudorvision colormodel) and the calibration")
+    speed = traj.speed
+    if np.isfinite(speed).any():
+        print(f"peak speed {np.nanmax(speed):.2f} m/s, peak acceleration {np.nanmax(traj.accel_norm):.1f} m/s^2")
+    print(res.stats.summary())
+    return 0
+
+
+# ----------------------------------------------------------------------------- track mono
+def run_track_mono(args) -> int:
+    from .pipeline import track_mono, write_mono_track_csv
+
+    seq = _open(args.video, strict=args.strict)
+    models = _load_models(args.colormodel)
+    model = models.get(args.camera, args.sphere)
+    try:
+        res = track_mono(seq, model, tracking=not args.full_frame, show_progress=None)
+    finally:
+        seq.close()
+    _report_problems(seq)
+    out = write_mono_track_csv(args.out, res, comment=f"video: {args.video}\nsphere: {args.sphere} "
+                                                      f"({args.camera}) from {args.colormodel}")
+    print(f"wrote {out} ({len(res.t)} rows)")
+    print(res.stats.summary())
+    return 0
