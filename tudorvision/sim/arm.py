@@ -1238,6 +1238,11 @@ class ControlledArm:
         self.controller = JointCascade(gains or design_cascade(p, zero_config_inertia(arm)),
                                        arm.config.dt, arm.measured_theta())
         self.damping = damping
+        # -- joint-layer hooks (tudorvision.joint.damping / .collision) --------------------
+        self.damper = None          # StrainDamper: strain feedback (velocity and position level)
+        self.reaction = None        # CollisionMonitor: residual observer and reaction admittance
+        self._kpd0 = list(self.controller._kpd)
+        # ----------------------------------------------------------------------------------
         self._planner = OnlinePlanner(arm.theta, v_max=self.v_max, a_max=self.a_max, t0=arm.t)
         self.mode = "setpoint"
         self.theta_ref = list(arm.theta)
@@ -1305,7 +1310,37 @@ class ControlledArm:
         th_ref, dth_ref = self._reference(arm.t)
         self.theta_ref, self.dtheta_ref = th_ref, dth_ref
         extra = self.damping(arm) if self.damping is not None else (0.0, 0.0, 0.0)
-        arm.step(self.controller.step(arm.measured_theta(), th_ref, dth_ref, extra))
+        th_meas = arm.measured_theta()
+        if self.damper is not None or self.reaction is not None:
+            th_ref, dth_ref, extra = self._joint_layer(th_meas, th_ref, dth_ref, extra)
+        arm.step(self.controller.step(th_meas, th_ref, dth_ref, extra))
+
+    # -- joint-layer hooks ----------------------------------------------------------------------
+    def set_damper(self, damper) -> None:
+        """Use a :class:`tudorvision.joint.damping.StrainDamper` (``None``: bare cascade).
+
+        The damper's ``pd_scale`` multiplies the PD position gain while it is set
+        (0.5 for the integral law of section 6.5).
+        """
+        self.damper = damper
+        scale = 1.0 if damper is None else float(damper.pd_scale)
+        self.controller._kpd = [k * scale for k in self._kpd0]
+
+    def _joint_layer(self, th_meas, th_ref, dth_ref, extra):
+        """Apply the damping law and the collision reaction to the cascade inputs."""
+        arm = self.arm
+        if self.damper is not None:
+            dv, dth = self.damper.step(arm.measured_strain())
+            extra = [extra[j] + dv[j] for j in range(3)]
+            th_ref = [th_ref[j] + dth[j] for j in range(3)]
+        if self.reaction is not None:
+            out = self.reaction.step(th_meas, self.controller.velocity, arm.measured_strain(),
+                                     th_ref, dth_ref, extra)
+            if out is not None:      # the reaction replaces the PD output (section 11.2)
+                th_ref, dth_ref, extra = out
+                self.theta_ref, self.dtheta_ref = list(th_ref), [0.0, 0.0, 0.0]
+                self.mode, self._v_cmd = "velocity", [0.0, 0.0, 0.0]   # hold after the release
+        return th_ref, dth_ref, extra
 
     def run(self, duration_s: float, *, record: bool = False):
         """Advance ``duration_s`` seconds (rounded to whole samples).

@@ -1,0 +1,117 @@
+"""Damping core: static strain cancellation, damping laws, closed loop on the simulated arm."""
+import math
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from tudorvision.joint.damping import (DampingConfig, SosFilter, StaticStrainFilter, StrainDamper,
+                                       default_damping_config, half_integrator_sos, highpass_response,
+                                       moving_average_fir, pade_p55, proportional_feedback, static_strain_fir)
+
+
+# --------------------------------------------------------------- static strain cancellation
+@pytest.mark.parametrize("freq_hz", [0.7, 2.3, 9.0])
+def test_filter_matches_analytic_frequency_response(freq_hz):
+    """Steady-state gain and phase of the running filter equal (1 - M)^2 at e^{jw}."""
+    fs, n = 2000.0, 1000
+    k = np.arange(int(6 * fs))
+    x = 1e-4 * np.sin(2 * np.pi * freq_hz * k / fs)
+    f = StaticStrainFilter([0.0], n_window=n)
+    y = np.array([f.step([v])[1][0] for v in x])
+    H = highpass_response([freq_hz], n, fs)[0]
+    expect = 1e-4 * np.abs(H) * np.sin(2 * np.pi * freq_hz * k / fs + np.angle(H))
+    tail = k > 2 * n + 10
+    assert np.max(np.abs(y[tail] - expect[tail])) < 1e-9
+
+
+def test_fir_coefficients_frequency_response():
+    b = static_strain_fir(50)
+    w, h = signal.freqz(b, worN=np.linspace(0.01, 3.0, 50))
+    H = highpass_response(w * 100.0 / (2 * np.pi), 50, 100.0)
+    np.testing.assert_allclose(1.0 - h, H, atol=1e-12)
+    # 40 dB/decade edge: a tenfold lower frequency attenuates about 100 times
+    lo = np.abs(highpass_response([0.01, 0.1], 50, 100.0))
+    assert 90 < lo[1] / lo[0] < 110
+
+
+def test_filter_removes_constant_and_ramp():
+    fs, n = 2000.0, 200
+    t = np.arange(3000) / fs
+    eps = 3e-4 + 2e-4 * t
+    f = StaticStrainFilter([eps[0]], n_window=n)
+    out = np.array([f.step([v])[1][0] for v in eps])
+    assert np.max(np.abs(out[2 * n:])) < 1e-12          # double zero at DC
+    assert np.max(np.abs(out[:2 * n])) > 1e-6            # while the windows fill, the lag shows
+
+
+def test_decimated_filter_is_the_100hz_filter():
+    rng = np.random.default_rng(3)
+    x100 = np.cumsum(rng.normal(size=300)) * 1e-5
+    f = StaticStrainFilter([0.0], n_window=50, decimation=20)
+    out = []
+    for v in x100:
+        for _ in range(20):
+            out.append(f.step([v])[0][0])
+    mu = np.array(out)[::20]
+    ref = signal.lfilter(static_strain_fir(50), [1.0], x100)     # zero initial state = filled with 0
+    np.testing.assert_allclose(mu, ref, atol=1e-15)
+
+
+def test_filter_arguments():
+    with pytest.raises(ValueError, match="n_window"):
+        StaticStrainFilter([0.0], n_window=0)
+    with pytest.raises(ValueError, match="n_window"):
+        moving_average_fir(0)
+
+
+# --------------------------------------------------------------- laws
+def test_proportional_sign_and_units():
+    np.testing.assert_allclose(proportional_feedback([2e-4, -1e-4, 0.0], [100.0, 100.0, 1.0]), [-0.02, 0.01, 0.0])
+
+
+def test_pade_p55_approximates_half_integrator_on_band():
+    ds, dt = 2 * np.pi * 3.0, 5e-4
+    sos = half_integrator_sos(ds, dt)
+    f = np.geomspace(0.5, 20.0, 25)
+    _, h = signal.sosfreqz(sos, worN=2 * np.pi * f * dt)
+    ref = 1.0 / np.sqrt(1j * 2 * np.pi * f)
+    err_db = 20 * np.log10(np.abs(h) / np.abs(ref))
+    assert np.max(np.abs(err_db)) < 0.1
+    assert np.max(np.abs(np.degrees(np.angle(h)) + 45.0)) < 1.0
+    # far outside the band the approximant departs (finite DC gain): the test can fail
+    _, h0 = signal.sosfreqz(sos, worN=[2 * np.pi * 0.01 * dt])
+    assert abs(20 * np.log10(abs(h0[0]) * math.sqrt(2 * np.pi * 0.01))) > 3.0
+    num, den = pade_p55(ds)
+    assert np.all(np.real(np.roots(den)) < 0)
+    with pytest.raises(ValueError, match="shift"):
+        pade_p55(0.0)
+
+
+def test_sos_filter_matches_scipy():
+    sos = half_integrator_sos(10.0, 1e-3)
+    x = np.random.default_rng(0).normal(size=500)
+    f = SosFilter(sos)
+    y = [f.step(v) for v in x]
+    np.testing.assert_allclose(y, signal.sosfilt(sos, x), rtol=1e-10, atol=1e-12)
+
+
+def test_damper_laws_outputs():
+    k = (0.0, 100.0, 50.0)
+    e = [1e-4, 0.0, -2e-4, 0.0]
+    p = StrainDamper(DampingConfig(law="proportional", k_eps=k, n_window=10), [0.0] * 4, 1e-3)
+    dv, dth = p.step(e)
+    assert dth == [0.0, 0.0, 0.0] and dv[0] == 0.0
+    assert dv[1] < 0 < dv[2]                       # -k eps_tilde with link-2 and link-3 root gauges
+    i = StrainDamper(DampingConfig(law="integral", k_eps=k, n_window=10), [0.0] * 4, 1e-3)
+    outs = [i.step(e)[1][1] for _ in range(3)]
+    assert outs[0] < 0 and outs[2] < outs[1] < outs[0]        # integrates
+    assert i.pd_scale == 0.5 and p.pd_scale == 1.0
+    h = StrainDamper(DampingConfig(law="half_integrator", k_eps=k, n_window=10), [0.0] * 4, 1e-3)
+    assert h.step(e)[1][1] < 0
+    off = StrainDamper(default_damping_config("off"), [0.0] * 4, 1e-3)
+    assert off.step(e) == ([0.0] * 3, [0.0] * 3)
+    with pytest.raises(ValueError, match="law"):
+        DampingConfig(law="pid")
+    with pytest.raises(ValueError, match="k_eps"):
+        DampingConfig(law="proportional", k_eps=(1.0, 2.0))

@@ -1,0 +1,460 @@
+"""Oscillation damping of the joint-control layer (sections 2.2, 5.2, 6.5, 7.5).
+
+Static strain cancellation (section 2.2)
+-----------------------------------------
+The static (gravity) part of a strain signal is estimated by a moving-average
+FIR ``M(z) = (1/N) sum_{i<N} z^-i`` applied twice with trend correction
+(double moving average, "second order smoothing" of figure 2.2)::
+
+    mu_hat = (2 M - M^2) eps,        eps_tilde = eps - mu_hat = (1 - M)^2 eps
+
+so the high-pass ``(1 - M)^2`` has a double zero at DC: a constant *and* a
+ramp in the static strain are removed after the transient (40 dB/decade edge,
+as in figure 2.3). The seed uses ``N = 50`` at 100 Hz (a 0.5 s window). Here
+the filter runs at the 2 kHz control rate with the equivalent window
+``N = 1000`` by default; ``decimation = 20`` with ``N = 50`` reproduces the
+100 Hz filter exactly (new input every 20th sample, output held).
+
+Damping laws (per joint, joint 2 fed by the link-2 root gauge, joint 3 by the
+link-3 root gauge; joint 1 has no gauge in the bending plane: gain 0)
+----------------------------------------------------------------------------
+* proportional (5.2.1), at the velocity-loop input: ``theta_dot_e = -k eps_tilde``;
+* integral (6.5.3), at the position-loop input with the PD gain halved:
+  ``theta_e = -(k / s) eps_tilde``;
+* half-integrator (7.4.14), at the position-loop input:
+  ``theta_e = -k P55(s) eps_tilde`` with the shifted Padé approximant of
+  ``1 / sqrt(s)`` (7.5.1), discretised by the bilinear (Tustin) transform.
+
+Signs follow the plant's strain convention (top surface, tension positive;
+deflection toward increasing joint angle): positive gains damp. Units: ``k``
+in rad/s per (m/m) for the proportional and integral laws, rad s^-1/2 per
+(m/m) for the half-integrator.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import signal
+
+from .._checks import check_array
+
+__all__ = ["LAWS", "moving_average_fir", "static_strain_fir", "highpass_response", "StaticStrainFilter",
+           "proportional_feedback", "pade_p55", "half_integrator_sos", "SosFilter", "DampingConfig",
+           "StrainDamper", "default_damping_config", "GAUGE_OF_JOINT"]
+
+LAWS = ("off", "proportional", "integral", "half_integrator")
+
+#: Strain channel feeding each joint's damping law (None: no gauge in the bending plane).
+GAUGE_OF_JOINT = (None, 0, 2)
+
+
+# ----------------------------------------------------------------- static strain cancellation
+def moving_average_fir(n_window: int) -> np.ndarray:
+    """Coefficients of the equally weighted moving average (2.2.2).
+
+    Parameters
+    ----------
+    n_window : int
+        Number of averaged samples ``N >= 1``.
+
+    Returns
+    -------
+    b : ndarray, shape (N,)
+
+    Raises
+    ------
+    ValueError
+        If ``n_window < 1``.
+
+    Examples
+    --------
+    >>> moving_average_fir(4).tolist()
+    [0.25, 0.25, 0.25, 0.25]
+    """
+    n = int(n_window)
+    if n < 1:
+        raise ValueError(f"n_window: expected >= 1, got {n_window}")
+    return np.full(n, 1.0 / n)
+
+
+def static_strain_fir(n_window: int) -> np.ndarray:
+    """FIR of the static strain estimate ``mu_hat = (2 M - M^2) eps``.
+
+    Returns
+    -------
+    b : ndarray, shape (2 N - 1,)
+        Coefficients; they sum to 1 (unit DC gain) and their first moment is
+        0 (no lag on a ramp).
+
+    Examples
+    --------
+    >>> b = static_strain_fir(50)
+    >>> round(float(b.sum()), 12), round(float(np.arange(b.size) @ b), 9)
+    (1.0, 0.0)
+    """
+    m = moving_average_fir(n_window)
+    b = -np.convolve(m, m)
+    b[:m.size] += 2.0 * m
+    return b
+
+
+def highpass_response(freq_hz, n_window: int, fs_hz: float) -> np.ndarray:
+    """Analytic frequency response of ``eps_tilde / eps = (1 - M)^2``.
+
+    Parameters
+    ----------
+    freq_hz : array_like, shape (K,)
+        Frequencies, Hz (below Nyquist).
+    n_window : int
+    fs_hz : float
+        Sampling rate of the filter, Hz.
+
+    Returns
+    -------
+    H : ndarray of complex, shape (K,)
+
+    Examples
+    --------
+    >>> H = highpass_response([0.0, 2.0], 50, 100.0)
+    >>> round(abs(H[0]), 12), round(abs(H[1]), 12)   # 2 Hz: one period fills the window
+    (0.0, 1.0)
+    """
+    f = np.atleast_1d(np.asarray(freq_hz, dtype=np.float64))
+    n = int(n_window)
+    w = 2.0 * np.pi * f / float(fs_hz)
+    z1 = np.exp(-1j * w)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        M = np.where(np.abs(w) < 1e-12, 1.0 + 0j, (1.0 - z1**n) / (n * (1.0 - z1)))
+    return (1.0 - M) ** 2
+
+
+class StaticStrainFilter:
+    """Running static strain estimate and mean-liberated strain (section 2.2).
+
+    State: two ring buffers of length ``N`` per channel (the input of each
+    moving average) and their running sums.
+
+    Parameters
+    ----------
+    eps0 : array_like, shape (C,)
+        Initial strain (the buffers start filled with it: a static start).
+    n_window : int
+        ``N``, samples per moving average (1000 = 0.5 s at 2 kHz).
+    decimation : int
+        The filter takes a new input every ``decimation`` calls and holds its
+        estimate in between (``N = 50, decimation = 20`` at 2 kHz is the
+        seed's 100 Hz filter).
+
+    Examples
+    --------
+    >>> f = StaticStrainFilter([1e-4], n_window=10)
+    >>> mu, et = f.step([1e-4])
+    >>> float(et[0])
+    0.0
+    """
+
+    def __init__(self, eps0, *, n_window: int = 1000, decimation: int = 1):
+        e0 = check_array(np.atleast_1d(eps0), "eps0", (None,))
+        if int(n_window) < 1 or int(decimation) < 1:
+            raise ValueError(f"n_window, decimation: expected >= 1, got {n_window}, {decimation}")
+        self.n = int(n_window)
+        self.decimation = int(decimation)
+        self.channels = e0.size
+        self.reset(e0)
+
+    def reset(self, eps0) -> None:
+        """Fill both averages with ``eps0`` (static state)."""
+        e0 = [float(x) for x in np.atleast_1d(eps0)]
+        n = self.n
+        self._buf1 = [[x] * n for x in e0]
+        self._buf2 = [[x] * n for x in e0]
+        self._sum1 = [x * n for x in e0]
+        self._sum2 = [x * n for x in e0]
+        self._i = 0
+        self._count = 0
+        self.mu = list(e0)
+
+    def step(self, eps):
+        """Take one strain sample; return ``(mu_hat, eps_tilde)`` as lists of C floats."""
+        if self._count % self.decimation == 0:
+            n, i = self.n, self._i
+            for c in range(self.channels):
+                x = float(eps[c])
+                b1, b2 = self._buf1[c], self._buf2[c]
+                s1 = self._sum1[c] + x - b1[i]
+                b1[i] = x
+                m1 = s1 / n
+                s2 = self._sum2[c] + m1 - b2[i]
+                b2[i] = m1
+                self._sum1[c], self._sum2[c] = s1, s2
+                self.mu[c] = 2.0 * m1 - s2 / n
+            self._i = i + 1 if i + 1 < n else 0
+            if self._i == 0:              # refresh the running sums (no float drift)
+                self._sum1 = [math.fsum(b) for b in self._buf1]
+                self._sum2 = [math.fsum(b) for b in self._buf2]
+        self._count += 1
+        mu = list(self.mu)
+        return mu, [float(eps[c]) - mu[c] for c in range(self.channels)]
+
+
+# ----------------------------------------------------------------- damping laws
+def proportional_feedback(eps_tilde, k_eps) -> np.ndarray:
+    """Proportional strain feedback at the velocity-loop input (5.2.1).
+
+    Parameters
+    ----------
+    eps_tilde : array_like, shape (J,)
+        Mean-liberated strain of the gauge assigned to each joint, m/m.
+    k_eps : array_like, shape (J,)
+        Gains, rad/s per (m/m).
+
+    Returns
+    -------
+    theta_dot_e : ndarray, shape (J,)
+        Extra velocity reference, rad/s: ``-k_eps * eps_tilde``.
+
+    Examples
+    --------
+    >>> proportional_feedback([1e-4, -2e-4], [500.0, 500.0]).tolist()
+    [-0.05, 0.1]
+    """
+    e = np.asarray(eps_tilde, dtype=np.float64)
+    return -np.asarray(k_eps, dtype=np.float64) * e
+
+
+def pade_p55(shift_rad_s: float):
+    """Shifted Padé approximant ``P_5,5(s) ~ 1 / sqrt(s)`` (7.5.1).
+
+    Parameters
+    ----------
+    shift_rad_s : float
+        Frequency shift ``Delta_s > 0``, rad/s; the approximation is best
+        around ``|s| = Delta_s`` (about two decades either side).
+
+    Returns
+    -------
+    num, den : ndarray, shape (6,)
+        Polynomial coefficients in ``s`` (highest power first).
+
+    Raises
+    ------
+    ValueError
+        If the shift is not positive.
+
+    Examples
+    --------
+    >>> num, den = pade_p55(1.0)
+    >>> H = np.polyval(num, 1j) / np.polyval(den, 1j)
+    >>> round(abs(H), 4), round(float(np.degrees(np.angle(H))), 2)
+    (1.0, -45.0)
+    """
+    ds = float(shift_rad_s)
+    if not ds > 0:
+        raise ValueError(f"shift_rad_s: expected > 0, got {shift_rad_s}")
+    a = np.array([1.0, 55.0, 330.0, 462.0, 165.0, 11.0])
+    b = np.array([11.0, 165.0, 462.0, 330.0, 55.0, 1.0])
+    powers = ds ** -np.arange(5, -1, -1.0)       # s_hat^k = s^k / ds^k
+    return a * powers / math.sqrt(ds), b * powers
+
+
+def half_integrator_sos(shift_rad_s: float, dt: float) -> np.ndarray:
+    """Tustin discretisation of :func:`pade_p55` as second-order sections.
+
+    Returns
+    -------
+    sos : ndarray, shape (3, 6)
+        For :class:`SosFilter` or ``scipy.signal.sosfilt``.
+
+    Examples
+    --------
+    >>> half_integrator_sos(2 * np.pi * 3, 5e-4).shape
+    (3, 6)
+    """
+    if not dt > 0:
+        raise ValueError(f"dt: expected > 0, got {dt}")
+    num, den = pade_p55(shift_rad_s)
+    z, p, k = signal.tf2zpk(num, den)
+    zd, pd, kd = signal.bilinear_zpk(z, p, k, 1.0 / dt)
+    return signal.zpk2sos(zd, pd, kd)
+
+
+class SosFilter:
+    """Per-sample cascade of second-order sections (transposed direct form II).
+
+    State layout: two delay values per section.
+
+    Examples
+    --------
+    >>> f = SosFilter(np.array([[1.0, 0, 0, 1.0, -0.5, 0]]))
+    >>> [f.step(1.0), f.step(0.0)]
+    [1.0, 0.5]
+    """
+
+    def __init__(self, sos):
+        s = check_array(sos, "sos", (None, 6))
+        if np.any(np.abs(s[:, 3] - 1.0) > 1e-12):
+            raise ValueError("sos: expected a0 = 1 in every section")
+        self._sec = [tuple(float(v) for v in row) for row in s]
+        self.reset()
+
+    def reset(self) -> None:
+        self._z = [[0.0, 0.0] for _ in self._sec]
+
+    def step(self, x: float) -> float:
+        for (b0, b1, b2, _, a1, a2), z in zip(self._sec, self._z):
+            y = b0 * x + z[0]
+            z[0] = b1 * x - a1 * y + z[1]
+            z[1] = b2 * x - a2 * y
+            x = y
+        return x
+
+
+# ----------------------------------------------------------------- the damper of the layer
+@dataclass(frozen=True, kw_only=True)
+class DampingConfig:
+    """Damping law and its parameters.
+
+    Attributes
+    ----------
+    law : {"off", "proportional", "integral", "half_integrator"}
+    k_eps : tuple of 3 floats
+        Gain per joint (units in the module docstring); joint 1 has no gauge.
+    n_window : int
+        Moving-average length at the filter rate (1000 = 0.5 s at 2 kHz).
+    decimation : int
+        Filter input every ``decimation`` control samples.
+    pade_shift_rad_s : float
+        ``Delta_s`` of the half-integrator (7.5.1).
+    pd_gain_scale : float or None
+        Factor on the position-loop gain ``k_PD`` while the law is active;
+        ``None``: 0.5 for the integral law (6.5), 1 otherwise.
+    gauge_of_joint : tuple
+        Strain channel per joint (``None`` for none).
+    """
+
+    law: str = "proportional"
+    k_eps: tuple = (0.0, 0.0, 0.0)
+    n_window: int = 1000
+    decimation: int = 1
+    pade_shift_rad_s: float = 2.0 * math.pi * 3.0
+    pd_gain_scale: float | None = None
+    gauge_of_joint: tuple = field(default=GAUGE_OF_JOINT)
+
+    def __post_init__(self):
+        if self.law not in LAWS:
+            raise ValueError(f"law: expected one of {LAWS}, got {self.law!r}")
+        k = check_array(self.k_eps, "k_eps", (3,))
+        object.__setattr__(self, "k_eps", tuple(float(x) for x in k))
+        if len(self.gauge_of_joint) != 3:
+            raise ValueError(f"gauge_of_joint: expected 3 entries, got {self.gauge_of_joint!r}")
+
+    @property
+    def pd_scale(self) -> float:
+        if self.pd_gain_scale is not None:
+            return float(self.pd_gain_scale)
+        return 0.5 if self.law == "integral" else 1.0
+
+
+#: Gains tuned on experiment 06 (300 g, one-way plant) by minimising IATS, see
+#: ``benchmarks/bench_damping_ch8.py --tune``; fixed for all experiments as in chapter 8.
+DEFAULT_GAINS = {
+    "proportional": (0.0, 400.0, 400.0),
+    "integral": (0.0, 400.0, 400.0),
+    "half_integrator": (0.0, 60.0, 60.0),
+}
+
+
+def default_damping_config(law: str, **overrides) -> DampingConfig:
+    """:class:`DampingConfig` with the tuned default gains of ``law``.
+
+    Examples
+    --------
+    >>> default_damping_config("off").law
+    'off'
+    """
+    if law not in LAWS:
+        raise ValueError(f"law: expected one of {LAWS}, got {law!r}")
+    k = DEFAULT_GAINS.get(law, (0.0, 0.0, 0.0))
+    return DampingConfig(law=law, k_eps=overrides.pop("k_eps", k), **overrides)
+
+
+class StrainDamper:
+    """Static strain cancellation plus one damping law, stepped at the control rate.
+
+    Parameters
+    ----------
+    config : DampingConfig
+    eps0 : array_like, shape (C,)
+        Strain at start (the arm at rest).
+    dt : float
+        Control sample time, seconds.
+
+    Attributes
+    ----------
+    eps_tilde : list of C floats
+        Last mean-liberated strains.
+    mu : list of C floats
+        Last static strain estimates.
+
+    Examples
+    --------
+    >>> d = StrainDamper(DampingConfig(law="proportional", k_eps=(0, 500, 500)), [0.0] * 4, 5e-4)
+    >>> dv, dth = d.step([0.0, 0.0, 0.0, 0.0])
+    >>> dv, dth
+    ([0.0, 0.0, 0.0], [0.0, 0.0, 0.0])
+    """
+
+    def __init__(self, config: DampingConfig, eps0, dt: float):
+        if not dt > 0:
+            raise ValueError(f"dt: expected > 0, got {dt}")
+        self.config = config
+        self.dt = float(dt)
+        self.filter = StaticStrainFilter(eps0, n_window=config.n_window, decimation=config.decimation)
+        self.eps_tilde = [0.0] * self.filter.channels
+        self.mu = list(self.filter.mu)
+        self._k = list(config.k_eps)
+        self._g = list(config.gauge_of_joint)
+        self._integ = [0.0, 0.0, 0.0]
+        self._half = [SosFilter(half_integrator_sos(config.pade_shift_rad_s, dt)) for _ in range(3)] \
+            if config.law == "half_integrator" else None
+
+    @property
+    def pd_scale(self) -> float:
+        """Factor on the PD position gain while this law acts."""
+        return self.config.pd_scale
+
+    def step(self, strain):
+        """One control sample.
+
+        Parameters
+        ----------
+        strain : sequence of C floats
+            Measured strains, m/m.
+
+        Returns
+        -------
+        dtheta_extra : list of 3 floats
+            Added at the velocity-loop input, rad/s (proportional law).
+        theta_extra : list of 3 floats
+            Added to the position reference, rad (integral, half-integrator).
+        """
+        self.mu, self.eps_tilde = self.filter.step(strain)
+        law = self.config.law
+        dv, dth = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
+        if law == "off":
+            return dv, dth
+        for j in range(3):
+            g = self._g[j]
+            if g is None or self._k[j] == 0.0:
+                continue
+            e = self.eps_tilde[g]
+            if law == "proportional":
+                dv[j] = -self._k[j] * e
+            elif law == "integral":
+                self._integ[j] += e * self.dt
+                dth[j] = -self._k[j] * self._integ[j]
+            else:
+                dth[j] = -self._k[j] * self._half[j].step(e)
+        return dv, dth
