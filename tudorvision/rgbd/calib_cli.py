@@ -154,7 +154,9 @@ def _cmd_base(args) -> int:
     sweep = np.ones(n, bool)
     if thetas is not None:
         sweep = (np.abs(thetas[:, 0]) < tol) & (np.abs(thetas[:, 2]) < tol)
-    opts = DiscOptions(disc_radius_m=args.disc_radius, depth_model=noise_model_from_calibration(cal0))
+    annulus = tuple(_parse_floats(args.depth_annulus, "--depth-annulus", 2))
+    opts = DiscOptions(disc_radius_m=args.disc_radius, depth_model=noise_model_from_calibration(cal0),
+                       depth_annulus=annulus)
     tracker = DiscTracker(K, seed, opts, max_consecutive_lost=10 ** 9)
     samples = {}          # frame -> (centroid_cam, centroid_uv)
     lost = {}
@@ -238,6 +240,9 @@ def register(calib_sub) -> None:
                    help="'base': base plate (matches tudorvision.robot); 'joint2': the circle centre (default base)")
     b.add_argument("--vertical", choices=("combined", "seed", "plane"), default="combined",
                    help="estimate of the vertical point (default combined; see base_frame_from_sweep)")
+    b.add_argument("--depth-annulus", default="0,1",
+                   help="LO,HI: the disc depth averages the pixels between these fractions of the segment's "
+                        "ellipse (default 0,1: the whole segment; 0.7,1 skips an occluded centre)")
     b.add_argument("--joint-tol-deg", type=float, default=0.5, help="joint tolerance for sweep/vertical frames")
     b.add_argument("--out", help="calibration file to write or update (transforms: T_base_cam)")
     b.add_argument("--report", help="JSON report")

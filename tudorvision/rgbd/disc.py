@@ -10,10 +10,11 @@ disc: the next seed is the previous centroid's pixel.
 
 Depth noise at 5 m is tens of centimetres per pixel (seed model), so growing
 runs on a median-filtered depth image (``smooth_px``). The centroid is the
-region's mean pixel back-projected at the robust mean raw depth of an elliptic
-annulus of the region (averaging the noise down without the mixed rim pixels,
-without whatever stands in front of the disc centre, and without selection
-bias from the noisy region boundary).
+region's mean pixel back-projected at the robust mean raw depth of the pixels
+inside the region's moment ellipse (taken geometrically, not from the noisy
+mask, so that the mean has no selection bias). ``depth_annulus`` can leave out
+the centre, where end-effector hardware may stand in front of the disc (the
+virtual lab's tracking sphere does: about 3 cm too near at 5 m).
 """
 from __future__ import annotations
 
@@ -54,8 +55,10 @@ class DiscOptions:
         fronto-parallel image area at its depth.
     depth_annulus : tuple of float
         The centroid depth is the robust mean raw depth of the pixels between
-        these fractions of the region's moment ellipse (the rim mixes disc and
-        background; the centre may be hidden by end-effector hardware).
+        these fractions of the region's moment ellipse. Default ``(0, 1)``:
+        the whole segment (the seed's centroid). ``(0.7, 1.0)`` leaves out an
+        occluded centre at the price of fewer pixels and a pose-dependent bias
+        when the occluder projects off-centre.
     depth_model : DepthNoiseModel
         ``sigma_z(z)`` used for the tolerance.
     """
@@ -70,7 +73,7 @@ class DiscOptions:
     max_pixels: int = 40000
     disc_radius_m: float | None = None
     area_ratio: tuple = (0.25, 2.5)
-    depth_annulus: tuple = (0.7, 1.0)
+    depth_annulus: tuple = (0.0, 1.0)
     depth_model: DepthNoiseModel = field(default=SEED_DEPTH_MODEL)
 
     def __post_init__(self):
@@ -250,10 +253,10 @@ def observe_disc(depth_m, intrinsics: Intrinsics, seed_uv, options: DiscOptions 
     import cv2
 
     # pixel centroid and shape (second moments) from the region; the depth from the
-    # pixels of an elliptic annulus of the region's moment ellipse. Taking the pixels
+    # pixels of (an annulus of) the region's moment ellipse. Taking the pixels
     # geometrically (not the noisy mask itself) keeps the depth mean free of selection
-    # bias; the annulus leaves out the rim (mixed disc/background pixels) and the
-    # centre, where the end-effector hardware can stand in front of the disc.
+    # bias; an annulus can leave out the centre, where end-effector hardware may
+    # stand in front of the disc.
     vv, uu = np.nonzero(mask)
     uv = np.array([uu.mean(), vv.mean()])
     C = np.cov(np.stack([uu, vv]).astype(np.float64)) + 0.25 * np.eye(2)
