@@ -63,6 +63,9 @@ def register(subparsers) -> None:
                    help="do not compensate the rolling shutter even if the calibration has line_time_s")
     s.add_argument("--method", choices=("normalized", "rectified"), default="normalized",
                    help="triangulation route (default normalized)")
+    s.add_argument("--sphere-separation", type=float, default=None, metavar="M",
+                   help="known sphere distance in metres; frames whose triangulated distance is off by more "
+                        "than 3 cm are flagged invalid (default: from the robot parameters; 0 disables)")
     s.add_argument("--strict", action="store_true", help="stop at the first corrupt frame instead of skipping it")
     s.set_defaults(func=run_track_stereo)
 
@@ -195,6 +198,17 @@ def _calibrations(args, seq):
     return cal, cal_name, T, source
 
 
+def _sphere_separation(models):
+    """Distance between the two modelled spheres from the robot parameters, or None."""
+    from ..robot import load_robot_params
+
+    names = [n for n in models.spheres("left") if n in models.spheres("right")]
+    offsets = load_robot_params().sphere_offsets_ee_m
+    if len(names) != 2 or not all(n in offsets for n in names):
+        return None
+    return float(np.linalg.norm(np.subtract(offsets[names[0]], offsets[names[1]])))
+
+
 def run_track_stereo(args) -> int:
     from .pipeline import PipelineOptions, track_stereo
     from .trajectory import plot_trajectory, write_trajectory_csv
@@ -206,8 +220,11 @@ def run_track_stereo(args) -> int:
         raise TudorVisionError(f"{args.seq}: expected a stereo sequence, got kind {seq.kind!r}")
     models = _load_models(args.colormodel)
     cal, cal_name, T_base_left, base_source = _calibrations(args, seq)
+    sep = _sphere_separation(models) if args.sphere_separation is None else args.sphere_separation
+    if sep is not None and sep < 0:
+        raise TudorVisionError(f"--sphere-separation: must be a non-negative distance in metres, got {sep}")
     options = PipelineOptions(tracking=not args.full_frame, method=args.method,
-                              rolling_shutter=not args.no_rolling_shutter)
+                              rolling_shutter=not args.no_rolling_shutter, sphere_separation_m=sep or None)
     log = None
     if args.rerun:
         from .rerun_log import RerunStereoLog

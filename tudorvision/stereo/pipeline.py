@@ -79,6 +79,22 @@ class PipelineOptions:
     max_gap_frames : float
         Velocity and acceleration are not differenced across gaps longer
         than this many nominal frame periods.
+    max_epipolar_px : float or None
+        Stereo consistency: a sphere's left and right centroids must lie
+        within this distance (pixels, undistorted) of each other's epipolar
+        line. When they do not (one camera locked onto a look-alike object),
+        every valid candidate region of that sphere in both full frames is
+        paired and the consistent pair nearest the previous 3D position (or
+        with the smallest epipolar distance) is taken; failing that the
+        sphere is flagged missing. A sphere found in one camera only is
+        looked for among the other camera's candidate regions the same way. None disables the check. The default
+        leaves room for rolling-shutter skew of fast motion.
+    sphere_separation_m : float or None
+        Known distance between the sphere centres (two spheres); a frame
+        whose triangulated distance differs by more than
+        ``separation_tol_m`` is flagged invalid. None disables the check.
+    separation_tol_m : float
+        Tolerance of that check, metres.
     """
 
     tracking: bool = True
@@ -86,6 +102,9 @@ class PipelineOptions:
     method: str = "normalized"
     rolling_shutter: bool = True
     max_gap_frames: float = 2.5
+    max_epipolar_px: float | None = 6.0
+    sphere_separation_m: float | None = None
+    separation_tol_m: float = 0.03
 
     def __post_init__(self):
         if not isinstance(self.tracker, TrackerParams):
@@ -94,6 +113,12 @@ class PipelineOptions:
             raise TudorVisionError(f"method: expected 'normalized' or 'rectified', got {self.method!r}")
         if not (self.max_gap_frames > 1.0):
             raise TudorVisionError(f"max_gap_frames: must exceed 1, got {self.max_gap_frames}")
+        if self.max_epipolar_px is not None and not (self.max_epipolar_px > 0):
+            raise TudorVisionError(f"max_epipolar_px: must be positive or None, got {self.max_epipolar_px}")
+        if self.sphere_separation_m is not None and not (self.sphere_separation_m > 0):
+            raise TudorVisionError(f"sphere_separation_m: must be positive or None, got {self.sphere_separation_m}")
+        if not (self.separation_tol_m > 0):
+            raise TudorVisionError(f"separation_tol_m: must be positive, got {self.separation_tol_m}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -203,6 +228,12 @@ class StereoPipeline:
         self.frame = "left" if self.T_base_left is None else "base"
         self._models = {cam: {s: color_models.get(cam, s) for s in self.spheres} for cam in ("left", "right")}
         self._trackers = {cam: FrameTracker(m, params=self.options.tracker) for cam, m in self._models.items()}
+        tx, ty, tz = stereo.T
+        self._E = np.array([[0.0, -tz, ty], [tz, 0.0, -tx], [-ty, tx, 0.0]]) @ stereo.R  # x_r^T E x_l = 0
+        self._f_right = 0.5 * (self.cameras["right"].fx + self.cameras["right"].fy)
+        self._last_left = {s: None for s in self.spheres}   # last consistent sphere centre, left frame
+        self.n_repaired = 0
+        self.n_inconsistent = 0
 
     @property
     def rolling_shutter(self) -> bool:
@@ -214,6 +245,94 @@ class StereoPipeline:
         """Forget the tracks (the next pair is searched in full)."""
         for trk in self._trackers.values():
             trk.reset()
+        self._last_left = {s: None for s in self.spheres}
+
+    def epipolar_px(self, uv_left, uv_right) -> np.ndarray:
+        """Distance of right centroids from the epipolar lines of left ones, pixels.
+
+        Parameters
+        ----------
+        uv_left, uv_right : array_like, shape (N, 2)
+            Raw (distorted) centroids; NaN rows give NaN.
+
+        Returns
+        -------
+        ndarray, shape (N,)
+            Distance in the right image, undistorted, in pixels of its mean focal length.
+        """
+        from .triangulate import undistort_points
+
+        cl, cr = self.cameras["left"], self.cameras["right"]
+        xl = undistort_points(np.asarray(uv_left, float).reshape(-1, 2), cl.K, cl.dist)
+        xr = undistort_points(np.asarray(uv_right, float).reshape(-1, 2), cr.K, cr.dist)
+        hl = np.column_stack([xl, np.ones(len(xl))])
+        hr = np.column_stack([xr, np.ones(len(xr))])
+        lines = hl @ self._E.T                    # epipolar lines in the right normalised image
+        num = np.abs(np.sum(lines * hr, axis=1))
+        return self._f_right * num / np.hypot(lines[:, 0], lines[:, 1])
+
+    def _left_points(self, uv_left, uv_right) -> np.ndarray:
+        from .triangulate import triangulate_stereo
+        return triangulate_stereo(np.reshape(uv_left, (-1, 2)), np.reshape(uv_right, (-1, 2)), self.calibration,
+                                  method=self.options.method)
+
+    def _candidates(self, img, cam: str, sphere: str) -> list:
+        """Valid regions of one sphere in a full frame (full resolution), heaviest first."""
+        from .segment import _detect_window, _Frame
+
+        h, w = img.shape[:2]
+        found = _detect_window(_Frame(img), self._models[cam][sphere], self.options.tracker.segment,
+                               (0, 0, w, h), False)
+        return [d for d in found if d.valid][:6]
+
+    def _make_consistent(self, dets: dict, images: dict) -> dict:
+        """Check each sphere's stereo pair against the epipolar geometry; re-pair when it fails."""
+        tol = self.options.max_epipolar_px
+        if tol is None:
+            return dets
+        for s in self.spheres:
+            dl, dr = dets["left"][s], dets["right"][s]
+            if not (dl.valid or dr.valid):
+                continue
+            if dl.valid and dr.valid:
+                if self.epipolar_px([dl.uv], [dr.uv])[0] <= tol:
+                    continue
+                self.n_inconsistent += 1
+                cands = {cam: self._candidates(images[cam], cam, s) for cam in ("left", "right")}
+            else:   # found in one camera only: look for a region on its epipolar line in the other
+                have, miss = ("left", "right") if dl.valid else ("right", "left")
+                cands = {have: [dets[have][s]], miss: self._candidates(images[miss], miss, s)}
+                if not cands[miss]:
+                    continue
+            pairs = [(a, b) for a in cands["left"] for b in cands["right"]]
+            best = None
+            if pairs:
+                ua = np.array([a.uv for a, _ in pairs])
+                ub = np.array([b.uv for _, b in pairs])
+                epi = self.epipolar_px(ua, ub)
+                ok = epi <= tol
+                if ok.any():
+                    prev = self._last_left[s]
+                    if prev is not None:
+                        pts = self._left_points(ua, ub)
+                        score = np.where(ok, np.linalg.norm(pts - prev, axis=1), np.inf)
+                    else:
+                        score = np.where(ok, epi, np.inf)
+                    best = pairs[int(np.argmin(score))]
+            if best is not None:
+                new = {"left": best[0], "right": best[1]}
+            elif dl.valid and dr.valid:
+                new = {"left": _invalid(dl, "stereo-inconsistent (epipolar)"),
+                       "right": _invalid(dr, "stereo-inconsistent (epipolar)")}
+            else:
+                continue
+            for cam in ("left", "right"):
+                if new[cam] is not dets[cam][s]:
+                    dets[cam] = {**dets[cam], s: new[cam]}
+                    if self.options.tracking:   # do not predict from the look-alike next frame
+                        self._trackers[cam].trackers[s].reset()
+            self.n_repaired += best is not None
+        return dets
 
     def _check_image(self, img, cam: str, index: int) -> np.ndarray:
         arr = np.asarray(img)
@@ -258,12 +377,30 @@ class StereoPipeline:
         """
         index = int(getattr(frame, "index", 0))
         dets = self.detect(frame.left, frame.right, index=index)
+        dets = self._make_consistent(dets, {"left": frame.left, "right": frame.right})
+        opt = self.options
+        if opt.sphere_separation_m is not None and len(self.spheres) == 2 and \
+                all(dets[c][s].valid for c in ("left", "right") for s in self.spheres):
+            a, b = self.spheres
+            pts = self._left_points([dets["left"][a].uv, dets["left"][b].uv],
+                                    [dets["right"][a].uv, dets["right"][b].uv])
+            sep = float(np.linalg.norm(pts[0] - pts[1]))
+            if not abs(sep - opt.sphere_separation_m) <= opt.separation_tol_m:
+                why = f"sphere separation {sep:.3f} m, expected {opt.sphere_separation_m:.3f} m"
+                dets = {c: {s: _invalid(d, why) for s, d in dets[c].items()} for c in dets}
         uvl = {s: np.array([dets["left"][s].uv if dets["left"][s].valid else _NAN2]) for s in self.spheres}
         uvr = {s: np.array([dets["right"][s].uv if dets["right"][s].valid else _NAN2]) for s in self.spheres}
-        tri = triangulate_spheres(uvl, uvr, self.calibration, T_base_left=self.T_base_left,
-                                  method=self.options.method)
-        return StereoFrameResult(index=index, t=float(frame.t), detections=dets,
-                                 spheres={s: tri.spheres[s][0] for s in self.spheres}, ee=tri.ee[0],
+        tri = triangulate_spheres(uvl, uvr, self.calibration, T_base_left=None, method=opt.method)
+        for s in self.spheres:
+            if tri.sphere_valid[s][0]:
+                self._last_left[s] = tri.spheres[s][0]
+        spheres = {s: tri.spheres[s][0] for s in self.spheres}
+        ee = tri.ee[0]
+        if self.T_base_left is not None:
+            R, o = self.T_base_left[:3, :3], self.T_base_left[:3, 3]
+            spheres = {s: R @ p + o for s, p in spheres.items()}
+            ee = R @ ee + o
+        return StereoFrameResult(index=index, t=float(frame.t), detections=dets, spheres=spheres, ee=ee,
                                  valid=bool(tri.ee_valid[0]), frame=self.frame, latency_s=float(latency_s),
                                  dropped=int(dropped))
 
@@ -286,6 +423,12 @@ class StereoPipeline:
         kw = dict(t_left=t, t_right=t, t_target=t) if self.rolling_shutter and len(t) else {}
         return triangulate_spheres(uv_left, uv_right, self.calibration, T_base_left=self.T_base_left,
                                    method=self.options.method, **kw)
+
+
+def _invalid(det: SphereDetection, reason: str) -> SphereDetection:
+    """``det`` marked invalid with ``reason`` (the region is kept for diagnostics)."""
+    from dataclasses import replace
+    return replace(det, valid=False, reason=reason)
 
 
 def iter_stereo(sequence, pipeline: StereoPipeline, *, live: bool = False, speed: float = 1.0,
