@@ -63,8 +63,8 @@ def main(argv=None) -> int:
     except (TudorVisionError, ValueError, FileNotFoundError, IsADirectoryError,
             NotADirectoryError, PermissionError) as exc:
         msg = str(exc)
-        if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in msg:
-            msg = f"{exc.filename}: {exc.strerror or msg}"
+        if isinstance(exc, OSError) and exc.filename and exc.strerror:
+            msg = f"{exc.filename}: {exc.strerror.lower()}"
         print(f"tudorvision {args.command}: error: {msg}", file=sys.stderr)
         return 2
 
