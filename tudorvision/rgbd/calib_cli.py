@@ -125,7 +125,7 @@ def _cmd_base(args) -> int:
     from ..io import open_sequence
     from .base_calib import base_frame_from_sweep
     from .cli import noise_model_from_calibration
-    from .disc import DiscOptions, DiscTracker, observe_disc
+    from .disc import DiscOptions, DiscTracker
     from .frames import Intrinsics
 
     seed = _parse_floats(args.seed, "--seed", 2)
@@ -170,9 +170,7 @@ def _cmd_base(args) -> int:
             # the disc at this theta2 (interpolated between the nearest samples) and retry
             guess = _predict_uv(samples, thetas, thetas[i, 1])
             if guess is not None:
-                tracker.seed_uv = tuple(int(round(x)) for x in guess[0])
-                tracker._last_uv, tracker._last_z = None, guess[1]
-                tracker._velocity = np.zeros(2)
+                tracker.reseed(guess[0], guess[1])
                 obs = tracker.update(f.depth_m)
         if obs.valid:
             samples[i] = (obs.centroid_cam, obs.centroid_uv)

@@ -332,6 +332,14 @@ class DiscTracker:
         self._last_uv: np.ndarray | None = None
         self._last_z: float | None = None
 
+    def reseed(self, seed_uv, depth_m: float | None = None) -> None:
+        """Restart the search at ``seed_uv`` (e.g. after the arm jumped), optionally near depth ``depth_m``."""
+        u, v = _seed_pixel(seed_uv, self.intrinsics.shape)
+        self.seed_uv = (u, v)
+        self._velocity = np.zeros(2)
+        self._last_uv = None
+        self._last_z = None if depth_m is None else float(depth_m)
+
     def _candidates(self):
         K = self.intrinsics
         base = np.array(self.seed_uv, float)
