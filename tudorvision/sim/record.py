@@ -415,13 +415,15 @@ def record_rgbd_disc(out, opts: RecordOptions):
     t2 = np.deg2rad(np.linspace(-10.0, 190.0, n))
     thetas = [np.array([0.0, a, 0.0]) for a in t2] + [np.deg2rad([0.0, 90.0, 0.0])]
     states = [(th, *static_arm_state(th, payload, p)) for th in thetas]
-    per = 1 if opts.small else 2          # frames per pose
-    idx = lambda t: min(int(round(t * KINECT_RATE_HZ)) // per, len(states) - 1)
+    per = 1 if opts.small else 6          # frames per sweep pose
+    n_vertical = 4 if opts.small else 20  # frames of the vertical posture
+    frame_pose = np.concatenate([np.repeat(np.arange(len(states) - 1), per), np.full(n_vertical, len(states) - 1)])
+    idx = lambda t: int(frame_pose[min(int(round(t * KINECT_RATE_HZ)), len(frame_pose) - 1)])
     disc = lambda t: fk_elastic(*states[idx(t)], p)[:3, 3]
     geom = lambda t: elastic_arm_geometry(*states[idx(t)], p)
     setup = wall_disc(disc, rng, T_world_base=T_WORLD_BASE, arm=geom, camera_standoff_m=5.0)
     cam = setup.cameras["rgbd"]
-    times = np.arange(len(states) * per) / KINECT_RATE_HZ
+    times = np.arange(len(frame_pose)) / KINECT_RATE_HZ
     rows = []
     with _writer(out, "rgbd", KINECT_RATE_HZ, opts, calibration=_kinect_calibration(cam),
                  description="wall RGB-D camera, disc in the net, theta2 sweep at theta1 = theta3 = 0, last pose "

@@ -111,19 +111,20 @@ def _to_world(T, p):
 
 
 def arm_shapes(arm: ArmGeometry, T_world_base, *, sphere_radius_m: float, link_radius_m: float = 0.008,
-               red_rgb=RED_RGB, green_rgb=GREEN_RGB) -> list:
+               red_rgb=RED_RGB, green_rgb=GREEN_RGB, spheres: bool = True) -> list:
     """Shapes of the moving arm in the world: the two spheres, actuators 2 and 3, link capsules, end-effector bar.
 
     Names: ``"red_sphere"``, ``"green_sphere"``, ``"actuator2"``, ``"actuator3"``,
     ``"link{k}_{i}"`` (link k = 2, 3; segment i) and ``"ee_bar"``. The order is
-    fixed for a given number of link points.
+    fixed for a given number of link points. ``spheres=False`` leaves out the
+    tracking spheres and their bar (the catching net replaces them).
     """
     T = check_transform(T_world_base, "T_world_base")
     red = _to_world(T, arm.sphere_centers_base["red"])
     green = _to_world(T, arm.sphere_centers_base["green"])
     grey, dark = (0.55, 0.56, 0.58), (0.12, 0.12, 0.13)
     shapes = [Sphere(center=red, radius=sphere_radius_m, color_rgb=red_rgb, name="red_sphere"),
-              Sphere(center=green, radius=sphere_radius_m, color_rgb=green_rgb, name="green_sphere")]
+              Sphere(center=green, radius=sphere_radius_m, color_rgb=green_rgb, name="green_sphere")] if spheres else []
     links = [_to_world(T, p) for p in arm.link_points_base]
     shapes.append(Sphere(center=links[0][0], radius=0.05, color_rgb=dark, name="actuator2"))
     if len(links) > 1:
@@ -132,7 +133,8 @@ def arm_shapes(arm: ArmGeometry, T_world_base, *, sphere_radius_m: float, link_r
         for i in range(len(pts) - 1):  # a zero-length segment is a sphere: the shape count never changes
             shapes.append(Capsule(p0=pts[i], p1=pts[i + 1], radius=link_radius_m, color_rgb=grey,
                                   name=f"link{k + 2}_{i}"))
-    shapes.append(Capsule(p0=red, p1=green, radius=0.6 * link_radius_m, color_rgb=dark, name="ee_bar"))
+    if spheres:
+        shapes.append(Capsule(p0=red, p1=green, radius=0.6 * link_radius_m, color_rgb=dark, name="ee_bar"))
     return shapes
 
 
@@ -475,6 +477,7 @@ def planar_target(distance_m: float, rng: np.random.Generator, *, width: int = 6
 
 def wall_disc(disc_center_base, rng: np.random.Generator, *, T_world_base=np.eye(4), arm=None,
               disc_radius_m: float = 0.075, camera_standoff_m: float = 3.5, camera_height_m: float = 1.6,
+              draw_spheres: bool = False,
               width: int = 640, height: int = 480, t0: float = 0.0) -> SimSetup:
     """Wall-mounted RGB-D camera facing the robot, a disc in the catching net (base calibration sweep).
 
@@ -483,7 +486,8 @@ def wall_disc(disc_center_base, rng: np.random.Generator, *, T_world_base=np.eye
     disc_center_base : array_like, shape (3,), or callable t -> (3,)
         Disc centre in the base frame (the net at the end effector).
     arm : ArmGeometry or callable t -> ArmGeometry, optional
-        Drawn as in :func:`stereo_lab` (spheres included).
+        Drawn as in :func:`stereo_lab`; the tracking spheres only with
+        ``draw_spheres`` (the net holds the disc, as in the seed's set-up).
     disc_radius_m : float
         7.5 cm: a 15 cm disc in the 18 cm net.
 
