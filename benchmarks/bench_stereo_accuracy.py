@@ -216,7 +216,7 @@ def main(argv=None) -> int:
     print(hdr)
     summary = {}
     for label, rows in results.items():
-        agg = lambda k: float(np.sqrt(np.mean([r[k] ** 2 for r in rows.values()])))  # noqa: E731
+        agg = lambda k: float(np.sqrt(np.nanmean([r[k] ** 2 for r in rows.values()])))  # noqa: E731
         mean = lambda k: float(np.mean([r[k] for r in rows.values()]))  # noqa: E731
         s = {"rms_3d_mm": agg("rms_3d_mm"), "valid": mean("valid"), "peer_rms_3d_mm": agg("peer_rms_3d_mm"),
              "peer_valid": mean("peer_valid"), "oracle_rms_3d_mm": agg("oracle_rms_3d_mm"),

@@ -190,7 +190,9 @@ def _check_models(color_models, calibration, stereo_names) -> tuple:
 class StereoPipeline:
     """Per-frame stereo tracking: segmentation in both images, triangulation, midpoint.
 
-    Holds the per-camera trackers between frames (the only state).
+    State between frames: the per-camera trackers and each sphere's last
+    consistent 3D position (for re-pairing look-alikes); ``n_inconsistent``
+    and ``n_repaired`` count the epipolar failures and the repaired ones.
 
     Parameters
     ----------
