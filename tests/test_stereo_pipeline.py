@@ -283,3 +283,48 @@ def test_track_mono_on_left_stream(static_seq_dir, tmp_path):
     assert np.median(err) < 0.3, err
     with pytest.raises(TudorVisionError, match="mono"):
         track_mono(seq, models.get("left", "green"))
+
+
+# ----------------------------------------------------------------------------- stereo consistency
+def _parallel_rig_scene(decoy: bool):
+    import cv2
+    from tudorvision.io import Calibration, CameraModel, StereoExtrinsics
+    from tudorvision.stereo import fit_color_model
+    cam = CameraModel(K=[[500, 0, 160], [0, 500, 120], [0, 0, 1]], width=320, height=240)
+    cal = Calibration(cameras={"left": cam, "right": cam},
+                      stereo=StereoExtrinsics(R=np.eye(3), T=[-0.2, 0.0, 0.0]))
+    imgs, models = {}, {}
+    for name, du in (("left", 0), ("right", -50)):
+        img = np.full((240, 320, 3), 90, np.uint8)
+        cv2.circle(img, (140 + du, 120), 8, (40, 40, 200), -1)
+        cv2.circle(img, (180 + du, 120), 8, (50, 190, 40), -1)
+        models[name] = {"red": fit_color_model(img, (140 + du, 120), (147 + du, 120)),
+                        "green": fit_color_model(img, (180 + du, 120), (187 + du, 120))}
+        if decoy and name == "right":      # a bigger green look-alike, far off the epipolar line
+            cv2.circle(img, (250, 40), 11, (50, 190, 40), -1)
+        imgs[name] = img
+    return cal, ColorModelSet(models), StereoFrame(t=0.0, index=0, left=imgs["left"], right=imgs["right"])
+
+
+def test_epipolar_check_rejects_a_look_alike():
+    cal, models, frame = _parallel_rig_scene(decoy=True)
+    naive = StereoPipeline(cal, models, options=PipelineOptions(max_epipolar_px=None, tracking=False))
+    r = naive.process(frame)
+    assert r.detections["right"]["green"].uv[1] == pytest.approx(40, abs=0.5)     # the decoy wins alone
+    pipe = StereoPipeline(cal, models, options=PipelineOptions(tracking=False))
+    r = pipe.process(frame)
+    assert r.valid and pipe.n_inconsistent == 1 and pipe.n_repaired == 1
+    np.testing.assert_allclose(r.spheres["green"], [0.08, 0.0, 2.0], atol=1e-6)
+    np.testing.assert_allclose(r.ee, [0.0, 0.0, 2.0], atol=1e-6)
+    assert pipe.epipolar_px([[180.0, 120.0]], [[250.0, 40.0]])[0] == pytest.approx(80.0, abs=0.5)
+
+
+def test_sphere_separation_check_flags_the_frame():
+    cal, models, frame = _parallel_rig_scene(decoy=False)
+    ok = StereoPipeline(cal, models, options=PipelineOptions(sphere_separation_m=0.16)).process(frame)
+    assert ok.valid
+    bad = StereoPipeline(cal, models, options=PipelineOptions(sphere_separation_m=0.30)).process(frame)
+    assert not bad.valid and np.isnan(bad.ee).all()
+    assert "separation" in bad.detections["left"]["red"].reason
+    with pytest.raises(TudorVisionError, match="sphere_separation_m"):
+        PipelineOptions(sphere_separation_m=-1.0)
