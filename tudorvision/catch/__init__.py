@@ -1,2 +1,20 @@
-"""tudorvision.catch"""
-__all__: list[str] = []
+"""Ball catching with the elastic arm (sections 9.2, 9.3).
+
+EKF prediction of the thrown ball (:mod:`.ekf`), the intercept with the
+robot's working plane (:mod:`.intercept`), a drag-free ballistic peer
+(:mod:`.ballistic`), data-based kinematics under load (:mod:`.kinematics`) and
+the simulated catching demo (:mod:`.demo`, imported on use).
+"""
+from .ballistic import BallisticPredictor, ballistic_crossing, fit_ballistic
+from .ekf import (DEFAULT_DRAG_K_PER_M, BallEKF, BallModel, EKFOptions, ball_dynamics, dynamics_jacobian,
+                  init_from_detections, predict, process_noise, propagate, update)
+from .intercept import (Intercept, InterceptOptions, InterceptPlanner, PlaneCrossing, plane_crossing,
+                        planar_coordinates, reachable_solutions, working_plane_normal)
+
+__all__ = [
+    "BallisticPredictor", "ballistic_crossing", "fit_ballistic",
+    "DEFAULT_DRAG_K_PER_M", "BallEKF", "BallModel", "EKFOptions", "ball_dynamics", "dynamics_jacobian",
+    "init_from_detections", "predict", "process_noise", "propagate", "update",
+    "Intercept", "InterceptOptions", "InterceptPlanner", "PlaneCrossing", "plane_crossing",
+    "planar_coordinates", "reachable_solutions", "working_plane_normal",
+]

@@ -1,0 +1,495 @@
+"""Extended Kalman filter for a thrown ball with gravity and quadratic drag (section 9.3).
+
+State layout (base frame, SI units)::
+
+    x = [x, y, z, vx, vy, vz]      metres, metres per second
+
+Process model (continuous time), ``g = [0, 0, -9.81]`` m/s^2 and the drag
+coefficient ``k`` in 1/m (the lab's soft 9 cm ball: ``k = 0.012``)::
+
+    dp/dt = v
+    dv/dt = g - k |v| v
+
+It is integrated with RK4 over ``dt`` (sub-stepped at ``max_step_s``), and the
+state-transition Jacobian ``F = d x(t+dt) / d x(t)`` is integrated alongside
+(variational equation), so ``F`` is exact for the discretised model.
+
+Process noise: white acceleration noise of spectral density
+``q_m2_s3`` (m^2/s^3) on each axis, the standard ``[[dt^3/3, dt^2/2],
+[dt^2/2, dt]] q`` blocks; it covers drag-coefficient error and spin.
+
+Measurements are ball centres ``z = p + noise`` in the same frame with the
+detector's covariance (``sigma_z(z)`` along the viewing ray, rotated into the
+filter frame by the caller). Innovations whose Mahalanobis distance squared
+(NIS) exceeds ``gate_nis`` are rejected (outliers).
+
+The pure functions :func:`ball_dynamics`, :func:`propagate`, :func:`predict`
+and :func:`update` are the core; :class:`BallEKF` holds one filter between
+frames on top of :class:`filterpy.kalman.ExtendedKalmanFilter`, with
+least-squares initialisation from the first detections and reset on a new
+throw. Always call ``predict(dt)`` then ``update(z, R)``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._checks import check_array
+
+__all__ = ["BallModel", "EKFOptions", "ball_dynamics", "dynamics_jacobian", "propagate", "process_noise",
+           "predict", "update", "init_from_detections", "BallEKF", "DEFAULT_DRAG_K_PER_M"]
+
+#: Drag coefficient of the lab's soft 9 cm ball in ``a = g - k |v| v``, 1/m.
+DEFAULT_DRAG_K_PER_M = 0.012
+
+
+@dataclass(frozen=True, kw_only=True)
+class BallModel:
+    """Flight model: gravity and quadratic drag ``a = g - k |v| v``.
+
+    Attributes
+    ----------
+    drag_k_per_m : float
+        Drag coefficient ``k``, 1/m (0: drag-free parabola).
+    gravity_m_s2 : float
+        Gravity magnitude along ``-z`` of the filter frame (base z up).
+    max_step_s : float
+        Largest RK4 sub-step.
+    """
+
+    drag_k_per_m: float = DEFAULT_DRAG_K_PER_M
+    gravity_m_s2: float = 9.81
+    max_step_s: float = 0.01
+
+    def __post_init__(self):
+        if not self.drag_k_per_m >= 0:
+            raise ValueError(f"drag_k_per_m: expected >= 0, got {self.drag_k_per_m}")
+        if not self.max_step_s > 0:
+            raise ValueError(f"max_step_s: expected > 0, got {self.max_step_s}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class EKFOptions:
+    """Tuning of :class:`BallEKF`.
+
+    Attributes
+    ----------
+    model : BallModel
+    q_m2_s3 : float
+        White acceleration noise spectral density per axis, m^2/s^3.
+    gate_nis : float
+        Mahalanobis gate on the innovation (chi-square, 3 dof; 16.27 = 99.9 %).
+    n_init : int
+        Detections used for the least-squares initialisation (>= 2).
+    init_velocity_sigma_m_s : float
+        Floor of the initial velocity standard deviation.
+    max_gap_s : float
+        A detection later than this after the last accepted one starts a new throw.
+    max_rejections : int
+        Consecutive gated detections after which the filter restarts (new throw).
+    """
+
+    model: BallModel = BallModel()
+    q_m2_s3: float = 0.05
+    gate_nis: float = 16.27
+    n_init: int = 3
+    init_velocity_sigma_m_s: float = 0.05
+    max_gap_s: float = 0.25
+    max_rejections: int = 3
+
+    def __post_init__(self):
+        if int(self.n_init) != self.n_init or self.n_init < 2:
+            raise ValueError(f"n_init: expected an integer >= 2, got {self.n_init}")
+        if not self.gate_nis > 0 or not self.q_m2_s3 >= 0:
+            raise ValueError("gate_nis, q_m2_s3: expected > 0 and >= 0")
+
+
+def _check_state(x) -> np.ndarray:
+    return check_array(x, "x", (6,))
+
+
+def ball_dynamics(x, model: BallModel = BallModel()) -> np.ndarray:
+    """Time derivative of the state, ``[v, g - k |v| v]``.
+
+    Parameters
+    ----------
+    x : array_like, shape (6,)
+        ``[x, y, z, vx, vy, vz]``, metres and m/s.
+
+    Returns
+    -------
+    dx : ndarray, shape (6,)
+
+    Examples
+    --------
+    >>> (ball_dynamics([0, 0, 1, 0, 0, 0]) + 0.0).tolist()
+    [0.0, 0.0, 0.0, 0.0, 0.0, -9.81]
+    """
+    x = _check_state(x)
+    return _f(x, model.drag_k_per_m, model.gravity_m_s2)
+
+
+def _f(x, k, g):
+    v = x[3:]
+    a = -k * np.sqrt(v @ v) * v
+    a[2] -= g
+    return np.concatenate([v, a])
+
+
+def _A(x, k):
+    v = x[3:]
+    s = np.sqrt(v @ v)
+    A = np.zeros((6, 6))
+    A[0:3, 3:6] = np.eye(3)
+    if s > 0:
+        A[3:6, 3:6] = -k * (s * np.eye(3) + np.outer(v, v) / s)
+    return A
+
+
+def dynamics_jacobian(x, model: BallModel = BallModel()) -> np.ndarray:
+    """Jacobian ``d f / d x`` of :func:`ball_dynamics`, shape (6, 6).
+
+    The velocity block is ``-k (|v| I + v v^T / |v|)``.
+
+    Examples
+    --------
+    >>> A = dynamics_jacobian([0, 0, 0, 3.0, 0, 0], BallModel(drag_k_per_m=0.01))
+    >>> round(float(A[3, 3]), 3)
+    -0.06
+    """
+    return _A(_check_state(x), model.drag_k_per_m)
+
+
+def propagate(x, dt: float, model: BallModel = BallModel(), *, jacobian: bool = True):
+    """Integrate the flight over ``dt`` seconds (RK4, sub-stepped); optionally with ``F``.
+
+    Parameters
+    ----------
+    x : array_like, shape (6,)
+    dt : float
+        Seconds (may be negative: backwards in time).
+
+    Returns
+    -------
+    x_new : ndarray, shape (6,)
+    F : ndarray, shape (6, 6)
+        ``d x_new / d x`` (only when ``jacobian``).
+
+    Examples
+    --------
+    >>> x1, F = propagate([0, 0, 0, 1.0, 0, 0], 1.0, BallModel(drag_k_per_m=0.0))
+    >>> np.round(x1, 4).tolist()
+    [1.0, 0.0, -4.905, 1.0, 0.0, -9.81]
+    """
+    x = _check_state(x).copy()
+    dt = float(dt)
+    k, g = model.drag_k_per_m, model.gravity_m_s2
+    n = max(1, int(np.ceil(abs(dt) / model.max_step_s)))
+    h = dt / n
+    F = np.eye(6)
+    for _ in range(n):
+        if jacobian:
+            # RK4 on the augmented system (x, Phi): dPhi/dt = A(x) Phi
+            k1 = _f(x, k, g); K1 = _A(x, k) @ F
+            x2 = x + h / 2 * k1; k2 = _f(x2, k, g); K2 = _A(x2, k) @ (F + h / 2 * K1)
+            x3 = x + h / 2 * k2; k3 = _f(x3, k, g); K3 = _A(x3, k) @ (F + h / 2 * K2)
+            x4 = x + h * k3; k4 = _f(x4, k, g); K4 = _A(x4, k) @ (F + h * K3)
+            F = F + h / 6 * (K1 + 2 * K2 + 2 * K3 + K4)
+        else:
+            k1 = _f(x, k, g); k2 = _f(x + h / 2 * k1, k, g)
+            k3 = _f(x + h / 2 * k2, k, g); k4 = _f(x + h * k3, k, g)
+        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return (x, F) if jacobian else x
+
+
+def process_noise(dt: float, q_m2_s3: float) -> np.ndarray:
+    """Discrete white-acceleration process noise, shape (6, 6).
+
+    Examples
+    --------
+    >>> Q = process_noise(0.1, 1.0)
+    >>> round(float(Q[0, 0]), 6), round(float(Q[0, 3]), 4), round(float(Q[3, 3]), 2)
+    (0.000333, 0.005, 0.1)
+    """
+    dt = abs(float(dt))
+    Q = np.zeros((6, 6))
+    for i in range(3):
+        Q[i, i] = dt ** 3 / 3
+        Q[i, i + 3] = Q[i + 3, i] = dt ** 2 / 2
+        Q[i + 3, i + 3] = dt
+    return Q * float(q_m2_s3)
+
+
+def predict(x, P, dt: float, model: BallModel = BallModel(), q_m2_s3: float = 0.05):
+    """EKF prediction over ``dt`` seconds: ``x <- f(x)``, ``P <- F P F^T + Q``.
+
+    Returns
+    -------
+    x : ndarray, shape (6,)
+    P : ndarray, shape (6, 6)
+
+    Examples
+    --------
+    >>> x, P = predict(np.zeros(6), np.eye(6), 0.1, BallModel(drag_k_per_m=0.0), 0.0)
+    >>> round(float(P[0, 0]), 2), round(float(x[5]), 3)
+    (1.01, -0.981)
+    """
+    P = check_array(P, "P", (6, 6))
+    x1, F = propagate(x, dt, model)
+    P1 = F @ P @ F.T + process_noise(dt, q_m2_s3)
+    return x1, 0.5 * (P1 + P1.T)
+
+
+_H = np.hstack([np.eye(3), np.zeros((3, 3))])
+
+
+def update(x, P, z, R):
+    """EKF update with a position measurement ``z = p + noise``, ``noise ~ N(0, R)``.
+
+    Parameters
+    ----------
+    x : array_like, shape (6,)
+    P : array_like, shape (6, 6)
+    z : array_like, shape (3,)
+        Measured ball centre, metres, filter frame.
+    R : array_like, shape (3, 3)
+        Its covariance, m^2.
+
+    Returns
+    -------
+    x, P : ndarray, shapes (6,), (6, 6)
+        Posterior (Joseph form).
+    nis : float
+        Normalised innovation squared (Mahalanobis distance squared), before the update.
+
+    Examples
+    --------
+    >>> x, P, nis = update(np.zeros(6), np.eye(6), [1.0, 0, 0], np.eye(3))
+    >>> round(float(x[0]), 2), round(float(nis), 2)
+    (0.5, 0.5)
+    """
+    x = _check_state(x)
+    P = check_array(P, "P", (6, 6))
+    z = check_array(z, "z", (3,))
+    R = check_array(R, "R", (3, 3))
+    y = z - x[:3]
+    S = P[:3, :3] + R
+    Si = np.linalg.inv(S)
+    nis = float(y @ Si @ y)
+    K = P[:, :3] @ Si
+    IKH = np.eye(6) - K @ _H
+    P1 = IKH @ P @ IKH.T + K @ R @ K.T
+    return x + K @ y, 0.5 * (P1 + P1.T), nis
+
+
+def init_from_detections(t, p, R, model: BallModel = BallModel(), *, velocity_sigma_floor_m_s: float = 0.05):
+    """Initial state at the last detection by weighted least squares on the first detections.
+
+    Fits ``p(t) = p_L + v_L (t - t_L) + c(t)`` where ``c`` is the flight
+    model's curvature about the two-point guess (gravity and drag, evaluated
+    by integrating backwards from the linear fit), i.e. a Gauss-Newton step on
+    the flight model. With two detections this is the two-point
+    initialisation.
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Detection times, seconds, N >= 2, increasing.
+    p : array_like, shape (N, 3)
+        Ball centres, metres, filter frame.
+    R : array_like, shape (N, 3, 3)
+        Their covariances, m^2.
+
+    Returns
+    -------
+    x : ndarray, shape (6,)
+        State at ``t[-1]``.
+    P : ndarray, shape (6, 6)
+        Its covariance from the least-squares normal equations.
+
+    Raises
+    ------
+    ValueError
+        For fewer than two detections or non-increasing times.
+
+    Examples
+    --------
+    >>> t = np.array([0.0, 0.1, 0.2])
+    >>> p = np.array([[0.0, 0.0, 1.0 - 0.5 * 9.81 * s ** 2] for s in t]); p[:, 1] = 5 * t
+    >>> x, P = init_from_detections(t, p, np.tile(1e-6 * np.eye(3), (3, 1, 1)), BallModel(drag_k_per_m=0.0))
+    >>> np.round(x, 3).tolist()
+    [0.0, 1.0, 0.804, 0.0, 5.0, -1.962]
+    """
+    t = np.asarray(t, dtype=np.float64).ravel()
+    p = check_array(p, "p", (len(t), 3))
+    R = check_array(R, "R", (len(t), 3, 3))
+    if len(t) < 2:
+        raise ValueError(f"t: expected at least 2 detections, got {len(t)}")
+    if np.any(np.diff(t) <= 0):
+        raise ValueError("t: expected strictly increasing times")
+    tL = t[-1]
+    # linear guess from the first and last points, then Gauss-Newton steps on the flight model
+    v0 = (p[-1] - p[0]) / (t[-1] - t[0])
+    x = np.concatenate([p[-1], v0 + np.array([0, 0, model.gravity_m_s2]) * (t[-1] - t[0]) / 2 * -1])
+    W = [np.linalg.inv(Ri) for Ri in R]
+    for _ in range(3):
+        N = np.zeros((6, 6)); b = np.zeros(6)
+        for ti, pi, Wi in zip(t, p, W):
+            xi, Fi = propagate(x, ti - tL, model)
+            Hi = Fi[:3]
+            r = pi - xi[:3]
+            N += Hi.T @ Wi @ Hi
+            b += Hi.T @ Wi @ r
+        if len(t) == 2:     # two points: position and velocity exactly determined only in the limit
+            N += np.diag([0, 0, 0, 1e-9, 1e-9, 1e-9])
+        dx = np.linalg.solve(N, b)
+        x = x + dx
+        if np.max(np.abs(dx)) < 1e-9:
+            break
+    P = np.linalg.inv(N)
+    P[3:, 3:] += np.eye(3) * velocity_sigma_floor_m_s ** 2
+    return x, 0.5 * (P + P.T)
+
+
+class BallEKF:
+    """Stateful ball tracker: initialisation, gating, reset on a new throw.
+
+    Wraps :class:`filterpy.kalman.ExtendedKalmanFilter` (``x`` as a column,
+    ``F`` and ``Q`` set per step from :func:`propagate` and
+    :func:`process_noise`). Feed detections in time order with
+    :meth:`step`, or call :meth:`predict` then :meth:`update` yourself.
+
+    Attributes
+    ----------
+    t : float or None
+        Time of the current estimate, seconds.
+    initialised : bool
+    throw_id : int
+        Counts (re)starts: increments on every new throw.
+    last_nis : float or None
+        NIS of the last offered detection.
+
+    Examples
+    --------
+    >>> ekf = BallEKF(EKFOptions(model=BallModel(drag_k_per_m=0.0)))
+    >>> R = 1e-6 * np.eye(3)
+    >>> for t in (0.0, 1 / 30, 2 / 30, 3 / 30):
+    ...     _ = ekf.step(t, [0.0, 6.0 * t, 1.5 - 4.905 * t * t], R)
+    >>> np.round(ekf.x[3:], 2).tolist()
+    [0.0, 6.0, -0.98]
+    """
+
+    def __init__(self, options: EKFOptions = EKFOptions()):
+        from filterpy.kalman import ExtendedKalmanFilter
+
+        self.options = options
+        self._kf = ExtendedKalmanFilter(dim_x=6, dim_z=3)
+        self._kf.predict_x = self._predict_x
+        self._buffer: list = []
+        self.t: float | None = None
+        self.initialised = False
+        self.throw_id = -1
+        self.last_nis: float | None = None
+        self._rejections = 0
+        self._dt = 0.0
+
+    # ------------------------------------------------------------------ state
+    @property
+    def x(self) -> np.ndarray:
+        """State ``[x, y, z, vx, vy, vz]``, shape (6,)."""
+        return self._kf.x[:, 0].copy()
+
+    @property
+    def P(self) -> np.ndarray:
+        """State covariance, shape (6, 6)."""
+        return self._kf.P.copy()
+
+    def reset(self) -> None:
+        """Forget the current throw (the next detections initialise a new one)."""
+        self._buffer = []
+        self.initialised = False
+        self.t = None
+        self._rejections = 0
+
+    def _predict_x(self, u=0):
+        self._kf.x = propagate(self._kf.x[:, 0], self._dt, self.options.model, jacobian=False)[:, None]
+
+    # ------------------------------------------------------------- filtering
+    def predict(self, dt: float) -> None:
+        """Propagate the estimate by ``dt`` seconds (filterpy ``predict`` with F, Q set)."""
+        if not self.initialised:
+            raise RuntimeError("predict: the filter is not initialised")
+        o = self.options
+        _, F = propagate(self._kf.x[:, 0], dt, o.model)
+        self._dt = float(dt)
+        self._kf.F = F
+        self._kf.Q = process_noise(dt, o.q_m2_s3)
+        self._kf.predict()
+        self.t += float(dt)
+
+    def update(self, z, R) -> bool:
+        """Gate and fuse one detection at the current time; returns whether it was accepted."""
+        z = check_array(z, "z", (3,))
+        R = check_array(R, "R", (3, 3))
+        y = z - self._kf.x[:3, 0]
+        S = self._kf.P[:3, :3] + R
+        self.last_nis = float(y @ np.linalg.solve(S, y))
+        if self.last_nis > self.options.gate_nis:
+            self._rejections += 1
+            return False
+        self._rejections = 0
+        self._kf.update(z[:, None], lambda x: _H, lambda x: x[:3], R=R)
+        self._kf.P = 0.5 * (self._kf.P + self._kf.P.T)
+        return True
+
+    def step(self, t: float, z, R) -> str:
+        """Offer the detection at time ``t`` (seconds); handles init, gating and new throws.
+
+        Returns
+        -------
+        str
+            ``"buffered"`` (collecting for the initialisation), ``"initialised"``,
+            ``"accepted"``, ``"rejected"`` (gated outlier) or ``"restarted"``
+            (new throw: the filter was reset and this detection starts it).
+        """
+        t = float(t)
+        o = self.options
+        z = check_array(z, "z", (3,))
+        R = check_array(R, "R", (3, 3))
+        restarted = False
+        if self.initialised and (t - self.t > o.max_gap_s or self._rejections >= o.max_rejections):
+            self.reset()
+            restarted = True
+        if not self.initialised:
+            if self._buffer and t - self._buffer[-1][0] > o.max_gap_s:
+                self._buffer = []
+            self._buffer.append((t, z, R))
+            if len(self._buffer) < o.n_init:
+                return "restarted" if restarted else "buffered"
+            tt = np.array([b[0] for b in self._buffer])
+            x, P = init_from_detections(tt, np.array([b[1] for b in self._buffer]),
+                                        np.array([b[2] for b in self._buffer]), o.model,
+                                        velocity_sigma_floor_m_s=o.init_velocity_sigma_m_s)
+            self._kf.x = x[:, None].copy()
+            self._kf.P = P
+            self.t = t
+            self.initialised = True
+            self.throw_id += 1
+            self._buffer = []
+            return "initialised"
+        self.predict(t - self.t)
+        if self.update(z, R):
+            return "accepted"
+        if self._rejections >= o.max_rejections:
+            # the detections no longer fit this flight: a new throw starts with them
+            self.reset()
+            self._buffer.append((t, z, R))
+            return "restarted"
+        return "rejected"
+
+    def predict_at(self, t: float):
+        """Predicted ``(x, P)`` at time ``t`` without changing the filter."""
+        if not self.initialised:
+            raise RuntimeError("predict_at: the filter is not initialised")
+        return predict(self._kf.x[:, 0], self._kf.P, t - self.t, self.options.model, self.options.q_m2_s3)

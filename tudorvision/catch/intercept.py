@@ -1,0 +1,254 @@
+"""Intercept: where the predicted flight crosses the robot's vertical working plane (section 9.3).
+
+The working plane is the vertical plane through the base z axis at azimuth
+``theta1`` (the plane the arm moves in): it contains ``[cos t1, sin t1, 0]``
+and ``[0, 0, 1]``; its normal is ``n = [-sin t1, cos t1, 0]`` (base frame).
+
+The filter state is propagated (with its covariance) to the crossing; the
+crossing point's covariance is the position covariance projected along the
+flight direction onto the plane, ``C = M P_pp M^T`` with
+``M = I - v n^T / (n . v)`` (an error along the flight moves the crossing time,
+not the point). The setpoint is released once the crossing lies in the
+reachable workspace and its largest in-plane standard deviation is below
+``release_sigma_m``; after that each better estimate refines it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._checks import check_array
+from .ekf import BallModel, predict, propagate
+
+__all__ = ["working_plane_normal", "PlaneCrossing", "plane_crossing", "planar_coordinates", "reachable_solutions",
+           "InterceptOptions", "Intercept", "InterceptPlanner"]
+
+
+def working_plane_normal(theta1: float) -> np.ndarray:
+    """Unit normal ``[-sin t1, cos t1, 0]`` of the working plane at azimuth ``theta1`` (rad), base frame.
+
+    Examples
+    --------
+    >>> (working_plane_normal(0.0) + 0.0).tolist()
+    [0.0, 1.0, 0.0]
+    """
+    return np.array([-np.sin(theta1), np.cos(theta1), 0.0])
+
+
+def planar_coordinates(p_base, theta1: float) -> tuple[float, float]:
+    """Signed reach ``r`` along ``[cos t1, sin t1, 0]`` and height ``z`` of a point, metres.
+
+    Examples
+    --------
+    >>> planar_coordinates([-0.3, 0.0, 1.0], 0.0)
+    (-0.3, 1.0)
+    """
+    p = check_array(p_base, "p_base", (3,))
+    return float(p[0] * np.cos(theta1) + p[1] * np.sin(theta1)), float(p[2])
+
+
+@dataclass(frozen=True)
+class PlaneCrossing:
+    """The predicted crossing of the working plane.
+
+    ``dt_s``: time from the state's time to the crossing, s; ``x`` (6,): state
+    there; ``P`` (6, 6): its covariance; ``p_base`` (3,): crossing point;
+    ``cov_base`` (3, 3): covariance of the crossing point within the plane, m^2;
+    ``sigma_m``: its largest standard deviation.
+    """
+
+    dt_s: float
+    x: np.ndarray
+    P: np.ndarray
+    p_base: np.ndarray
+    cov_base: np.ndarray
+    sigma_m: float
+
+
+def plane_crossing(x, P, normal, *, point=(0.0, 0.0, 0.0), model: BallModel = BallModel(),
+                   q_m2_s3: float = 0.05, max_time_s: float = 3.0, step_s: float = 0.02,
+                   min_height_m: float = -np.inf) -> PlaneCrossing | None:
+    """Propagate the state to the plane ``n . (p - point) = 0``.
+
+    Parameters
+    ----------
+    x : array_like, shape (6,)
+        ``[x, y, z, vx, vy, vz]``, base frame.
+    P : array_like, shape (6, 6)
+    normal : array_like, shape (3,)
+        Plane normal (need not be unit).
+    point : array_like, shape (3,)
+        A point on the plane.
+    max_time_s, step_s : float
+        Search horizon and coarse step.
+    min_height_m : float
+        The flight ends when ``z`` falls below this (the floor).
+
+    Returns
+    -------
+    PlaneCrossing or None
+        None if the ball moves away from the plane or does not reach it in time.
+
+    Examples
+    --------
+    >>> c = plane_crossing([0, -2.0, 1.0, 0, 4.0, 0], np.eye(6) * 1e-4, [0, 1, 0],
+    ...                    model=BallModel(drag_k_per_m=0.0), q_m2_s3=0.0)
+    >>> round(c.dt_s, 6), np.round(c.p_base, 3).tolist()
+    (0.5, [0.0, 0.0, -0.226])
+    """
+    x = check_array(x, "x", (6,))
+    P = check_array(P, "P", (6, 6))
+    n = check_array(normal, "normal", (3,))
+    n = n / np.linalg.norm(n)
+    c = check_array(point, "point", (3,))
+    d0 = float(n @ (x[:3] - c))
+    if d0 == 0.0:
+        t = 0.0
+    else:
+        t, xi, di = 0.0, x, d0
+        found = False
+        while t < max_time_s:
+            xn = propagate(xi, step_s, model, jacobian=False)
+            dn = float(n @ (xn[:3] - c))
+            if xn[2] < min_height_m:
+                return None
+            if np.sign(dn) != np.sign(di) or dn == 0.0:
+                found = True
+                break
+            xi, di, t = xn, dn, t + step_s
+        if not found:
+            return None
+        # Newton on the crossing time inside the bracketing step
+        for _ in range(6):
+            vn = float(n @ xi[3:])
+            if vn == 0.0:
+                return None
+            h = -di / vn
+            xi = propagate(xi, h, model, jacobian=False)
+            t += h
+            di = float(n @ (xi[:3] - c))
+            if abs(di) < 1e-9:
+                break
+    xc, Pc = predict(x, P, t, model, q_m2_s3) if t != 0.0 else (x.copy(), P.copy())
+    v = xc[3:]
+    vn = float(n @ v)
+    if vn == 0.0:
+        return None
+    M = np.eye(3) - np.outer(v, n) / vn
+    C = M @ Pc[:3, :3] @ M.T
+    C = 0.5 * (C + C.T)
+    sigma = float(np.sqrt(max(np.linalg.eigvalsh(C)[-1], 0.0)))
+    return PlaneCrossing(dt_s=float(t), x=xc, P=Pc, p_base=xc[:3].copy(), cov_base=C, sigma_m=sigma)
+
+
+def reachable_solutions(p_base, theta1: float, params=None, *, margin_rad: float = 0.0) -> np.ndarray:
+    """Rigid IK solutions reaching ``p_base`` with joint 1 at ``theta1`` (within the ranges shrunk by margin).
+
+    Returns
+    -------
+    thetas : ndarray, shape (K, 3)
+        K in 0..2 (elbow up / down); empty when not reachable in that plane.
+
+    Examples
+    --------
+    >>> from tudorvision.robot import fk_ee
+    >>> sols = reachable_solutions(fk_ee([0.0, 1.2, 0.6]), 0.0)
+    >>> len(sols)
+    2
+    """
+    from ..robot import ik_all, within_limits
+
+    sols = ik_all(p_base, params)
+    if len(sols) == 0:
+        return sols
+    d1 = (sols[:, 0] - theta1 + np.pi) % (2 * np.pi) - np.pi
+    sols = sols[np.abs(d1) < 1e-6]
+    if margin_rad > 0 and len(sols):
+        sols = sols[within_limits(sols, params, margin_rad=margin_rad)]
+    return sols
+
+
+@dataclass(frozen=True, kw_only=True)
+class InterceptOptions:
+    """Release policy of :class:`InterceptPlanner`.
+
+    Attributes
+    ----------
+    theta1_rad : float
+        Azimuth of the working plane (joint 1 is kept there).
+    release_sigma_m : float
+        Release the setpoint once the crossing's largest in-plane standard
+        deviation is below this.
+    refine_tol_m : float
+        After release, a new setpoint is sent when the intercept moved more than this.
+    margin_rad : float
+        Joint-range margin for reachability.
+    min_height_m : float
+        Floor height in the base frame (the flight ends below it).
+    """
+
+    theta1_rad: float = 0.0
+    release_sigma_m: float = 0.03
+    refine_tol_m: float = 0.005
+    margin_rad: float = np.deg2rad(2.0)
+    min_height_m: float = -0.3
+
+    def __post_init__(self):
+        if not self.release_sigma_m > 0 or not self.refine_tol_m >= 0:
+            raise ValueError("release_sigma_m, refine_tol_m: expected > 0 and >= 0")
+
+
+@dataclass(frozen=True)
+class Intercept:
+    """One intercept estimate: absolute crossing time ``t_cross`` (s), point ``p_base`` (3,),
+    in-plane covariance ``cov_base`` (3, 3), ``sigma_m``, ``reachable`` and whether a setpoint
+    was (re)sent for it (``send``)."""
+
+    t: float
+    t_cross: float
+    p_base: np.ndarray
+    cov_base: np.ndarray
+    sigma_m: float
+    reachable: bool
+    send: bool
+
+
+class InterceptPlanner:
+    """Decides when to release and refine the intercept setpoint for one throw.
+
+    Call :meth:`update` after each filter step with the filter's state;
+    it returns the :class:`Intercept` (or None without a crossing), whose
+    ``send`` tells whether a (new) setpoint should go out now.
+    """
+
+    def __init__(self, options: InterceptOptions = InterceptOptions(), *, model: BallModel = BallModel(),
+                 q_m2_s3: float = 0.05, params=None):
+        self.options = options
+        self.model = model
+        self.q_m2_s3 = float(q_m2_s3)
+        self.params = params
+        self.reset()
+
+    def reset(self) -> None:
+        """New throw: nothing released."""
+        self.released: Intercept | None = None
+        self.history: list[Intercept] = []
+
+    def update(self, t: float, x, P) -> Intercept | None:
+        """Intercept for the state ``(x, P)`` at time ``t`` (s)."""
+        o = self.options
+        c = plane_crossing(x, P, working_plane_normal(o.theta1_rad), model=self.model, q_m2_s3=self.q_m2_s3,
+                           min_height_m=o.min_height_m)
+        if c is None:
+            return None
+        ok = len(reachable_solutions(c.p_base, o.theta1_rad, self.params, margin_rad=o.margin_rad)) > 0
+        send = False
+        if ok and c.sigma_m <= o.release_sigma_m:
+            send = self.released is None or np.linalg.norm(c.p_base - self.released.p_base) > o.refine_tol_m
+        it = Intercept(t=float(t), t_cross=float(t) + c.dt_s, p_base=c.p_base, cov_base=c.cov_base,
+                       sigma_m=c.sigma_m, reachable=ok, send=send)
+        if send:
+            self.released = it
+        self.history.append(it)
+        return it
