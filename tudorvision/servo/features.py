@@ -1,0 +1,344 @@
+"""Point features of a black square on white ground, with depth (section 9.1).
+
+Image convention: ``u`` to the right, ``v`` down, pixel centres at integer
+coordinates. Two centre features are offered:
+
+* ``centroid_uv``: the first moment of the square's *image region*, with
+  sub-pixel accuracy from grey-level weights (anti-aliased edges count by
+  their darkness). This is the seed's "centroid of the black square". Under
+  perspective it is not the projection of the square's 3-D centre unless the
+  square is fronto-parallel; it equals the area centroid of the projected
+  quadrilateral.
+* ``center_uv``: the intersection of the diagonals of the four corners, which
+  *is* the projection of the 3-D centre of a planar square under perspective.
+
+Corners are ordered TL, TR, BR, BL in the image (by angle about the centroid,
+starting nearest to the upper-left direction), so that goal and current
+views correspond while the image rotation stays below 45 degrees.
+
+Depth at a feature comes from valid depth around it: a least-squares plane
+``z = a u + b v + c`` fitted to the valid samples of a window (one pass of
+MAD outlier rejection), evaluated at the feature; the window median if the
+plane is ill-conditioned.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["FeatureConfig", "SquareFeatures", "extract_square", "depth_at", "order_corners",
+           "polygon_centroid", "diagonal_intersection", "depth_m_from_raw"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class FeatureConfig:
+    """Options of :func:`extract_square`.
+
+    Attributes
+    ----------
+    min_area_px : float
+        Smallest accepted square region, pixels.
+    border_px : int
+        A region touching this image margin is rejected (cut square).
+    min_contrast : float
+        Smallest grey-level difference between ground and square (0..255).
+    max_corner_fit_px : float
+        Largest mean distance of the contour from its 4-gon, pixels.
+    depth_window_px : int
+        Half size of the depth window around a feature.
+    min_depth_samples : int
+        Fewest valid depth samples for a depth estimate.
+    """
+
+    min_area_px: float = 150.0
+    border_px: int = 2
+    min_contrast: float = 40.0
+    max_corner_fit_px: float = 2.5
+    depth_window_px: int = 6
+    min_depth_samples: int = 12
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class SquareFeatures:
+    """Features of one frame.
+
+    Attributes
+    ----------
+    found : bool
+        A square was found (centroid and corners valid).
+    centroid_uv : ndarray, shape (2,)
+        Region centroid, pixels (NaN if not found).
+    center_uv : ndarray, shape (2,)
+        Diagonal intersection (projected 3-D centre), pixels.
+    corners_uv : ndarray, shape (4, 2)
+        Corners TL, TR, BR, BL, pixels.
+    depth_m : ndarray, shape (5,)
+        Depth (z along the optical axis) at the centroid and at the four
+        corners, metres; NaN where no valid depth was around.
+    area_px : float
+        Region area (grey-weighted), pixels.
+    reason : str
+        Why ``found`` is False ("" otherwise).
+    """
+
+    found: bool
+    centroid_uv: np.ndarray
+    center_uv: np.ndarray
+    corners_uv: np.ndarray
+    depth_m: np.ndarray
+    area_px: float = 0.0
+    reason: str = ""
+
+    @property
+    def centroid_depth_ok(self) -> bool:
+        """Found with a finite, positive depth at the centroid."""
+        return bool(self.found and np.isfinite(self.depth_m[0]) and self.depth_m[0] > 0)
+
+    @property
+    def all_depth_ok(self) -> bool:
+        """Found with finite, positive depth at all five features."""
+        return bool(self.found and np.all(np.isfinite(self.depth_m)) and np.all(self.depth_m > 0))
+
+    @classmethod
+    def lost(cls, reason: str) -> "SquareFeatures":
+        """Features of a frame without a usable square."""
+        nan2 = np.full(2, np.nan)
+        return cls(found=False, centroid_uv=nan2, center_uv=nan2.copy(), corners_uv=np.full((4, 2), np.nan),
+                   depth_m=np.full(5, np.nan), reason=reason)
+
+
+def depth_m_from_raw(depth_raw, units_per_m: float = 1000.0) -> np.ndarray:
+    """Metric depth with NaN for invalid pixels from a raw uint16 depth image.
+
+    Examples
+    --------
+    >>> depth_m_from_raw(np.array([[0, 1500]], np.uint16)).tolist()
+    [[nan, 1.5]]
+    """
+    d = np.asarray(depth_raw).astype(np.float32) / np.float32(units_per_m)
+    d[np.asarray(depth_raw) == 0] = np.nan
+    return d
+
+
+def polygon_centroid(poly_uv) -> np.ndarray:
+    """Area centroid of a simple polygon, shape (2,) (shoelace formula).
+
+    Examples
+    --------
+    >>> polygon_centroid([[0, 0], [2, 0], [2, 2], [0, 2]]).tolist()
+    [1.0, 1.0]
+    """
+    p = np.asarray(poly_uv, dtype=np.float64)
+    x, y = p[:, 0], p[:, 1]
+    x1, y1 = np.roll(x, -1), np.roll(y, -1)
+    cr = x * y1 - x1 * y
+    a = cr.sum() / 2.0
+    return np.array([((x + x1) * cr).sum(), ((y + y1) * cr).sum()]) / (6.0 * a)
+
+
+def diagonal_intersection(corners_uv) -> np.ndarray:
+    """Intersection of the diagonals TL-BR and TR-BL of ordered corners, shape (2,).
+
+    Examples
+    --------
+    >>> diagonal_intersection([[0, 0], [4, 0], [4, 4], [0, 4]]).tolist()
+    [2.0, 2.0]
+    """
+    c = np.asarray(corners_uv, dtype=np.float64)
+    h = np.hstack([c, np.ones((4, 1))])
+    p = np.cross(np.cross(h[0], h[2]), np.cross(h[1], h[3]))
+    return p[:2] / p[2]
+
+
+def order_corners(corners_uv) -> np.ndarray:
+    """Order four corners TL, TR, BR, BL (image u right, v down).
+
+    Sorted by angle about their mean, starting with the corner nearest to the
+    upper-left direction (-135 degrees).
+
+    Examples
+    --------
+    >>> order_corners([[4, 4], [0, 0], [0, 4], [4, 0]]).tolist()
+    [[0.0, 0.0], [4.0, 0.0], [4.0, 4.0], [0.0, 4.0]]
+    """
+    c = np.asarray(corners_uv, dtype=np.float64).reshape(4, 2)
+    d = c - c.mean(axis=0)
+    ang = np.arctan2(d[:, 1], d[:, 0])           # v down: clockwise on screen is increasing angle
+    rel = (ang + 0.75 * np.pi) % (2 * np.pi)      # 0 at -135 deg (upper left)
+    rel = np.where(rel > 1.75 * np.pi, rel - 2 * np.pi, rel)
+    return c[np.argsort(rel)]
+
+
+def depth_at(depth_m, uv, *, window_px: int = 6, min_samples: int = 12) -> float:
+    """Robust depth at a sub-pixel image position from the valid depth around it.
+
+    Parameters
+    ----------
+    depth_m : ndarray, shape (H, W)
+        Depth in metres, NaN (or <= 0) invalid.
+    uv : array_like, shape (2,)
+        Position, pixels.
+    window_px : int
+        Half size of the square window.
+    min_samples : int
+        Fewest valid samples; fewer give NaN.
+
+    Returns
+    -------
+    float
+        Depth in metres, NaN if not enough valid depth.
+
+    Examples
+    --------
+    >>> d = np.full((20, 20), 1.25); d[10, 10] = np.nan
+    >>> round(depth_at(d, (10.3, 9.6)), 6)
+    1.25
+    """
+    u, v = float(uv[0]), float(uv[1])
+    if not (np.isfinite(u) and np.isfinite(v)):
+        return float("nan")
+    h, w = depth_m.shape
+    iu, iv = int(round(u)), int(round(v))
+    u0, u1 = max(iu - window_px, 0), min(iu + window_px + 1, w)
+    v0, v1 = max(iv - window_px, 0), min(iv + window_px + 1, h)
+    if u0 >= u1 or v0 >= v1:
+        return float("nan")
+    win = np.asarray(depth_m[v0:v1, u0:u1], dtype=np.float64)
+    ok = np.isfinite(win) & (win > 0)
+    n = int(ok.sum())
+    if n < min_samples:
+        return float("nan")
+    vv, uu = np.nonzero(ok)
+    z = win[ok]
+    med = float(np.median(z))
+    mad = float(np.median(np.abs(z - med))) * 1.4826
+    keep = np.abs(z - med) <= max(3.0 * mad, 1e-6)
+    if keep.sum() < min_samples:
+        return med
+    A = np.stack([uu[keep] + u0 - u, vv[keep] + v0 - v, np.ones(int(keep.sum()))], axis=1)
+    # the plane needs spread in both directions, else fall back to the median
+    if np.ptp(A[:, 0]) < 2 or np.ptp(A[:, 1]) < 2:
+        return float(np.median(z[keep]))
+    coef, *_ = np.linalg.lstsq(A, z[keep], rcond=None)
+    return float(coef[2])
+
+
+def extract_square(bgr, depth_m=None, *, config: FeatureConfig = FeatureConfig()) -> SquareFeatures:
+    """Find the black square: sub-pixel centroid, ordered corners, depth at each.
+
+    Parameters
+    ----------
+    bgr : ndarray, shape (H, W, 3) uint8 or (H, W)
+        Colour (BGR) or grey image.
+    depth_m : ndarray, shape (H, W), optional
+        Registered depth in metres, NaN invalid. Without it all depths are NaN.
+    config : FeatureConfig
+
+    Returns
+    -------
+    SquareFeatures
+        ``found=False`` with a ``reason`` when no square-like dark region is
+        fully inside the image (never raises for image content).
+
+    Raises
+    ------
+    ValueError
+        If the image has the wrong shape or the depth image another size.
+
+    Examples
+    --------
+    >>> img = np.full((120, 160), 220, np.uint8); img[40:80, 60:100] = 20
+    >>> f = extract_square(img)
+    >>> f.found, np.round(f.centroid_uv, 2).tolist()
+    (True, [79.5, 59.5])
+    """
+    import cv2
+    img = np.asarray(bgr)
+    if img.ndim == 3 and img.shape[2] == 3:
+        gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    elif img.ndim == 2:
+        gray = img
+    else:
+        raise ValueError(f"bgr: expected shape (H, W, 3) or (H, W), got {img.shape}")
+    if gray.dtype != np.uint8:
+        gray = np.clip(gray, 0, 255).astype(np.uint8)
+    h, w = gray.shape
+    if depth_m is not None and np.shape(depth_m) != (h, w):
+        raise ValueError(f"depth_m: expected shape {(h, w)}, got {np.shape(depth_m)}")
+    thr, mask = cv2.threshold(gray, 0, 255, cv2.THRESH_BINARY_INV | cv2.THRESH_OTSU)
+    n, labels, stats, cents = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    best, best_area = -1, 0
+    b = config.border_px
+    for i in range(1, n):
+        x, y, ww, hh, area = stats[i]
+        if area < config.min_area_px or area <= best_area:
+            continue
+        if x < b or y < b or x + ww > w - b or y + hh > h - b:
+            continue
+        best, best_area = i, area
+    if best < 0:
+        return SquareFeatures.lost("no dark region inside the image")
+    x, y, ww, hh, _ = stats[best]
+    pad = 3
+    x0, y0 = max(x - pad, 0), max(y - pad, 0)
+    x1, y1 = min(x + ww + pad, w), min(y + hh + pad, h)
+    roi = gray[y0:y1, x0:x1].astype(np.float64)
+    region = labels[y0:y1, x0:x1] == best
+    dark = float(np.median(roi[region]))
+    ring = cv2.dilate(region.astype(np.uint8), np.ones((5, 5), np.uint8), iterations=2).astype(bool) & ~cv2.dilate(
+        region.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    if not ring.any():
+        return SquareFeatures.lost("no ground around the dark region")
+    light = float(np.median(roi[ring]))
+    if light - dark < config.min_contrast:
+        return SquareFeatures.lost(f"contrast {light - dark:.0f} below {config.min_contrast:.0f}")
+    # grey-level weights: 1 inside, 0 on the ground, fractional on anti-aliased edges;
+    # restricted to the region grown by 2 px so other dark things do not pull
+    near = cv2.dilate(region.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    wgt = np.clip((light - roi) / (light - dark), 0.0, 1.0) * near
+    m00 = wgt.sum()
+    vv, uu = np.mgrid[y0:y1, x0:x1]
+    centroid = np.array([(wgt * uu).sum() / m00, (wgt * vv).sum() / m00])
+    # corners: 4-gon of the contour, refined on the grey image
+    cnts, _ = cv2.findContours(region.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    cnt = max(cnts, key=cv2.contourArea)
+    peri = cv2.arcLength(cnt, True)
+    quad = None
+    for eps in (0.02, 0.03, 0.045, 0.06):
+        ap = cv2.approxPolyDP(cnt, eps * peri, True)
+        if len(ap) == 4 and cv2.isContourConvex(ap):
+            quad = ap.reshape(4, 2).astype(np.float32)
+            break
+    if quad is None:
+        return SquareFeatures.lost("dark region is not a quadrilateral")
+    pts = cnt.reshape(-1, 2).astype(np.float64)
+    fit = _mean_distance_to_polygon(pts, quad.astype(np.float64))
+    if fit > config.max_corner_fit_px:
+        return SquareFeatures.lost(f"dark region deviates {fit:.1f} px from a quadrilateral")
+    side = float(np.sqrt(max(m00, 1.0)))
+    win = int(max(2, min(5, side / 8)))
+    g32 = np.ascontiguousarray(gray[y0:y1, x0:x1], dtype=np.float32)
+    q = quad.reshape(-1, 1, 2).copy()
+    cv2.cornerSubPix(g32, q, (win, win), (-1, -1),
+                     (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 30, 0.01))
+    corners = order_corners(q.reshape(4, 2).astype(np.float64) + [x0, y0])
+    center = diagonal_intersection(corners)
+    if depth_m is None:
+        depth = np.full(5, np.nan)
+    else:
+        dm = np.asarray(depth_m)
+        kw = dict(window_px=config.depth_window_px, min_samples=config.min_depth_samples)
+        depth = np.array([depth_at(dm, centroid, **kw)] + [depth_at(dm, c, **kw) for c in corners])
+    return SquareFeatures(found=True, centroid_uv=centroid, center_uv=center, corners_uv=corners,
+                          depth_m=depth, area_px=float(m00))
+
+
+def _mean_distance_to_polygon(pts: np.ndarray, poly: np.ndarray) -> float:
+    d = np.full(len(pts), np.inf)
+    for i in range(len(poly)):
+        a, b = poly[i], poly[(i + 1) % len(poly)]
+        ab = b - a
+        t = np.clip(((pts - a) @ ab) / max(ab @ ab, 1e-12), 0.0, 1.0)
+        d = np.minimum(d, np.linalg.norm(pts - (a + t[:, None] * ab), axis=1))
+    return float(d.mean())

@@ -1,0 +1,455 @@
+"""Visual servoing in the loop: the perception-side controller and the virtual-lab runner.
+
+Perception side (:class:`VisualServo`, :func:`servo_step`): image, depth and
+the joint angles reported by the joint layer in, a joint velocity command
+out. It never reads ground truth.
+
+Lab side (:class:`ServoLab`): the simulated elastic arm (static deflection,
+payload, oscillations) behind a :class:`~tudorvision.joint.server.JointLayerServer`
+with the ``SimCore``, driven in *simulated* time (lockstep: the server's
+control ticks and its datagram handling are run by the lab instead of a wall
+clock thread, so a run is deterministic and faster than real time), and an
+eye-in-hand RGB-D camera rendered from the arm's true, deflected pose.
+The servo talks to the arm only through a :class:`~tudorvision.joint.adapter.JointAdapter`
+over an in-process transport. Damping: the servo switches the layer to the
+proportional strain feedback; when the core only records the mode (the
+plain ``SimCore``), the lab attaches the joint layer's
+:class:`~tudorvision.joint.damping.StrainDamper` itself.
+
+Geometry of the lab (all assumed; the seed gives none): the robot stands on
+a pedestal ``pedestal_m`` above the floor (world z = 0) on which the black
+square lies; the camera looks along link 3 (optical axis = end-effector x),
+its x axis along the joint-3 axis. In the goal posture link 2 is horizontal
+and link 3 hangs down, so the camera looks down on the square from about
+0.75 m (the Kinect's minimum range is 0.6 m).
+
+Timing: frames at 30 Hz; a frame captured at ``t`` is processed and its
+command sent at ``t + latency_s`` (joint angles requested at capture time);
+the layer's 100 ms watchdog stops the arm when commands cease.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._checks import check_transform
+from ..joint.adapter import JointAdapter
+from ..joint.protocol import Damping, Mode
+from ..joint.server import JointLayerServer, ServerConfig
+from ..joint.transport import InProcessTransport
+from ..robot import load_robot_params
+from .features import FeatureConfig, SquareFeatures, extract_square
+from .joint_map import JointCommand, JointMapConfig, joint_velocity
+from .laws import GoalFeatures, LawConfig, ServoCommand, servo_command
+
+__all__ = ["default_T_ee_cam", "LabConfig", "ServoLab", "VisualServo", "ServoStep", "servo_step",
+           "teach_goal", "RunResult", "run_closed_loop", "DEFAULT_THETA_GOAL"]
+
+#: Goal posture: link 2 horizontal, link 3 hanging 85 deg down (radians).
+DEFAULT_THETA_GOAL = np.deg2rad([0.0, 0.0, -85.0])
+
+
+def default_T_ee_cam(offset_m: float = 0.05) -> np.ndarray:
+    """Nominal hand-eye transform: optical axis along end-effector x, camera x along end-effector z.
+
+    Examples
+    --------
+    >>> default_T_ee_cam()[:3, :3].tolist()
+    [[0.0, 0.0, 1.0], [0.0, -1.0, 0.0], [1.0, 0.0, 0.0]]
+    """
+    T = np.eye(4)
+    T[:3, 0] = [0.0, 0.0, 1.0]     # x_cam = z_ee (joint axis)
+    T[:3, 1] = [0.0, -1.0, 0.0]    # y_cam = -y_ee
+    T[:3, 2] = [1.0, 0.0, 0.0]     # z_cam = x_ee (along link 3)
+    T[:3, 3] = [offset_m, 0.0, 0.0]
+    return T
+
+
+# --------------------------------------------------------------------------- perception side
+@dataclass(frozen=True, kw_only=True, eq=False)
+class ServoStep:
+    """Everything one frame produced: features, camera command, joint command."""
+
+    features: SquareFeatures
+    command: ServoCommand
+    joint: JointCommand
+
+    @property
+    def theta_dot(self) -> np.ndarray:
+        """The joint velocity to send (zero unless both stages are ok)."""
+        return self.joint.theta_dot if (self.command.ok and self.joint.ok) else np.zeros(3)
+
+
+def servo_step(bgr, depth_m, theta, goal: GoalFeatures, T_ee_cam, *, law: LawConfig = LawConfig(),
+               joint_map: JointMapConfig = JointMapConfig(), features: FeatureConfig = FeatureConfig(),
+               params=None) -> ServoStep:
+    """One frame of visual servoing: features -> camera velocity -> joint velocity.
+
+    Parameters
+    ----------
+    bgr : ndarray, shape (H, W, 3) uint8
+    depth_m : ndarray, shape (H, W)
+        Metres, NaN invalid.
+    theta : array_like, shape (3,)
+        Joint angles from the joint layer, radians.
+    goal : GoalFeatures
+    T_ee_cam : array_like, shape (4, 4)
+        Hand-eye calibration.
+
+    Returns
+    -------
+    ServoStep
+        Its :attr:`ServoStep.theta_dot` is zero when features are lost,
+        depth is invalid, or the arm is near a singularity or a range end.
+    """
+    f = extract_square(bgr, depth_m, config=features)
+    cmd = servo_command(f, goal, law)
+    if not cmd.ok:
+        return ServoStep(features=f, command=cmd, joint=JointCommand(theta_dot=np.zeros(3), ok=False,
+                                                                      reason=cmd.reason))
+    jc = joint_velocity(cmd.v_cam, theta, T_ee_cam, params=params, config=joint_map)
+    return ServoStep(features=f, command=cmd, joint=jc)
+
+
+class VisualServo:
+    """The servo controller: goal, hand-eye and options held between frames.
+
+    Parameters
+    ----------
+    goal : GoalFeatures
+    T_ee_cam : array_like, shape (4, 4)
+    law, joint_map, features : configs
+    """
+
+    def __init__(self, goal: GoalFeatures, T_ee_cam, *, law: LawConfig = LawConfig(),
+                 joint_map: JointMapConfig = JointMapConfig(), features: FeatureConfig = FeatureConfig(),
+                 params=None):
+        self.goal = goal
+        self.T_ee_cam = check_transform(T_ee_cam, "T_ee_cam")
+        self.law, self.joint_map, self.features = law, joint_map, features
+        self.params = params or load_robot_params()
+
+    @classmethod
+    def from_goal_image(cls, bgr, depth_m, K, T_ee_cam, **options) -> "VisualServo":
+        """Teach the goal as an image: extract its features (raises ValueError without a square)."""
+        fcfg = options.get("features", FeatureConfig())
+        f = extract_square(bgr, depth_m, config=fcfg)
+        if not f.found:
+            raise ValueError(f"goal image: no square found ({f.reason})")
+        K = np.asarray(K, dtype=np.float64)
+        goal = GoalFeatures(features=f, f_px=float(0.5 * (K[0, 0] + K[1, 1])), principal_uv=K[:2, 2].copy())
+        return cls(goal, T_ee_cam, **options)
+
+    def step(self, bgr, depth_m, theta) -> ServoStep:
+        """Process one frame (see :func:`servo_step`)."""
+        return servo_step(bgr, depth_m, theta, self.goal, self.T_ee_cam, law=self.law,
+                          joint_map=self.joint_map, features=self.features, params=self.params)
+
+
+# --------------------------------------------------------------------------- lab side
+@dataclass(frozen=True, kw_only=True)
+class LabConfig:
+    """The virtual servoing lab (SI units; see the module notes for the geometry).
+
+    Attributes
+    ----------
+    pedestal_m : float
+        Height of the robot base above the floor.
+    square_center_world : tuple
+        Where the square lies on the floor (world frame = base frame shifted
+        down by the pedestal). ``None``: below the goal camera.
+    square_size_m : float
+    theta_goal : tuple
+        Posture in which the goal image is taught (camera payload only).
+    T_ee_cam : ndarray
+        True (and calibrated) hand-eye transform.
+    frame_rate_hz, latency_s : float
+        Camera rate and the delay from capture to command.
+    server_rate_hz : float
+        Joint-layer control rate (the plant sub-steps at 2 kHz).
+    image_size : tuple
+        ``(width, height)``; the focal length scales with the width.
+    damping : bool
+        Ask the joint layer for proportional strain feedback.
+    t_max_s : float
+        Longest run.
+    converge_tol_m : float
+        Estimated distance to the goal (``||L^-1 e||``) counted as converged.
+    converge_frames : int
+        Consecutive frames within the tolerance that end a run.
+    """
+
+    pedestal_m: float = 0.85
+    square_center_world: tuple | None = None
+    square_size_m: float = 0.1
+    theta_goal: tuple = tuple(DEFAULT_THETA_GOAL)
+    T_ee_cam: np.ndarray = field(default_factory=default_T_ee_cam)
+    frame_rate_hz: float = 30.0
+    latency_s: float = 0.05
+    server_rate_hz: float = 500.0
+    image_size: tuple = (640, 480)
+    damping: bool = True
+    t_max_s: float = 10.0
+    converge_tol_m: float = 0.002
+    converge_frames: int = 15
+
+    @property
+    def T_world_base(self) -> np.ndarray:
+        T = np.eye(4)
+        T[2, 3] = self.pedestal_m
+        return T
+
+
+def _true_camera_pose(arm, cfg: LabConfig) -> np.ndarray:
+    return cfg.T_world_base @ arm.T_base_ee() @ cfg.T_ee_cam
+
+
+class _LockstepServer(JointLayerServer):
+    """The joint layer's server driven by the lab in simulated time (no wall-clock thread)."""
+
+    def handle_pending(self) -> None:
+        item = self.transport.recv(0.0)
+        while item is not None:
+            self._handle(*item)
+            item = self.transport.recv(0.0)
+
+    def tick(self, dt: float) -> None:
+        self.handle_pending()
+        self._tick(dt)
+
+
+class _ClientEnd:
+    """Client transport that lets the lockstep server answer at once (requests never block)."""
+
+    def __init__(self, inner, server: _LockstepServer):
+        self._inner, self._server = inner, server
+
+    @property
+    def address(self):
+        return self._inner.address
+
+    def send(self, data, addr=None):
+        self._inner.send(data, addr)
+        self._server.handle_pending()
+
+    def recv(self, timeout):
+        return self._inner.recv(0.0)
+
+    def close(self):
+        self._inner.close()
+
+
+class ServoLab:
+    """The simulated arm behind its joint layer, with an eye-in-hand RGB-D camera.
+
+    Parameters
+    ----------
+    config : LabConfig
+    theta_start : array_like, shape (3,)
+        Start posture (the arm starts at rest, statically deflected).
+    plates : int
+        100 g payload plates in addition to the camera.
+    rng : numpy.random.Generator
+        Scene randomisation and sensor noise.
+    noise : bool
+        Sensor noise on colour and depth.
+    """
+
+    def __init__(self, config: LabConfig, theta_start, *, plates: int = 0, rng: np.random.Generator,
+                 noise: bool = True):
+        from ..sim import DepthNoiseModel, Payload, eye_in_hand
+        from ..sim.arm import SimCore
+        self.config = cfg = config
+        self.params = load_robot_params()
+        self.rng = rng
+        self.noise = noise
+        payload = Payload.from_parts(self.params, plates=plates, camera=True)
+        self.core = SimCore(theta_start, payload=payload, params=self.params)
+        client, end = InProcessTransport.pair()
+        self.server = _LockstepServer(end, self.core, config=ServerConfig(rate_hz=cfg.server_rate_hz,
+                                                                          max_command_age_s=None))
+        self.adapter = JointAdapter(_ClientEnd(client, self.server))
+        self.square_center_world = (np.asarray(cfg.square_center_world, float) if cfg.square_center_world
+                                    is not None else _goal_square_center(cfg, self.params))
+        w, h = cfg.image_size
+        self.setup = eye_in_hand(_true_camera_pose(self.core.arm, cfg), rng,
+                                 square_center_world=self.square_center_world, square_size_m=cfg.square_size_m,
+                                 width=int(w), height=int(h))
+        self.camera = self.setup.cameras["rgbd"]
+        self.depth_model = DepthNoiseModel() if noise else DepthNoiseModel(sigma_coeffs_cm=(0.0, 0.0, 0.0, 0.0))
+        self.t = 0.0
+
+    # -- joint-layer side -------------------------------------------------------------------
+    def enable_damping(self) -> None:
+        """Attach the layer's proportional strain damper if the core only records the mode."""
+        from ..joint.damping import StrainDamper, default_damping_config
+        ctl = self.core.controlled
+        if self.core.damping and ctl.damper is None:
+            ctl.set_damper(StrainDamper(default_damping_config("proportional"), self.core.arm.strain,
+                                        self.core.arm.config.dt))
+
+    def advance(self, dt: float) -> None:
+        """Run the joint layer (and the plant) for ``dt`` seconds of simulated time."""
+        period = 1.0 / self.config.server_rate_hz
+        n = max(1, int(round(dt / period)))
+        for _ in range(n):
+            self.server.tick(period)
+        self.t += n * period
+
+    # -- camera side ------------------------------------------------------------------------
+    def T_world_cam(self) -> np.ndarray:
+        """True camera pose now (ground truth, for scoring only)."""
+        return _true_camera_pose(self.core.arm, self.config)
+
+    def capture(self):
+        """Render the eye-in-hand RGB-D frame now: ``(bgr, depth_m)`` with NaN invalid depth."""
+        from ..sim import render_rgbd, with_pose
+        from .features import depth_m_from_raw
+        cam = with_pose(self.camera, self.T_world_cam())
+        bgr, depth, _ = render_rgbd(cam, self.setup.scene, self.t, rng=self.rng if self.noise else None,
+                                    depth_model=self.depth_model)
+        return bgr, depth_m_from_raw(depth)
+
+    @property
+    def K(self) -> np.ndarray:
+        return self.camera.K
+
+
+def _goal_square_center(cfg: LabConfig, params) -> np.ndarray:
+    """Square on the floor where the goal camera's optical axis meets it (camera-only payload)."""
+    from ..sim import ElasticArm, Payload
+    arm = ElasticArm(np.asarray(cfg.theta_goal, float), payload=Payload.from_parts(params, camera=True),
+                     params=params)
+    T = _true_camera_pose(arm, cfg)
+    o, d = T[:3, 3], T[:3, 2]
+    s = -o[2] / d[2]
+    p = o + s * d
+    return np.array([p[0], p[1], 0.0])
+
+
+def teach_goal(config: LabConfig, rng: np.random.Generator, *, noise: bool = True):
+    """Teach the goal as an image: arm at ``theta_goal`` with the camera only, one frame.
+
+    Returns
+    -------
+    goal : GoalFeatures
+    p_goal_world : ndarray, shape (3,)
+        True camera position at the goal (ground truth, for scoring).
+    frame : tuple
+        ``(bgr, depth_m)`` of the goal image.
+
+    Raises
+    ------
+    ValueError
+        If the goal image shows no square with valid depth.
+    """
+    lab = ServoLab(config, config.theta_goal, plates=0, rng=rng, noise=noise)
+    bgr, depth = lab.capture()
+    servo = VisualServo.from_goal_image(bgr, depth, lab.K, config.T_ee_cam)
+    return servo.goal, lab.T_world_cam()[:3, 3].copy(), (bgr, depth)
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class RunResult:
+    """One closed-loop run.
+
+    Attributes
+    ----------
+    history : dict of ndarray
+        Per frame: ``t`` (s, capture time), ``e_u``, ``e_v`` (px, ``s* - s``),
+        ``e_z`` (m), ``error_est_m`` (``||L^-1 e||``), ``error_true_m`` (true
+        camera distance to the goal camera position), ``ok`` (command sent
+        non-zero), ``theta`` (N, 3), ``p_cam_world`` (N, 3).
+    converged : bool
+    settling_time_s : float
+        First capture time from which the estimated error stayed within the
+        tolerance until the end (NaN if not converged).
+    final_error_m : float
+        True camera position error at the end of the run, metres.
+    final_offset_world : ndarray, shape (3,)
+        ``p_cam - p_goal`` at the end, world frame.
+    """
+
+    history: dict
+    converged: bool
+    settling_time_s: float
+    final_error_m: float
+    final_offset_world: np.ndarray
+    p_goal_world: np.ndarray
+
+
+def run_closed_loop(lab: ServoLab, servo: VisualServo, p_goal_world, *, on_frame=None) -> RunResult:
+    """Servo the simulated arm to the goal view through the joint layer.
+
+    The run ends when the estimated error stayed below ``converge_tol_m`` for
+    ``converge_frames`` frames or at ``t_max_s``; then the commands stop and
+    the true camera position is compared with the goal's.
+
+    Parameters
+    ----------
+    lab : ServoLab
+    servo : VisualServo
+    p_goal_world : array_like, shape (3,)
+        True goal camera position (scoring only; the servo never sees it).
+    on_frame : callable, optional
+        ``f(t, bgr, depth_m, step)`` after each processed frame (recording).
+    """
+    cfg = lab.config
+    ad = lab.adapter
+    ad.set_mode(Mode.VELOCITY, damping=Damping.PROPORTIONAL if cfg.damping else Damping.OFF)
+    if cfg.damping:
+        lab.enable_damping()
+    period = 1.0 / cfg.frame_rate_hz
+    tick = 1.0 / cfg.server_rate_hz
+    pending = []                                   # (t_send, t_capture, bgr, depth, theta)
+    next_capture = 0.0
+    hist = {k: [] for k in ("t", "e_u", "e_v", "e_z", "error_est_m", "error_true_m", "ok", "image_error_px")}
+    hist_theta, hist_p = [], []
+    streak, t_streak = 0, np.nan
+    p_goal = np.asarray(p_goal_world, float)
+    converged = False
+    while lab.t < cfg.t_max_s - 1e-9:
+        if lab.t >= next_capture - 1e-9:
+            st = ad.request_state()
+            bgr, depth = lab.capture()
+            pending.append((lab.t + cfg.latency_s, lab.t, bgr, depth, np.asarray(st.theta, float),
+                            lab.T_world_cam()[:3, 3].copy()))
+            next_capture += period
+        while pending and lab.t >= pending[0][0] - 1e-9:
+            _, t_cap, bgr, depth, theta, p_true = pending.pop(0)
+            step = servo.step(bgr, depth, theta)
+            ad.send_velocity(step.theta_dot)
+            c = step.command
+            hist["t"].append(t_cap)
+            e = c.error if c.error is not None else np.full(3, np.nan)
+            hist["e_u"].append(e[0]), hist["e_v"].append(e[1]), hist["e_z"].append(e[2])
+            hist["error_est_m"].append(c.error_m)
+            hist["image_error_px"].append(c.image_error_px)
+            hist["error_true_m"].append(float(np.linalg.norm(p_true - p_goal)))
+            hist["ok"].append(bool(c.ok and step.joint.ok))
+            hist_theta.append(theta)
+            hist_p.append(p_true)
+            if on_frame is not None:
+                on_frame(t_cap, bgr, depth, step)
+            if c.ok and c.error_m < cfg.converge_tol_m:
+                if streak == 0:
+                    t_streak = t_cap
+                streak += 1
+            else:
+                streak = 0
+            if streak >= cfg.converge_frames:
+                converged = True
+                break
+        if converged:
+            break
+        lab.advance(tick)
+    # stop: no more commands; the layer's watchdog brakes the arm; let it come to rest
+    lab.advance(0.5)
+    p_end = lab.T_world_cam()[:3, 3]
+    off = p_end - p_goal
+    h = {k: np.asarray(v) for k, v in hist.items()}
+    h["theta"] = np.asarray(hist_theta).reshape(-1, 3)
+    h["p_cam_world"] = np.asarray(hist_p).reshape(-1, 3)
+    return RunResult(history=h, converged=converged, settling_time_s=float(t_streak) if converged else float("nan"),
+                     final_error_m=float(np.linalg.norm(off)), final_offset_world=off, p_goal_world=p_goal)
