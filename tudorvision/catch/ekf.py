@@ -91,7 +91,7 @@ class EKFOptions:
     """
 
     model: BallModel = BallModel()
-    q_m2_s3: float = 0.05
+    q_m2_s3: float = 0.001
     gate_nis: float = 16.27
     n_init: int = 3
     init_velocity_sigma_m_s: float = 0.05
@@ -221,7 +221,7 @@ def process_noise(dt: float, q_m2_s3: float) -> np.ndarray:
     return Q * float(q_m2_s3)
 
 
-def predict(x, P, dt: float, model: BallModel = BallModel(), q_m2_s3: float = 0.05):
+def predict(x, P, dt: float, model: BallModel = BallModel(), q_m2_s3: float = 0.001):
     """EKF prediction over ``dt`` seconds: ``x <- f(x)``, ``P <- F P F^T + Q``.
 
     Returns

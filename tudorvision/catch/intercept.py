@@ -67,7 +67,7 @@ class PlaneCrossing:
 
 
 def plane_crossing(x, P, normal, *, point=(0.0, 0.0, 0.0), model: BallModel = BallModel(),
-                   q_m2_s3: float = 0.05, max_time_s: float = 3.0, step_s: float = 0.02,
+                   q_m2_s3: float = 0.001, max_time_s: float = 3.0, step_s: float = 0.02,
                    min_height_m: float = -np.inf) -> PlaneCrossing | None:
     """Propagate the state to the plane ``n . (p - point) = 0``.
 
@@ -223,7 +223,7 @@ class InterceptPlanner:
     """
 
     def __init__(self, options: InterceptOptions = InterceptOptions(), *, model: BallModel = BallModel(),
-                 q_m2_s3: float = 0.05, params=None):
+                 q_m2_s3: float = 0.001, params=None):
         self.options = options
         self.model = model
         self.q_m2_s3 = float(q_m2_s3)
