@@ -318,6 +318,12 @@ def plot_trajectory(traj: Trajectory, path, *, title: str | None = None) -> Path
     ax3.set_ylabel("y [m]")
     ax3.set_zlabel("z [m]")
     ax3.set_title(f"trajectory ({traj.frame} frame)")
+    if ok.any():   # equal scale on all axes, so a planar motion does not look jagged
+        lo, hi = np.nanmin(traj.p[ok], axis=0), np.nanmax(traj.p[ok], axis=0)
+        mid, half = (lo + hi) / 2, max(float(np.max(hi - lo)) / 2, 1e-3)
+        ax3.set_xlim(mid[0] - half, mid[0] + half)
+        ax3.set_ylim(mid[1] - half, mid[1] + half)
+        ax3.set_zlim(mid[2] - half, mid[2] + half)
     ax = fig.add_subplot(1, 3, 2)
     ax.plot(traj.t, traj.speed, ".-", ms=2, lw=0.8)
     ax.set_xlabel("t [s]")
