@@ -117,6 +117,19 @@ class SegmentParams:
     reject_border : bool
         Reject regions touching the image border (the sphere is partly out of
         view and its centroid biased).
+    centroid : {"shape", "moment"}
+        How the image position is measured (module docstring, step 4):
+        ``"moment"``, the region's first moment; ``"shape"`` (default), the
+        first moment corrected by a robust circle fit to the region's rim
+        when part of the rim is missing (partial occlusion, a rejected
+        highlight or shadow). Under motion blur the moment is always used.
+    rim_prob : float
+        Probability level of the rim the circle is fitted to (the region
+        grows to it within 2 px).
+    rim_tol_px : float
+        Rim points within this distance of the fitted circle are inliers.
+    min_rim_fraction : float
+        Smallest fraction of the rim points the circle must explain to be used.
     coarse_step : int
         Full-frame search runs coarse to fine: candidate regions are found on
         the frame decimated by ``coarse_step`` (nearest neighbour, no
@@ -142,6 +155,10 @@ class SegmentParams:
     max_fill: float = 1.3
     weighting: str = "probability"
     reject_border: bool = True
+    centroid: str = "shape"
+    rim_prob: float = 0.5
+    rim_tol_px: float = 0.75
+    min_rim_fraction: float = 0.5
     coarse_step: int = 2
     max_candidates: int = 4
 
@@ -164,6 +181,14 @@ class SegmentParams:
             raise TudorVisionError(f"coarse_step: must be a positive integer, got {self.coarse_step}")
         if int(self.max_candidates) != self.max_candidates or self.max_candidates < 1:
             raise TudorVisionError(f"max_candidates: must be a positive integer, got {self.max_candidates}")
+        if self.centroid not in ("shape", "moment"):
+            raise TudorVisionError(f"centroid: must be 'shape' or 'moment', got {self.centroid!r}")
+        if not (0.0 < self.rim_prob <= self.p_grow):
+            raise TudorVisionError(f"rim_prob: need 0 < rim_prob <= p_grow, got {self.rim_prob}")
+        if not (self.rim_tol_px > 0.0):
+            raise TudorVisionError(f"rim_tol_px: must be positive, got {self.rim_tol_px}")
+        if not (0.0 < self.min_rim_fraction <= 1.0):
+            raise TudorVisionError(f"min_rim_fraction: must lie in (0, 1], got {self.min_rim_fraction}")
         if self.weighting not in ("probability", "binary"):
             raise TudorVisionError(f"weighting: must be 'probability' or 'binary', got {self.weighting!r}")
 
@@ -195,6 +220,16 @@ class SphereDetection:
     touches_window : bool
         The region touches the border of the searched window where that
         border is not the image border (the window was too small).
+    uv_moment : tuple of float
+        The region's first moment (``uv`` with ``centroid="moment"``).
+    rim_fraction : float
+        Fraction of the region's rim points on the fitted circle (NaN when
+        no circle was fitted: motion blur, ``centroid="moment"``, too small).
+    rim_rms_px : float
+        RMS distance of those rim points from the circle (px).
+    method : str
+        How ``uv`` was measured: ``"moment"`` or ``"shape"`` (the moment
+        completed with the fitted circle where the rim is missing).
     """
 
     uv: tuple
@@ -206,6 +241,10 @@ class SphereDetection:
     fill: float = float("nan")
     bbox: tuple = (0, 0, 0, 0)
     touches_window: bool = False
+    uv_moment: tuple = (float("nan"), float("nan"))
+    rim_fraction: float = float("nan")
+    rim_rms_px: float = float("nan")
+    method: str = "moment"
 
     @property
     def radius_px(self) -> float:
@@ -349,6 +388,71 @@ def _fill_holes(mask: np.ndarray) -> np.ndarray:
     return mask | (pad[1:-1, 1:-1] == 0)
 
 
+_TRIPLES: dict = {}
+
+
+def _triples(n: int) -> np.ndarray:
+    """Deterministic index triples into ``n`` rim points, each pair at least ``n / 8`` apart along the rim."""
+    if n not in _TRIPLES:
+        rng = np.random.default_rng(n)
+        cand = np.sort(rng.integers(0, n, size=(256, 3)), axis=1)
+        gaps = np.diff(np.c_[cand, cand[:, :1] + n], axis=1)
+        _TRIPLES[n] = np.ascontiguousarray(cand[(gaps >= max(n // 8, 1)).all(axis=1)][:48])
+    return _TRIPLES[n]
+
+
+def _circle_lsq(pts: np.ndarray):
+    """Algebraic (Kasa) least-squares circle ``(cu, cv, r)`` through ``pts`` (n x 2, n >= 3)."""
+    m = pts.mean(axis=0)
+    q = pts - m
+    a = np.c_[q, np.ones(len(q))]
+    sol = np.linalg.lstsq(a, (q * q).sum(axis=1), rcond=None)[0]
+    cu, cv_ = sol[0] / 2.0, sol[1] / 2.0
+    r2 = sol[2] + cu * cu + cv_ * cv_
+    return float(cu + m[0]), float(cv_ + m[1]), math.sqrt(r2) if r2 > 0 else float("nan")
+
+
+def _fit_rim_circle(pts: np.ndarray, tol: float):
+    """Robust circle through the rim points ``pts`` (n x 2): ``(cu, cv, r, inliers)``.
+
+    Candidate circles through triples of points spread along the rim are
+    scored by the points within ``tol`` of them, minus twice those clearly
+    outside (an occluder or a rejected highlight only removes parts of the
+    silhouette, so rim points may lie inside the true circle, hardly
+    outside); the best is refined by least squares on its inliers (twice).
+    """
+    tri = _triples(len(pts))
+    if len(tri) == 0:
+        return None
+    p1, p2, p3 = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
+    a, b = p2 - p1, p3 - p1
+    det = 2.0 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    ok = np.abs(det) > 1e-9
+    if not ok.any():
+        return None
+    a, b, p1, det = a[ok], b[ok], p1[ok], det[ok]
+    na, nb = (a * a).sum(axis=1), (b * b).sum(axis=1)
+    cu = (b[:, 1] * na - a[:, 1] * nb) / det
+    cv_ = (a[:, 0] * nb - b[:, 0] * na) / det
+    rad = np.hypot(cu, cv_)
+    cu += p1[:, 0]
+    cv_ += p1[:, 1]
+    res = np.hypot(pts[None, :, 0] - cu[:, None], pts[None, :, 1] - cv_[:, None]) - rad[:, None]
+    score = (np.abs(res) < tol).sum(axis=1) - 2 * (res > 2.0 * tol).sum(axis=1)
+    k = int(np.argmax(score))
+    inl = np.abs(res[k]) < tol
+    fit = None
+    for _ in range(2):
+        if inl.sum() < 5:
+            return None
+        fit = _circle_lsq(pts[inl])
+        if not math.isfinite(fit[2]):
+            return None
+        inl = np.abs(np.hypot(pts[:, 0] - fit[0], pts[:, 1] - fit[1]) - fit[2]) < tol
+    return fit[0], fit[1], fit[2], inl
+
+
+
 def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, image_size: tuple,
                 blur: bool, *, erode: int, scale: int = 1) -> list:
     """Seeds, region growing, centroid and checks on a log-odds window.
@@ -394,9 +498,18 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
             wgt = np.where(lab, p_box, 1.0)[filled]
         else:
             wgt = np.ones_like(us)
-        mass = float(wgt.sum())
-        cu = float(wgt @ us) / mass + (x + x0)
-        cv_ = float(wgt @ vs) / mass + (y + y0)
+        mass, mu, mv = float(wgt.sum()), float(wgt @ us), float(wgt @ vs)
+        cu = mu / mass + (x + x0)
+        cv_ = mv / mass + (y + y0)
+        uv_moment = (cu, cv_)
+        rim_frac = rim_rms = float("nan")
+        method = "moment"
+        if params.centroid == "shape" and not blur and area >= 20:
+            ref = _refine_shape(filled, math.sqrt(area / math.pi), params, (x, y), log_odds)
+            if ref is not None:
+                ru, rv, rim_frac, rim_rms, used = ref
+                if used:
+                    cu, cv_, method = ru + x0, rv + y0, "shape"
         # shape from the binary central second moments; +1/12: pixels are unit squares
         du, dv = us - us.mean(), vs - vs.mean()
         suu = float(du @ du) / area + 1.0 / 12.0
@@ -428,9 +541,53 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
             reason = "region touches the image border (sphere partly out of view)"
         out.append(SphereDetection(uv=(cu, cv_), area_px=float(area), mean_prob=mean_prob, circularity=circ,
                                    valid=not reason, reason=reason, fill=fill,
-                                   bbox=(x + x0, y + y0, w, h), touches_window=at_window))
+                                   bbox=(x + x0, y + y0, w, h), touches_window=at_window,
+                                   uv_moment=uv_moment, rim_fraction=rim_frac, rim_rms_px=rim_rms,
+                                   method=method))
     out.sort(key=lambda d: (d.valid, d.area_px * d.mean_prob), reverse=True)
     return out
+
+
+def _refine_shape(filled: np.ndarray, r_area: float, params: SegmentParams, box_xy: tuple,
+                  log_odds: np.ndarray):
+    """The sphere's image centre from a circle fitted robustly to the region's rim.
+
+    ``filled``: the silhouette (bool, its bounding box at ``box_xy`` in the
+    log-odds window ``log_odds``); ``r_area``: the radius of its area.
+    The rim is the outer contour (pixel centres) of the silhouette extended
+    by the pixels within 2 px of it whose probability is at least
+    ``params.rim_prob`` (the dark, shaded rim that misses ``p_grow``).
+    Returns ``(u, v, rim fraction, rim RMS, used)`` in window coordinates,
+    ``used`` False when the circle explains too few rim points or its radius
+    does not fit the area, or None when no circle could be fitted.
+    """
+    bx, by = box_xy
+    mg = 2
+    hh, ww = log_odds.shape
+    sx0, sy0 = max(bx - mg, 0), max(by - mg, 0)
+    sx1, sy1 = min(bx + filled.shape[1] + mg, ww), min(by + filled.shape[0] + mg, hh)
+    reg = np.zeros((sy1 - sy0, sx1 - sx0), np.uint8)
+    reg[by - sy0:by - sy0 + filled.shape[0], bx - sx0:bx - sx0 + filled.shape[1]] = filled
+    near = cv2.dilate(reg, _erode_kernel(mg))
+    low = log_odds[sy0:sy1, sx0:sx1] >= np.float32(_logit(params.rim_prob))
+    rim_mask = _fill_holes((reg > 0) | ((near > 0) & low)).view(np.uint8)
+    sx0, sy0 = sx0 - bx, sy0 - by
+    cs, _ = cv2.findContours(rim_mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    if not cs:
+        return None
+    c = max(cs, key=len)
+    if len(c) < 12:
+        return None
+    pts = c.reshape(-1, 2).astype(np.float64) + (sx0, sy0)
+    fit = _fit_rim_circle(pts, params.rim_tol_px)
+    if fit is None:
+        return None
+    fu, fv, fr, inl = fit
+    frac = float(inl.mean())
+    d = np.hypot(pts[inl, 0] - fu, pts[inl, 1] - fv) - fr
+    rms = float(np.sqrt(np.mean(d * d)))
+    used = frac >= params.min_rim_fraction and r_area - 1.5 <= fr <= 2.0 * r_area + 1.0
+    return fu + bx, fv + by, frac, rms, used
 
 
 def _check_roi(roi, width: int, height: int) -> tuple:
