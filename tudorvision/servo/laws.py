@@ -65,9 +65,9 @@ def adaptive_gain(x, lambda_0: float, lambda_inf: float, slope_0: float):
 class AdaptiveGain:
     """``lambda(x)`` parameters; equal ``lambda_0`` and ``lambda_inf`` give a constant gain."""
 
-    lambda_0: float = 2.5
-    lambda_inf: float = 1.0
-    slope_0: float = 30.0
+    lambda_0: float = 1.2
+    lambda_inf: float = 0.6
+    slope_0: float = 10.0
 
     def __post_init__(self):
         if not (self.lambda_0 > 0 and self.lambda_inf > 0 and self.slope_0 >= 0):

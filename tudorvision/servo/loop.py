@@ -29,6 +29,7 @@ the layer's 100 ms watchdog stops the arm when commands cease.
 """
 from __future__ import annotations
 
+import collections
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,7 +45,11 @@ from .joint_map import JointCommand, JointMapConfig, joint_velocity
 from .laws import GoalFeatures, LawConfig, ServoCommand, servo_command
 
 __all__ = ["default_T_ee_cam", "LabConfig", "ServoLab", "VisualServo", "ServoStep", "servo_step",
-           "teach_goal", "RunResult", "run_closed_loop", "DEFAULT_THETA_GOAL"]
+           "teach_goal", "RunResult", "run_closed_loop", "DEFAULT_THETA_GOAL", "average_features",
+           "DEFAULT_SMOOTHING_FRAMES"]
+
+#: Feature moving average used by the lab runs and the CLI (about one period of the first mode).
+DEFAULT_SMOOTHING_FRAMES = 15
 
 #: Goal posture: link 2 horizontal, link 3 hanging 85 deg down (radians).
 DEFAULT_THETA_GOAL = np.deg2rad([0.0, 0.0, -85.0])
@@ -112,23 +117,50 @@ def servo_step(bgr, depth_m, theta, goal: GoalFeatures, T_ee_cam, *, law: LawCon
     return ServoStep(features=f, command=cmd, joint=jc)
 
 
+def average_features(history) -> SquareFeatures:
+    """Mean of the found features of consecutive frames (a moving-average filter).
+
+    Examples
+    --------
+    >>> a = SquareFeatures(found=True, centroid_uv=np.array([1.0, 2.0]), center_uv=np.array([1.0, 2.0]),
+    ...                    corners_uv=np.zeros((4, 2)), depth_m=np.ones(5))
+    >>> average_features([a, a]).centroid_uv.tolist()
+    [1.0, 2.0]
+    """
+    fs = list(history)
+    return SquareFeatures(found=True, centroid_uv=np.mean([f.centroid_uv for f in fs], axis=0),
+                          center_uv=np.mean([f.center_uv for f in fs], axis=0),
+                          corners_uv=np.mean([f.corners_uv for f in fs], axis=0),
+                          depth_m=np.mean([f.depth_m for f in fs], axis=0),
+                          area_px=float(np.mean([f.area_px for f in fs])))
+
+
 class VisualServo:
-    """The servo controller: goal, hand-eye and options held between frames.
+    """The servo controller: goal, hand-eye, options and the feature filter held between frames.
 
     Parameters
     ----------
     goal : GoalFeatures
     T_ee_cam : array_like, shape (4, 4)
     law, joint_map, features : configs
+    smoothing_frames : int
+        Moving average over this many consecutive frames with found
+        features (1: none). The elastic arm's first mode (1.5-2.7 Hz) makes
+        the camera swing; averaging over about one period (15 frames at
+        30 Hz) keeps the servo from feeding it. A frame without features
+        empties the filter (and gives a zero command).
     """
 
     def __init__(self, goal: GoalFeatures, T_ee_cam, *, law: LawConfig = LawConfig(),
                  joint_map: JointMapConfig = JointMapConfig(), features: FeatureConfig = FeatureConfig(),
-                 params=None):
+                 params=None, smoothing_frames: int = 1):
         self.goal = goal
         self.T_ee_cam = check_transform(T_ee_cam, "T_ee_cam")
         self.law, self.joint_map, self.features = law, joint_map, features
         self.params = params or load_robot_params()
+        if int(smoothing_frames) < 1:
+            raise ValueError(f"smoothing_frames: expected >= 1, got {smoothing_frames!r}")
+        self._hist = collections.deque(maxlen=int(smoothing_frames))
 
     @classmethod
     def from_goal_image(cls, bgr, depth_m, K, T_ee_cam, **options) -> "VisualServo":
@@ -141,10 +173,30 @@ class VisualServo:
         goal = GoalFeatures(features=f, f_px=float(0.5 * (K[0, 0] + K[1, 1])), principal_uv=K[:2, 2].copy())
         return cls(goal, T_ee_cam, **options)
 
+    def reset(self) -> None:
+        """Forget the filtered features."""
+        self._hist.clear()
+
     def step(self, bgr, depth_m, theta) -> ServoStep:
-        """Process one frame (see :func:`servo_step`)."""
-        return servo_step(bgr, depth_m, theta, self.goal, self.T_ee_cam, law=self.law,
-                          joint_map=self.joint_map, features=self.features, params=self.params)
+        """Process one frame (see :func:`servo_step`), with the moving-average feature filter."""
+        f = extract_square(bgr, depth_m, config=self.features)
+        ok = f.found and (f.centroid_depth_ok if self.law.law == "hybrid" else f.all_depth_ok)
+        if not ok:
+            self._hist.clear()
+            used = f
+        else:
+            self._hist.append(f)
+            used = average_features(self._hist) if len(self._hist) > 1 else f
+        return self.step_features(used, theta, raw=f)
+
+    def step_features(self, features: SquareFeatures, theta, *, raw: SquareFeatures | None = None) -> ServoStep:
+        """Law and joint map for already extracted (and filtered) features."""
+        cmd = servo_command(features, self.goal, self.law)
+        if not cmd.ok:
+            jc = JointCommand(theta_dot=np.zeros(3), ok=False, reason=cmd.reason)
+        else:
+            jc = joint_velocity(cmd.v_cam, theta, self.T_ee_cam, params=self.params, config=self.joint_map)
+        return ServoStep(features=raw if raw is not None else features, command=cmd, joint=jc)
 
 
 # --------------------------------------------------------------------------- lab side
@@ -172,6 +224,8 @@ class LabConfig:
         ``(width, height)``; the focal length scales with the width.
     damping : bool
         Ask the joint layer for proportional strain feedback.
+    damping_gains : tuple
+        ``k_eps`` per joint when the lab attaches the damper itself.
     t_max_s : float
         Longest run.
     converge_tol_m : float
@@ -190,6 +244,7 @@ class LabConfig:
     server_rate_hz: float = 500.0
     image_size: tuple = (640, 480)
     damping: bool = True
+    damping_gains: tuple = (0.0, 800.0, 150.0)
     t_max_s: float = 10.0
     converge_tol_m: float = 0.002
     converge_frames: int = 15
@@ -251,13 +306,16 @@ class ServoLab:
     plates : int
         100 g payload plates in addition to the camera.
     rng : numpy.random.Generator
-        Scene randomisation and sensor noise.
+        Sensor noise.
     noise : bool
         Sensor noise on colour and depth.
+    scene_seed : int
+        Seeds the scene's randomisation (ground shade, lights): the same
+        seed gives the same room as the goal image.
     """
 
     def __init__(self, config: LabConfig, theta_start, *, plates: int = 0, rng: np.random.Generator,
-                 noise: bool = True):
+                 noise: bool = True, scene_seed: int = 0):
         from ..sim import DepthNoiseModel, Payload, eye_in_hand
         from ..sim.arm import SimCore
         self.config = cfg = config
@@ -273,7 +331,7 @@ class ServoLab:
         self.square_center_world = (np.asarray(cfg.square_center_world, float) if cfg.square_center_world
                                     is not None else _goal_square_center(cfg, self.params))
         w, h = cfg.image_size
-        self.setup = eye_in_hand(_true_camera_pose(self.core.arm, cfg), rng,
+        self.setup = eye_in_hand(_true_camera_pose(self.core.arm, cfg), np.random.default_rng(scene_seed),
                                  square_center_world=self.square_center_world, square_size_m=cfg.square_size_m,
                                  width=int(w), height=int(h))
         self.camera = self.setup.cameras["rgbd"]
@@ -282,12 +340,17 @@ class ServoLab:
 
     # -- joint-layer side -------------------------------------------------------------------
     def enable_damping(self) -> None:
-        """Attach the layer's proportional strain damper if the core only records the mode."""
+        """Attach the layer's proportional strain damper if the core only records the mode.
+
+        Gains ``LabConfig.damping_gains`` (the layer's tuned one-way gains
+        (0, 1600, 300) destabilise the hanging link-3 posture with 400 g;
+        (0, 800, 150) damps it with 0 to 400 g).
+        """
         from ..joint.damping import StrainDamper, default_damping_config
         ctl = self.core.controlled
         if self.core.damping and ctl.damper is None:
-            ctl.set_damper(StrainDamper(default_damping_config("proportional"), self.core.arm.strain,
-                                        self.core.arm.config.dt))
+            cfg = default_damping_config("proportional", k_eps=self.config.damping_gains)
+            ctl.set_damper(StrainDamper(cfg, self.core.arm.strain, self.core.arm.config.dt))
 
     def advance(self, dt: float) -> None:
         """Run the joint layer (and the plant) for ``dt`` seconds of simulated time."""
@@ -328,7 +391,7 @@ def _goal_square_center(cfg: LabConfig, params) -> np.ndarray:
     return np.array([p[0], p[1], 0.0])
 
 
-def teach_goal(config: LabConfig, rng: np.random.Generator, *, noise: bool = True):
+def teach_goal(config: LabConfig, rng: np.random.Generator, *, noise: bool = True, scene_seed: int = 0):
     """Teach the goal as an image: arm at ``theta_goal`` with the camera only, one frame.
 
     Returns
@@ -344,7 +407,7 @@ def teach_goal(config: LabConfig, rng: np.random.Generator, *, noise: bool = Tru
     ValueError
         If the goal image shows no square with valid depth.
     """
-    lab = ServoLab(config, config.theta_goal, plates=0, rng=rng, noise=noise)
+    lab = ServoLab(config, config.theta_goal, plates=0, rng=rng, noise=noise, scene_seed=scene_seed)
     bgr, depth = lab.capture()
     servo = VisualServo.from_goal_image(bgr, depth, lab.K, config.T_ee_cam)
     return servo.goal, lab.T_world_cam()[:3, 3].copy(), (bgr, depth)
