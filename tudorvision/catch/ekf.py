@@ -31,6 +31,7 @@ throw. Always call ``predict(dt)`` then ``update(z, R)``.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -60,7 +61,7 @@ class BallModel:
 
     drag_k_per_m: float = DEFAULT_DRAG_K_PER_M
     gravity_m_s2: float = 9.81
-    max_step_s: float = 0.01
+    max_step_s: float = 0.025
 
     def __post_init__(self):
         if not self.drag_k_per_m >= 0:
@@ -197,10 +198,33 @@ def propagate(x, dt: float, model: BallModel = BallModel(), *, jacobian: bool = 
             x4 = x + h * k3; k4 = _f(x4, k, g); K4 = _A(x4, k) @ (F + h * K3)
             F = F + h / 6 * (K1 + 2 * K2 + 2 * K3 + K4)
         else:
-            k1 = _f(x, k, g); k2 = _f(x + h / 2 * k1, k, g)
-            k3 = _f(x + h / 2 * k2, k, g); k4 = _f(x + h * k3, k, g)
+            return _propagate_floats(x, n, h, k, g)
         x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
     return (x, F) if jacobian else x
+
+
+def _propagate_floats(x, n, h, k, g):
+    # the same RK4 on Python floats (no Jacobian): about ten times faster for 6 states
+    px, py, pz, vx, vy, vz = (float(a) for a in x)
+    sqrt = math.sqrt
+
+    def acc(ux, uy, uz):
+        s = k * sqrt(ux * ux + uy * uy + uz * uz)
+        return -s * ux, -s * uy, -s * uz - g
+
+    h2, h6 = h / 2, h / 6
+    for _ in range(n):
+        a1 = acc(vx, vy, vz)
+        b = (vx + h2 * a1[0], vy + h2 * a1[1], vz + h2 * a1[2]); a2 = acc(*b)
+        c = (vx + h2 * a2[0], vy + h2 * a2[1], vz + h2 * a2[2]); a3 = acc(*c)
+        d = (vx + h * a3[0], vy + h * a3[1], vz + h * a3[2]); a4 = acc(*d)
+        px += h6 * (vx + 2 * b[0] + 2 * c[0] + d[0])
+        py += h6 * (vy + 2 * b[1] + 2 * c[1] + d[1])
+        pz += h6 * (vz + 2 * b[2] + 2 * c[2] + d[2])
+        vx += h6 * (a1[0] + 2 * a2[0] + 2 * a3[0] + a4[0])
+        vy += h6 * (a1[1] + 2 * a2[1] + 2 * a3[1] + a4[1])
+        vz += h6 * (a1[2] + 2 * a2[2] + 2 * a3[2] + a4[2])
+    return np.array([px, py, pz, vx, vy, vz])
 
 
 def process_noise(dt: float, q_m2_s3: float) -> np.ndarray:

@@ -14,7 +14,7 @@ reachable workspace and its largest in-plane standard deviation is below
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -67,7 +67,7 @@ class PlaneCrossing:
 
 
 def plane_crossing(x, P, normal, *, point=(0.0, 0.0, 0.0), model: BallModel = BallModel(),
-                   q_m2_s3: float = 0.001, max_time_s: float = 3.0, step_s: float = 0.02,
+                   q_m2_s3: float = 0.001, max_time_s: float = 3.0,
                    min_height_m: float = -np.inf) -> PlaneCrossing | None:
     """Propagate the state to the plane ``n . (p - point) = 0``.
 
@@ -80,8 +80,8 @@ def plane_crossing(x, P, normal, *, point=(0.0, 0.0, 0.0), model: BallModel = Ba
         Plane normal (need not be unit).
     point : array_like, shape (3,)
         A point on the plane.
-    max_time_s, step_s : float
-        Search horizon and coarse step.
+    max_time_s : float
+        Search horizon.
     min_height_m : float
         The flight ends when ``z`` falls below this (the floor).
 
@@ -103,34 +103,34 @@ def plane_crossing(x, P, normal, *, point=(0.0, 0.0, 0.0), model: BallModel = Ba
     n = n / np.linalg.norm(n)
     c = check_array(point, "point", (3,))
     d0 = float(n @ (x[:3] - c))
-    if d0 == 0.0:
-        t = 0.0
-    else:
-        t, xi, di = 0.0, x, d0
-        found = False
-        while t < max_time_s:
-            xn = propagate(xi, step_s, model, jacobian=False)
-            dn = float(n @ (xn[:3] - c))
-            if xn[2] < min_height_m:
-                return None
-            if np.sign(dn) != np.sign(di) or dn == 0.0:
-                found = True
-                break
-            xi, di, t = xn, dn, t + step_s
-        if not found:
+    vn0 = float(n @ x[3:])
+    if d0 != 0.0 and (vn0 == 0.0 or -d0 / vn0 < 0):
+        return None                      # moving away from (or along) the plane
+    # Newton on the crossing time from the straight-line guess (the plane is vertical: gravity
+    # does not move the ball across it; drag only slows the approach)
+    t = 0.0 if d0 == 0.0 else -d0 / vn0
+    xi, h = x, t
+    for _ in range(8):
+        t_new = t if xi is x else t + h
+        if t_new > max_time_s or t_new < 0:
             return None
-        # Newton on the crossing time inside the bracketing step
-        for _ in range(6):
-            vn = float(n @ xi[3:])
-            if vn == 0.0:
-                return None
-            h = -di / vn
-            xi = propagate(xi, h, model, jacobian=False)
-            t += h
-            di = float(n @ (xi[:3] - c))
-            if abs(di) < 1e-9:
-                break
-    xc, Pc = predict(x, P, t, model, q_m2_s3) if t != 0.0 else (x.copy(), P.copy())
+        xi = propagate(xi, h, model, jacobian=False)
+        t = t_new
+        di = float(n @ (xi[:3] - c))
+        vn = float(n @ xi[3:])
+        if vn == 0.0:
+            return None
+        h = -di / vn
+        if abs(di) < 1e-7:
+            break
+    else:
+        return None
+    if xi[2] < min_height_m or t > max_time_s:
+        return None
+    # covariance on a coarser grid (0.1 s steps: F needs less accuracy than the state)
+    _, Pc = predict(x, P, t, replace(model, max_step_s=max(model.max_step_s, 0.1)), q_m2_s3) \
+        if t != 0.0 else (x, P.copy())
+    xc = xi
     v = xc[3:]
     vn = float(n @ v)
     if vn == 0.0:
