@@ -24,7 +24,10 @@ separation check, as ``tudorvision track stereo``) and scores:
 - an oracle: the true centroids through the same triangulation (the floor set
   by calibration and triangulation);
 - the tutorial-style peer (``peer_hsv.py``: HSV inRange, contours,
-  minEnclosingCircle) through the same triangulation.
+  minEnclosingCircle) through the same triangulation;
+- the centroid method: the same pipeline with ``SegmentParams(centroid=
+  "moment")`` (the region's first moment) against the default ``"shape"``
+  (robust circle fit to the rim, see ``docs/stereo.md``).
 
 Run::
 
@@ -55,8 +58,9 @@ from test_stereo_pipeline import good_picks, gt_ee, gt_picks, gt_transform, gt_u
 from tudorvision.io import open_sequence  # noqa: E402
 from tudorvision.sim import RecordOptions, record  # noqa: E402
 from tudorvision._checks import TudorVisionError  # noqa: E402
-from tudorvision.stereo import (ColorModelSet, PipelineOptions, fit_color_model, fit_color_model_set,  # noqa: E402
-                                parse_pick, track_stereo, triangulate_spheres)
+from tudorvision.stereo import (ColorModelSet, PipelineOptions, SegmentParams, TrackerParams,  # noqa: E402
+                                fit_color_model, fit_color_model_set, parse_pick, track_stereo,
+                                triangulate_spheres)
 
 SPHERES = ("red", "green")
 SEPARATION_M = 0.16
@@ -142,8 +146,9 @@ def centroid_errors(seq, uvl, uvr) -> np.ndarray:
                            for cam, uv in (("left", uvl), ("right", uvr)) for s in SPHERES])
 
 
-def ours(seq, models, *, rolling_comp: bool = True):
-    opts = PipelineOptions(sphere_separation_m=SEPARATION_M, rolling_shutter=rolling_comp)
+def ours(seq, models, *, rolling_comp: bool = True, centroid: str = "shape"):
+    opts = PipelineOptions(sphere_separation_m=SEPARATION_M, rolling_shutter=rolling_comp,
+                           tracker=TrackerParams(segment=SegmentParams(centroid=centroid)))
     return track_stereo(seq, seq.calibration, models, T_base_left=gt_transform(seq), options=opts)
 
 
@@ -175,6 +180,10 @@ def evaluate(path: Path, *, rolling: bool) -> dict:
         "peak_speed_measured_m_s": float(np.nanmax(res.trajectory.speed)) if np.isfinite(res.trajectory.speed).any()
         else float("nan"),
     }
+    mom = ours(seq, models, centroid="moment")
+    row["moment_rms_3d_mm"] = 1e3 * rms(ee_errors(mom.trajectory.p, seq))
+    row["moment_centroid_rms_px"] = rms(centroid_errors(seq, mom.uv_left, mom.uv_right))
+    row["moment_centroid_median_px"] = float(np.nanmedian(centroid_errors(seq, mom.uv_left, mom.uv_right)))
     if rolling:
         raw = ours(seq, models, rolling_comp=False)
         row["rms_3d_mm_without_rs_comp"] = 1e3 * rms(ee_errors(raw.trajectory.p, seq))
@@ -207,7 +216,8 @@ def main(argv=None) -> int:
             r = results[label][seed]
             print(f"seed {seed} {label:30s} ours {r['rms_3d_mm']:6.2f} mm ({100 * r['valid']:5.1f}% valid)  "
                   f"peer {r['peer_rms_3d_mm']:7.2f} mm ({100 * r['peer_valid']:5.1f}%)  oracle "
-                  f"{r['oracle_rms_3d_mm']:5.2f} mm", flush=True)
+                  f"{r['oracle_rms_3d_mm']:5.2f} mm; centroid {r['centroid_rms_px']:.3f} px "
+                  f"(moment: {r['moment_rms_3d_mm']:.2f} mm, {r['moment_centroid_rms_px']:.3f} px)", flush=True)
 
     print("\nRMS over seeds " + ", ".join(map(str, args.seeds)) + " (3D: end effector, base frame, mm; "
           "centroid: px)")
@@ -225,7 +235,9 @@ def main(argv=None) -> int:
              "peer_gross": mean("peer_gross"), "peer_inlier_rms_3d_mm": agg("peer_inlier_rms_3d_mm"),
              "peer_inlier_centroid_rms_px": agg("peer_inlier_centroid_rms_px"),
              "peak_speed_true_m_s": max(r["peak_speed_true_m_s"] for r in rows.values()),
-             "peak_speed_measured_m_s": max(r["peak_speed_measured_m_s"] for r in rows.values())}
+             "peak_speed_measured_m_s": max(r["peak_speed_measured_m_s"] for r in rows.values()),
+             "moment_rms_3d_mm": agg("moment_rms_3d_mm"), "moment_centroid_rms_px": agg("moment_centroid_rms_px"),
+             "moment_centroid_median_px": mean("moment_centroid_median_px")}
         if "rms_3d_mm_without_rs_comp" in next(iter(rows.values())):
             s["rms_3d_mm_without_rs_comp"] = agg("rms_3d_mm_without_rs_comp")
             s["peer_rms_3d_mm_without_rs_comp"] = agg("peer_rms_3d_mm_without_rs_comp")
@@ -241,6 +253,14 @@ def main(argv=None) -> int:
           f"(median {st['centroid_median_px']:.3f} px), peer {st['peer_centroid_rms_px']:.1f} px "
           f"(non-gross detections: {st['peer_inlier_centroid_rms_px']:.3f} px, ratio peer/ours "
           f"{st['peer_inlier_centroid_rms_px'] / st['centroid_rms_px']:.1f})")
+    print("\ncentroid method (same pipeline; 3D RMS mm / centroid RMS px):")
+    print(f"{'case':30s} {'shape 3D':>9s} {'moment 3D':>10s} {'shape px':>9s} {'moment px':>10s}")
+    for label, s in summary.items():
+        print(f"{label:30s} {s['rms_3d_mm']:9.2f} {s['moment_rms_3d_mm']:10.2f} {s['centroid_rms_px']:9.3f} "
+              f"{s['moment_centroid_rms_px']:10.3f}")
+    print(f"(static centroid median: shape {st['centroid_median_px']:.3f} px, moment "
+          f"{st['moment_centroid_median_px']:.3f} px; the centroid columns of the step rows include blurred "
+          f"frames)")
     rs = summary["step (blur, rolling shutter)"]
     print(f"rolling shutter: ours {rs['rms_3d_mm_without_rs_comp']:.2f} mm without compensation -> "
           f"{rs['rms_3d_mm']:.2f} mm with; peer {rs['peer_rms_3d_mm_without_rs_comp']:.2f} -> "

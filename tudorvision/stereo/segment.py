@@ -126,6 +126,13 @@ class SegmentParams:
     rim_prob : float
         Probability level of the rim the circle is fitted to (the region
         grows to it within 2 px).
+    lens_check : bool
+        Use the moment when the rim points off the circle lie on a second
+        circle of similar radius (the lens-shaped core of a blur streak)
+        and the moment sits halfway between the two centres. Off by default:
+        on the virtual lab it helps on blurred frames (step 3D error
+        -0.2 mm on two of five seeds) but trips on partly hidden static
+        spheres (static centroid RMS 0.13 -> 0.23 px).
     rim_tol_px : float
         Rim points within this distance of the fitted circle are inliers.
     min_rim_fraction : float
@@ -157,6 +164,7 @@ class SegmentParams:
     reject_border: bool = True
     centroid: str = "shape"
     rim_prob: float = 0.5
+    lens_check: bool = False
     rim_tol_px: float = 0.75
     min_rim_fraction: float = 0.5
     coarse_step: int = 2
@@ -505,7 +513,8 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
         rim_frac = rim_rms = float("nan")
         method = "moment"
         if params.centroid == "shape" and not blur and area >= 20:
-            ref = _refine_shape(filled, math.sqrt(area / math.pi), params, (x, y), log_odds)
+            ref = _refine_shape(filled, math.sqrt(area / math.pi), params, (x, y), log_odds,
+                                (mu / mass, mv / mass))
             if ref is not None:
                 ru, rv, rim_frac, rim_rms, used = ref
                 if used:
@@ -549,7 +558,7 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
 
 
 def _refine_shape(filled: np.ndarray, r_area: float, params: SegmentParams, box_xy: tuple,
-                  log_odds: np.ndarray):
+                  log_odds: np.ndarray, moment_uv: tuple):
     """The sphere's image centre from a circle fitted robustly to the region's rim.
 
     ``filled``: the silhouette (bool, its bounding box at ``box_xy`` in the
@@ -584,9 +593,22 @@ def _refine_shape(filled: np.ndarray, r_area: float, params: SegmentParams, box_
         return None
     fu, fv, fr, inl = fit
     frac = float(inl.mean())
-    d = np.hypot(pts[inl, 0] - fu, pts[inl, 1] - fv) - fr
-    rms = float(np.sqrt(np.mean(d * d)))
+    res = np.hypot(pts[:, 0] - fu, pts[:, 1] - fv) - fr
+    rms = float(np.sqrt(np.mean(res[inl] ** 2)))
     used = frac >= params.min_rim_fraction and r_area - 1.5 <= fr <= 2.0 * r_area + 1.0
+    if used and params.lens_check and len(inl) - int(inl.sum()) >= 6:
+        # a blur streak's core (where the sphere covers the pixel all the exposure) is a lens: the
+        # intersection of the discs at the start and the end of the exposure, two arcs of the same
+        # radius. The circle then fits one of them; the lens is symmetric about the mid-exposure
+        # position, so its moment is the right measure.
+        ou, ov, orr = _circle_lsq(pts[~inl])
+        if (math.isfinite(orr) and 0.6 * fr <= orr <= 1.6 * fr and math.hypot(ou - fu, ov - fv) < fr
+                and float(np.sqrt(np.mean((np.hypot(pts[~inl, 0] - ou, pts[~inl, 1] - ov) - orr) ** 2)))
+                < params.rim_tol_px):
+            # and the region's moment sits halfway between the two centres
+            mu_, mv_ = moment_uv
+            sep = math.hypot(ou - fu, ov - fv)
+            used = math.hypot(mu_ - 0.5 * (ou + fu), mv_ - 0.5 * (ov + fv)) > 0.25 * sep + 0.3
     return fu + bx, fv + by, frac, rms, used
 
 
