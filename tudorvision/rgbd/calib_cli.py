@@ -13,7 +13,7 @@ import numpy as np
 
 from .._checks import TudorVisionError
 
-__all__ = ["register"]
+__all__ = ["register", "observe_sweep"]
 
 
 def _parse_floats(text: str, name: str, n: int | None = None) -> list[float]:
@@ -120,44 +120,60 @@ def _predict_uv(samples, thetas, th2, max_gap=np.radians(30.0)):
     return samples[k][1], float(samples[k][0][2])
 
 
-def _cmd_base(args) -> int:
-    from .._progress import progress
-    from ..io import open_sequence
-    from .base_calib import base_frame_from_sweep
-    from .cli import noise_model_from_calibration
-    from .disc import DiscOptions, DiscTracker
-    from .frames import Intrinsics
+def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None, joint_tol_deg: float = 0.5):
+    """Track the disc through a recorded theta2 sweep and its vertical-posture frames.
 
-    seed = _parse_floats(args.seed, "--seed", 2)
-    seq = open_sequence(args.seq)
-    if seq.kind != "rgbd":
-        raise TudorVisionError(f"{args.seq}: expected an RGB-D sequence, got kind {seq.kind!r}")
-    cam, cal0 = _camera(seq, args.calib)
-    K = Intrinsics.from_matrix(cam.K, cam.width, cam.height)
-    tol = np.radians(args.joint_tol_deg)
+    Parameters
+    ----------
+    seq : Sequence
+        RGB-D sequence (``tudorvision.io.open_sequence``), with ``joints.txt``
+        unless ``vertical_frame`` is given.
+    K : Intrinsics
+    seed_uv : array_like, shape (2,)
+        Pixel on the disc in the first frame.
+    options : DiscOptions
+    vertical_frame : int, optional
+        Frame index of the vertical posture (default: from ``joints.txt``).
+    joint_tol_deg : float
+        Joint tolerance for sweep and vertical frames, degrees.
+
+    Returns
+    -------
+    dict
+        ``points_cam`` (N, 3) sweep centroids in sweep order (NaN when lost),
+        ``frames`` (N,) their frame indices, ``theta2_rad`` (N,) or None,
+        ``vertical_cam`` (M, 3), ``vertical_frames`` (M,), ``lost``
+        (frame -> reason).
+
+    Raises
+    ------
+    TudorVisionError
+        No way to find the vertical posture, or the disc lost in all its frames.
+    """
+    from .._progress import progress
+    from .disc import DiscTracker
+
+    tol = np.radians(joint_tol_deg)
     thetas = None
     if "joints" in seq.streams:
         thetas = seq.joints().at(seq.timestamps)
-    if thetas is None and args.vertical_frame is None:
-        raise TudorVisionError(f"{args.seq}: no joints.txt to find the vertical posture; pass --vertical-frame I")
+    if thetas is None and vertical_frame is None:
+        raise TudorVisionError(f"{seq.path}: no joints.txt to find the vertical posture; pass --vertical-frame I")
     n = len(seq)
     vertical = np.zeros(n, bool)
-    if args.vertical_frame is not None:
-        if not 0 <= args.vertical_frame < n:
-            raise TudorVisionError(f"--vertical-frame: {args.vertical_frame} is outside 0..{n - 1}")
-        vertical[args.vertical_frame] = True
+    if vertical_frame is not None:
+        if not 0 <= vertical_frame < n:
+            raise TudorVisionError(f"--vertical-frame: {vertical_frame} is outside 0..{n - 1}")
+        vertical[vertical_frame] = True
     else:
         vertical = np.array([_is_vertical(th, tol) for th in thetas])
         if not vertical.any():
-            raise TudorVisionError(f"{args.seq}: joints.txt never reaches the vertical posture [0, 90, 0] deg "
-                                   f"(within {args.joint_tol_deg} deg); pass --vertical-frame I")
+            raise TudorVisionError(f"{seq.path}: joints.txt never reaches the vertical posture [0, 90, 0] deg "
+                                   f"(within {joint_tol_deg} deg); pass --vertical-frame I")
     sweep = np.ones(n, bool)
     if thetas is not None:
         sweep = (np.abs(thetas[:, 0]) < tol) & (np.abs(thetas[:, 2]) < tol)
-    annulus = tuple(_parse_floats(args.depth_annulus, "--depth-annulus", 2))
-    opts = DiscOptions(disc_radius_m=args.disc_radius, depth_model=noise_model_from_calibration(cal0),
-                       depth_annulus=annulus)
-    tracker = DiscTracker(K, seed, opts, max_consecutive_lost=10 ** 9)
+    tracker = DiscTracker(K, seed_uv, options, max_consecutive_lost=10 ** 9)
     samples = {}          # frame -> (centroid_cam, centroid_uv)
     lost = {}
     for f in progress(seq, total=n, desc="disc"):
@@ -176,14 +192,36 @@ def _cmd_base(args) -> int:
             samples[i] = (obs.centroid_cam, obs.centroid_uv)
         else:
             lost[i] = obs.reason
-    idx = [i for i in range(n) if sweep[i] and i in samples]
     vidx = [i for i in range(n) if vertical[i] and i in samples]
     if not vidx:
         raise TudorVisionError("disc lost in every vertical-posture frame")
-    circle_idx = [i for i in range(n) if sweep[i] and (args.vertical_frame is None or not vertical[i])]
-    pts = np.array([samples[i][0] if i in samples else [np.nan] * 3 for i in circle_idx])
-    th2 = None if thetas is None else thetas[circle_idx, 1]
-    T_base_cam, rep = base_frame_from_sweep(pts, np.array([samples[i][0] for i in vidx]), theta2_rad=th2,
+    circle_idx = [i for i in range(n) if sweep[i] and (vertical_frame is None or not vertical[i])]
+    pts = np.array([samples[i][0] if i in samples else [np.nan] * 3 for i in circle_idx]).reshape(-1, 3)
+    return {"points_cam": pts, "frames": np.array(circle_idx, int),
+            "theta2_rad": None if thetas is None else thetas[circle_idx, 1],
+            "vertical_cam": np.array([samples[i][0] for i in vidx]), "vertical_frames": np.array(vidx, int),
+            "lost": lost}
+
+
+def _cmd_base(args) -> int:
+    from ..io import open_sequence
+    from .base_calib import base_frame_from_sweep
+    from .cli import noise_model_from_calibration
+    from .disc import DiscOptions
+    from .frames import Intrinsics
+
+    seed = _parse_floats(args.seed, "--seed", 2)
+    seq = open_sequence(args.seq)
+    if seq.kind != "rgbd":
+        raise TudorVisionError(f"{args.seq}: expected an RGB-D sequence, got kind {seq.kind!r}")
+    cam, cal0 = _camera(seq, args.calib)
+    K = Intrinsics.from_matrix(cam.K, cam.width, cam.height)
+    annulus = tuple(_parse_floats(args.depth_annulus, "--depth-annulus", 2))
+    opts = DiscOptions(disc_radius_m=args.disc_radius, depth_model=noise_model_from_calibration(cal0),
+                       depth_annulus=annulus)
+    obs = observe_sweep(seq, K, seed, opts, vertical_frame=args.vertical_frame, joint_tol_deg=args.joint_tol_deg)
+    circle_idx, vidx, lost = obs["frames"], obs["vertical_frames"], obs["lost"]
+    T_base_cam, rep = base_frame_from_sweep(obs["points_cam"], obs["vertical_cam"], theta2_rad=obs["theta2_rad"],
                                             origin=args.origin, vertical=args.vertical)
     # report indices as sequence frame numbers
     rep["points_used"] = [int(circle_idx[k]) for k in rep["points_used"]]

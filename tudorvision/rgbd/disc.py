@@ -10,11 +10,23 @@ disc: the next seed is the previous centroid's pixel.
 
 Depth noise at 5 m is tens of centimetres per pixel (seed model), so growing
 runs on a median-filtered depth image (``smooth_px``). The centroid is the
-region's mean pixel back-projected at the robust mean raw depth of the pixels
-inside the region's moment ellipse (taken geometrically, not from the noisy
-mask, so that the mean has no selection bias). ``depth_annulus`` can leave out
-the centre, where end-effector hardware may stand in front of the disc (the
-virtual lab's tracking sphere does: about 3 cm too near at 5 m).
+region's mean pixel back-projected at the robust mean raw depth of a pixel set
+taken geometrically, not from the noisy mask.
+
+Selection bias of the depth mean: whether a rim pixel joins the grown region
+depends on its own noise (the median filter mixes it with the invalid band
+and the background), so the region, its centroid and its moment ellipse all
+lean toward rim pixels that read too far. Any depth window whose boundary is
+set by the region and cuts through valid disc pixels then averages a biased
+sample: the region's moment ellipse read +0.5 to +0.7 cm too far at 5 m on
+the virtual lab (+0.2 cm for a circle one pixel inside the rim). With the
+disc radius known (``disc_radius_m``) the window is therefore the disc's whole
+image circle, radius ``f R / z``, around the region centroid: its boundary
+lies on the disc rim, where a depth sensor returns no depth (the jump to the
+background), so which pixels it holds no longer depends on their noise. It is
+cut by the moment ellipse scaled by 1.5 only to follow a strongly tilted disc.
+``depth_annulus`` (fractions of that window) can leave out the centre, where
+end-effector hardware may stand in front of the disc.
 """
 from __future__ import annotations
 
@@ -55,10 +67,20 @@ class DiscOptions:
         fronto-parallel image area at its depth.
     depth_annulus : tuple of float
         The centroid depth is the robust mean raw depth of the pixels between
-        these fractions of the region's moment ellipse. Default ``(0, 1)``:
-        the whole segment (the seed's centroid). ``(0.7, 1.0)`` leaves out an
-        occluded centre at the price of fewer pixels and a pose-dependent bias
-        when the occluder projects off-centre.
+        these fractions of the depth window (see ``depth_window``). Default
+        ``(0, 1)``: the whole window. ``(0.7, 1.0)`` leaves out an occluded
+        centre at the price of fewer pixels and a bias of its own: the inner
+        boundary cuts through valid disc pixels (see the module notes).
+    depth_window : {"disc", "ellipse"}
+        ``"disc"`` (default; needs ``disc_radius_m``, else ``"ellipse"`` is
+        used): the disc's image circle of radius ``f R / z_ref -
+        rim_margin_px`` around the region centroid, cut by 1.5 times the
+        region's moment ellipse. ``"ellipse"``: the region's moment ellipse
+        (the earlier estimator; biased away from the camera under strong
+        depth noise, see the module notes).
+    rim_margin_px : float
+        Pixels taken off the disc's image radius (``"disc"`` window); keep it
+        below one pixel so that the window's edge stays on the disc rim.
     depth_model : DepthNoiseModel
         ``sigma_z(z)`` used for the tolerance.
     """
@@ -74,6 +96,8 @@ class DiscOptions:
     disc_radius_m: float | None = None
     area_ratio: tuple = (0.25, 2.5)
     depth_annulus: tuple = (0.0, 1.0)
+    depth_window: str = "disc"
+    rim_margin_px: float = 0.0
     depth_model: DepthNoiseModel = field(default=SEED_DEPTH_MODEL)
 
     def __post_init__(self):
@@ -85,6 +109,10 @@ class DiscOptions:
             raise ValueError(f"connectivity: expected 4 or 8, got {self.connectivity}")
         if not 0 < self.min_tol_m <= self.max_tol_m:
             raise ValueError("min_tol_m, max_tol_m: expected 0 < min_tol_m <= max_tol_m")
+        if self.depth_window not in ("disc", "ellipse"):
+            raise ValueError(f"depth_window: expected 'disc' or 'ellipse', got {self.depth_window!r}")
+        if not 0 <= self.depth_annulus[0] < self.depth_annulus[1]:
+            raise ValueError(f"depth_annulus: expected 0 <= lo < hi, got {self.depth_annulus}")
         if not 0 < self.min_pixels <= self.max_pixels:
             raise ValueError("min_pixels, max_pixels: expected 0 < min_pixels <= max_pixels")
 
@@ -252,26 +280,36 @@ def observe_disc(depth_m, intrinsics: Intrinsics, seed_uv, options: DiscOptions 
         return _lost((u, v), z_ref, n, reason)
     import cv2
 
-    # pixel centroid and shape (second moments) from the region; the depth from the
-    # pixels of (an annulus of) the region's moment ellipse. Taking the pixels
-    # geometrically (not the noisy mask itself) keeps the depth mean free of selection
-    # bias; an annulus can leave out the centre, where end-effector hardware may
-    # stand in front of the disc.
+    # pixel centroid and shape (second moments) from the region; the depth from a
+    # window taken geometrically, whose boundary does not cut through valid disc
+    # pixels (see the module notes: a boundary set by the noisy region inside the
+    # disc selects rim pixels by their noise)
     vv, uu = np.nonzero(mask)
     uv = np.array([uu.mean(), vv.mean()])
     C = np.cov(np.stack([uu, vv]).astype(np.float64)) + 0.25 * np.eye(2)
     Ci = np.linalg.inv(C)
     lo, hi = options.depth_annulus
-    half = int(np.ceil(2.0 * hi * np.sqrt(np.max(np.linalg.eigvalsh(C))))) + 1
+    r_disc = None
+    scale = 1.0
+    if options.depth_window == "disc" and options.disc_radius_m is not None:
+        r_disc = np.sqrt(intrinsics.fx * intrinsics.fy) * options.disc_radius_m / z_ref - options.rim_margin_px
+        r_disc = max(r_disc, 1.0)
+        scale = 1.5
+    half = int(np.ceil(2.0 * scale * hi * np.sqrt(np.max(np.linalg.eigvalsh(C))))) + 1
+    if r_disc is not None:
+        half = min(half, int(np.ceil(hi * r_disc)) + 1)
     u0, u1 = max(0, int(uv[0]) - half), min(d.shape[1], int(uv[0]) + half + 2)
     v0, v1 = max(0, int(uv[1]) - half), min(d.shape[0], int(uv[1]) + half + 2)
     gv, gu = np.mgrid[v0:v1, u0:u1]
     du, dv = gu - uv[0], gv - uv[1]
-    m2 = (Ci[0, 0] * du * du + 2 * Ci[0, 1] * du * dv + Ci[1, 1] * dv * dv) / 4.0
+    # normalised radius: 1 on the window's edge
+    rho = np.sqrt((Ci[0, 0] * du * du + 2 * Ci[0, 1] * du * dv + Ci[1, 1] * dv * dv) / 4.0) / scale
+    if r_disc is not None:
+        rho = np.maximum(rho, np.hypot(du, dv) / r_disc)
     win = d[v0:v1, u0:u1]
-    z = win[(m2 >= lo * lo) & (m2 <= hi * hi)]
+    z = win[(rho >= lo) & (rho <= hi)]
     if np.isfinite(z).sum() < 10:                      # tiny region: use all of it
-        z = win[m2 <= hi * hi]
+        z = win[rho <= hi]
     z = z[np.isfinite(z)]
     if len(z) < 3:
         reason = f"disc region at seed ({u}, {v}) has only {len(z)} valid raw depths"
