@@ -523,7 +523,7 @@ def wall_disc(disc_center_base, rng: np.random.Generator, *, T_world_base=np.eye
         c = disc_world(t)
         out = [Disc(center=c, normal=eye - c, radius=radius, color_rgb=(0.9, 0.85, 0.2), name="disc")]
         if arm_at is not None:
-            out += arm_shapes(arm_at(t), T, sphere_radius_m=sphere_r)
+            out += arm_shapes(arm_at(t), T, sphere_radius_m=sphere_r, spheres=draw_spheres)
         return out
 
     scene = Scene(static=shapes, lights=lights, dynamic=dynamic)
