@@ -181,7 +181,11 @@ class InterceptOptions:
         Release the setpoint once the crossing's largest in-plane standard
         deviation is below this.
     refine_tol_m : float
-        After release, a new setpoint is sent when the intercept moved more than this.
+        After release, a new setpoint is sent when the intercept moved more than this ...
+    min_interval_s : float
+        ... and at least this long after the previous one (every new setpoint re-plans the
+        joint layer's smooth point-to-point profile; re-planning at the camera rate would
+        keep the arm in the slow start of the profile).
     margin_rad : float
         Joint-range margin for reachability.
     min_height_m : float
@@ -190,7 +194,8 @@ class InterceptOptions:
 
     theta1_rad: float = 0.0
     release_sigma_m: float = 0.03
-    refine_tol_m: float = 0.005
+    refine_tol_m: float = 0.02
+    min_interval_s: float = 0.2
     margin_rad: float = np.deg2rad(2.0)
     min_height_m: float = -0.3
 
@@ -245,7 +250,8 @@ class InterceptPlanner:
         ok = len(reachable_solutions(c.p_base, o.theta1_rad, self.params, margin_rad=o.margin_rad)) > 0
         send = False
         if ok and c.sigma_m <= o.release_sigma_m:
-            send = self.released is None or np.linalg.norm(c.p_base - self.released.p_base) > o.refine_tol_m
+            send = self.released is None or (np.linalg.norm(c.p_base - self.released.p_base) > o.refine_tol_m
+                                              and t - self.released.t >= o.min_interval_s)
         it = Intercept(t=float(t), t_cross=float(t) + c.dt_s, p_base=c.p_base, cov_base=c.cov_base,
                        sigma_m=c.sigma_m, reachable=ok, send=send)
         if send:
