@@ -1,0 +1,90 @@
+"""Square features on rendered eye-in-hand RGB-D frames, scored against the known square and camera pose."""
+import numpy as np
+import pytest
+
+from tudorvision.servo import (depth_at, diagonal_intersection, extract_square, order_corners,
+                               polygon_centroid)
+from tudorvision.servo.features import depth_m_from_raw
+from tudorvision.sim import eye_in_hand, look_at, project_points, render_rgbd, with_pose
+
+SQUARE = np.array([0.6, 0.0, 0.0])
+
+
+def _views():
+    """(eye, target, yaw) camera placements: fronto-parallel, oblique, rotated, square off-centre."""
+    return [
+        (SQUARE + [0.0, 0.0, 0.75], SQUARE, 0.0),
+        (SQUARE + [0.12, -0.08, 0.7], SQUARE + [0.02, 0.0, 0.0], 0.3),     # oblique (about 12 deg)
+        (SQUARE + [-0.05, 0.1, 0.85], SQUARE + [0.15, 0.1, 0.0], -0.2),    # square off-centre, tilted view
+    ]
+
+
+@pytest.fixture(scope="module")
+def frames():
+    out = []
+    for i, (eye, target, yaw) in enumerate(_views()):
+        rng = np.random.default_rng(10 + i)
+        T = look_at(eye, target, K=np.eye(3), up_world=(1.0, 0.0, 0.0)).T_world_cam
+        setup = eye_in_hand(T, rng, square_center_world=SQUARE, square_size_m=0.1, square_yaw_rad=yaw)
+        cam = with_pose(setup.cameras["rgbd"], T)
+        bgr, depth, gb = render_rgbd(cam, setup.scene, 0.0, rng=rng)
+        out.append((cam, setup.meta["square_corners_world"], bgr, depth_m_from_raw(depth), gb))
+    return out
+
+
+def test_centroid_and_centre_match_the_projected_square(frames):
+    for cam, corners_world, bgr, depth_m, gb in frames:
+        f = extract_square(bgr, depth_m)
+        assert f.found, f.reason
+        corners_img = project_points(cam, corners_world)
+        # the region centroid is the area centroid of the projected quadrilateral (not the projected centre)
+        truth_centroid = polygon_centroid(order_corners(corners_img))
+        assert np.linalg.norm(f.centroid_uv - truth_centroid) < 0.3
+        # the diagonal intersection is the projection of the 3-D centre
+        truth_center = project_points(cam, corners_world.mean(axis=0, keepdims=True))[0]
+        assert np.linalg.norm(f.center_uv - truth_center) < 0.3
+        # ordered corners TL, TR, BR, BL (lines fitted to sub-pixel edge points)
+        assert np.max(np.linalg.norm(f.corners_uv - order_corners(corners_img), axis=1)) < 0.3
+
+
+def test_perspective_centroid_differs_from_the_projected_centre(frames):
+    # in the oblique views the two centre features differ measurably: the test above is not vacuous
+    cam, corners_world, *_ = frames[2]
+    corners_img = project_points(cam, corners_world)
+    d = polygon_centroid(order_corners(corners_img)) - diagonal_intersection(order_corners(corners_img))
+    assert np.linalg.norm(d) > 0.3
+
+
+def test_feature_depth_is_the_true_depth(frames):
+    for cam, corners_world, bgr, depth_m, gb in frames:
+        f = extract_square(bgr, depth_m)
+        u, v = np.rint(f.centroid_uv).astype(int)
+        z_true = gb.depth_m[v, u]
+        assert abs(f.depth_m[0] - z_true) < 0.004        # Kinect sigma at 0.75 m is about 2 mm per pixel
+        assert np.all(np.isfinite(f.depth_m))
+
+
+def test_depth_at_uses_valid_neighbours_and_fits_a_plane():
+    vv, uu = np.mgrid[0:40, 0:40]
+    plane = 0.8 + 0.001 * uu - 0.0005 * vv
+    d = plane.astype(np.float32)
+    d[18:23, 18:23] = np.nan                              # a hole at the feature
+    assert depth_at(d, (20.3, 19.7)) == pytest.approx(0.8 + 0.001 * 20.3 - 0.0005 * 19.7, abs=1e-5)
+    d[:] = np.nan
+    assert np.isnan(depth_at(d, (20.0, 20.0)))
+
+
+def test_lost_square_and_bad_input():
+    img = np.full((120, 160, 3), 215, np.uint8)
+    f = extract_square(img)
+    assert not f.found and f.reason
+    img[0:50, 0:60] = 15                                  # dark region cut by the image border
+    assert not extract_square(img).found
+    img = np.full((120, 160, 3), 215, np.uint8)
+    img[40:80, 60:100] = 15
+    f = extract_square(img, np.full((120, 160), np.nan))
+    assert f.found and not f.centroid_depth_ok
+    with pytest.raises(ValueError, match="depth_m"):
+        extract_square(img, np.zeros((10, 10)))
+    with pytest.raises(ValueError, match="bgr"):
+        extract_square(np.zeros((4, 4, 2), np.uint8))
