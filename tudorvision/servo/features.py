@@ -204,23 +204,32 @@ def depth_at(depth_m, uv, *, window_px: int = 6, min_samples: int = 12) -> float
     v0, v1 = max(iv - window_px, 0), min(iv + window_px + 1, h)
     if u0 >= u1 or v0 >= v1:
         return float("nan")
-    win = np.asarray(depth_m[v0:v1, u0:u1], dtype=np.float64)
-    ok = np.isfinite(win) & (win > 0)
-    n = int(ok.sum())
-    if n < min_samples:
+    win = depth_m[v0:v1, u0:u1]
+    with np.errstate(invalid="ignore"):
+        ok = win > 0                                   # NaN compares False
+    z = win[ok].astype(np.float64)
+    if z.size < min_samples:
         return float("nan")
-    vv, uu = np.nonzero(ok)
-    z = win[ok]
     med = float(np.median(z))
-    mad = float(np.median(np.abs(z - med))) * 1.4826
-    keep = np.abs(z - med) <= max(3.0 * mad, 1e-6)
-    if keep.sum() < min_samples:
+    dev = np.abs(z - med)
+    mad = float(np.median(dev)) * 1.4826
+    keep = dev <= max(3.0 * mad, 1e-6)
+    nk = int(np.count_nonzero(keep))
+    if nk < min_samples or (v1 - v0) < 3 or (u1 - u0) < 3:
         return med
-    A = np.stack([uu[keep] + u0 - u, vv[keep] + v0 - v, np.ones(int(keep.sum()))], axis=1)
-    # the plane needs spread in both directions, else fall back to the median
-    if np.ptp(A[:, 0]) < 2 or np.ptp(A[:, 1]) < 2:
-        return float(np.median(z[keep]))
-    coef, *_ = np.linalg.lstsq(A, z[keep], rcond=None)
+    vv, uu = np.nonzero(ok)
+    du = uu[keep] + (u0 - u)
+    dv = vv[keep] + (v0 - v)
+    zk = z[keep]
+    # least-squares plane z = a du + b dv + c through the normal equations (3 x 3)
+    A = np.array([[du @ du, du @ dv, du.sum()], [du @ dv, dv @ dv, dv.sum()], [du.sum(), dv.sum(), nk]], float)
+    rhs = np.array([du @ zk, dv @ zk, zk.sum()])
+    try:
+        coef = np.linalg.solve(A, rhs)
+    except np.linalg.LinAlgError:
+        return float(np.median(zk))
+    if not np.isfinite(coef[2]):
+        return float(np.median(zk))
     return float(coef[2])
 
 
@@ -266,25 +275,34 @@ def extract_square(bgr, depth_m=None, *, config: FeatureConfig = FeatureConfig()
     h, w = gray.shape
     if depth_m is not None and np.shape(depth_m) != (h, w):
         raise ValueError(f"depth_m: expected shape {(h, w)}, got {np.shape(depth_m)}")
-    thr, mask = cv2.threshold(gray, 0, 255, cv2.THRESH_BINARY_INV | cv2.THRESH_OTSU)
-    n, labels, stats, cents = cv2.connectedComponentsWithStats(mask, connectivity=8)
-    best, best_area = -1, 0
-    b = config.border_px
-    for i in range(1, n):
-        x, y, ww, hh, area = stats[i]
-        if area < config.min_area_px or area <= best_area:
-            continue
-        if x < b or y < b or x + ww > w - b or y + hh > h - b:
-            continue
-        best, best_area = i, area
-    if best < 0:
+    # detection at half resolution (4x fewer pixels), measurement at full resolution in a ROI
+    small = cv2.resize(gray, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
+    thr, mask = cv2.threshold(small, 0, 255, cv2.THRESH_BINARY_INV | cv2.THRESH_OTSU)
+    n, labels_s, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    st = stats[1:]
+    b = max(config.border_px // 2, 1)
+    ok = ((st[:, 4] * 4 >= config.min_area_px) & (st[:, 0] >= b) & (st[:, 1] >= b)
+          & (st[:, 0] + st[:, 2] <= w // 2 - b) & (st[:, 1] + st[:, 3] <= h // 2 - b))
+    if not ok.any():
         return SquareFeatures.lost("no dark region inside the image")
-    x, y, ww, hh, _ = stats[best]
-    pad = 3
-    x0, y0 = max(x - pad, 0), max(y - pad, 0)
-    x1, y1 = min(x + ww + pad, w), min(y + hh + pad, h)
-    roi = gray[y0:y1, x0:x1].astype(np.float64)
-    region = labels[y0:y1, x0:x1] == best
+    best_s = int(np.argmax(np.where(ok, st[:, 4], -1)))
+    xs, ys, ws, hs, _ = st[best_s]
+    pad = 4
+    x0, y0 = max(2 * xs - pad, 0), max(2 * ys - pad, 0)
+    x1, y1 = min(2 * (xs + ws) + pad, w), min(2 * (ys + hs) + pad, h)
+    roi8 = gray[y0:y1, x0:x1]
+    m_roi = (roi8 <= thr).astype(np.uint8)
+    nr, lab_r, st_r, _ = cv2.connectedComponentsWithStats(m_roi, connectivity=8)
+    if nr < 2:
+        return SquareFeatures.lost("no dark region inside the image")
+    best = 1 + int(np.argmax(st_r[1:, 4]))
+    labels = lab_r
+    if (x0 + st_r[best, 0] < config.border_px or y0 + st_r[best, 1] < config.border_px
+            or x0 + st_r[best, 0] + st_r[best, 2] > w - config.border_px
+            or y0 + st_r[best, 1] + st_r[best, 3] > h - config.border_px):
+        return SquareFeatures.lost("no dark region inside the image")
+    roi = roi8.astype(np.float64)
+    region = labels == best
     dark = float(np.median(roi[region]))
     ring = cv2.dilate(region.astype(np.uint8), np.ones((5, 5), np.uint8), iterations=2).astype(bool) & ~cv2.dilate(
         region.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
@@ -316,10 +334,10 @@ def extract_square(bgr, depth_m=None, *, config: FeatureConfig = FeatureConfig()
     fit = _mean_distance_to_polygon(pts, quad.astype(np.float64))
     if fit > config.max_corner_fit_px:
         return SquareFeatures.lost(f"dark region deviates {fit:.1f} px from a quadrilateral")
-    refined = _refine_corners(gray, quad.astype(np.float64) + [x0, y0], 0.5 * (light + dark))
+    refined = _refine_corners(roi, quad.astype(np.float64), 0.5 * (light + dark))
     if refined is None:
         return SquareFeatures.lost("square edges not measurable")
-    corners = order_corners(refined)
+    corners = order_corners(refined + [x0, y0])
     center = diagonal_intersection(corners)
     if depth_m is None:
         depth = np.full(5, np.nan)
@@ -348,7 +366,7 @@ def _refine_corners(gray: np.ndarray, quad: np.ndarray, level: float, *, search_
     interpolated grey level crosses ``level`` (midway between ground and
     square); the 15 % of each side nearest to the corners are left out.
     """
-    img = gray.astype(np.float64)
+    img = gray
     c = quad.mean(axis=0)
     lines = []
     for i in range(4):
@@ -361,23 +379,23 @@ def _refine_corners(gray: np.ndarray, quad: np.ndarray, level: float, *, search_
         n = np.array([-t_dir[1], t_dir[0]])
         if n @ (0.5 * (a + b) - c) < 0:
             n = -n                                          # outward normal
-        ts = np.linspace(0.15, 0.85, max(int(length * 0.7), 4))
-        offs = np.linspace(-search_px, search_px, int(8 * search_px) + 1)
+        ts = np.linspace(0.15, 0.85, max(int(length * 0.35), 4))
+        offs = np.linspace(-search_px, search_px, int(4 * search_px) + 1)
         base = a[None, :] + ts[:, None] * d[None, :]                          # (S, 2)
         pts = base[:, None, :] + offs[None, :, None] * n[None, None, :]       # (S, O, 2)
         prof = _bilinear(img, pts[..., 0], pts[..., 1]) - level                # dark inside: rises outward
-        edge = []
-        for k in range(len(ts)):
-            p = prof[k]
-            j = np.nonzero((p[:-1] < 0) & (p[1:] >= 0))[0]
-            if len(j) != 1:
-                continue
-            j = int(j[0])
-            frac = -p[j] / (p[j + 1] - p[j])
-            edge.append(base[k] + (offs[j] + frac * (offs[j + 1] - offs[j])) * n)
+        up = (prof[:, :-1] < 0) & (prof[:, 1:] >= 0)
+        one = up.sum(axis=1) == 1
+        j = np.argmax(up, axis=1)
+        rows = np.nonzero(one)[0]
+        j = j[rows]
+        p0, p1 = prof[rows, j], prof[rows, j + 1]
+        frac = -p0 / (p1 - p0)
+        off = offs[j] + frac * (offs[1] - offs[0])
+        edge = base[rows] + off[:, None] * n[None, :]
         if len(edge) < 4:
             return None
-        e = np.asarray(edge)
+        e = edge
         m = e.mean(axis=0)
         _, _, vt = np.linalg.svd(e - m)
         normal = vt[1]
