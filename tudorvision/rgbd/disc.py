@@ -71,13 +71,15 @@ class DiscOptions:
         ``(0, 1)``: the whole window. ``(0.7, 1.0)`` leaves out an occluded
         centre at the price of fewer pixels and a bias of its own: the inner
         boundary cuts through valid disc pixels (see the module notes).
-    depth_window : {"disc", "ellipse"}
+    depth_window : {"disc", "ellipse", "segment"}
         ``"disc"`` (default; needs ``disc_radius_m``, else ``"ellipse"`` is
         used): the disc's image circle of radius ``f R / z_ref -
         rim_margin_px`` around the region centroid, cut by 1.5 times the
         region's moment ellipse. ``"ellipse"``: the region's moment ellipse
         (the earlier estimator; biased away from the camera under strong
-        depth noise, see the module notes).
+        depth noise, see the module notes). ``"segment"``: the grown region
+        itself, the seed's plain centroid (``depth_annulus`` ignored; for
+        comparison).
     rim_margin_px : float
         Pixels taken off the disc's image radius (``"disc"`` window); keep it
         below one pixel so that the window's edge stays on the disc rim.
@@ -109,8 +111,8 @@ class DiscOptions:
             raise ValueError(f"connectivity: expected 4 or 8, got {self.connectivity}")
         if not 0 < self.min_tol_m <= self.max_tol_m:
             raise ValueError("min_tol_m, max_tol_m: expected 0 < min_tol_m <= max_tol_m")
-        if self.depth_window not in ("disc", "ellipse"):
-            raise ValueError(f"depth_window: expected 'disc' or 'ellipse', got {self.depth_window!r}")
+        if self.depth_window not in ("disc", "ellipse", "segment"):
+            raise ValueError(f"depth_window: expected 'disc', 'ellipse' or 'segment', got {self.depth_window!r}")
         if not 0 <= self.depth_annulus[0] < self.depth_annulus[1]:
             raise ValueError(f"depth_annulus: expected 0 <= lo < hi, got {self.depth_annulus}")
         if not 0 < self.min_pixels <= self.max_pixels:
@@ -308,6 +310,8 @@ def observe_disc(depth_m, intrinsics: Intrinsics, seed_uv, options: DiscOptions 
         rho = np.maximum(rho, np.hypot(du, dv) / r_disc)
     win = d[v0:v1, u0:u1]
     z = win[(rho >= lo) & (rho <= hi)]
+    if options.depth_window == "segment":
+        z = d[mask]
     if np.isfinite(z).sum() < 10:                      # tiny region: use all of it
         z = win[rho <= hi]
     z = z[np.isfinite(z)]
