@@ -62,6 +62,16 @@ def _grid(spec):
     return np.deg2rad(np.arange(a, b + 1e-9, s))
 
 
+def _settle_at(arm, theta) -> None:
+    """Put the simulated arm at rest in static equilibrium at ``theta`` (as its constructor does)."""
+    arm.theta = [float(x) for x in theta]
+    arm.dtheta = [0.0, 0.0, 0.0]
+    for lst in (arm.deta2, arm.deta3):
+        lst[:] = [0.0] * len(lst)
+    arm._settle()
+    arm._outputs()
+
+
 def collect_settled_poses(options: CollectionOptions = CollectionOptions(), params=None) -> dict:
     """Settle the simulated arm on the joint grid for every payload and measure it.
 
@@ -87,10 +97,12 @@ def collect_settled_poses(options: CollectionOptions = CollectionOptions(), para
     mount = float(p.end_effector_mount_mass_kg)
     rows = []
     for m in options.payloads_kg:
-        payload = Payload(mass_kg=mount + float(m))
+        # one plant per payload (building the modal model is the expensive part); each pose is then
+        # the static equilibrium at that configuration (what ElasticArm(theta) starts in)
+        arm = ElasticArm([0.0, 0.0, 0.0], payload=Payload(mass_kg=mount + float(m)), params=p)
         for t2 in _grid(options.theta2_deg):
             for t3 in _grid(options.theta3_deg):
-                arm = ElasticArm([0.0, t2, t3], payload=payload, params=p)
+                _settle_at(arm, [0.0, t2, t3])
                 rows.append((0.0, t2, t3, *arm.strain, float(m), *arm.ee_position()))
     a = np.array(rows, float)
     n = len(a)
