@@ -203,3 +203,50 @@ def test_lost_disc_and_bad_sweeps():
     centre = transform_points(invert_transform(T), [0.0, 0.0, PARAMS.link1_height_m])
     with pytest.raises(TudorVisionError, match="from the circle centre"):
         base_frame_from_sweep(full, centre)
+
+
+def test_disc_depth_window_has_no_selection_bias_at_5m():
+    """The disc depth is unbiased against the mean raw depth of the true disc pixels.
+
+    At 5 m (35 cm per pixel) whether a rim pixel joins the grown region depends
+    on its own noise; a depth window bounded by the region's moment ellipse read
+    about +0.4 cm too far (paired with the same frames, so the comparison is
+    precise to about 0.05 cm). The disc's whole image circle does not.
+    """
+    rng = np.random.default_rng(24)
+    T = camera_pose(rng, 5.0)
+    p = sweep([rng.uniform(0, 180)])[0]
+    c = transform_points(invert_transform(T), p)
+    uv = project(T, p)
+    truth = render_depth(rng, T, [p], noise=False)
+    on = np.abs(truth - c[2]) < 0.3
+    err = {"disc": [], "ellipse": []}
+    oracle = []
+    for _ in range(100):
+        d = render_depth(rng, T, [p])
+        oracle.append(np.mean(d[on] - truth[on]))
+        for w in err:
+            o = observe_disc(d, K, uv, DiscOptions(disc_radius_m=DISC_RADIUS, depth_window=w))
+            err[w].append(o.centroid_cam[2] - c[2])
+    bias = {w: float(np.mean(np.array(e) - oracle)) for w, e in err.items()}
+    assert abs(bias["disc"]) < 0.0012
+    assert bias["ellipse"] > 0.002          # the earlier window: the test can tell the two apart
+    with pytest.raises(ValueError, match="depth_window"):
+        DiscOptions(depth_window="box")
+
+
+def test_virtual_lab_disc_scene_has_no_tracking_spheres():
+    """The net holds the disc: no tracking sphere stands in front of it (one did, 3 cm too near at 5 m)."""
+    import importlib
+
+    from tudorvision.sim.scenes import wall_disc
+
+    record = importlib.import_module("tudorvision.sim.record")
+    th = np.radians([0.0, 40.0, 0.0])
+    state = record.static_arm_state(th, record.Payload.from_parts(PARAMS), PARAMS)
+    geom = record.elastic_arm_geometry(th, *state, PARAMS)
+    names = set(wall_disc([0.8, 0.0, 0.9], np.random.default_rng(0), arm=geom).scene.object_ids(0.0))
+    assert "disc" in names and "link3_0" in names
+    assert not names & {"red_sphere", "green_sphere", "ee_bar"}
+    drawn = set(wall_disc([0.8, 0.0, 0.9], np.random.default_rng(0), arm=geom, draw_spheres=True).scene.object_ids(0.0))
+    assert {"red_sphere", "green_sphere"} <= drawn
