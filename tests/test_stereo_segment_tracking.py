@@ -50,15 +50,22 @@ def test_tracking_equals_full_frame(models):
     paths = {"red": np.c_[150 + 6.0 * t + 0.1 * t ** 2, 240 + 80 * np.sin(t / 5.0)],
              "green": np.c_[480 - 5.0 * t, 120 + 3.5 * t + 6 * np.cos(t / 3.0)]}
     frames = render_sequence(rng, paths)
-    trk = FrameTracker(models)
+    # moment_speed=inf: the same centroid method as the full frame at every speed
+    trk = FrameTracker(models, params=TrackerParams(moment_speed=float("inf")))
+    blur_aware = FrameTracker(models)  # default: rim moment for fast, smoothly moving spheres
+    n_rim = 0
     for k, frame in enumerate(frames):
         got = trk.update(frame)
+        other = blur_aware.update(frame)
         full = detect_spheres(frame, models)
         for name in models:
             assert got[name].valid and full[name].valid, (k, name, got[name].reason)
             np.testing.assert_allclose(got[name].uv, full[name].uv, atol=1e-9)
             assert got[name].area_px == full[name].area_px
             assert np.hypot(*(np.subtract(got[name].uv, paths[name][k]))) < 0.5
+            assert other[name].valid and np.hypot(*(np.subtract(other[name].uv, paths[name][k]))) < 0.5
+            n_rim += other[name].method == "rim_moment"
+    assert n_rim > 0  # the fast red sphere switches to the rim moment
     for t_ in trk.trackers.values():
         # the first frame, and at most once more right after it (velocity still unknown)
         assert t_.n_full <= 2 and t_.n_window >= len(frames) - 2

@@ -117,12 +117,16 @@ class SegmentParams:
     reject_border : bool
         Reject regions touching the image border (the sphere is partly out of
         view and its centroid biased).
-    centroid : {"shape", "moment"}
+    centroid : {"shape", "moment", "rim_moment"}
         How the image position is measured (module docstring, step 4):
         ``"moment"``, the region's first moment; ``"shape"`` (default), the
-        first moment corrected by a robust circle fit to the region's rim
-        when part of the rim is missing (partial occlusion, a rejected
-        highlight or shadow). Under motion blur the moment is always used.
+        centre of a circle fitted robustly to the region's rim, robust to
+        partial occlusion and to parts the colour model misses (falls back to
+        the moment when the circle does not explain the rim; under motion
+        blur the moment is always used); ``"rim_moment"``, the binary first
+        moment of the region grown to ``rim_prob`` within 2 px (the tracker
+        uses it for fast, smoothly moving spheres, see
+        :class:`~tudorvision.stereo.tracker2d.TrackerParams`).
     rim_prob : float
         Probability level of the rim the circle is fitted to (the region
         grows to it within 2 px).
@@ -189,7 +193,7 @@ class SegmentParams:
             raise TudorVisionError(f"coarse_step: must be a positive integer, got {self.coarse_step}")
         if int(self.max_candidates) != self.max_candidates or self.max_candidates < 1:
             raise TudorVisionError(f"max_candidates: must be a positive integer, got {self.max_candidates}")
-        if self.centroid not in ("shape", "moment"):
+        if self.centroid not in ("shape", "moment", "rim_moment"):
             raise TudorVisionError(f"centroid: must be 'shape' or 'moment', got {self.centroid!r}")
         if not (0.0 < self.rim_prob <= self.p_grow):
             raise TudorVisionError(f"rim_prob: need 0 < rim_prob <= p_grow, got {self.rim_prob}")
@@ -410,14 +414,28 @@ def _triples(n: int) -> np.ndarray:
 
 
 def _circle_lsq(pts: np.ndarray):
-    """Algebraic (Kasa) least-squares circle ``(cu, cv, r)`` through ``pts`` (n x 2, n >= 3)."""
-    m = pts.mean(axis=0)
-    q = pts - m
-    a = np.c_[q, np.ones(len(q))]
-    sol = np.linalg.lstsq(a, (q * q).sum(axis=1), rcond=None)[0]
-    cu, cv_ = sol[0] / 2.0, sol[1] / 2.0
-    r2 = sol[2] + cu * cu + cv_ * cv_
-    return float(cu + m[0]), float(cv_ + m[1]), math.sqrt(r2) if r2 > 0 else float("nan")
+    """Algebraic (Kasa) least-squares circle ``(cu, cv, r)`` through ``pts`` (n x 2, n >= 3).
+
+    Closed form from the centred second and third moments (no general solver:
+    this runs per detection).
+
+    Examples
+    --------
+    >>> t = np.linspace(0, np.pi, 7)
+    >>> [round(x, 6) for x in _circle_lsq(np.c_[3 + 2 * np.cos(t), -1 + 2 * np.sin(t)])]
+    [3.0, -1.0, 2.0]
+    """
+    u, v = pts[:, 0], pts[:, 1]
+    mu, mv = float(u.mean()), float(v.mean())
+    a, b = u - mu, v - mv
+    suu, svv, suv = float(a @ a), float(b @ b), float(a @ b)
+    rr = a * a + b * b
+    r1, r2 = 0.5 * float(rr @ a), 0.5 * float(rr @ b)
+    det = suu * svv - suv * suv
+    if not det > 1e-12:
+        return mu, mv, float("nan")
+    uc, vc = (r1 * svv - r2 * suv) / det, (r2 * suu - r1 * suv) / det
+    return uc + mu, vc + mv, math.sqrt(uc * uc + vc * vc + (suu + svv) / len(u))
 
 
 def _fit_rim_circle(pts: np.ndarray, tol: float):
@@ -428,36 +446,36 @@ def _fit_rim_circle(pts: np.ndarray, tol: float):
     outside (an occluder or a rejected highlight only removes parts of the
     silhouette, so rim points may lie inside the true circle, hardly
     outside); the best is refined by least squares on its inliers (twice).
+    When the least-squares circle through all points explains every one of
+    them, it is taken directly.
     """
+    cu, cv_, r = _circle_lsq(pts)                   # fast path: a fully visible rim
+    if math.isfinite(r):
+        inl = np.abs(np.hypot(pts[:, 0] - cu, pts[:, 1] - cv_) - r) < tol
+        if inl.all():
+            return cu, cv_, r, inl
     tri = _triples(len(pts))
     if len(tri) == 0:
         return None
-    p1, p2, p3 = pts[tri[:, 0]], pts[tri[:, 1]], pts[tri[:, 2]]
-    a, b = p2 - p1, p3 - p1
+    q = pts[tri]                                     # (k, 3, 2)
+    a, b = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
     det = 2.0 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
-    ok = np.abs(det) > 1e-9
-    if not ok.any():
-        return None
-    a, b, p1, det = a[ok], b[ok], p1[ok], det[ok]
+    det[np.abs(det) < 1e-9] = np.nan                 # collinear: no circle
     na, nb = (a * a).sum(axis=1), (b * b).sum(axis=1)
-    cu = (b[:, 1] * na - a[:, 1] * nb) / det
-    cv_ = (a[:, 0] * nb - b[:, 0] * na) / det
-    rad = np.hypot(cu, cv_)
-    cu += p1[:, 0]
-    cv_ += p1[:, 1]
-    res = np.hypot(pts[None, :, 0] - cu[:, None], pts[None, :, 1] - cv_[:, None]) - rad[:, None]
+    du = (b[:, 1] * na - a[:, 1] * nb) / det
+    dv = (a[:, 0] * nb - b[:, 0] * na) / det
+    res = np.hypot(pts[:, 0] - (du + q[:, 0, 0])[:, None], pts[:, 1] - (dv + q[:, 0, 1])[:, None])
+    res -= np.hypot(du, dv)[:, None]
     score = (np.abs(res) < tol).sum(axis=1) - 2 * (res > 2.0 * tol).sum(axis=1)
-    k = int(np.argmax(score))
-    inl = np.abs(res[k]) < tol
-    fit = None
+    inl = np.abs(res[int(np.argmax(score))]) < tol
     for _ in range(2):
-        if inl.sum() < 5:
+        if int(inl.sum()) < 5:
             return None
-        fit = _circle_lsq(pts[inl])
-        if not math.isfinite(fit[2]):
+        cu, cv_, r = _circle_lsq(pts[inl])
+        if not math.isfinite(r):
             return None
-        inl = np.abs(np.hypot(pts[:, 0] - fit[0], pts[:, 1] - fit[1]) - fit[2]) < tol
-    return fit[0], fit[1], fit[2], inl
+        inl = np.abs(np.hypot(pts[:, 0] - cu, pts[:, 1] - cv_) - r) < tol
+    return cu, cv_, r, inl
 
 
 
@@ -510,15 +528,6 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
         cu = mu / mass + (x + x0)
         cv_ = mv / mass + (y + y0)
         uv_moment = (cu, cv_)
-        rim_frac = rim_rms = float("nan")
-        method = "moment"
-        if params.centroid == "shape" and not blur and area >= 20:
-            ref = _refine_shape(filled, math.sqrt(area / math.pi), params, (x, y), log_odds,
-                                (mu / mass, mv / mass))
-            if ref is not None:
-                ru, rv, rim_frac, rim_rms, used = ref
-                if used:
-                    cu, cv_, method = ru + x0, rv + y0, "shape"
         # shape from the binary central second moments; +1/12: pixels are unit squares
         du, dv = us - us.mean(), vs - vs.mean()
         suu = float(du @ du) / area + 1.0 / 12.0
@@ -548,6 +557,20 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
             reason = f"fill {fill:.2f} outside [{params.min_fill:g}, {params.max_fill:g}] (not a compact blob)"
         elif params.reject_border and at_image:
             reason = "region touches the image border (sphere partly out of view)"
+        rim_frac = rim_rms = float("nan")
+        method = "moment"
+        if params.centroid == "rim_moment" and not reason:
+            rm = _rim_mask(filled, params, (x, y), log_odds)
+            (ru, rv), (sx, sy) = rm[1], rm[2]
+            cu, cv_, method = ru + sx + x0, rv + sy + y0, "rim_moment"
+        if params.centroid == "shape" and not blur and not reason and area >= 20:
+            # only for valid regions: the fit costs about as much as the rest of the segmentation
+            ref = _refine_shape(filled, math.sqrt(area / math.pi), params, (x, y), log_odds,
+                                (mu / mass, mv / mass))
+            if ref is not None:
+                ru, rv, rim_frac, rim_rms, used = ref
+                if used:
+                    cu, cv_, method = ru + x0, rv + y0, "shape"
         out.append(SphereDetection(uv=(cu, cv_), area_px=float(area), mean_prob=mean_prob, circularity=circ,
                                    valid=not reason, reason=reason, fill=fill,
                                    bbox=(x + x0, y + y0, w, h), touches_window=at_window,
@@ -555,6 +578,28 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
                                    method=method))
     out.sort(key=lambda d: (d.valid, d.area_px * d.mean_prob), reverse=True)
     return out
+
+
+def _rim_mask(filled, params, box_xy, log_odds, moment=True):
+    """The silhouette grown by the pixels within 2 px of it at probability >= ``rim_prob``.
+
+    Returns ``(mask uint8, (u, v) moment in mask coordinates or None, (x0, y0) of the mask in the window)``.
+    """
+    bx, by = box_xy
+    mg = 2
+    hh, ww = log_odds.shape
+    sx0, sy0 = max(bx - mg, 0), max(by - mg, 0)
+    sx1, sy1 = min(bx + filled.shape[1] + mg, ww), min(by + filled.shape[0] + mg, hh)
+    reg = np.zeros((sy1 - sy0, sx1 - sx0), np.uint8)
+    reg[by - sy0:by - sy0 + filled.shape[0], bx - sx0:bx - sx0 + filled.shape[1]] = filled
+    near = cv2.dilate(reg, _erode_kernel(mg))
+    low = log_odds[sy0:sy1, sx0:sx1] >= np.float32(_logit(params.rim_prob))
+    mask = _fill_holes((reg > 0) | ((near > 0) & low)).view(np.uint8)
+    uv = None
+    if moment:
+        m = cv2.moments(mask, True)
+        uv = (m["m10"] / m["m00"], m["m01"] / m["m00"])
+    return mask, uv, (sx0, sy0)
 
 
 def _refine_shape(filled: np.ndarray, r_area: float, params: SegmentParams, box_xy: tuple,
@@ -571,15 +616,7 @@ def _refine_shape(filled: np.ndarray, r_area: float, params: SegmentParams, box_
     does not fit the area, or None when no circle could be fitted.
     """
     bx, by = box_xy
-    mg = 2
-    hh, ww = log_odds.shape
-    sx0, sy0 = max(bx - mg, 0), max(by - mg, 0)
-    sx1, sy1 = min(bx + filled.shape[1] + mg, ww), min(by + filled.shape[0] + mg, hh)
-    reg = np.zeros((sy1 - sy0, sx1 - sx0), np.uint8)
-    reg[by - sy0:by - sy0 + filled.shape[0], bx - sx0:bx - sx0 + filled.shape[1]] = filled
-    near = cv2.dilate(reg, _erode_kernel(mg))
-    low = log_odds[sy0:sy1, sx0:sx1] >= np.float32(_logit(params.rim_prob))
-    rim_mask = _fill_holes((reg > 0) | ((near > 0) & low)).view(np.uint8)
+    rim_mask, _, (sx0, sy0) = _rim_mask(filled, params, box_xy, log_odds, moment=False)
     sx0, sy0 = sx0 - bx, sy0 - by
     cs, _ = cv2.findContours(rim_mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     if not cs:

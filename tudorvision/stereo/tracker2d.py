@@ -36,7 +36,7 @@ colour conversion of frames that need a full search.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Mapping
 
 import numpy as np
@@ -67,6 +67,15 @@ class TrackerParams:
         Blur is expected above ``blur_speed`` radii per frame of image speed.
     max_half_window_px : int
         Beyond this half size the tracker searches the full frame instead.
+    moment_speed : float
+        Blur-aware centroid: while the sphere moves smoothly (recent
+        prediction error at most ``1 + speed / 4`` px) faster than this
+        many radii per frame, the window is segmented with
+        ``centroid="rim_moment"`` (a blur streak's first moment is the mean
+        position over the exposure; the rim circle fit of
+        ``centroid="shape"`` would take one end of the streak).
+        ``inf``: always ``segment.centroid``; with ``segment.centroid=
+        "moment"`` the moment is used throughout.
     """
 
     segment: SegmentParams = field(default_factory=SegmentParams)
@@ -75,10 +84,13 @@ class TrackerParams:
     uncertainty_gain: float = 3.0
     blur_speed: float = 1.0
     max_half_window_px: int = 160
+    moment_speed: float = 1.5
 
     def __post_init__(self):
         if not isinstance(self.segment, SegmentParams):
             raise TudorVisionError(f"segment: expected SegmentParams, got {type(self.segment).__name__}")
+        if not (self.moment_speed >= 0):
+            raise TudorVisionError(f"moment_speed: must be non-negative, got {self.moment_speed}")
         for name in ("window_scale", "uncertainty_gain", "blur_speed"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v >= 0):
@@ -127,6 +139,8 @@ class SphereTracker:
         self.params = TrackerParams() if params is None else params
         if not isinstance(self.params, TrackerParams):
             raise TudorVisionError(f"params: expected TrackerParams, got {type(self.params).__name__}")
+        seg = self.params.segment
+        self._seg_moving = seg if seg.centroid == "moment" else replace(seg, centroid="rim_moment")
         self.reset()
 
     def reset(self) -> None:
@@ -210,8 +224,11 @@ class SphereTracker:
                     # strict tables first (exactly the full-frame result when the sphere is sharp);
                     # the blur-tolerant ones only when that fails while the sphere moves fast
                     passes = [p.segment.motion_blur] + ([True] if self._fast and not p.segment.motion_blur else [])
+                    moving = (has_velocity and speed > p.moment_speed * self._radius
+                              and self._err <= 1.0 + 0.25 * speed)
+                    seg = self._seg_moving if moving else p.segment
                     for blur in passes:
-                        det = self._nearest(_detect_window(frame, self.model, p.segment, roi, blur), uv)
+                        det = self._nearest(_detect_window(frame, self.model, seg, roi, blur), uv)
                         if det is not None:
                             break
         if det is not None:
