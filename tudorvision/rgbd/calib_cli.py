@@ -218,7 +218,7 @@ def _cmd_base(args) -> int:
     K = Intrinsics.from_matrix(cam.K, cam.width, cam.height)
     annulus = tuple(_parse_floats(args.depth_annulus, "--depth-annulus", 2))
     opts = DiscOptions(disc_radius_m=args.disc_radius, depth_model=noise_model_from_calibration(cal0),
-                       depth_annulus=annulus)
+                       depth_annulus=annulus, depth_window=args.depth_window)
     obs = observe_sweep(seq, K, seed, opts, vertical_frame=args.vertical_frame, joint_tol_deg=args.joint_tol_deg)
     circle_idx, vidx, lost = obs["frames"], obs["vertical_frames"], obs["lost"]
     T_base_cam, rep = base_frame_from_sweep(obs["points_cam"], obs["vertical_cam"], theta2_rad=obs["theta2_rad"],
@@ -276,9 +276,13 @@ def register(calib_sub) -> None:
                    help="'base': base plate (matches tudorvision.robot); 'joint2': the circle centre (default base)")
     b.add_argument("--vertical", choices=("combined", "seed", "plane"), default="combined",
                    help="estimate of the vertical point (default combined; see base_frame_from_sweep)")
+    b.add_argument("--depth-window", choices=("disc", "ellipse", "segment"), default="disc",
+                   help="pixels whose raw depths give the disc depth: 'disc' (default) the disc's whole image "
+                        "circle of radius f R / z; 'ellipse' the grown region's moment ellipse; 'segment' the "
+                        "region itself (both biased away from the camera under strong depth noise)")
     b.add_argument("--depth-annulus", default="0,1",
-                   help="LO,HI: the disc depth averages the pixels between these fractions of the segment's "
-                        "ellipse (default 0,1: the whole segment; 0.7,1 skips an occluded centre)")
+                   help="LO,HI: the disc depth averages the pixels between these fractions of the depth window "
+                        "(default 0,1: all of it; 0.7,1 skips an occluded centre)")
     b.add_argument("--joint-tol-deg", type=float, default=0.5, help="joint tolerance for sweep/vertical frames")
     b.add_argument("--out", help="calibration file to write or update (transforms: T_base_cam)")
     b.add_argument("--report", help="JSON report")
