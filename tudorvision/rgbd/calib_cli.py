@@ -236,7 +236,8 @@ def _cmd_base(args) -> int:
           f"{len(vidx)} vertical frames")
     print("T_base_cam =\n" + np.array2string(T_base_cam, precision=4, suppress_small=True))
     if args.out:
-        print(f"wrote {_save(args.out, cal0, cam, transforms={'T_base_cam': T_base_cam}, circle_rmse_m=rep['circle_rmse_m'])}")
+        written = _save(args.out, cal0, cam, transforms={"T_base_cam": T_base_cam}, circle_rmse_m=rep["circle_rmse_m"])
+        print(f"wrote {written}")
     if args.report:
         Path(args.report).write_text(json.dumps(rep, indent=2))
         print(f"wrote {args.report}")
