@@ -1,0 +1,145 @@
+"""Shape-model centroid (``SegmentParams(centroid="shape")``): partial occlusion, missed bright caps.
+
+Synthetic supersampled spheres (see ``test_stereo_segment_scenes.py``) whose
+true image position is the disc centre, partly hidden by a dark bar or with
+a saturated, near-white cap the colour model rejects. The region's first
+moment measures the visible part; the circle fitted to the rim recovers the
+whole silhouette's centre.
+"""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from test_stereo_segment_scenes import RED_BGR, SS, sphere_patch
+from tudorvision._checks import TudorVisionError
+from tudorvision.stereo.colormodel import fit_color_model
+from tudorvision.stereo.segment import SegmentParams, _circle_lsq, _fit_rim_circle, detect_sphere
+
+CENTER = (60.37, 58.71)
+RADIUS = 9.0
+MOMENT = SegmentParams(centroid="moment")
+
+
+def _background(seed=0, h=120, w=120):
+    v, u = np.mgrid[0:h, 0:w].astype(np.float32)
+    base = 95 + 30 * u / w + 20 * v / h
+    return np.repeat(base[..., None], 3, axis=2) * np.float32([1.0, 0.97, 0.93])
+
+
+def _finish(img, seed=0):
+    img = img + np.random.default_rng(seed).normal(0, 2.0, img.shape).astype(np.float32)
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+def _supersampled_mask(h, w, inside):
+    """Pixel coverage (h x w float32) of the region ``inside(X, Y)`` on an SS x SS grid per pixel."""
+    xs = -0.5 + (np.arange(w * SS) + 0.5) / SS
+    ys = -0.5 + (np.arange(h * SS) + 0.5) / SS
+    X, Y = np.meshgrid(xs, ys)
+    return cv2.resize(inside(X, Y).astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
+
+
+@pytest.fixture(scope="module")
+def model():
+    img = _background()
+    sphere_patch(CENTER, RADIUS, RED_BGR, img)
+    return fit_color_model(_finish(img), (60, 59), (67, 59))
+
+
+def _with_bar(offset=5.0, width=3.0, angle_deg=12.0):
+    """The sphere with a dark bar (a chord ``offset`` px below the centre) in front of it."""
+    img = _background()
+    sphere_patch(CENTER, RADIUS, RED_BGR, img)
+    a = np.deg2rad(angle_deg)
+    nx, ny = -np.sin(a), np.cos(a)  # bar normal (pointing down)
+
+    def bar(X, Y):
+        d = (X - CENTER[0]) * nx + (Y - CENTER[1]) * ny - offset
+        return np.abs(d) <= width / 2
+
+    cover = _supersampled_mask(*img.shape[:2], bar)[..., None]
+    img[:] = cover * np.float32((55, 55, 60)) + (1 - cover) * img
+    return _finish(img, 1)
+
+
+def _with_white_cap(cap_radius=4.5, dist=7.5):
+    """The sphere with a near-white, saturated cap at its top rim (a disc intersecting the sphere)."""
+    img = _background()
+    sphere_patch(CENTER, RADIUS, RED_BGR, img)
+    cu, cv_ = CENTER
+
+    def cap(X, Y):
+        return (((X - cu) ** 2 + (Y - cv_ + dist) ** 2 <= cap_radius ** 2)
+                & ((X - cu) ** 2 + (Y - cv_) ** 2 <= RADIUS ** 2))
+
+    cover = _supersampled_mask(*img.shape[:2], cap)[..., None]
+    img[:] = cover * np.float32((245, 245, 255)) + (1 - cover) * img
+    return _finish(img, 2)
+
+
+def _err(uv):
+    return float(np.hypot(uv[0] - CENTER[0], uv[1] - CENTER[1]))
+
+
+def test_unoccluded_sphere_shape_and_moment_agree(model):
+    img = _background()
+    sphere_patch(CENTER, RADIUS, RED_BGR, img)
+    img = _finish(img, 3)
+    det = detect_sphere(img, model)
+    assert det.valid and det.method == "shape"
+    assert _err(det.uv) < 0.15 and _err(det.uv_moment) < 0.2
+    assert det.rim_fraction > 0.9 and det.rim_rms_px < 0.5
+
+
+@pytest.mark.parametrize("angle", [0.0, 12.0, -25.0])
+def test_bar_occlusion_recovers_the_full_silhouette_centre(model, angle):
+    img = _with_bar(angle_deg=angle)
+    plain = detect_sphere(img, model, params=MOMENT)
+    det = detect_sphere(img, model)
+    assert plain.valid and det.valid
+    assert plain.method == "moment" and det.method == "shape"
+    assert _err(plain.uv) > 0.5, plain.uv          # the moment measures the visible part only
+    assert _err(det.uv) < 0.2, (det.uv, det.rim_fraction)
+    assert det.uv_moment == pytest.approx(plain.uv)
+    assert 0.5 <= det.rim_fraction < 0.95           # the rim along the bar is not used
+
+
+def test_saturated_bright_cap_is_completed(model):
+    img = _with_white_cap()
+    plain = detect_sphere(img, model, params=MOMENT)
+    det = detect_sphere(img, model)
+    assert plain.valid and det.valid and det.method == "shape"
+    assert plain.uv[1] - CENTER[1] > 0.3               # the moment sinks below the missing top
+    assert _err(det.uv) < 0.2, det.uv
+
+
+def test_blur_streak_keeps_the_moment(model):
+    img = _background()
+    sphere_patch(CENTER, RADIUS, RED_BGR, img, blur_uv=(14.0, 3.0), n_time=24)
+    det = detect_sphere(_finish(img, 4), model, motion_blur=True)
+    assert det.valid and det.method == "moment"
+    assert _err(det.uv) < 0.3
+
+
+def test_circle_fits():
+    t = np.linspace(0, 2 * np.pi, 40, endpoint=False)
+    pts = np.c_[10 + 6 * np.cos(t), 20 + 6 * np.sin(t)]
+    assert _circle_lsq(pts) == pytest.approx((10, 20, 6))
+    # a third of the rim pulled 2 px inwards (an occluder): the robust fit ignores it
+    bad = pts.copy()
+    bad[:13] = np.c_[10 + 4 * np.cos(t[:13]), 20 + 4 * np.sin(t[:13])]
+    cu, cv_, r, inl = _fit_rim_circle(bad, 0.5)
+    assert (cu, cv_, r) == pytest.approx((10, 20, 6), abs=1e-9)
+    assert not inl[:13].any() and inl[13:].all()
+    assert np.hypot(*(np.subtract(_circle_lsq(bad)[:2], (10, 20)))) > 0.5  # plain least squares is pulled
+
+
+def test_params_checked():
+    with pytest.raises(TudorVisionError, match="centroid"):
+        SegmentParams(centroid="ellipse")
+    with pytest.raises(TudorVisionError, match="rim_prob"):
+        SegmentParams(rim_prob=0.999)
+    with pytest.raises(TudorVisionError, match="rim_tol_px"):
+        SegmentParams(rim_tol_px=0.0)
