@@ -25,6 +25,26 @@ The pipeline of section 2.4, per camera and sphere:
    the part of the streak that passes the thresholds; the streak is
    symmetric about the mid-exposure position, so its first moment is the
    mean position over the exposure.
+4b. **Shape refinement** (``centroid="shape"``, default). The moment measures
+   only what passes the thresholds: a bar or link in front of the sphere, a
+   dark shaded rim below ``p_grow`` or a bright, desaturated cap the colour
+   model rejects move it toward the visible part (0.5-1.5 px on the virtual
+   lab). The region is grown by the pixels within 2 px of it at probability
+   >= ``rim_prob`` (0.5: the shaded rim), the outer contour of the result
+   (pixel centres) is the rim, and a circle is fitted to it robustly:
+   candidate circles through triples of rim points spread along the contour
+   are scored by the points within ``rim_tol_px`` minus twice those clearly
+   outside (hidden or missed parts only remove silhouette, so true rim points
+   hardly lie outside), and the best is refined by least squares on its
+   inliers. Its centre is the position (the silhouette of a sphere is close
+   to a circle at these sizes; an ellipse's centroid is its centre). When the
+   circle explains fewer than ``min_rim_fraction`` of the rim points or its
+   radius does not fit the area, the moment is kept. ``rim_fraction`` and
+   ``rim_rms_px`` of the detection give the fit's quality, ``method`` which
+   was used, ``uv_moment`` the moment. Blurred streaks (``motion_blur``) keep
+   the moment; the tracker switches fast, smoothly moving spheres to the
+   moment of the grown region (``"rim_moment"``), since the core of a streak
+   is a lens whose two arcs each fit a circle at one end of the exposure.
 5. **Quality and plausibility.** Area, mean probability, circularity and a
    fill ratio from the region's second moments; regions outside the limits
    of :class:`SegmentParams` are rejected with a reason. The best region is
