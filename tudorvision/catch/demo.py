@@ -77,6 +77,9 @@ class DemoOptions:
     net_radius_m, ball_radius_m : float
     release_sigma_m : float
         Intercept release threshold (largest in-plane standard deviation).
+    speed_fraction : float
+        Setpoint profile speed as a fraction of the slowest joint's limit (at
+        the limit, the links' swing trips the layer's over-speed fault).
     cache_dir : str
         Where the kinematics data collection is cached.
     rerun, plots : bool
@@ -95,6 +98,7 @@ class DemoOptions:
     net_radius_m: float = 0.09
     ball_radius_m: float = 0.045
     release_sigma_m: float = 0.1
+    speed_fraction: float = 0.75
     drag_k_per_m: float = 0.012
     cache_dir: str = "out/catch/cache"
     rerun: bool = True
@@ -290,7 +294,8 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
         ``predictions`` (the rows of ``predictions.csv``) and ``latencies_s``.
     """
     from .._progress import progress
-    from ..joint import (Damping, InProcessTransport, JointAdapter, JointLayerServer, Mode)
+    from ..joint import (Ack, Damping, InProcessTransport, JointAdapter, JointLayerServer, Mode, Reason, Refusal,
+                         ServerConfig)
     from ..rgbd.ball import BallDetector, BallDetectorOptions
     from ..rgbd.frames import Intrinsics
     from ..robot import load_robot_params
@@ -330,14 +335,27 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
     sim = SimCore(theta_ready, payload=payload_true, params=params)
     core = LockstepCore(sim)
     c_end, s_end = InProcessTransport.pair()
-    server = JointLayerServer(s_end, core)
+    # simulated time runs in lockstep: wall-clock staleness of commands means nothing here
+    server = JointLayerServer(s_end, core, config=ServerConfig(max_command_age_s=None))
     server.start()
     adapter = JointAdapter(c_end)
-    max_speed = float(np.max(params.max_speed_rad_s))
+    # profile speed 90 % of the slowest joint's limit: at the limit itself the links' swing pushed
+    # the measured joint speed past the layer's fault threshold (105 %)
+    max_speed = o.speed_fraction * float(np.min(params.max_speed_rad_s))
     max_accel = float(np.max(params.max_accel_rad_s2))
     damping = {"off": Damping.OFF, "proportional": Damping.PROPORTIONAL, "integral": Damping.INTEGRAL,
                "half_integrator": Damping.HALF_INTEGRATOR}[o.damping]
     adapter.set_mode(Mode.SETPOINT, damping=damping)
+    faults = []
+
+    def send(theta) -> bool:
+        reply = adapter.send_setpoint(theta, max_speed=max_speed, max_accel=max_accel, timeout=5.0)
+        if isinstance(reply, Refusal) and reply.code == Reason.FAULT:
+            # the layer stopped the arm (speed or range fault): log it, clear it and send again
+            faults.append(float(t_now))
+            adapter.set_mode(Mode.SETPOINT, damping=damping)
+            reply = adapter.send_setpoint(theta, max_speed=max_speed, max_accel=max_accel, timeout=5.0)
+        return isinstance(reply, Ack)
 
     # ---- scene (the ball and the arm read the demo's current state)
     current = {"flight": None, "t0": 0.0}
@@ -378,6 +396,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
     rr_log = _RerunLog(out / "catch.rrd") if o.rerun else None
     rows, pred_rows, setpoint_rows = [], [], []
     balls = 0
+    refused = 0
     latencies = []
     for i in progress(range(o.throws), desc="throws", enabled=o.show_progress):
         p0, v0 = random_throw(rng_throw, target_height_m=o.target_height_m)
@@ -447,7 +466,8 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
                         except ValueError:
                             th = None
                         if th is not None:
-                            adapter.send_setpoint(th, max_speed=max_speed, max_accel=max_accel)
+                            if not send(th):
+                                refused += 1
                             theta_sp, arrive_t = th, None
                             setpoint_rows.append([i, t, *th, *it.p_base])
                             if first_send is None:
@@ -493,7 +513,8 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
         current["flight"] = None
         # ---- back to the ready pose; weigh the payload at the end of the pause (strain model, 9.2)
         theta_ready = solve(ready, np.asarray(core.state().theta))
-        adapter.send_setpoint(theta_ready, max_speed=max_speed, max_accel=max_accel)
+        if not send(theta_ready):
+            refused += 1
         t_gap_end = t_now + o.gap_s
         strains = []
         while t_now < t_gap_end - 1e-9:
@@ -522,6 +543,8 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
         "median_pred_error_m": float(np.nanmedian(r[:, 13])) if np.any(np.isfinite(r[:, 13])) else None,
         "median_ballistic_error_m": float(np.nanmedian(r[:, 14])) if np.any(np.isfinite(r[:, 14])) else None,
         "perception_latency_ms_median": float(np.nanmedian(lat) * 1e3),
+        "setpoints_not_acknowledged": refused,
+        "layer_faults_cleared": len(faults),
         "kinematics": km.report, "wall_time_s": time.perf_counter() - wall0,
         "misses": {reason: sum(1 for x in rows if x[-1] == reason) for reason in sorted({x[-1] for x in rows}) if reason},
     }
