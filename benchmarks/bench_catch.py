@@ -13,6 +13,8 @@ Three parts, in one run:
    frame on one core), plus a rendered subset (``--throws-render``) with the
    real detector on rendered frames; misses by reason. The same throws with
    rigid inverse kinematics (no deflection compensation) for comparison.
+   Throws run in sessions of 30 (a fresh arm each); caught balls stay in the net
+   until it holds 8 (then it is emptied during the pause).
 3. Intercept prediction error vs time before the crossing, EKF (gravity +
    drag) against the drag-free ballistic least-squares peer on the same
    detections; and the per-frame perception latency (detector on the
@@ -85,7 +87,7 @@ def fit_noise_scale(n_throws: int, seed: int) -> dict:
             "scale": float(max(1.0, np.sqrt(np.median(nees) / 2.366)))}
 
 
-def run_until(min_crossing: int, opts: DemoOptions, out: str, batch: int = 60):
+def run_until(min_crossing: int, opts: DemoOptions, out: str, batch: int = 30):
     """Batches of throws (fresh seeds) until ``min_crossing`` cross the workspace."""
     rows, preds, lat = [], [], []
     b = 0

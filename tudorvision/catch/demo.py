@@ -77,6 +77,9 @@ class DemoOptions:
     net_radius_m, ball_radius_m : float
     release_sigma_m : float
         Intercept release threshold (largest in-plane standard deviation).
+    net_capacity_balls : int
+        The net is emptied (by the operator, during the pause) once it holds this
+        many balls; keeps the payload within the kinematics' trained range (400 g).
     speed_fraction : float
         Setpoint profile speed as a fraction of the slowest joint's limit (at
         the limit, the links' swing trips the layer's over-speed fault).
@@ -99,6 +102,7 @@ class DemoOptions:
     ball_radius_m: float = 0.045
     release_sigma_m: float = 0.1
     speed_fraction: float = 0.75
+    net_capacity_balls: int = 8
     drag_k_per_m: float = 0.012
     cache_dir: str = "out/catch/cache"
     rerun: bool = True
@@ -396,6 +400,8 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
     rr_log = _RerunLog(out / "catch.rrd") if o.rerun else None
     rows, pred_rows, setpoint_rows = [], [], []
     balls = 0
+    total_caught = 0
+    emptied = 0
     refused = 0
     latencies = []
     for i in progress(range(o.throws), desc="throws", enabled=o.show_progress):
@@ -507,6 +513,11 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
                      payload_true.mass_kg - mount, payload_est, int(caught), reason])
         if caught:
             balls += 1
+            total_caught += 1
+        if caught or balls >= o.net_capacity_balls:
+            if balls >= o.net_capacity_balls:
+                balls = 0
+                emptied += 1
             payload_true = Payload.from_parts(params, balls=balls)
             with core._lock:
                 sim.arm.set_payload(payload_true)
@@ -539,7 +550,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
         "caught_in_workspace": caught_ws,
         "success_rate": (caught_ws / n_ws) if n_ws else None,
         "seed": o.seed, "render": o.render, "damping": o.damping, "compensate": o.compensate,
-        "net_radius_m": o.net_radius_m, "balls_in_net": balls,
+        "net_radius_m": o.net_radius_m, "balls_in_net": balls, "net_emptied": emptied,
         "median_pred_error_m": float(np.nanmedian(r[:, 13])) if np.any(np.isfinite(r[:, 13])) else None,
         "median_ballistic_error_m": float(np.nanmedian(r[:, 14])) if np.any(np.isfinite(r[:, 14])) else None,
         "perception_latency_ms_median": float(np.nanmedian(lat) * 1e3),
