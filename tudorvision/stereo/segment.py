@@ -445,17 +445,19 @@ def _circle_lsq(pts: np.ndarray):
     >>> [round(x, 6) for x in _circle_lsq(np.c_[3 + 2 * np.cos(t), -1 + 2 * np.sin(t)])]
     [3.0, -1.0, 2.0]
     """
-    u, v = pts[:, 0], pts[:, 1]
-    mu, mv = float(u.mean()), float(v.mean())
-    a, b = u - mu, v - mv
-    suu, svv, suv = float(a @ a), float(b @ b), float(a @ b)
-    rr = a * a + b * b
-    r1, r2 = 0.5 * float(rr @ a), 0.5 * float(rr @ b)
+    n = len(pts)
+    m = pts.sum(axis=0) / n
+    q = pts - m
+    s2 = q.T @ q                                     # [[suu, suv], [suv, svv]]
+    r12 = 0.5 * ((q * q).sum(axis=1) @ q)            # [r1, r2]
+    suu, suv, svv = float(s2[0, 0]), float(s2[0, 1]), float(s2[1, 1])
+    r1, r2 = float(r12[0]), float(r12[1])
+    mu, mv = float(m[0]), float(m[1])
     det = suu * svv - suv * suv
     if not det > 1e-12:
         return mu, mv, float("nan")
     uc, vc = (r1 * svv - r2 * suv) / det, (r2 * suu - r1 * suv) / det
-    return uc + mu, vc + mv, math.sqrt(uc * uc + vc * vc + (suu + svv) / len(u))
+    return uc + mu, vc + mv, math.sqrt(uc * uc + vc * vc + (suu + svv) / n)
 
 
 def _fit_rim_circle(pts: np.ndarray, tol: float):
@@ -474,6 +476,12 @@ def _fit_rim_circle(pts: np.ndarray, tol: float):
         inl = np.abs(np.hypot(pts[:, 0] - cu, pts[:, 1] - cv_) - r) < tol
         if inl.all():
             return cu, cv_, r, inl
+        if np.count_nonzero(inl) >= 0.9 * len(pts):  # a few stray points: refit without them
+            cu, cv_, r = _circle_lsq(pts[inl])
+            res = np.hypot(pts[:, 0] - cu, pts[:, 1] - cv_) - r
+            inl2 = np.abs(res) < tol
+            if math.isfinite(r) and (inl2 == inl).all() and not (res > 2.0 * tol).any():
+                return cu, cv_, r, inl
     tri = _triples(len(pts))
     if len(tri) == 0:
         return None
@@ -489,7 +497,7 @@ def _fit_rim_circle(pts: np.ndarray, tol: float):
     score = (np.abs(res) < tol).sum(axis=1) - 2 * (res > 2.0 * tol).sum(axis=1)
     inl = np.abs(res[int(np.argmax(score))]) < tol
     for _ in range(2):
-        if int(inl.sum()) < 5:
+        if np.count_nonzero(inl) < 5:
             return None
         cu, cv_, r = _circle_lsq(pts[inl])
         if not math.isfinite(r):
@@ -610,11 +618,14 @@ def _rim_mask(filled, params, box_xy, log_odds, moment=True):
     hh, ww = log_odds.shape
     sx0, sy0 = max(bx - mg, 0), max(by - mg, 0)
     sx1, sy1 = min(bx + filled.shape[1] + mg, ww), min(by + filled.shape[0] + mg, hh)
-    reg = np.zeros((sy1 - sy0, sx1 - sx0), np.uint8)
-    reg[by - sy0:by - sy0 + filled.shape[0], bx - sx0:bx - sx0 + filled.shape[1]] = filled
-    near = cv2.dilate(reg, _erode_kernel(mg))
-    low = log_odds[sy0:sy1, sx0:sx1] >= np.float32(_logit(params.rim_prob))
-    mask = _fill_holes((reg > 0) | ((near > 0) & low)).view(np.uint8)
+    reg = cv2.copyMakeBorder(filled.view(np.uint8), by - sy0, sy1 - by - filled.shape[0], bx - sx0,
+                             sx1 - bx - filled.shape[1], cv2.BORDER_CONSTANT, value=0)
+    low = cv2.compare(log_odds[sy0:sy1, sx0:sx1], _logit(params.rim_prob), cv2.CMP_GE)   # 0 / 255
+    grown = cv2.bitwise_or(reg, cv2.bitwise_and(cv2.dilate(reg, _erode_kernel(mg)), low))  # 0 / 1
+    # fill the holes: whatever the outside (flooded from the padded corner) does not reach
+    pad = cv2.copyMakeBorder(grown, 1, 1, 1, 1, cv2.BORDER_CONSTANT, value=0)
+    cv2.floodFill(pad, None, (0, 0), 2)
+    mask = cv2.compare(pad[1:-1, 1:-1], 2, cv2.CMP_NE)                                    # 0 / 255
     uv = None
     if moment:
         m = cv2.moments(mask, True)
@@ -649,9 +660,10 @@ def _refine_shape(filled: np.ndarray, r_area: float, params: SegmentParams, box_
     if fit is None:
         return None
     fu, fv, fr, inl = fit
-    frac = float(inl.mean())
+    n_in = int(np.count_nonzero(inl))
+    frac = n_in / len(inl)
     res = np.hypot(pts[:, 0] - fu, pts[:, 1] - fv) - fr
-    rms = float(np.sqrt(np.mean(res[inl] ** 2)))
+    rms = math.sqrt(float(res @ (res * inl)) / n_in)
     used = frac >= params.min_rim_fraction and r_area - 1.5 <= fr <= 2.0 * r_area + 1.0
     if used and params.lens_check and len(inl) - int(inl.sum()) >= 6:
         # a blur streak's core (where the sphere covers the pixel all the exposure) is a lens: the
