@@ -214,7 +214,8 @@ class SegmentParams:
         if int(self.max_candidates) != self.max_candidates or self.max_candidates < 1:
             raise TudorVisionError(f"max_candidates: must be a positive integer, got {self.max_candidates}")
         if self.centroid not in ("shape", "moment", "rim_moment"):
-            raise TudorVisionError(f"centroid: must be 'shape' or 'moment', got {self.centroid!r}")
+            raise TudorVisionError(
+                f"centroid: must be 'shape', 'moment' or 'rim_moment', got {self.centroid!r}")
         if not (0.0 < self.rim_prob <= self.p_grow):
             raise TudorVisionError(f"rim_prob: need 0 < rim_prob <= p_grow, got {self.rim_prob}")
         if not (self.rim_tol_px > 0.0):
@@ -260,8 +261,9 @@ class SphereDetection:
     rim_rms_px : float
         RMS distance of those rim points from the circle (px).
     method : str
-        How ``uv`` was measured: ``"moment"`` or ``"shape"`` (the moment
-        completed with the fitted circle where the rim is missing).
+        How ``uv`` was measured: ``"moment"``, ``"shape"`` (the centre of the
+        circle fitted to the rim) or ``"rim_moment"`` (see
+        :class:`SegmentParams`).
     """
 
     uv: tuple
@@ -504,7 +506,6 @@ def _fit_rim_circle(pts: np.ndarray, tol: float):
             return None
         inl = np.abs(np.hypot(pts[:, 0] - cu, pts[:, 1] - cv_) - r) < tol
     return cu, cv_, r, inl
-
 
 
 def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, image_size: tuple,
