@@ -40,7 +40,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from tudorvision.joint.damping import DEFAULT_GAINS, DampingConfig, StrainDamper
+from tudorvision.joint.damping import ONE_WAY_GAINS, TWO_WAY_GAINS, DampingConfig, StrainDamper
 from tudorvision.joint.metrics import METRIC_NAMES, damping_metrics, iats, normalise_metrics
 from tudorvision.robot import load_robot_params
 from tudorvision.sim.arm import ControlledArm, ElasticArm, Payload, PlantConfig, link_static_loads
@@ -137,7 +137,7 @@ def tune(law: str, *, two_way: bool, x0=None, maxiter: int = 40) -> tuple:
         c = iats(r["t"], r["eps_online"]) + iats(r["t"], r["eps3_online"])
         return float(c * 1e6)
 
-    k0 = DEFAULT_GAINS[law] if x0 is None else x0
+    k0 = (TWO_WAY_GAINS if two_way else ONE_WAY_GAINS)[law] if x0 is None else x0
     res = minimize(cost, np.log(np.asarray(k0[1:], float)), method="Nelder-Mead",
                    options={"maxiter": maxiter, "xatol": 0.05, "fatol": 1e-3})
     return (0.0, float(np.exp(res.x[0])), float(np.exp(res.x[1]))), float(res.fun)
@@ -247,7 +247,8 @@ def main(argv=None):
     plants = ("one-way", "two-way") if a.plant == "both" else (a.plant,)
     for plant in plants:
         two_way = plant == "two-way"
-        gains = {law: DEFAULT_GAINS.get(law, (0.0, 0.0, 0.0)) for law in LAWS}
+        table = TWO_WAY_GAINS if two_way else ONE_WAY_GAINS
+        gains = {law: table.get(law, (0.0, 0.0, 0.0)) for law in LAWS}
         gains["off"] = (0.0, 0.0, 0.0)
         if a.gains:
             gains.update({k: tuple(v) for k, v in json.loads(a.gains).get(plant, {}).items()})
