@@ -1,0 +1,136 @@
+"""Collision core: identification, momentum residual, isolation, reaction admittance."""
+import numpy as np
+import pytest
+
+from tudorvision.joint.collision import (N_PARAMS, Admittance, CollisionMonitor, MomentumObserver, ReactionConfig,
+                                         StrainDynamicsModel, aprbs, derivatives, fit_report, fit_strain_dynamics,
+                                         isolate, reaction_config, regressor, regressor_payload,
+                                         thresholds_from_residuals)
+
+
+def _true_model(rng):
+    chi = rng.normal(0.0, 1.0, size=(2, 2 * N_PARAMS)) * 1e-5
+    chi[:, 7:16] *= 10.0                      # gravity terms dominate, as on the arm
+    return StrainDynamicsModel(chi=chi)
+
+
+def _trajectory(t):
+    """Smooth joint motion with analytic derivatives (joint 1 at rest)."""
+    w = np.array([0.0, 1.3, 2.1])
+    amp = np.array([0.0, 0.6, 0.8])
+    off = np.array([0.0, 0.9, -0.2])
+    th = off + amp * np.sin(w * t[:, None])
+    d = amp * w * np.cos(w * t[:, None])
+    dd = -amp * w**2 * np.sin(w * t[:, None])
+    return th, d, dd
+
+
+def test_least_squares_recovers_known_coefficients():
+    rng = np.random.default_rng(1)
+    true = _true_model(rng)
+    n = 4000
+    th = rng.uniform([0, -0.2, -1.5], [0, 3.2, 1.5], size=(n, 3))
+    d = rng.uniform(-1.2, 1.2, size=(n, 3))
+    dd = rng.uniform(-4.0, 4.0, size=(n, 3))
+    m = rng.choice([0.05, 0.15, 0.25, 0.35, 0.45], size=n)
+    eps = true.predict(th, d, dd, m) + rng.normal(0.0, 1e-8, size=(n, 2))
+    est = fit_strain_dynamics(th, d, dd, eps, m)
+    np.testing.assert_allclose(est.chi, true.chi, atol=2e-8)
+    rep = fit_report(est, th, d, dd, eps, m)
+    assert min(rep.fit_pct) > 99.0 and max(rep.rmse) < 2e-8
+    with pytest.raises(ValueError, match="samples"):
+        fit_strain_dynamics(th[:5], d[:5], dd[:5], eps[:5], m[:5])
+
+
+def test_regressor_shapes_and_errors():
+    z = np.zeros((4, 3))
+    assert regressor(z, z, z).shape == (4, N_PARAMS)
+    assert regressor_payload(z, z, z, 0.3).shape == (4, 2 * N_PARAMS)
+    with pytest.raises(ValueError, match="dtheta"):
+        regressor(z, np.zeros((3, 3)), z)
+
+
+def test_derivatives_of_a_sine():
+    t = np.arange(0, 3, 5e-4)
+    th, d, dd = _trajectory(t)
+    de, dde = derivatives(t, th)
+    inner = slice(100, -100)
+    np.testing.assert_allclose(de[inner], d[inner], atol=1e-5)
+    np.testing.assert_allclose(dde[inner], dd[inner], atol=1e-2)
+
+
+def test_momentum_residual_tracks_collision_strain():
+    """Model-consistent strains give a zero residual; a collision strain appears through K_I / (s + K_I)."""
+    rng = np.random.default_rng(2)
+    model = _true_model(rng)
+    dt, k_i = 5e-4, 80.0
+    t = np.arange(0, 2.0, dt)
+    th, d, dd = _trajectory(t)
+    eps = model.predict(th, d, dd, 0.3)
+    eps_c = np.where(t >= 1.0, 40e-6, 0.0)
+    eps[:, 1] += eps_c                          # a push on link 3
+    obs = MomentumObserver(model, 0.3, k_i=k_i, dt=dt)
+    r = np.array([obs.step(th[k], d[k], eps[k]) for k in range(t.size)])
+    assert np.max(np.abs(r[t < 1.0])) < 1e-7    # no false residual from the motion
+    k = np.searchsorted(t, 1.0 + 1.0 / k_i)
+    assert r[k, 1] == pytest.approx(40e-6 * (1 - np.exp(-1)), rel=0.03)
+    assert r[-1, 1] == pytest.approx(40e-6, rel=1e-3)
+    assert abs(r[-1, 0]) < 1e-7                 # the other link stays quiet
+    assert isolate(r[-1], [5e-6, 5e-6]) == (3, 1)
+    with pytest.raises(ValueError, match="k_i"):
+        MomentumObserver(model, 0.3, k_i=0.0, dt=dt)
+
+
+def test_isolation_prefers_last_link_and_sign():
+    assert isolate([-9e-6, 0.0], [4e-6, 4e-6]) == (2, -1)
+    assert isolate([9e-6, 6e-6], [4e-6, 4e-6]) == (3, 1)
+
+
+def test_thresholds_six_sigma():
+    r = np.random.default_rng(5).normal(0, 2e-6, size=(50000, 2))
+    np.testing.assert_allclose(thresholds_from_residuals(r), 12e-6, rtol=0.02)
+
+
+def test_admittance_first_order_and_strategies():
+    c = ReactionConfig(strategy="reflex", m_r=0.1, f_r=0.5, k_r=0.0, k_or=2.0, v_max=10.0)
+    a = Admittance(c, 1e-3)
+    v = [a.step(0.1) for _ in range(3000)]
+    tau_s = c.m_r / c.f_r
+    assert v[int(tau_s / 1e-3) - 1] == pytest.approx(0.4 * (1 - np.exp(-1)), rel=0.02)
+    assert v[-1] == pytest.approx(0.4, rel=1e-3)           # k_or tau / f_r
+    spring = Admittance(ReactionConfig(strategy="reflex", m_r=0.1, f_r=0.5, k_r=2.0), 1e-3)
+    x = [spring.step(0.1) for _ in range(20000)]
+    assert abs(x[-1]) < 1e-4 and spring.x == pytest.approx(0.05, rel=1e-2)   # settles at tau / k_r
+    assert reaction_config("interaction").k_or == 1.0 and reaction_config("reflex").k_or > 1.0
+    with pytest.raises(ValueError, match="strategy"):
+        ReactionConfig(strategy="run")
+    with pytest.raises(ValueError, match="m_r"):
+        ReactionConfig(m_r=0.0)
+
+
+def test_monitor_replaces_velocity_reference():
+    model = StrainDynamicsModel(chi=np.zeros((2, 2 * N_PARAMS)))
+    th, d = [0.0, 0.5, 0.1], [0.0, 0.0, 0.0]
+    for strategy, expect_move in (("stop", False), ("reflex", True), ("none", None)):
+        mon = CollisionMonitor(model, [5e-6, 5e-6], 0.3, 1e-3, reaction_config(strategy), k_i=200.0)
+        outs = [mon.step(th, d, [0.0, 0.0, 30e-6, 0.0], [1.0, 1.0, 1.0], [0.5, 0.5, 0.5], [0.0, 0.01, 0.0])
+                for _ in range(100)]
+        assert mon.collision and mon.link == 3 and mon.direction == 1
+        assert mon.detected_at < 0.01
+        if strategy == "none":
+            assert outs[-1] is None
+            continue
+        th_ref, dth_ref, extra = outs[-1]
+        assert th_ref == th and dth_ref == [0.0, 0.0, 0.0]
+        assert extra[1] == pytest.approx(0.01)                 # damping input kept
+        if expect_move:
+            assert extra[2] < -1e-3                            # tension on top: retreat toward lower theta3
+        else:
+            assert extra[2] == 0.0
+        mon.reset()
+        assert not mon.collision
+
+
+def test_aprbs_levels_in_range():
+    t, lv = aprbs(np.random.default_rng(0), 30.0, [0.1, -1.0], [2.0, 1.0])
+    assert np.all(lv >= [0.1, -1.0]) and np.all(lv <= [2.0, 1.0]) and t[-1] < 30.0

@@ -1,0 +1,519 @@
+"""Collision detection, isolation and reaction from link strains (sections 10.2, 11.1, 11.2).
+
+Strain-referred damped dynamics (10.2.7, 10.2.8)
+-------------------------------------------------
+The root strains ``eps = [eps_21, eps_31]`` of links 2 and 3 (gauge channels
+0 and 2) behave like load-side joint torques (10.2.6), so with joint 1 at
+rest they follow the rigid-arm structure::
+
+    eps = I_eps(theta) ddtheta + C_eps(theta, dtheta) dtheta + g_eps(theta)
+
+over ``q = (theta2, theta3)``. Each output row ``i`` has its own parameters on
+the regressor (:func:`regressor`)::
+
+    phi = [dd2, dd3, c3 dd2, c3 dd3, s3 d2^2, s3 d2 d3, s3 d3^2, c2, s2, c23, s23, 1,
+           c2 s23, c23 s23, c2 s2, c23 s2]
+
+(``c3 = cos theta3`` etc.): row ``i`` of ``I_eps`` is
+``[chi0 + chi2 c3, chi1 + chi3 c3]``, the velocity terms are the Coriolis and
+centrifugal part and the rest is ``g_eps`` with a gauge offset; the last four
+products are first-order corrections of gravity for the static deflection
+(the link-2 tip slope and sag move link 3 and the payload, both proportional
+to the gravity loads). Rigid-body
+parameters are affine in the payload mass, so the identified model is
+``chi(m) = chi_0 + m chi_1`` (regressor ``[phi, m phi]``), fitted by linear
+least squares on APRBS stimuli with several payloads; the payload mass is
+known to the layer when the residual runs (e.g. from the estimator of 9.2).
+
+Generalised momentum residual (11.1.6, de Luca's observer)
+----------------------------------------------------------
+``p = I_eps(theta) dtheta`` and, with ``n = C_eps dtheta + g_eps - dI_eps/dt dtheta``
+(the seed writes ``-C_eps^T dtheta`` using skew symmetry; here ``dI/dt`` is
+evaluated exactly because the identified rows need not be symmetric)::
+
+    r = K_I [ int (eps - n - r) dt - (p - p(0)) ]    =>    dr/dt = K_I (eps_c - r)
+
+so ``r`` is the collision strain ``eps_c`` through a first-order low-pass
+(11.1.8), positive for tension on the top surface. (The seed's sign is the
+opposite; the ``+ r`` feedback that gives 11.1.7 is written out here.) A
+collision is flagged when ``|r_i|`` exceeds 6 sigma of collision-free
+residuals; the isolated link is the last link over its threshold, the
+direction the sign of its residual.
+
+Reaction (11.2.1)
+-----------------
+``theta_dot_r = G_r(s) tau_c`` with ``G_r = k_or / (m_r s + f_r + k_r / s)`` and
+the equivalent collision torque ``tau_c = -(E I / y_b) r`` on the joint (4.2.3;
+a downward push gives tension on top, i.e. a negative joint torque). On
+detection the velocity reference ``theta_dot_r`` replaces the PD output;
+the damping law keeps acting. Strategies: ``stop`` (theta_dot_r = 0),
+``reflex`` (small m_r, f_r, k_r = 0, k_or > 1) and ``interaction``
+(k_or = 1, k_r = 0).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._checks import check_array
+
+__all__ = ["N_PARAMS", "STRATEGIES", "regressor", "regressor_payload", "StrainDynamicsModel", "fit_strain_dynamics",
+           "FitReport", "fit_report", "derivatives", "MomentumObserver", "thresholds_from_residuals", "isolate",
+           "ReactionConfig", "reaction_config", "Admittance", "CollisionMonitor", "aprbs"]
+
+N_PARAMS = 16
+STRATEGIES = ("none", "stop", "reflex", "interaction")
+#: gauge channels of the root strains of links 2 and 3
+ROOT_GAUGES = (0, 2)
+
+
+# ----------------------------------------------------------------- model structure
+def regressor(theta, dtheta, ddtheta) -> np.ndarray:
+    """Per-row regressor ``phi(theta, dtheta, ddtheta)`` of the strain dynamics.
+
+    Parameters
+    ----------
+    theta, dtheta, ddtheta : array_like, shape (N, 3)
+        Joint angles (rad), velocities (rad/s), accelerations (rad/s^2);
+        joint 1 is ignored (held at rest).
+
+    Returns
+    -------
+    Phi : ndarray, shape (N, 16)
+
+    Examples
+    --------
+    >>> regressor(np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 3)))[0].tolist()[:12]
+    [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0]
+    """
+    th = check_array(theta, "theta", (None, 3))
+    d = check_array(dtheta, "dtheta", (th.shape[0], 3))
+    a = check_array(ddtheta, "ddtheta", (th.shape[0], 3))
+    t2, t3 = th[:, 1], th[:, 2]
+    c3, s3 = np.cos(t3), np.sin(t3)
+    d2, d3 = d[:, 1], d[:, 2]
+    c2, s2, c23, s23 = np.cos(t2), np.sin(t2), np.cos(t2 + t3), np.sin(t2 + t3)
+    return np.stack([a[:, 1], a[:, 2], c3 * a[:, 1], c3 * a[:, 2], s3 * d2 * d2, s3 * d2 * d3, s3 * d3 * d3,
+                     c2, s2, c23, s23, np.ones_like(t2), c2 * s23, c23 * s23, c2 * s2, c23 * s2], axis=1)
+
+
+def regressor_payload(theta, dtheta, ddtheta, payload_kg) -> np.ndarray:
+    """Payload-affine regressor ``[phi, m phi]``, shape (N, 32).
+
+    ``payload_kg`` is a float or an array of shape (N,).
+    """
+    phi = regressor(theta, dtheta, ddtheta)
+    m = np.broadcast_to(np.asarray(payload_kg, dtype=np.float64), (phi.shape[0],))
+    return np.hstack([phi, m[:, None] * phi])
+
+
+@dataclass(frozen=True, kw_only=True)
+class StrainDynamicsModel:
+    """Identified strain-referred dynamics (payload-affine).
+
+    Attributes
+    ----------
+    chi : ndarray, shape (2, 32)
+        Parameters per output (link-2 root, link-3 root strain) on
+        :func:`regressor_payload`.
+    """
+
+    chi: np.ndarray
+
+    def __post_init__(self):
+        object.__setattr__(self, "chi", check_array(self.chi, "chi", (2, 2 * N_PARAMS)))
+
+    def at_payload(self, payload_kg: float) -> np.ndarray:
+        """Parameters at one payload mass, shape (2, 16)."""
+        return self.chi[:, :N_PARAMS] + float(payload_kg) * self.chi[:, N_PARAMS:]
+
+    def predict(self, theta, dtheta, ddtheta, payload_kg) -> np.ndarray:
+        """Predicted root strains, shape (N, 2), m/m."""
+        return regressor_payload(theta, dtheta, ddtheta, payload_kg) @ self.chi.T
+
+    @staticmethod
+    def terms(chi_m: np.ndarray, theta3: float, theta2: float, d2: float, d3: float):
+        """``I_eps`` (2x2), ``dI_eps/dtheta3`` (2x2), Coriolis ``C_eps dtheta`` (2,), ``g_eps`` (2,)."""
+        c3, s3 = math.cos(theta3), math.sin(theta3)
+        I = np.empty((2, 2))
+        dI = np.empty((2, 2))
+        cor = np.empty(2)
+        g = np.empty(2)
+        c2, s2 = math.cos(theta2), math.sin(theta2)
+        c23, s23 = math.cos(theta2 + theta3), math.sin(theta2 + theta3)
+        for i in range(2):
+            x = chi_m[i]
+            I[i, 0], I[i, 1] = x[0] + x[2] * c3, x[1] + x[3] * c3
+            dI[i, 0], dI[i, 1] = -x[2] * s3, -x[3] * s3
+            cor[i] = s3 * (x[4] * d2 * d2 + x[5] * d2 * d3 + x[6] * d3 * d3)
+            g[i] = (x[7] * c2 + x[8] * s2 + x[9] * c23 + x[10] * s23 + x[11] + x[12] * c2 * s23
+                    + x[13] * c23 * s23 + x[14] * c2 * s2 + x[15] * c23 * s2)
+        return I, dI, cor, g
+
+
+def fit_strain_dynamics(theta, dtheta, ddtheta, eps, payload_kg) -> StrainDynamicsModel:
+    """Linear least squares of (10.2.8) on stacked data from several payloads.
+
+    Parameters
+    ----------
+    theta, dtheta, ddtheta : array_like, shape (N, 3)
+    eps : array_like, shape (N, 2)
+        Root strains of links 2 and 3, m/m.
+    payload_kg : array_like, shape (N,) or float
+
+    Returns
+    -------
+    StrainDynamicsModel
+
+    Raises
+    ------
+    ValueError
+        On shape mismatch or too few samples.
+    """
+    Y = regressor_payload(theta, dtheta, ddtheta, payload_kg)
+    e = check_array(eps, "eps", (Y.shape[0], 2))
+    if Y.shape[0] < Y.shape[1]:
+        raise ValueError(f"theta: expected at least {Y.shape[1]} samples, got {Y.shape[0]}")
+    # column scaling for conditioning; minimum-norm solution if a payload level is missing
+    s = np.linalg.norm(Y, axis=0)
+    s[s == 0] = 1.0
+    chi, *_ = np.linalg.lstsq(Y / s, e, rcond=None)
+    return StrainDynamicsModel(chi=(chi / s[:, None]).T)
+
+
+@dataclass(frozen=True, kw_only=True)
+class FitReport:
+    """Goodness of fit (B.4.2) per output, RMSE and error std (m/m)."""
+
+    fit_pct: tuple
+    rmse: tuple
+    sigma: tuple
+    n_samples: int
+
+
+def fit_report(model: StrainDynamicsModel, theta, dtheta, ddtheta, eps, payload_kg) -> FitReport:
+    """Validation metrics of a model on data (table 10.1 style)."""
+    from .metrics import goodness_of_fit
+    e = np.asarray(eps, dtype=np.float64)
+    pred = model.predict(theta, dtheta, ddtheta, payload_kg)
+    err = e - pred
+    return FitReport(fit_pct=tuple(goodness_of_fit(pred[:, i], e[:, i]) for i in range(2)),
+                     rmse=tuple(float(np.sqrt(np.mean(err[:, i] ** 2))) for i in range(2)),
+                     sigma=tuple(float(np.std(err[:, i])) for i in range(2)), n_samples=int(e.shape[0]))
+
+
+def derivatives(t, theta, *, window_s: float = 0.02, polyorder: int = 3):
+    """Velocities and accelerations from sampled angles (Savitzky–Golay, zero phase).
+
+    Parameters
+    ----------
+    t : array_like, shape (N,)
+        Uniform sample times, seconds.
+    theta : array_like, shape (N, J)
+
+    Returns
+    -------
+    dtheta, ddtheta : ndarray, shape (N, J)
+    """
+    from scipy.signal import savgol_filter
+    t = check_array(t, "t", (None,))
+    th = check_array(theta, "theta", (t.size, None))
+    dt = float(t[1] - t[0])
+    w = max(polyorder + 2, int(round(window_s / dt)) | 1)
+    d = savgol_filter(th, w, polyorder, deriv=1, delta=dt, axis=0)
+    dd = savgol_filter(th, w, polyorder, deriv=2, delta=dt, axis=0)
+    return d, dd
+
+
+# ----------------------------------------------------------------- residual and isolation
+class MomentumObserver:
+    """Strain-based generalised momentum residual (11.1.6) for joints 2 and 3.
+
+    State: the integral ``int (eps - n - r) dt`` (2,), ``p(0)`` (2,), residual (2,).
+
+    Parameters
+    ----------
+    model : StrainDynamicsModel
+    payload_kg : float
+    k_i : float or array_like, shape (2,)
+        Observer gains ``K_I``, 1/s (cut-off of the residual low-pass).
+    dt : float
+        Sample time, seconds.
+    """
+
+    def __init__(self, model: StrainDynamicsModel, payload_kg: float, *, k_i=100.0, dt: float):
+        if not dt > 0:
+            raise ValueError(f"dt: expected > 0, got {dt}")
+        k = np.broadcast_to(np.asarray(k_i, dtype=np.float64), (2,))
+        if np.any(k <= 0):
+            raise ValueError(f"k_i: expected > 0, got {k_i}")
+        self.model = model
+        self.dt = float(dt)
+        self.k_i = [float(x) for x in k]
+        self.set_payload(payload_kg)
+        self.r = [0.0, 0.0]
+        self._started = False
+
+    def set_payload(self, payload_kg: float) -> None:
+        self.payload_kg = float(payload_kg)
+        self._chi = self.model.at_payload(payload_kg)
+
+    def reset(self) -> None:
+        self._started = False
+        self.r = [0.0, 0.0]
+
+    def step(self, theta, dtheta, eps2) -> list:
+        """One sample; ``eps2`` are the two root strains (m/m). Returns the residual (2 floats)."""
+        I, dI, cor, g = StrainDynamicsModel.terms(self._chi, theta[2], theta[1], dtheta[1], dtheta[2])
+        d2, d3 = dtheta[1], dtheta[2]
+        p = [I[0, 0] * d2 + I[0, 1] * d3, I[1, 0] * d2 + I[1, 1] * d3]
+        f = [eps2[i] - cor[i] - g[i] + (dI[i, 0] * d2 + dI[i, 1] * d3) * d3 for i in range(2)]
+        if not self._started:
+            self._p0 = p
+            self._S = [0.0, 0.0]
+            self._f = f
+            self._started = True
+            return list(self.r)
+        r = self.r
+        for i in range(2):
+            # trapezoidal rule on the model part, the residual feedback from the last sample
+            self._S[i] += self.dt * (0.5 * (f[i] + self._f[i]) - r[i])
+            r[i] = self.k_i[i] * (self._S[i] - (p[i] - self._p0[i]))
+        self._f = f
+        return list(r)
+
+
+def thresholds_from_residuals(residuals, *, n_sigma: float = 6.0) -> np.ndarray:
+    """Detection thresholds ``n_sigma * std`` per column of collision-free residuals.
+
+    Examples
+    --------
+    >>> r = np.random.default_rng(0).normal(0.0, [1e-6, 2e-6], size=(20000, 2))
+    >>> np.round(thresholds_from_residuals(r) * 1e6, 1).tolist()
+    [6.0, 12.0]
+    """
+    r = check_array(residuals, "residuals", (None, None))
+    return n_sigma * r.std(axis=0)
+
+
+def isolate(residual, thresholds):
+    """Collision flag, isolated link and direction (11.1).
+
+    Parameters
+    ----------
+    residual, thresholds : array_like, shape (2,)
+        Residuals of the link-2 and link-3 root strains and their thresholds.
+
+    Returns
+    -------
+    link : int or None
+        2 or 3: the last link in the chain over its threshold; ``None``: no collision.
+    direction : int
+        Sign of that link's residual (+1: tension on top, a push toward
+        decreasing joint angle), 0 without collision.
+
+    Examples
+    --------
+    >>> isolate([5e-6, -9e-6], [4e-6, 4e-6])
+    (3, -1)
+    >>> isolate([1e-6, 1e-6], [4e-6, 4e-6])
+    (None, 0)
+    """
+    for i in (1, 0):
+        if abs(residual[i]) > thresholds[i]:
+            return i + 2, (1 if residual[i] > 0 else -1)
+    return None, 0
+
+
+# ----------------------------------------------------------------- reaction
+@dataclass(frozen=True, kw_only=True)
+class ReactionConfig:
+    """Reaction admittance ``G_r = k_or / (m_r s + f_r + k_r / s)`` (11.2.1) and strategy.
+
+    Attributes
+    ----------
+    strategy : {"none", "stop", "reflex", "interaction"}
+        ``none`` detects and reports only.
+    m_r : float
+        Inertial part, N m s^2/rad (> 0).
+    f_r : float
+        Resistive part, N m s/rad (>= 0).
+    k_r : float
+        Capacitive part, N m/rad (>= 0).
+    k_or : float
+        Over-reaction gain.
+    torque_per_strain : tuple of 2 floats
+        ``E I / y_b`` of the root sections of links 2 and 3, N m per (m/m) (4.2.3).
+    v_max : float
+        Clamp of the reaction velocity, rad/s.
+    """
+
+    strategy: str = "stop"
+    m_r: float = 0.05
+    f_r: float = 0.2
+    k_r: float = 0.0
+    k_or: float = 1.0
+    torque_per_strain: tuple = (8000.0, 8000.0)
+    v_max: float = 1.0
+
+    def __post_init__(self):
+        if self.strategy not in STRATEGIES:
+            raise ValueError(f"strategy: expected one of {STRATEGIES}, got {self.strategy!r}")
+        if not self.m_r > 0 or self.f_r < 0 or self.k_r < 0:
+            raise ValueError(f"m_r, f_r, k_r: expected m_r > 0, f_r >= 0, k_r >= 0, got "
+                             f"{self.m_r}, {self.f_r}, {self.k_r}")
+
+
+def reaction_config(strategy: str, *, torque_per_strain=(8000.0, 8000.0)) -> ReactionConfig:
+    """Default parameters per strategy (reflex: light, low friction, k_or = 2; interaction: k_or = 1).
+
+    Examples
+    --------
+    >>> reaction_config("reflex").k_or
+    2.0
+    """
+    tps = tuple(float(x) for x in torque_per_strain)
+    if strategy == "reflex":
+        return ReactionConfig(strategy="reflex", m_r=0.02, f_r=0.05, k_r=0.0, k_or=2.0, torque_per_strain=tps)
+    if strategy == "interaction":
+        return ReactionConfig(strategy="interaction", m_r=0.05, f_r=0.5, k_r=0.0, k_or=1.0,
+                              torque_per_strain=tps)
+    return ReactionConfig(strategy=strategy, torque_per_strain=tps)
+
+
+class Admittance:
+    """Discrete ``G_r(s)`` (semi-implicit Euler), state ``[theta_dot_r, int theta_dot_r]``.
+
+    Examples
+    --------
+    >>> a = Admittance(ReactionConfig(strategy="reflex", m_r=1.0, f_r=1.0, k_or=1.0), 1e-3)
+    >>> v = [a.step(1.0) for _ in range(20000)][-1]   # steady state k_or tau / f_r
+    >>> round(v, 3)
+    1.0
+    """
+
+    def __init__(self, config: ReactionConfig, dt: float):
+        self.c = config
+        self.dt = float(dt)
+        self.v, self.x = 0.0, 0.0
+
+    def reset(self) -> None:
+        self.v, self.x = 0.0, 0.0
+
+    def step(self, tau: float) -> float:
+        c, dt = self.c, self.dt
+        # m dv/dt = k_or tau - f v - k x  (implicit in the damping term)
+        self.v = (c.m_r * self.v + dt * (c.k_or * tau - c.k_r * self.x)) / (c.m_r + dt * c.f_r)
+        self.v = max(-c.v_max, min(c.v_max, self.v))
+        self.x += dt * self.v
+        return self.v
+
+
+class CollisionMonitor:
+    """Residual observer, detection, isolation and reaction, stepped at the control rate.
+
+    Use as ``ControlledArm.reaction``: :meth:`step` returns ``None`` (no
+    reaction: cascade inputs unchanged) or the replaced inputs
+    ``(theta_ref, dtheta_ref, extra)`` with the PD output removed
+    (``theta_ref`` = measured angles) and the reaction velocity as the new
+    velocity reference (damping ``extra`` kept).
+
+    Parameters
+    ----------
+    model : StrainDynamicsModel
+    thresholds : array_like, shape (2,)
+        Residual thresholds of the link-2 and link-3 root strains, m/m.
+    payload_kg : float
+    dt : float
+    config : ReactionConfig
+    k_i : float
+        Observer gain, 1/s.
+
+    Attributes
+    ----------
+    residual : list of 3 floats
+        Per joint (joint 1: 0).
+    collision : bool
+        Latched after the first detection until :meth:`reset`.
+    detected_at, link, direction :
+        Time (s, from the ``t`` passed to :meth:`step` or sample count times dt),
+        isolated link (2 or 3) and sign at detection.
+    """
+
+    def __init__(self, model: StrainDynamicsModel, thresholds, payload_kg: float, dt: float,
+                 config: ReactionConfig = ReactionConfig(), *, k_i: float = 100.0):
+        self.observer = MomentumObserver(model, payload_kg, k_i=k_i, dt=dt)
+        self.thresholds = [float(x) for x in check_array(thresholds, "thresholds", (2,), finite=False)]
+        self.config = config
+        self.dt = float(dt)
+        self._adm = [Admittance(config, dt), Admittance(config, dt)]
+        self.residual = [0.0, 0.0, 0.0]
+        self.reset()
+
+    def reset(self) -> None:
+        """Clear the latched collision (the observer keeps running)."""
+        self.collision = False
+        self.detected_at = None
+        self.link, self.direction = None, 0
+        self._k = getattr(self, "_k", 0)
+        for a in self._adm:
+            a.reset()
+
+    def step(self, theta, dtheta, strain, theta_ref, dtheta_ref, extra):
+        """One control sample; see the class docstring for the return value."""
+        r = self.observer.step(theta, dtheta, (strain[ROOT_GAUGES[0]], strain[ROOT_GAUGES[1]]))
+        self.residual = [0.0, r[0], r[1]]
+        self._k += 1
+        if not self.collision:
+            link, direction = isolate(r, self.thresholds)
+            if link is not None:
+                self.collision = True
+                self.detected_at = self._k * self.dt
+                self.link, self.direction = link, direction
+        if not self.collision or self.config.strategy == "none":
+            return None
+        c = self.config
+        v = [0.0, 0.0, 0.0]
+        if c.strategy != "stop":
+            for i in range(2):
+                tau = -c.torque_per_strain[i] * r[i]
+                v[i + 1] = self._adm[i].step(tau)
+        return list(theta), [0.0, 0.0, 0.0], [v[j] + extra[j] for j in range(3)]
+
+
+def aprbs(rng: np.random.Generator, duration_s: float, lo, hi, *, hold_s=(0.6, 2.5)):
+    """Amplitude-modulated pseudo-random binary sequence of setpoints (Isermann, p. 174).
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+    duration_s : float
+    lo, hi : array_like, shape (J,)
+        Amplitude range per channel.
+    hold_s : (float, float)
+        Range of the random hold times, seconds.
+
+    Returns
+    -------
+    times : ndarray, shape (K,)
+        Switching instants from 0.
+    levels : ndarray, shape (K, J)
+        Setpoint held from each instant.
+
+    Examples
+    --------
+    >>> t, lv = aprbs(np.random.default_rng(0), 10.0, [0.0], [1.0])
+    >>> bool(t[0] == 0.0 and np.all(np.diff(t) > 0) and lv.shape == (t.size, 1))
+    True
+    """
+    lo = np.atleast_1d(np.asarray(lo, float))
+    hi = np.atleast_1d(np.asarray(hi, float))
+    times, t = [], 0.0
+    while t < duration_s:
+        times.append(t)
+        t += rng.uniform(*hold_s)
+    times = np.asarray(times)
+    levels = rng.uniform(lo, hi, size=(times.size, lo.size))
+    return times, levels
