@@ -7,9 +7,10 @@ person wants to look at into ``--out``:
    from the boundary-value problem for several payloads, static end-effector sag;
 2. the step motion [0, 45, -45] -> [0, 135, 45] deg with 300 g (joint angles,
    strains, end-effector path) as ``step_motion.png``;
-3. a short rendered stereo recording of the same motion, a contact sheet of
-   stereo and RGB-D views (``views.png``), and, when the stereo tracker is
-   available, the tracked end-effector trajectory against ground truth.
+3. a short rendered stereo recording of the same motion, tracked by the
+   stereo pipeline and scored against the lab's ground truth, and a contact
+   sheet of stereo and RGB-D views (``views.png``);
+4. the ball-catching demo (``tudorvision catch demo`` defaults) in ``catch/``.
 """
 from __future__ import annotations
 
@@ -145,6 +146,10 @@ def run_demo(out, *, seed: int = 0, log=print) -> dict:
             for k, n in (("rgbd-disc", 4), ("servo-views", 2))]
     log(f"rendered recordings with ground truth -> {out / 'recordings'}")
     summary["stereo_tracking"] = _track_step(stereo_dir, out, log)
+    from .catch.demo import DemoOptions, run_demo as run_catch_demo
+    catch = run_catch_demo(out / "catch", DemoOptions(seed=seed))
+    summary["catch"] = {k: catch[k] for k in ("throws", "crossing_workspace", "caught", "success_rate") if k in catch}
+    log(f"ball catching: {summary['catch']} -> {out / 'catch'}")
     _contact_sheet(stereo_dir, rgbd, out / "views.png")
     log(f"views -> {out / 'views.png'}")
     summary["wall_time_s"] = round(time.monotonic() - t0, 1)
