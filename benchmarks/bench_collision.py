@@ -26,7 +26,8 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
+
+from _machine import cpu_model  # benchmarks/ is on sys.path when run as a script
 import time
 from concurrent.futures import ProcessPoolExecutor
 
@@ -43,16 +44,6 @@ PLATES = (0, 1, 2, 3, 4)
 LO, HI = np.array([20.0, -80.0]) * DEG, np.array([160.0, 80.0]) * DEG
 V_ID, A_ID = np.array([1.0, 70.0, 70.0]) * DEG, np.array([1.0, 200.0, 200.0]) * DEG
 
-
-def _cpu_model() -> str:
-    try:
-        with open("/proc/cpuinfo") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def torque_per_strain(params) -> tuple:
@@ -183,7 +174,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     os.makedirs(a.out, exist_ok=True)
     t0 = time.time()
-    report = {"cpu": _cpu_model(), "jobs": a.jobs, "noise": a.noise}
+    report = {"cpu": cpu_model(), "jobs": a.jobs, "noise": a.noise}
     with ProcessPoolExecutor(max_workers=a.jobs) as ex:
         # 1. identification
         data = list(ex.map(_id_job, [(pl, a.id_seconds, a.noise, 100 + pl) for pl in PLATES]))

@@ -34,7 +34,8 @@ import argparse
 import csv
 import json
 import os
-import platform
+
+from _machine import cpu_model  # benchmarks/ is on sys.path when run as a script
 import time
 from concurrent.futures import ProcessPoolExecutor
 
@@ -56,16 +57,6 @@ EXPERIMENTS.update({"06": (OPS_DEG[1], OPS_DEG[2]), "07": (OPS_DEG[2], OPS_DEG[3
 LAWS = ("off", "proportional", "integral", "half_integrator")
 HORIZON_S = 10.0
 
-
-def _cpu_model() -> str:
-    try:
-        with open("/proc/cpuinfo") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def static_strain_link2_root(arm: ElasticArm, theta) -> np.ndarray:
@@ -265,7 +256,7 @@ def main(argv=None):
                 results[key] = r
         table = evaluate(results, exps, LAWS, a.reps)
         meta = {"plant": plant, "reps": a.reps, "noise": a.noise, "gains": gains, "experiments": exps,
-                "wall_s": time.time() - t0, "cpu": _cpu_model(), "jobs": a.jobs,
+                "wall_s": time.time() - t0, "cpu": cpu_model(), "jobs": a.jobs,
                 "operating_points_deg": OPS_DEG}
         out = os.path.join(a.out, plant)
         write_outputs(table, exps, LAWS, out, meta)

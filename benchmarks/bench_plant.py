@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
+
+from _machine import cpu_model  # benchmarks/ is on sys.path when run as a script
 import time
 
 import numpy as np
@@ -31,16 +32,6 @@ from tudorvision.sim.arm import (ElasticArm, Payload, PlantConfig, bias_torques,
 
 DEG = np.pi / 180
 
-
-def _cpu_model() -> str:
-    try:
-        with open("/proc/cpuinfo") as fh:
-            for line in fh:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def peer_simulate(start, goal, seconds, payload, params):
@@ -118,7 +109,7 @@ def main(argv=None) -> int:
     k = int(round(args.peer_seconds / 0.0005)) - 1
     agree = np.rad2deg(np.abs(x_peer[:3] - log.theta[k])).max()
     per_s_ours, per_s_peer = t_ours / args.seconds, t_peer / args.peer_seconds
-    print(f"machine: {os.cpu_count()} CPUs, {_cpu_model()}")
+    print(f"machine: {os.cpu_count()} CPUs, {cpu_model()}")
     print(f"ours : {args.seconds:g} s simulated at 2 kHz in {t_ours:.3f} s wall (best of {args.repeat}: "
           f"{', '.join(f'{t:.3f}' for t in ours)}) -> {per_s_ours * 1e3:.1f} ms per simulated s; "
           f"target < 2 s for 10 s: {'met' if per_s_ours * 10 < 2 else 'NOT met'}")

@@ -191,13 +191,17 @@ def triangulate_points(uv_left, uv_right, P_left, P_right) -> np.ndarray:
     >>> triangulate_points([[0.1, 0.05]], [[0.0, 0.05]], P1, P2).round(9).tolist()
     [[0.2, 0.1, 2.0]]
     """
+    a, b, P1, P2 = _checked_pair(uv_left, uv_right, P_left, P_right)
+    return _triangulate_cv2(a, b, P1, P2)
+
+
+def _checked_pair(uv_left, uv_right, P_left, P_right):
+    """Boundary checks shared by the triangulation functions."""
     a = _uv(uv_left, "uv_left")
     b = _uv(uv_right, "uv_right")
     if a.shape != b.shape:
         raise ValueError(f"uv_right: expected shape {a.shape} like uv_left, got {b.shape}")
-    P1 = check_array(P_left, "P_left", (3, 4))
-    P2 = check_array(P_right, "P_right", (3, 4))
-    return _triangulate_cv2(a, b, P1, P2)
+    return a, b, check_array(P_left, "P_left", (3, 4)), check_array(P_right, "P_right", (3, 4))
 
 
 def _triangulate_cv2(a, b, P1, P2) -> np.ndarray:
@@ -242,12 +246,7 @@ def triangulate_dlt(uv_left, uv_right, P_left, P_right) -> np.ndarray:
     >>> triangulate_dlt([[0.1, 0.05]], [[0.0, 0.05]], P1, P2).round(9).tolist()
     [[0.2, 0.1, 2.0]]
     """
-    a = _uv(uv_left, "uv_left")
-    b = _uv(uv_right, "uv_right")
-    if a.shape != b.shape:
-        raise ValueError(f"uv_right: expected shape {a.shape} like uv_left, got {b.shape}")
-    P1 = check_array(P_left, "P_left", (3, 4))
-    P2 = check_array(P_right, "P_right", (3, 4))
+    a, b, P1, P2 = _checked_pair(uv_left, uv_right, P_left, P_right)
     out = np.full((len(a), 3), np.nan)
     ok = _valid_rows(a, b)
     if not ok.any():
