@@ -438,6 +438,33 @@ class JointLayerServer:
                            last_command_seq=self._last_command_seq, request_seq=request_seq,
                            counters=P.Counters(**self._counts))
 
+    # ------------------------------------------------------- lockstep driving
+    def poll(self) -> int:
+        """Handle every message already waiting on the transport, without blocking.
+
+        For simulations that drive the layer in simulated time instead of a
+        wall-clock thread (see :meth:`tick`). Returns the number handled.
+        """
+        handled = 0
+        item = self.transport.recv(0.0)
+        while item is not None:
+            self._handle(*item)
+            handled += 1
+            item = self.transport.recv(0.0)
+        return handled
+
+    def tick(self, dt: float) -> None:
+        """Handle waiting messages, then run one control period of ``dt`` seconds.
+
+        The lockstep alternative to :meth:`serve_forever`: the caller owns the
+        clock (a simulation advancing the plant in simulated time). Do not mix
+        with a running background loop.
+        """
+        if not dt > 0:
+            raise ValueError(f"dt: must be positive, got {dt}")
+        self.poll()
+        self._tick(float(dt))
+
     # ------------------------------------------------------------- lifecycle
     def serve_forever(self, rate_hz: float | None = None) -> None:
         """Run the control loop until :meth:`shutdown` is called (from another thread)."""

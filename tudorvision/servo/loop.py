@@ -260,24 +260,10 @@ def _true_camera_pose(arm, cfg: LabConfig) -> np.ndarray:
     return cfg.T_world_base @ arm.T_base_ee() @ cfg.T_ee_cam
 
 
-class _LockstepServer(JointLayerServer):
-    """The joint layer's server driven by the lab in simulated time (no wall-clock thread)."""
-
-    def handle_pending(self) -> None:
-        item = self.transport.recv(0.0)
-        while item is not None:
-            self._handle(*item)
-            item = self.transport.recv(0.0)
-
-    def tick(self, dt: float) -> None:
-        self.handle_pending()
-        self._tick(dt)
-
-
 class _ClientEnd:
     """Client transport that lets the lockstep server answer at once (requests never block)."""
 
-    def __init__(self, inner, server: _LockstepServer):
+    def __init__(self, inner, server: JointLayerServer):
         self._inner, self._server = inner, server
 
     @property
@@ -286,7 +272,7 @@ class _ClientEnd:
 
     def send(self, data, addr=None):
         self._inner.send(data, addr)
-        self._server.handle_pending()
+        self._server.poll()
 
     def recv(self, timeout):
         return self._inner.recv(0.0)
@@ -325,7 +311,7 @@ class ServoLab:
         payload = Payload.from_parts(self.params, plates=plates, camera=True)
         self.core = SimCore(theta_start, payload=payload, params=self.params)
         client, end = InProcessTransport.pair()
-        self.server = _LockstepServer(end, self.core, config=ServerConfig(rate_hz=cfg.server_rate_hz,
+        self.server = JointLayerServer(end, self.core, config=ServerConfig(rate_hz=cfg.server_rate_hz,
                                                                           max_command_age_s=None))
         self.adapter = JointAdapter(_ClientEnd(client, self.server))
         self.square_center_world = (np.asarray(cfg.square_center_world, float) if cfg.square_center_world
