@@ -93,8 +93,11 @@ class JointLog:
 
 
 # ----------------------------------------------------------------------------- depth units
-def depth_m_from_raw(depth_raw, depth_scale: float) -> np.ndarray:
+def depth_m_from_raw(depth_raw, depth_scale: float, *, dtype=np.float32) -> np.ndarray:
     """Metres from raw 16-bit depth; 0 (invalid) becomes NaN.
+
+    The one conversion of the package: :func:`tudorvision.rgbd.depth_m_from_raw`
+    adds shape and plausibility checks on top of it.
 
     Parameters
     ----------
@@ -102,10 +105,12 @@ def depth_m_from_raw(depth_raw, depth_scale: float) -> np.ndarray:
         Raw depth values.
     depth_scale : float
         Raw units per metre (1000 for millimetres, 5000 for TUM).
+    dtype : numpy dtype, optional
+        Output type (float32 by default, half the memory of float64).
 
     Returns
     -------
-    ndarray, shape (H, W), float32
+    ndarray, shape (H, W), ``dtype``
 
     Examples
     --------
@@ -115,7 +120,8 @@ def depth_m_from_raw(depth_raw, depth_scale: float) -> np.ndarray:
     if not (isinstance(depth_scale, (int, float)) and math.isfinite(depth_scale) and depth_scale > 0):
         raise ValueError(f"depth_scale: expected a positive number of units per metre, got {depth_scale!r}")
     raw = np.asarray(depth_raw)
-    out = raw.astype(np.float32) / np.float32(depth_scale)
+    dtype = np.dtype(dtype)
+    out = raw.astype(dtype) / dtype.type(depth_scale)
     out[raw == 0] = np.nan
     return out
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._checks import TudorVisionError, check_points
+from ..io.frames import depth_m_from_raw as io_depth_m_from_raw
 
 __all__ = [
     "Intrinsics", "check_depth", "depth_m_from_raw", "raw_from_depth_m",
@@ -177,8 +178,7 @@ def depth_m_from_raw(depth_raw, depth_scale: float, *, check_range: bool = True)
     raw = np.asarray(depth_raw)
     if raw.ndim != 2:
         raise ValueError(f"depth_raw: expected a 2-D depth image (H, W), got shape {raw.shape}")
-    d = raw.astype(np.float64) / scale
-    d = check_depth(d, "depth_raw")
+    d = check_depth(io_depth_m_from_raw(raw, scale, dtype=np.float64), "depth_raw")
     if check_range:
         med = float(np.nanmedian(d))
         lo, hi = PLAUSIBLE_DEPTH_RANGE_M
