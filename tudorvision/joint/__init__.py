@@ -15,7 +15,7 @@ from .safety import (SafetyLimits, SafetyPolicy, brake_velocity, check_setpoint,
                      ramp_velocity, stopping_time, within_range)
 from .server import (CoreState, JointCore, JointLayerServer, KinematicCore, ServerConfig, core_names,
                      make_core, register_core)
-from .transport import InProcessTransport, Transport, TransportClosed, UdpTransport
+from .transport import InProcessTransport, LockstepClientTransport, Transport, TransportClosed, UdpTransport
 
 __all__ = [
     "AdapterStats", "JointAdapter",
@@ -29,5 +29,5 @@ __all__ = [
     "ramp_velocity", "stopping_time", "within_range",
     "CoreState", "JointCore", "JointLayerServer", "KinematicCore", "ServerConfig", "core_names", "make_core",
     "register_core",
-    "InProcessTransport", "Transport", "TransportClosed", "UdpTransport",
+    "InProcessTransport", "LockstepClientTransport", "Transport", "TransportClosed", "UdpTransport",
 ]

@@ -26,7 +26,7 @@ import socket
 import threading
 from typing import Hashable, Protocol
 
-__all__ = ["Transport", "UdpTransport", "InProcessTransport", "TransportClosed"]
+__all__ = ["Transport", "UdpTransport", "InProcessTransport", "LockstepClientTransport", "TransportClosed"]
 
 Address = Hashable
 
@@ -206,3 +206,38 @@ class InProcessTransport:
 
     def __exit__(self, *exc):
         self.close()
+
+
+class LockstepClientTransport:
+    """Client end for a layer driven in simulated time (:meth:`JointLayerServer.tick`).
+
+    Wraps the client end of an in-process pair; every :meth:`send` lets the
+    lockstep server handle the datagram at once (``server.poll()``), so a
+    request's answer is already waiting when the adapter reads it and
+    :meth:`recv` never blocks. With a wall-clock server thread use the plain
+    :class:`InProcessTransport` instead.
+
+    Parameters
+    ----------
+    inner : InProcessTransport
+        Client end of :meth:`InProcessTransport.pair`.
+    server : object with ``poll()``
+        The :class:`~tudorvision.joint.server.JointLayerServer` on the other end.
+    """
+
+    def __init__(self, inner: InProcessTransport, server):
+        self._inner, self._server = inner, server
+
+    @property
+    def address(self):
+        return self._inner.address
+
+    def send(self, data: bytes, addr: Address | None = None) -> None:
+        self._inner.send(data, addr)
+        self._server.poll()
+
+    def recv(self, timeout: float) -> tuple[bytes, Address] | None:
+        return self._inner.recv(0.0)
+
+    def close(self) -> None:
+        self._inner.close()
