@@ -33,8 +33,9 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from tudorvision.joint.collision import (CollisionMonitor, aprbs, derivatives, fit_report, fit_strain_dynamics,
-                                         reaction_config, thresholds_from_residuals)
+from tudorvision.joint.collision import (CollisionMonitor, StrainDynamicsModel, aprbs, derivatives, fit_report,
+                                         fit_strain_dynamics, reaction_config, root_torque_per_strain,
+                                         thresholds_from_residuals)
 from tudorvision.joint.damping import TWO_WAY_GAINS, DampingConfig, StrainDamper
 from tudorvision.robot import load_robot_params
 from tudorvision.sim.arm import ControlledArm, ElasticArm, Payload, PlantConfig, SpringDamperObstacle
@@ -44,15 +45,6 @@ PLATES = (0, 1, 2, 3, 4)
 LO, HI = np.array([20.0, -80.0]) * DEG, np.array([160.0, 80.0]) * DEG
 V_ID, A_ID = np.array([1.0, 70.0, 70.0]) * DEG, np.array([1.0, 200.0, 200.0]) * DEG
 
-
-
-def torque_per_strain(params) -> tuple:
-    """``E I / y_b`` of the link-2 and link-3 root sections (4.2.3), N m per (m/m)."""
-    out = []
-    for link in (params.link2, params.link3):
-        I = link.width_m * link.height_m ** 3 / 12.0
-        out.append(float(link.youngs_modulus_Pa * I / (0.5 * link.height_m)))
-    return tuple(out)
 
 
 def _make_arm(plates, theta0, *, noise, seed, obstacles=(), two_way=True):
@@ -144,7 +136,7 @@ def contact_scenario(kind, strategy, model, thr, *, noise, seed=7, seconds=2.5, 
     mon = None
     if strategy != "no detection":
         mon = CollisionMonitor(model, thr, arm.payload.mass_kg, arm.config.dt, reaction_config(
-            strategy, torque_per_strain=torque_per_strain(arm.params)))
+            strategy, torque_per_strain=root_torque_per_strain(arm.params)))
         ca.reaction = mon
     ca.set_goal(goal)
     n = int(round(seconds / arm.config.dt))
@@ -171,44 +163,34 @@ def main(argv=None):
     ap.add_argument("--noise", type=float, default=2e-6)
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--out", default="out/collision")
+    ap.add_argument("--reuse", action="store_true",
+                    help="load the model and thresholds of an earlier run from --out (skip steps 1-2)")
     a = ap.parse_args(argv)
     os.makedirs(a.out, exist_ok=True)
     t0 = time.time()
     report = {"cpu": cpu_model(), "jobs": a.jobs, "noise": a.noise}
     with ProcessPoolExecutor(max_workers=a.jobs) as ex:
-        # 1. identification
-        data = list(ex.map(_id_job, [(pl, a.id_seconds, a.noise, 100 + pl) for pl in PLATES]))
-        cat = {k: np.concatenate([d[k] for d in data]) for k in ("theta", "d", "dd", "eps", "m")}
-        blk = np.concatenate([(d["t"] // 5.0).astype(int) % 2 for d in data]).astype(bool)
-        model = fit_strain_dynamics(cat["theta"][~blk], cat["d"][~blk], cat["dd"][~blk], cat["eps"][~blk],
-                                    cat["m"][~blk])
-        fits = {}
-        for d in data:
-            b = ((d["t"] // 5.0).astype(int) % 2).astype(bool)
-            rep = fit_report(model, d["theta"][b], d["d"][b], d["dd"][b], d["eps"][b], d["m"][b])
-            fits[f"{100 * d['plates']} g"] = {"fit_pct": np.round(rep.fit_pct, 1).tolist(),
-                                              "rmse_um_m": np.round(np.array(rep.rmse) * 1e6, 2).tolist()}
-        report["identification"] = {"seconds_per_payload": a.id_seconds, "validation": fits}
-        print("fit (validation, link-2 / link-3 root):", fits, flush=True)
-        np.save(os.path.join(a.out, "chi.npy"), model.chi)
-        # 2. thresholds from collision-free residuals
-        inf = [np.inf, np.inf]
-        rs = list(ex.map(_res_job, [(pl, a.thr_seconds, a.noise, 200 + pl, model, inf, "none") for pl in PLATES]))
-        res = np.concatenate([r["res"] for r in rs])
-        thr = thresholds_from_residuals(res)
-        report["thresholds_um_m"] = np.round(thr * 1e6, 2).tolist()
-        report["residual_sigma_um_m"] = np.round(res.std(axis=0) * 1e6, 3).tolist()
-        print("thresholds (um/m):", report["thresholds_um_m"], flush=True)
+        if a.reuse:
+            prev = json.load(open(os.path.join(a.out, "collision.json")))
+            model = StrainDynamicsModel(chi=np.load(os.path.join(a.out, "chi.npy")))
+            thr = np.load(os.path.join(a.out, "thr.npy"))
+            for key in ("identification", "thresholds_um_m", "residual_sigma_um_m"):
+                report[key] = prev[key]
+        else:
+            model, thr = _identify(ex, a, report)
         # 3. false positives
-        per = a.fp_minutes * 60.0 / len(PLATES)
-        chunks = max(1, int(np.ceil(per / 60.0)))
-        jobs = [(pl, per / chunks, a.noise, 1000 + 10 * pl + c, model, thr, "none") for pl in PLATES
-                for c in range(chunks)]
-        fp = list(ex.map(_res_job, jobs))
-        n_fp = sum(len(r["detections"]) for r in fp)
-        report["false_positives"] = {"minutes": a.fp_minutes, "count": n_fp,
-                                     "events": [d for r in fp for d in r["detections"]][:20]}
-        print(f"false positives in {a.fp_minutes:g} min: {n_fp}", flush=True)
+        if a.fp_minutes > 0:
+            per = a.fp_minutes * 60.0 / len(PLATES)
+            chunks = max(1, int(np.ceil(per / 60.0)))
+            jobs = [(pl, per / chunks, a.noise, 1000 + 10 * pl + c, model, thr, "none") for pl in PLATES
+                    for c in range(chunks)]
+            fp = list(ex.map(_res_job, jobs))
+            n_fp = sum(len(r["detections"]) for r in fp)
+            report["false_positives"] = {"minutes": a.fp_minutes, "count": n_fp,
+                                         "events": [d for r in fp for d in r["detections"]][:20]}
+            print(f"false positives in {a.fp_minutes:g} min: {n_fp}", flush=True)
+        elif a.reuse and "false_positives" in prev:
+            report["false_positives"] = prev["false_positives"]
         # 4. contacts
         scen = [(k, s) for k in ("link3", "link2") for s in ("no detection", "stop", "reflex", "interaction")]
         outs = list(ex.map(_contact_job, [(k, s, model, thr, a.noise) for k, s in scen]))
@@ -222,16 +204,45 @@ def main(argv=None):
     print(f"wrote {a.out} in {report['wall_s']:.0f} s")
 
 
+def _identify(ex, a, report):
+    """Steps 1 (identification) and 2 (thresholds); saves ``chi.npy`` and ``thr.npy`` to ``a.out``."""
+    # 1. identification
+    data = list(ex.map(_id_job, [(pl, a.id_seconds, a.noise, 100 + pl) for pl in PLATES]))
+    cat = {k: np.concatenate([d[k] for d in data]) for k in ("theta", "d", "dd", "eps", "m")}
+    blk = np.concatenate([(d["t"] // 5.0).astype(int) % 2 for d in data]).astype(bool)
+    model = fit_strain_dynamics(cat["theta"][~blk], cat["d"][~blk], cat["dd"][~blk], cat["eps"][~blk],
+                                cat["m"][~blk])
+    fits = {}
+    for d in data:
+        b = ((d["t"] // 5.0).astype(int) % 2).astype(bool)
+        rep = fit_report(model, d["theta"][b], d["d"][b], d["dd"][b], d["eps"][b], d["m"][b])
+        fits[f"{100 * d['plates']} g"] = {"fit_pct": np.round(rep.fit_pct, 1).tolist(),
+                                          "rmse_um_m": np.round(np.array(rep.rmse) * 1e6, 2).tolist()}
+    report["identification"] = {"seconds_per_payload": a.id_seconds, "validation": fits}
+    print("fit (validation, link-2 / link-3 root):", fits, flush=True)
+    np.save(os.path.join(a.out, "chi.npy"), model.chi)
+    # 2. thresholds from collision-free residuals
+    inf = [np.inf, np.inf]
+    rs = list(ex.map(_res_job, [(pl, a.thr_seconds, a.noise, 200 + pl, model, inf, "none") for pl in PLATES]))
+    res = np.concatenate([r["res"] for r in rs])
+    thr = thresholds_from_residuals(res)
+    report["thresholds_um_m"] = np.round(thr * 1e6, 2).tolist()
+    report["residual_sigma_um_m"] = np.round(res.std(axis=0) * 1e6, 3).tolist()
+    print("thresholds (um/m):", report["thresholds_um_m"], flush=True)
+    np.save(os.path.join(a.out, "thr.npy"), thr)
+    return model, thr
+
+
 def _contact_job(args):
     kind, strategy, model, thr, noise = args
     return contact_scenario(kind, strategy, model, thr, noise=noise)
 
 
 def _markdown(rep, path):
+    fp = rep.get("false_positives", {"minutes": 0.0, "count": "not run"})
     lines = ["# Collision detection on the simulated TUDOR", "",
              f"Thresholds (6 sigma, link-2 / link-3 root residual): {rep['thresholds_um_m']} um/m; "
-             f"false positives in {rep['false_positives']['minutes']:g} min of random motion (0-400 g): "
-             f"{rep['false_positives']['count']}.", "", "Validation fit (B.4): " + json.dumps(
+             f"false positives in {fp['minutes']:g} min of random motion (0-400 g): {fp['count']}.", "", "Validation fit (B.4): " + json.dumps(
                  rep["identification"]["validation"]), "",
              "| contact | strategy | onset (s) | detected (s) | delay (ms) | link | dir | peak force (N) | "
              "final force (N) |", "|---|---|---|---|---|---|---|---|---|"]

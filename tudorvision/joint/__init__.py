@@ -5,6 +5,15 @@ the layer (:class:`JointLayerServer` around a core such as the simulated
 arm) owns safety, damping and collision handling.
 """
 from .adapter import AdapterStats, JointAdapter
+from .collision import (N_PARAMS, STRATEGIES, STRATEGY_OF_CODE, Admittance, CollisionMonitor, FitReport,
+                        MomentumObserver, ReactionConfig, StrainDynamicsModel, aprbs, derivatives, fit_report,
+                        fit_strain_dynamics, isolate, reaction_config, regressor, regressor_payload,
+                        root_torque_per_strain, thresholds_from_residuals)
+from .damping import (DEFAULT_GAINS, GAUGE_OF_JOINT, LAWS, ONE_WAY_GAINS, TWO_WAY_GAINS, DampingConfig, SosFilter,
+                      StaticStrainFilter, StrainDamper, default_damping_config, half_integrator_sos, highpass_response,
+                      moving_average_fir, pade_p55, proportional_feedback, static_strain_fir)
+from .metrics import (ANGLE_BAND_RAD, METRIC_NAMES, STRAIN_BAND, damping_metrics, goodness_of_fit, iate, iats,
+                      max_abs, normalise_metrics, nrmse, settling_time, spectral_amplitude)
 from .cascade import (CascadeGains, JointCascade, design_cascade, friction_torque, motor_gain,
                       reflected_inertia, reflected_viscous)
 from .planner import JointMotion, OnlinePlanner, plan_motion, sinusoidal_transition
@@ -19,6 +28,14 @@ from .transport import InProcessTransport, LockstepClientTransport, Transport, T
 
 __all__ = [
     "AdapterStats", "JointAdapter",
+    "N_PARAMS", "STRATEGIES", "STRATEGY_OF_CODE", "Admittance", "CollisionMonitor", "FitReport", "MomentumObserver",
+    "ReactionConfig", "StrainDynamicsModel", "aprbs", "derivatives", "fit_report", "fit_strain_dynamics", "isolate",
+    "reaction_config", "regressor", "regressor_payload", "root_torque_per_strain", "thresholds_from_residuals",
+    "DEFAULT_GAINS", "GAUGE_OF_JOINT", "LAWS", "ONE_WAY_GAINS", "TWO_WAY_GAINS", "DampingConfig", "SosFilter",
+    "StaticStrainFilter", "StrainDamper", "default_damping_config", "half_integrator_sos", "highpass_response",
+    "moving_average_fir", "pade_p55", "proportional_feedback", "static_strain_fir",
+    "ANGLE_BAND_RAD", "METRIC_NAMES", "STRAIN_BAND", "damping_metrics", "goodness_of_fit", "iate", "iats", "max_abs",
+    "normalise_metrics", "nrmse", "settling_time", "spectral_amplitude",
     "CascadeGains", "JointCascade", "design_cascade", "friction_torque", "motor_gain", "reflected_inertia",
     "reflected_viscous",
     "JointMotion", "OnlinePlanner", "plan_motion", "sinusoidal_transition",

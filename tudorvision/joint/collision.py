@@ -61,10 +61,13 @@ from .._checks import check_array
 
 __all__ = ["N_PARAMS", "STRATEGIES", "regressor", "regressor_payload", "StrainDynamicsModel", "fit_strain_dynamics",
            "FitReport", "fit_report", "derivatives", "MomentumObserver", "thresholds_from_residuals", "isolate",
-           "ReactionConfig", "reaction_config", "Admittance", "CollisionMonitor", "aprbs"]
+           "ReactionConfig", "reaction_config", "Admittance", "CollisionMonitor", "aprbs", "root_torque_per_strain",
+           "STRATEGY_OF_CODE"]
 
 N_PARAMS = 16
 STRATEGIES = ("none", "stop", "reflex", "interaction")
+#: Strategy name per protocol code (:class:`tudorvision.joint.protocol.CollisionStrategy`).
+STRATEGY_OF_CODE = dict(enumerate(STRATEGIES))
 #: gauge channels of the root strains of links 2 and 3
 ROOT_GAUGES = (0, 2)
 
@@ -364,6 +367,27 @@ class ReactionConfig:
         if not self.m_r > 0 or self.f_r < 0 or self.k_r < 0:
             raise ValueError(f"m_r, f_r, k_r: expected m_r > 0, f_r >= 0, k_r >= 0, got "
                              f"{self.m_r}, {self.f_r}, {self.k_r}")
+
+
+def root_torque_per_strain(params) -> tuple:
+    """``E I / y_b`` of the root sections of links 2 and 3 (4.2.3), N m per (m/m).
+
+    Parameters
+    ----------
+    params : RobotParams
+
+    Examples
+    --------
+    >>> from tudorvision.robot import load_robot_params
+    >>> k2, k3 = root_torque_per_strain(load_robot_params())
+    >>> bool(k2 > 0 and k3 > 0)
+    True
+    """
+    out = []
+    for link in (params.link2, params.link3):
+        area_moment = link.width_m * link.height_m ** 3 / 12.0
+        out.append(float(link.youngs_modulus_Pa * area_moment / (0.5 * link.height_m)))
+    return tuple(out)
 
 
 def reaction_config(strategy: str, *, torque_per_strain=(8000.0, 8000.0)) -> ReactionConfig:

@@ -36,6 +36,7 @@ from __future__ import annotations
 
 import math
 import random
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -126,6 +127,9 @@ class PlantConfig:
         Standard deviation of the white noise on :meth:`ElasticArm.measured_strain`, m/m.
     noise_seed : int
         Seed of the measurement-noise generator (deterministic runs).
+    coulomb_friction : bool
+        Apply the joints' Coulomb friction with sticking (3.1.3); ``False``
+        keeps only the viscous part (a diagnostic of the damping benchmark).
     """
 
     dt: float = 0.0005
@@ -140,6 +144,7 @@ class PlantConfig:
     two_way: bool | None = None
     strain_noise_m_m: float = 0.0
     noise_seed: int = 0
+    coulomb_friction: bool = True
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -529,8 +534,9 @@ class ElasticArm:
         n = np.asarray(p.gear_ratio, float)
         self._kvp = [float(x) for x in n**2 * p.viscous_pos_Nms_rad]
         self._kvn = [float(x) for x in n**2 * p.viscous_neg_Nms_rad]
-        self._kcp = [float(x) for x in n * p.coulomb_pos_Nm]
-        self._kcn = [float(x) for x in n * p.coulomb_neg_Nm]
+        cf = 1.0 if config.coulomb_friction else 0.0
+        self._kcp = [cf * float(x) for x in n * p.coulomb_pos_Nm]
+        self._kcn = [cf * float(x) for x in n * p.coulomb_neg_Nm]
         if config.encoder_counts_per_rev:
             self._quant = [float(2 * np.pi / (config.encoder_counts_per_rev * nj)) for nj in n]
         else:
@@ -1362,10 +1368,16 @@ class SimCore:
     Wraps :class:`ControlledArm`; :meth:`step` sub-steps at the plant's 2 kHz.
     Register it with ``register_core("sim", SimCore)``.
 
-    Damping laws and collision reactions are not part of the plant: the
-    selected modes are recorded (``self.damping``, ``self.collision``) and a
-    damping callable may be set on ``self.controlled.damping``; with the
-    default (none) the arm runs with the bare cascade.
+    :meth:`set_modes` (called by the server on a mode switch) installs the
+    joint layer's damping and collision handling on the cascade: a
+    :class:`tudorvision.joint.damping.StrainDamper` with the tuned gains of
+    the law (one-way or two-way plant) and, when a strain-dynamics model is
+    given, a :class:`tudorvision.joint.collision.CollisionMonitor` with the
+    strategy (``NONE`` detects and reports only). The residuals and the
+    latched collision flag appear in :meth:`state`; a detected collision
+    stays latched (the reaction keeps replacing the PD output) until the
+    next :meth:`set_modes` call. The selected codes are kept in
+    ``self.damping`` and ``self.collision``.
 
     Parameters
     ----------
@@ -1377,6 +1389,13 @@ class SimCore:
     obstacles : sequence of SpringDamperObstacle, optional
     settle_band : float
         Strain settling band, m/m (15 um/m in the seed).
+    collision_model : StrainDynamicsModel, optional
+        Identified strain-referred dynamics (10.2.8) for the momentum
+        residual; without it collision modes are recorded but nothing is
+        detected (a warning is issued when a reaction strategy is selected).
+    collision_thresholds : array_like, shape (2,), optional
+        Residual thresholds of the link-2 and link-3 root strains, m/m
+        (required with ``collision_model``).
 
     Examples
     --------
@@ -1389,8 +1408,14 @@ class SimCore:
     """
 
     def __init__(self, theta0=None, *, payload: Payload | None = None, params: RobotParams | None = None,
-                 config: PlantConfig = PlantConfig(), obstacles=(), settle_band: float = 15e-6):
+                 config: PlantConfig = PlantConfig(), obstacles=(), settle_band: float = 15e-6,
+                 collision_model=None, collision_thresholds=None):
         th = np.array([0.0, np.pi / 2, 0.0]) if theta0 is None else check_vector(theta0, "theta0", 3)
+        if (collision_model is None) != (collision_thresholds is None):
+            raise ValueError("collision_model, collision_thresholds: give both or neither")
+        self.collision_model = collision_model
+        self.collision_thresholds = None if collision_thresholds is None else \
+            [float(x) for x in check_vector(collision_thresholds, "collision_thresholds", 2)]
         arm = ElasticArm(th, payload=payload, params=params, config=config, obstacles=obstacles)
         p = arm.params
         self.controlled = ControlledArm(arm, v_max=p.max_speed_rad_s, a_max=p.max_accel_rad_s2)
@@ -1420,6 +1445,39 @@ class SimCore:
         self.controlled.stop()
 
     def set_modes(self, *, damping, collision) -> None:
+        """Install the damping law and the collision monitor of the given codes.
+
+        Parameters
+        ----------
+        damping : int or Damping
+            0 off, 1 proportional, 2 integral, 3 half-integrator.
+        collision : int or CollisionStrategy
+            0 none (detect and report only), 1 stop, 2 reflex, 3 interaction.
+
+        Raises
+        ------
+        ValueError
+            On an unknown code.
+        """
+        from ..joint.collision import STRATEGY_OF_CODE, CollisionMonitor, reaction_config, root_torque_per_strain
+        from ..joint.damping import LAWS, StrainDamper, default_damping_config
+        d, c = int(damping), int(collision)
+        if not 0 <= d < len(LAWS) or c not in STRATEGY_OF_CODE:
+            raise ValueError(f"damping, collision: unknown codes {damping!r}, {collision!r}")
+        ca, arm = self.controlled, self.arm
+        if ca.damper is None or ca.damper.config.law != LAWS[d]:
+            ca.set_damper(None if d == 0 else StrainDamper(default_damping_config(LAWS[d], two_way=arm._two_way),
+                                                            arm.measured_strain(), arm.config.dt))
+        strategy = STRATEGY_OF_CODE[c]
+        if self.collision_model is None:
+            ca.reaction = None
+            if strategy != "none":
+                warnings.warn(f"SimCore: collision strategy {strategy!r} selected without a collision_model; "
+                              "nothing is detected", RuntimeWarning, stacklevel=2)
+        else:                   # a fresh monitor: the latch is cleared, the observer restarts at rest state
+            ca.reaction = CollisionMonitor(self.collision_model, self.collision_thresholds, arm.payload.mass_kg,
+                                           arm.config.dt, reaction_config(
+                                               strategy, torque_per_strain=root_torque_per_strain(arm.params)))
         self.damping, self.collision = damping, collision
 
     def step(self, dt: float) -> None:
@@ -1445,5 +1503,8 @@ class SimCore:
         settled = calm and at_rest and reached and self.controlled.mode == "setpoint" \
             or (calm and at_rest and self.controlled.mode == "velocity"
                 and not any(self.controlled._v_cmd))
+        mon = self.controlled.reaction
+        residuals = np.zeros(3) if mon is None else np.asarray(mon.residual, float)
         return CoreState(t=arm.t, theta=np.asarray(arm.theta, float), theta_dot=np.asarray(arm.dtheta, float),
-                         strains=strain, settled=bool(settled))
+                         strains=strain, residuals=residuals, collision=bool(mon is not None and mon.collision),
+                         settled=bool(settled))
