@@ -8,10 +8,11 @@ Loop per wall-camera frame (30 Hz)::
     -> compensated inverse kinematics (data-based deflection model, estimated payload)
     -> JointAdapter.send_setpoint -> joint-control layer (JointLayerServer) -> simulated elastic arm
 
-Simulation time: the joint-layer server runs in its thread as usual, but its
-core (:class:`LockstepCore`) advances the plant only when the demo says so,
-one camera frame at a time; commands still travel through the adapter and
-the server's safety checks, and runs are deterministic for a seed.
+Simulation time: the joint-control layer (:class:`~tudorvision.joint.server.JointLayerServer`
+with its safety checks and faults) runs in lockstep with the demo
+(:class:`~tudorvision.catch.lab.LockstepLayer`, ``tick`` at ``layer_rate_hz``);
+commands still travel through the adapter, and runs are deterministic for a
+seed whatever the machine's load.
 
 Scoring (ground truth, never seen by perception): a throw *crosses the
 workspace* if its true crossing of the working plane is reachable by the
@@ -38,6 +39,7 @@ import numpy as np
 from .ballistic import BallisticPredictor
 from .ekf import BallEKF, BallModel, EKFOptions
 from .intercept import InterceptOptions, InterceptPlanner, working_plane_normal
+from .lab import LockstepCore, LockstepLayer
 
 __all__ = ["DemoOptions", "LockstepCore", "CatchPerception", "simulated_detection", "run_demo",
            "detection_to_base", "PER_THROW_COLUMNS"]
@@ -80,9 +82,13 @@ class DemoOptions:
     net_capacity_balls : int
         The net is emptied (by the operator, during the pause) once it holds this
         many balls; keeps the payload within the kinematics' trained range (400 g).
+        Emptying happens at the end of the pause, the arm at rest, and adds
+        ``empty_pause_s`` of pause before the payload is weighed again.
     speed_fraction : float
         Setpoint profile speed as a fraction of the slowest joint's limit (at
         the limit, the links' swing trips the layer's over-speed fault).
+    layer_rate_hz : float
+        Control rate of the lockstep joint layer (its over-speed and range checks run every period).
     cache_dir : str
         Where the kinematics data collection is cached.
     rerun, plots : bool
@@ -102,6 +108,8 @@ class DemoOptions:
     ball_radius_m: float = 0.045
     release_sigma_m: float = 0.1
     speed_fraction: float = 0.75
+    layer_rate_hz: float = 500.0
+    empty_pause_s: float = 1.0
     net_capacity_balls: int = 8
     drag_k_per_m: float = 0.012
     cache_dir: str = "out/catch/cache"
@@ -117,60 +125,6 @@ class DemoOptions:
             raise ValueError(f"damping: expected off, proportional, integral or half_integrator, got {self.damping!r}")
         if not self.net_radius_m > 0 or not self.gap_s >= 0:
             raise ValueError("net_radius_m, gap_s: expected > 0 and >= 0")
-
-
-# ------------------------------------------------------------------------------ joint layer
-class LockstepCore:
-    """A :class:`~tudorvision.joint.server.JointCore` whose simulated time advances only on :meth:`advance_to`.
-
-    Commands from the server thread reach the wrapped :class:`~tudorvision.sim.arm.SimCore`
-    immediately; the server's own ``step(dt)`` calls (wall-clock ticks) are ignored.
-    Damping modes set through the layer install a
-    :class:`~tudorvision.joint.damping.StrainDamper` on the plant's cascade.
-    """
-
-    def __init__(self, sim):
-        self.sim = sim
-        self._lock = threading.Lock()
-        self._state = sim.state()
-
-    def apply_velocity(self, theta_dot) -> None:
-        with self._lock:
-            self.sim.apply_velocity(theta_dot)
-
-    def apply_setpoint(self, theta, *, max_speed_rad_s, max_accel_rad_s2) -> None:
-        with self._lock:
-            self.sim.apply_setpoint(theta, max_speed_rad_s=max_speed_rad_s, max_accel_rad_s2=max_accel_rad_s2)
-
-    def stop(self) -> None:
-        with self._lock:
-            self.sim.stop()
-
-    def set_modes(self, *, damping, collision) -> None:
-        from ..joint.damping import StrainDamper, default_damping_config
-
-        with self._lock:
-            self.sim.set_modes(damping=damping, collision=collision)
-            law = {0: "off", 1: "proportional", 2: "integral", 3: "half_integrator"}[int(damping)]
-            arm = self.sim.arm
-            self.sim.controlled.set_damper(None if law == "off" else
-                                           StrainDamper(default_damping_config(law), arm.strain, arm.config.dt))
-
-    def step(self, dt: float) -> None:
-        pass
-
-    def state(self):
-        with self._lock:
-            return self._state
-
-    def advance_to(self, t: float) -> None:
-        """Step the plant to simulated time ``t`` (s, its 0.5 ms grid)."""
-        with self._lock:
-            arm = self.sim.arm
-            n = int(round((t - arm.t) / arm.config.dt))
-            if n > 0:
-                self.sim.step(n * arm.config.dt)
-            self._state = self.sim.state()
 
 
 # ------------------------------------------------------------------------------ perception
@@ -288,6 +242,18 @@ def _true_crossing(tt, pp):
     return tt[i - 1] + a * (tt[i] - tt[i - 1]), pp[i - 1] + a * (pp[i] - pp[i - 1])
 
 
+def _pause(layer, t_now: float, duration: float, rate: float, weigh_s: float = 0.6):
+    """Advance the layer by ``duration`` s; strains sampled at ``rate`` over the last ``weigh_s`` s."""
+    t_end = t_now + duration
+    strains = []
+    while t_now < t_end - 1e-9:
+        t_now = min(t_now + 1.0 / rate, t_end)
+        layer.advance_to(t_now)
+        if t_end - t_now < weigh_s:
+            strains.append(np.asarray(layer.state().strains))
+    return t_now, strains
+
+
 def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
     """Run the catching demo and write ``summary.json``, ``throws.csv``, ``predictions.csv``, plots, ``catch.rrd``.
 
@@ -298,8 +264,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
         ``predictions`` (the rows of ``predictions.csv``) and ``latencies_s``.
     """
     from .._progress import progress
-    from ..joint import (Ack, Damping, InProcessTransport, JointAdapter, JointLayerServer, Mode, Reason, Refusal,
-                         ServerConfig)
+    from ..joint import Ack, Damping, Mode, Reason, Refusal
     from ..rgbd.ball import BallDetector, BallDetectorOptions
     from ..rgbd.frames import Intrinsics
     from ..robot import load_robot_params
@@ -337,12 +302,8 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
 
     theta_ready = solve(ready, None, "up")
     sim = SimCore(theta_ready, payload=payload_true, params=params)
-    core = LockstepCore(sim)
-    c_end, s_end = InProcessTransport.pair()
-    # simulated time runs in lockstep: wall-clock staleness of commands means nothing here
-    server = JointLayerServer(s_end, core, config=ServerConfig(max_command_age_s=None))
-    server.start()
-    adapter = JointAdapter(c_end)
+    core = LockstepLayer(sim, rate_hz=o.layer_rate_hz)
+    adapter = core.adapter
     # profile speed 90 % of the slowest joint's limit: at the limit itself the links' swing pushed
     # the measured joint speed past the layer's fault threshold (105 %)
     max_speed = o.speed_fraction * float(np.min(params.max_speed_rad_s))
@@ -514,31 +475,28 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
         if caught:
             balls += 1
             total_caught += 1
-        if caught or balls >= o.net_capacity_balls:
-            if balls >= o.net_capacity_balls:
-                balls = 0
-                emptied += 1
             payload_true = Payload.from_parts(params, balls=balls)
-            with core._lock:
-                sim.arm.set_payload(payload_true)
+            sim.arm.set_payload(payload_true)
         current["flight"] = None
         # ---- back to the ready pose; weigh the payload at the end of the pause (strain model, 9.2)
         theta_ready = solve(ready, np.asarray(core.state().theta))
         if not send(theta_ready):
             refused += 1
-        t_gap_end = t_now + o.gap_s
-        strains = []
-        while t_now < t_gap_end - 1e-9:
-            t_now = min(t_now + 1.0 / rate, t_gap_end)
-            core.advance_to(t_now)
-            if t_gap_end - t_now < 0.6:
-                strains.append(np.asarray(core.state().strains))
+        t_now, strains = _pause(core, t_now, o.gap_s, rate)
+        if balls >= o.net_capacity_balls:
+            # the operator empties the net once the arm rests at the ready pose (removing a full net
+            # from a still-swinging arm excites a sustained oscillation in the damped plant), then the
+            # payload is weighed again after a short settling pause
+            balls = 0
+            emptied += 1
+            payload_true = Payload.from_parts(params, balls=0)
+            sim.arm.set_payload(payload_true)
+            t_now, strains = _pause(core, t_now, o.empty_pause_s, rate)
         if strains:     # mean over the last 0.6 s averages the residual swing; clipped to the trained range
             st = core.state()
             m = km.strain.payload(np.asarray(st.theta)[None, 1:], np.mean(strains, axis=0)[None])[0]
             payload_est = float(np.clip(m, 0.0, 0.5))
-    server.shutdown()
-    adapter.close()
+    core.close()
 
     # ---- outputs
     r = np.array([x[:-1] for x in rows], float)
