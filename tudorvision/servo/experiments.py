@@ -114,7 +114,7 @@ def run_one(spec: RunSpec, cfg: LabConfig, goal, p_goal, scene_seed: int) -> dic
     e0 = r.history["error_true_m"][0] if len(r.history["error_true_m"]) else float("nan")
     return {"law": spec.law, "payload_g": spec.payload_g, "pose": spec.pose,
             "start": "near" if spec.pose < 4 else "far", "repetition": spec.repetition,
-            "converged": int(r.converged), "settling_time_s": r.settling_time_s, "error_m": r.final_error_m,
+            "converged": int(r.converged), "end": r.end_reason, "settling_time_s": r.settling_time_s, "error_m": r.final_error_m,
             "dx_m": r.final_offset_world[0], "dy_m": r.final_offset_world[1], "dz_m": r.final_offset_world[2],
             "start_error_m": float(e0), "frames": int(len(r.history["t"])),
             "wall_s": time.perf_counter() - t0}

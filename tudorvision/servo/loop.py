@@ -232,6 +232,15 @@ class LabConfig:
         Estimated distance to the goal (``||L^-1 e||``) counted as converged.
     converge_frames : int
         Consecutive frames within the tolerance that end a run.
+    lost_stop_s : float
+        A run also ends (not converged) after this long without a command
+        (features lost or unusable): the layer has stopped the arm and the
+        view no longer changes. ``inf`` disables it.
+    roi_render : bool
+        Ray-cast only the pixel box around the square and fill the rest of
+        the frame with the ground's radiance and plane depth
+        (:class:`~tudorvision.servo.lab_render.RoiRenderer`: the same image
+        distribution as the full render, several times faster).
     """
 
     pedestal_m: float = 0.85
@@ -248,6 +257,8 @@ class LabConfig:
     t_max_s: float = 10.0
     converge_tol_m: float = 0.002
     converge_frames: int = 15
+    lost_stop_s: float = 1.0
+    roi_render: bool = True
 
     @property
     def T_world_base(self) -> np.ndarray:
@@ -303,6 +314,7 @@ class ServoLab:
     def __init__(self, config: LabConfig, theta_start, *, plates: int = 0, rng: np.random.Generator,
                  noise: bool = True, scene_seed: int = 0):
         from ..sim import DepthNoiseModel, Payload, eye_in_hand
+        from ..sim.render import pixel_bboxes
         from ..sim.arm import SimCore
         self.config = cfg = config
         self.params = load_robot_params()
@@ -321,8 +333,11 @@ class ServoLab:
                                  square_center_world=self.square_center_world, square_size_m=cfg.square_size_m,
                                  width=int(w), height=int(h))
         self.camera = self.setup.cameras["rgbd"]
+        # fill the camera's ray and field-of-view caches once; with_pose() hands them to every moved copy
+        pixel_bboxes(self.camera, [self.setup.meta["square_corners_world"]])
         self.depth_model = DepthNoiseModel() if noise else DepthNoiseModel(sigma_coeffs_cm=(0.0, 0.0, 0.0, 0.0))
         self.t = 0.0
+        self._renderer = None
 
     # -- joint-layer side -------------------------------------------------------------------
     def enable_damping(self) -> None:
@@ -355,9 +370,15 @@ class ServoLab:
         """Render the eye-in-hand RGB-D frame now: ``(bgr, depth_m)`` with NaN invalid depth."""
         from ..sim import render_rgbd, with_pose
         from .features import depth_m_from_raw
+        from .lab_render import RoiRenderer
         cam = with_pose(self.camera, self.T_world_cam())
-        bgr, depth, _ = render_rgbd(cam, self.setup.scene, self.t, rng=self.rng if self.noise else None,
-                                    depth_model=self.depth_model)
+        rng = self.rng if self.noise else None
+        if self.config.roi_render:
+            if self._renderer is None or self._renderer.scene is not self.setup.scene:
+                self._renderer = RoiRenderer(self.setup.scene, self.depth_model)
+            bgr, depth = self._renderer.render(cam, self.t, rng=rng)
+        else:
+            bgr, depth, _ = render_rgbd(cam, self.setup.scene, self.t, rng=rng, depth_model=self.depth_model)
         return bgr, depth_m_from_raw(depth)
 
     @property
@@ -418,6 +439,9 @@ class RunResult:
         True camera position error at the end of the run, metres.
     final_offset_world : ndarray, shape (3,)
         ``p_cam - p_goal`` at the end, world frame.
+    end_reason : str
+        ``"converged"``, ``"stalled"`` (no command for ``lost_stop_s``) or
+        ``"timeout"``.
     """
 
     history: dict
@@ -426,13 +450,17 @@ class RunResult:
     final_error_m: float
     final_offset_world: np.ndarray
     p_goal_world: np.ndarray
+    end_reason: str = ""
 
 
 def run_closed_loop(lab: ServoLab, servo: VisualServo, p_goal_world, *, on_frame=None) -> RunResult:
     """Servo the simulated arm to the goal view through the joint layer.
 
     The run ends when the estimated error stayed below ``converge_tol_m`` for
-    ``converge_frames`` frames or at ``t_max_s``; then the commands stop and
+    ``converge_frames`` frames, when no command could be sent for
+    ``lost_stop_s`` (features lost, depth invalid, or the joint map stopped
+    at a range end or singularity: the arm stands still), or at
+    ``t_max_s``; then the commands stop and
     the true camera position is compared with the goal's.
 
     Parameters
@@ -457,7 +485,8 @@ def run_closed_loop(lab: ServoLab, servo: VisualServo, p_goal_world, *, on_frame
     hist_theta, hist_p = [], []
     streak, t_streak = 0, np.nan
     p_goal = np.asarray(p_goal_world, float)
-    converged = False
+    converged = stalled = False
+    t_last_ok = 0.0
     while lab.t < cfg.t_max_s - 1e-9:
         if lab.t >= next_capture - 1e-9:
             st = ad.request_state()
@@ -490,7 +519,12 @@ def run_closed_loop(lab: ServoLab, servo: VisualServo, p_goal_world, *, on_frame
             if streak >= cfg.converge_frames:
                 converged = True
                 break
-        if converged:
+            if hist["ok"][-1]:
+                t_last_ok = t_cap
+            elif t_cap - t_last_ok >= cfg.lost_stop_s:
+                stalled = True
+                break
+        if converged or stalled:
             break
         lab.advance(tick)
     # stop: no more commands; the layer's watchdog brakes the arm; let it come to rest
@@ -501,4 +535,5 @@ def run_closed_loop(lab: ServoLab, servo: VisualServo, p_goal_world, *, on_frame
     h["theta"] = np.asarray(hist_theta).reshape(-1, 3)
     h["p_cam_world"] = np.asarray(hist_p).reshape(-1, 3)
     return RunResult(history=h, converged=converged, settling_time_s=float(t_streak) if converged else float("nan"),
-                     final_error_m=float(np.linalg.norm(off)), final_offset_world=off, p_goal_world=p_goal)
+                     final_error_m=float(np.linalg.norm(off)), final_offset_world=off, p_goal_world=p_goal,
+                     end_reason="converged" if converged else ("stalled" if stalled else "timeout"))
