@@ -8,13 +8,13 @@ the simulated catching demo (:mod:`.demo`, imported on use).
 from .ballistic import BallisticPredictor, ballistic_crossing, fit_ballistic
 from .ekf import (DEFAULT_DRAG_K_PER_M, BallEKF, BallModel, EKFOptions, ball_dynamics, dynamics_jacobian,
                   init_from_detections, predict, process_noise, propagate, update)
-from .intercept import (Intercept, InterceptOptions, InterceptPlanner, PlaneCrossing, plane_crossing,
+from .intercept import (Intercept, InterceptOptions, InterceptPlanner, PlaneCrossing, net_target, plane_crossing,
                         planar_coordinates, reachable_solutions, working_plane_normal)
 
 __all__ = [
     "BallisticPredictor", "ballistic_crossing", "fit_ballistic",
     "DEFAULT_DRAG_K_PER_M", "BallEKF", "BallModel", "EKFOptions", "ball_dynamics", "dynamics_jacobian",
     "init_from_detections", "predict", "process_noise", "propagate", "update",
-    "Intercept", "InterceptOptions", "InterceptPlanner", "PlaneCrossing", "plane_crossing",
+    "Intercept", "InterceptOptions", "InterceptPlanner", "PlaneCrossing", "net_target", "plane_crossing",
     "planar_coordinates", "reachable_solutions", "working_plane_normal",
 ]

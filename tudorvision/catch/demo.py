@@ -38,7 +38,7 @@ import numpy as np
 
 from .ballistic import BallisticPredictor
 from .ekf import BallEKF, BallModel, EKFOptions
-from .intercept import InterceptOptions, InterceptPlanner, working_plane_normal
+from .intercept import InterceptOptions, InterceptPlanner, net_target, working_plane_normal
 from .lab import LockstepCore, LockstepLayer
 
 __all__ = ["DemoOptions", "LockstepCore", "CatchPerception", "simulated_detection", "run_demo",
@@ -87,6 +87,8 @@ class DemoOptions:
     speed_fraction : float
         Setpoint profile speed as a fraction of the slowest joint's limit (at
         the limit, the links' swing trips the layer's over-speed fault).
+    reach_margin_m : float
+        Net targets are kept this far inside full stretch (:func:`~tudorvision.catch.intercept.net_target`).
     layer_rate_hz : float
         Control rate of the lockstep joint layer (its over-speed and range checks run every period).
     cache_dir : str
@@ -109,6 +111,7 @@ class DemoOptions:
     release_sigma_m: float = 0.1
     speed_fraction: float = 0.75
     layer_rate_hz: float = 500.0
+    reach_margin_m: float = 0.05
     empty_pause_s: float = 1.0
     net_capacity_balls: int = 8
     drag_k_per_m: float = 0.012
@@ -187,6 +190,8 @@ class CatchPerception:
     ekf : EKFOptions
     intercept : InterceptOptions
     params : RobotParams, optional
+    peer : bool
+        Also run the drag-free ballistic peer (for comparison only).
     min_sigma_m : float
         Isotropic floor added to the detector's covariance (near the sensor it
         claims sub-millimetre depth accuracy that partial silhouettes at the
@@ -194,15 +199,19 @@ class CatchPerception:
     """
 
     def __init__(self, ekf: EKFOptions = EKFOptions(), intercept: InterceptOptions = InterceptOptions(),
-                 params=None, *, min_sigma_m: float = 0.003):
+                 params=None, *, min_sigma_m: float = 0.003, peer: bool = True):
         self.min_sigma_m = float(min_sigma_m)
+        self.peer = bool(peer)
         self.ekf = BallEKF(ekf)
         self.planner = InterceptPlanner(intercept, model=ekf.model, q_m2_s3=ekf.q_m2_s3, params=params)
         self.ballistic = BallisticPredictor(working_plane_normal(intercept.theta1_rad))
         self._throw = -1
 
     def step(self, t: float, p_base, cov_base) -> dict:
-        """Fuse one detection; returns a record (status, state, intercept, peer prediction)."""
+        """Fuse one detection; returns a record (status, state, intercept, peer prediction).
+
+        ``rec["peer_s"]`` is the time spent on the peer (not part of the catching pipeline).
+        """
         cov = np.asarray(cov_base, float) + self.min_sigma_m ** 2 * np.eye(3)
         status = self.ekf.step(t, p_base, cov)
         if self.ekf.throw_id != self._throw or status == "restarted":
@@ -210,14 +219,18 @@ class CatchPerception:
                 self._throw = self.ekf.throw_id
             self.planner.reset()
             self.ballistic.reset()
-        if status != "rejected":
-            self.ballistic.add(t, p_base)
         rec = {"t": float(t), "status": status, "throw": self.ekf.throw_id, "intercept": None,
-               "ballistic": (None, None)}
+               "ballistic": (None, None), "peer_s": 0.0}
         if self.ekf.initialised:
             rec["x"] = self.ekf.x
             rec["intercept"] = self.planner.update(t, self.ekf.x, self.ekf.P)
-            rec["ballistic"] = self.ballistic.predict()
+        if self.peer:
+            t0 = time.perf_counter()
+            if status != "rejected":
+                self.ballistic.add(t, p_base)
+            if self.ekf.initialised:
+                rec["ballistic"] = self.ballistic.predict()
+            rec["peer_s"] = time.perf_counter() - t0
         return rec
 
 
@@ -417,7 +430,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
                 n_det += 1
                 p_b, C_b = detection_to_base(det[0], det[1], T_base_cam)
                 rec = perception.step(t, p_b, C_b)
-                latencies.append(time.perf_counter() - t0w)
+                latencies.append(time.perf_counter() - t0w - rec["peer_s"])
                 it = rec["intercept"]
                 if rr_log is not None:
                     rr_log.frame(t, p_b, rec, None if net is None else net, sim.arm.ee_position())
@@ -429,7 +442,8 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
                                       *(last_bal[1] if last_bal[1] is not None else [np.nan] * 3)])
                     if it.send and t < t_cross:
                         try:
-                            th = solve(it.p_base, np.asarray(st.theta))
+                            th = solve(net_target(it.p_base, theta1, params, reach_margin_m=o.reach_margin_m),
+                                       np.asarray(st.theta))
                         except ValueError:
                             th = None
                         if th is not None:

@@ -183,24 +183,83 @@ def propagate(x, dt: float, model: BallModel = BallModel(), *, jacobian: bool = 
     >>> np.round(x1, 4).tolist()
     [1.0, 0.0, -4.905, 1.0, 0.0, -9.81]
     """
-    x = _check_state(x).copy()
+    x = _check_state(x)
     dt = float(dt)
+    k, g = model.drag_k_per_m, model.gravity_m_s2
+    n = max(1, int(np.ceil(abs(dt) / model.max_step_s)))
+    h = dt / n
+    if jacobian:
+        return _propagate_floats_jac(x, n, h, k, g)
+    return _propagate_floats(x, n, h, k, g)
+
+
+def _propagate_reference(x, dt, model):
+    # RK4 on the augmented system (x, Phi) with dPhi/dt = A(x) Phi on 6x6 numpy arrays: the
+    # plain form of _propagate_floats_jac, kept as its test oracle
+    x = _check_state(x).copy()
     k, g = model.drag_k_per_m, model.gravity_m_s2
     n = max(1, int(np.ceil(abs(dt) / model.max_step_s)))
     h = dt / n
     F = np.eye(6)
     for _ in range(n):
-        if jacobian:
-            # RK4 on the augmented system (x, Phi): dPhi/dt = A(x) Phi
-            k1 = _f(x, k, g); K1 = _A(x, k) @ F
-            x2 = x + h / 2 * k1; k2 = _f(x2, k, g); K2 = _A(x2, k) @ (F + h / 2 * K1)
-            x3 = x + h / 2 * k2; k3 = _f(x3, k, g); K3 = _A(x3, k) @ (F + h / 2 * K2)
-            x4 = x + h * k3; k4 = _f(x4, k, g); K4 = _A(x4, k) @ (F + h * K3)
-            F = F + h / 6 * (K1 + 2 * K2 + 2 * K3 + K4)
-        else:
-            return _propagate_floats(x, n, h, k, g)
+        k1 = _f(x, k, g); K1 = _A(x, k) @ F
+        x2 = x + h / 2 * k1; k2 = _f(x2, k, g); K2 = _A(x2, k) @ (F + h / 2 * K1)
+        x3 = x + h / 2 * k2; k3 = _f(x3, k, g); K3 = _A(x3, k) @ (F + h / 2 * K2)
+        x4 = x + h * k3; k4 = _f(x4, k, g); K4 = _A(x4, k) @ (F + h * K3)
+        F = F + h / 6 * (K1 + 2 * K2 + 2 * K3 + K4)
         x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return (x, F) if jacobian else x
+    return x, F
+
+
+def _propagate_floats_jac(x, n, h, k, g):
+    # The same RK4 as _propagate_reference, on Python floats. The flight does not depend on the
+    # position, so F = [[I, Pp], [0, Pv]] and only the two 3x3 blocks Pp = dp/dv0, Pv = dv/dv0
+    # are integrated: dPp/dt = Pv, dPv/dt = Av(v) Pv with Av = -k (s I + v v^T / s), s = |v|.
+    px, py, pz, vx, vy, vz = (float(a) for a in x)
+    sqrt = math.sqrt
+    Pv = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]      # row-major 3x3
+    Pp = [0.0] * 9
+
+    def acc(ux, uy, uz):
+        s = k * sqrt(ux * ux + uy * uy + uz * uz)
+        return -s * ux, -s * uy, -s * uz - g
+
+    def av_times(ux, uy, uz, M):
+        s = sqrt(ux * ux + uy * uy + uz * uz)
+        if s == 0.0 or k == 0.0:
+            return [0.0] * 9
+        w0 = ux * M[0] + uy * M[3] + uz * M[6]
+        w1 = ux * M[1] + uy * M[4] + uz * M[7]
+        w2 = ux * M[2] + uy * M[5] + uz * M[8]
+        c, d = -k * s, -k / s
+        return [c * M[0] + d * ux * w0, c * M[1] + d * ux * w1, c * M[2] + d * ux * w2,
+                c * M[3] + d * uy * w0, c * M[4] + d * uy * w1, c * M[5] + d * uy * w2,
+                c * M[6] + d * uz * w0, c * M[7] + d * uz * w1, c * M[8] + d * uz * w2]
+
+    h2, h6 = h / 2, h / 6
+    for _ in range(n):
+        a1 = acc(vx, vy, vz); K1 = av_times(vx, vy, vz, Pv)
+        b = (vx + h2 * a1[0], vy + h2 * a1[1], vz + h2 * a1[2])
+        M2 = [m + h2 * q for m, q in zip(Pv, K1)]
+        a2 = acc(*b); K2 = av_times(*b, M2)
+        c = (vx + h2 * a2[0], vy + h2 * a2[1], vz + h2 * a2[2])
+        M3 = [m + h2 * q for m, q in zip(Pv, K2)]
+        a3 = acc(*c); K3 = av_times(*c, M3)
+        d = (vx + h * a3[0], vy + h * a3[1], vz + h * a3[2])
+        M4 = [m + h * q for m, q in zip(Pv, K3)]
+        a4 = acc(*d); K4 = av_times(*d, M4)
+        px += h6 * (vx + 2 * b[0] + 2 * c[0] + d[0])
+        py += h6 * (vy + 2 * b[1] + 2 * c[1] + d[1])
+        pz += h6 * (vz + 2 * b[2] + 2 * c[2] + d[2])
+        vx += h6 * (a1[0] + 2 * a2[0] + 2 * a3[0] + a4[0])
+        vy += h6 * (a1[1] + 2 * a2[1] + 2 * a3[1] + a4[1])
+        vz += h6 * (a1[2] + 2 * a2[2] + 2 * a3[2] + a4[2])
+        Pp = [pp + h6 * (m1 + 2 * m2 + 2 * m3 + m4) for pp, m1, m2, m3, m4 in zip(Pp, Pv, M2, M3, M4)]
+        Pv = [m + h6 * (q1 + 2 * q2 + 2 * q3 + q4) for m, q1, q2, q3, q4 in zip(Pv, K1, K2, K3, K4)]
+    F = np.eye(6)
+    F[0:3, 3:6] = np.reshape(Pp, (3, 3))
+    F[3:6, 3:6] = np.reshape(Pv, (3, 3))
+    return np.array([px, py, pz, vx, vy, vz]), F
 
 
 def _propagate_floats(x, n, h, k, g):
@@ -437,7 +496,7 @@ class BallEKF:
         self._rejections = 0
 
     def _predict_x(self, u=0):
-        self._kf.x = propagate(self._kf.x[:, 0], self._dt, self.options.model, jacobian=False)[:, None]
+        self._kf.x = self._x_pred[:, None]      # computed with F in predict()
 
     # ------------------------------------------------------------- filtering
     def predict(self, dt: float) -> None:
@@ -445,7 +504,7 @@ class BallEKF:
         if not self.initialised:
             raise RuntimeError("predict: the filter is not initialised")
         o = self.options
-        _, F = propagate(self._kf.x[:, 0], dt, o.model)
+        self._x_pred, F = propagate(self._kf.x[:, 0], dt, o.model)
         self._dt = float(dt)
         self._kf.F = F
         self._kf.Q = process_noise(dt, o.q_m2_s3)

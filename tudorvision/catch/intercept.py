@@ -14,14 +14,16 @@ reachable workspace and its largest in-plane standard deviation is below
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .._checks import check_array
-from .ekf import BallModel, predict, propagate
+from .ekf import BallModel, _propagate_floats, predict
 
 __all__ = ["working_plane_normal", "PlaneCrossing", "plane_crossing", "planar_coordinates", "reachable_solutions",
+           "net_target",
            "InterceptOptions", "Intercept", "InterceptPlanner"]
 
 
@@ -114,7 +116,8 @@ def plane_crossing(x, P, normal, *, point=(0.0, 0.0, 0.0), model: BallModel = Ba
         t_new = t if xi is x else t + h
         if t_new > max_time_s or t_new < 0:
             return None
-        xi = propagate(xi, h, model, jacobian=False)
+        n_sub = max(1, int(np.ceil(abs(h) / model.max_step_s)))
+        xi = _propagate_floats(xi, n_sub, h / n_sub, model.drag_k_per_m, model.gravity_m_s2)
         t = t_new
         di = float(n @ (xi[:3] - c))
         vn = float(n @ xi[3:])
@@ -167,6 +170,54 @@ def reachable_solutions(p_base, theta1: float, params=None, *, margin_rad: float
     if margin_rad > 0 and len(sols):
         sols = sols[within_limits(sols, params, margin_rad=margin_rad)]
     return sols
+
+
+def net_target(p_base, theta1: float, params=None, *, reach_margin_m: float = 0.05) -> np.ndarray:
+    """Where to put the net for a crossing at ``p_base``: pulled in from the edge of the reach.
+
+    Near full stretch the inverse kinematics is nearly singular: a few
+    centimetres of intercept refinement swing joint 3 by tens of degrees, and
+    the joints overshoot on the reversals. A crossing farther than
+    ``reach - reach_margin_m`` from the shoulder (joint 2 axis) is moved
+    radially onto that circle; with an 18 cm net (9 cm radius) a ball up to
+    the margin away still lands in it. Points inside are returned unchanged.
+
+    Parameters
+    ----------
+    p_base : array_like, shape (3,)
+        Crossing point in the working plane at azimuth ``theta1``, base frame, metres.
+    theta1 : float
+        Azimuth of the working plane, rad.
+    reach_margin_m : float
+        Distance kept from full stretch (link 2 + link 3), metres.
+
+    Returns
+    -------
+    ndarray, shape (3,)
+
+    Examples
+    --------
+    >>> from tudorvision.robot import load_robot_params
+    >>> p = load_robot_params()
+    >>> reach = p.link2_length_m + p.link3_length_m
+    >>> q = net_target([reach, 0.0, p.link1_height_m], 0.0, p, reach_margin_m=0.05)
+    >>> round(float(q[0]), 3) == round(reach - 0.05, 3), float(q[2]) == p.link1_height_m
+    (True, True)
+    """
+    from ..robot import load_robot_params
+
+    p = params or load_robot_params()
+    q = check_array(p_base, "p_base", (3,)).copy()
+    r, z = planar_coordinates(q, theta1)
+    dz = z - p.link1_height_m
+    d = float(np.hypot(r, dz))
+    lim = p.link2_length_m + p.link3_length_m - float(reach_margin_m)
+    if d <= lim or d == 0.0:
+        return q
+    s = lim / d
+    u = np.array([np.cos(theta1), np.sin(theta1), 0.0])
+    off = q - r * u - np.array([0.0, 0.0, z])          # the part off the plane (kept)
+    return off + s * r * u + np.array([0.0, 0.0, p.link1_height_m + s * dz])
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -233,7 +284,39 @@ class InterceptPlanner:
         self.model = model
         self.q_m2_s3 = float(q_m2_s3)
         self.params = params
+        self._lims = None
         self.reset()
+
+    def _reachable(self, p_base) -> bool:
+        # reachable_solutions(p_base, theta1, params, margin_rad) is not empty, on floats (per frame)
+        if self._lims is None:
+            from ..robot import load_robot_params
+
+            prm = self.params or load_robot_params()
+            m = self.options.margin_rad
+            self._lims = (prm.link1_height_m, prm.link2_length_m, prm.link3_length_m,
+                          [(float(a) + m, float(b) - m) for a, b in prm.joint_limits_rad])
+        h1, l2, l3, lims = self._lims
+        t1 = self.options.theta1_rad
+        r = float(p_base[0]) * math.cos(t1) + float(p_base[1]) * math.sin(t1)
+        zz = float(p_base[2]) - h1
+        c3 = (r * r + zz * zz - l2 * l2 - l3 * l3) / (2 * l2 * l3)
+        if c3 > 1.0 + 1e-12 or c3 < -1.0 - 1e-12:
+            return False
+        if not lims[0][0] <= t1 <= lims[0][1]:
+            return False
+        c3 = min(1.0, max(-1.0, c3))
+        (lo2, hi2), (lo3, hi3) = lims[1], lims[2]
+        lo2_raw = lo2 - self.options.margin_rad
+        for sgn in (1.0, -1.0):
+            t3 = sgn * math.acos(c3)
+            t2 = math.atan2(zz, r) - math.atan2(l3 * math.sin(t3), l2 + l3 * math.cos(t3))
+            t2 = (t2 + math.pi) % (2 * math.pi) - math.pi
+            if t2 < lo2_raw and t2 + 2 * math.pi <= hi2 + self.options.margin_rad:
+                t2 += 2 * math.pi
+            if lo2 <= t2 <= hi2 and lo3 <= t3 <= hi3:
+                return True
+        return False
 
     def reset(self) -> None:
         """New throw: nothing released."""
@@ -247,7 +330,7 @@ class InterceptPlanner:
                            min_height_m=o.min_height_m)
         if c is None:
             return None
-        ok = len(reachable_solutions(c.p_base, o.theta1_rad, self.params, margin_rad=o.margin_rad)) > 0
+        ok = self._reachable(c.p_base)
         send = False
         if ok and c.sigma_m <= o.release_sigma_m:
             send = self.released is None or (np.linalg.norm(c.p_base - self.released.p_base) > o.refine_tol_m
