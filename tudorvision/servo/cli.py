@@ -51,6 +51,8 @@ def register(sub) -> None:
     p.add_argument("--smoothing-frames", type=int, default=None,
                    help="moving average of the features over N frames (default 15 with --sim, 1 for SEQ)")
     p.add_argument("--workers", type=int, default=None, help="repeatability: parallel processes")
+    p.add_argument("--compare-repetitions", type=int, default=None,
+                   help="repeatability: runs per payload and pose for the compared law (default --repetitions)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", metavar="DIR", help="output directory (--sim)")
     p.set_defaults(func=_main)
@@ -222,15 +224,20 @@ def _repeatability(args) -> int:
     from .experiments import repeatability
     if args.repetitions < 1:
         raise TudorVisionError(f"--repetitions: expected >= 1, got {args.repetitions}")
+    if args.compare_repetitions is not None and args.compare_repetitions < 1:
+        raise TudorVisionError(f"--compare-repetitions: expected >= 1, got {args.compare_repetitions}")
     laws = ("hybrid", "ibvs") if args.law == "hybrid" else ("ibvs", "hybrid")
 
     def prog(done, total):
         if sys.stderr.isatty():
             print(f"\rservo repeatability: {done}/{total} runs", end="" if done < total else "\n",
                   file=sys.stderr, flush=True)
+        elif done % 24 == 0 or done == total:
+            print(f"servo repeatability: {done}/{total} runs", file=sys.stderr, flush=True)
 
     s = repeatability(args.out, repetitions=args.repetitions, seed=args.seed, laws=laws,
-                      interaction=args.interaction, cfg=_lab_config(args), workers=args.workers, progress=prog)
+                      interaction=args.interaction, cfg=_lab_config(args), workers=args.workers, progress=prog,
+                      compare_repetitions=args.compare_repetitions)
     for law, r in s["laws"].items():
         print(f"{law:6s}: mean {r['mean_error_m'] * 1e3:.1f} mm, p90 {r['p90_error_m'] * 1e3:.1f} mm, "
               f"radius {r['radius_m'] * 1e3:.1f} mm, converged {100 * r['convergence_rate']:.0f} %, "

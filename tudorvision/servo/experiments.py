@@ -117,6 +117,7 @@ def run_one(spec: RunSpec, cfg: LabConfig, goal, p_goal, scene_seed: int) -> dic
             "converged": int(r.converged), "end": r.end_reason, "settling_time_s": r.settling_time_s, "error_m": r.final_error_m,
             "dx_m": r.final_offset_world[0], "dy_m": r.final_offset_world[1], "dz_m": r.final_offset_world[2],
             "start_error_m": float(e0), "frames": int(len(r.history["t"])),
+            "stopped_frames": int(np.sum(~r.history["ok"])),
             "wall_s": time.perf_counter() - t0}
 
 
@@ -155,7 +156,7 @@ def summarize(rows: list[dict]) -> dict:
 
 def repeatability(out, *, repetitions: int = 20, seed: int = 0, laws=("hybrid", "ibvs"), interaction: str = "current",
                   payloads_g=PAYLOADS_G, cfg: LabConfig | None = None, workers: int | None = None,
-                  progress=None) -> dict:
+                  progress=None, compare_repetitions: int | None = None) -> dict:
     """Run the repeatability experiment and write ``summary.json`` and ``runs.csv`` to ``out``.
 
     Parameters
@@ -174,14 +175,22 @@ def repeatability(out, *, repetitions: int = 20, seed: int = 0, laws=("hybrid", 
         Parallel processes (default: all CPUs).
     progress : callable, optional
         ``f(done, total)``.
+    compare_repetitions : int, optional
+        Repetitions for the laws after the first (default: ``repetitions``).
+
+    Notes
+    -----
+    ``runs.csv`` is written row by row as runs finish, so an interrupted
+    experiment keeps the runs it completed.
 
     Returns
     -------
     dict
         The summary (also written).
     """
-    if repetitions < 1:
-        raise ValueError(f"repetitions: expected >= 1, got {repetitions}")
+    compare_repetitions = repetitions if compare_repetitions is None else int(compare_repetitions)
+    if repetitions < 1 or compare_repetitions < 1:
+        raise ValueError(f"repetitions: expected >= 1, got {repetitions}, {compare_repetitions}")
     for g in payloads_g:
         if g % 100 or g < 0:
             raise ValueError(f"payloads_g: expected multiples of 100 g, got {g}")
@@ -193,29 +202,38 @@ def repeatability(out, *, repetitions: int = 20, seed: int = 0, laws=("hybrid", 
     goal, p_goal, _ = teach_goal(cfg, np.random.default_rng([seed, 999]), scene_seed=scene_seed)
     lab0 = ServoLab(cfg, cfg.theta_goal, rng=np.random.default_rng(0), scene_seed=scene_seed)
     poses = start_poses(cfg, lab0.square_center_world)
+    # repetition-major order: an interrupted experiment holds complete repetitions of every condition
     specs = [RunSpec(law=law, interaction=interaction, payload_g=int(g), pose=i, repetition=k,
                      theta_start=tuple(poses[i]), seed=int(seed))
-             for law in laws for g in payloads_g for i in range(len(poses)) for k in range(repetitions)]
+             for k in range(max(repetitions, compare_repetitions)) for law in laws
+             if k < (repetitions if law == laws[0] else compare_repetitions)
+             for g in payloads_g for i in range(len(poses))]
     jobs = [(s, cfg, goal, p_goal, scene_seed) for s in specs]
     rows = []
     n_workers = workers or os.cpu_count() or 1
-    if n_workers > 1 and len(jobs) > 1:
-        from concurrent.futures import ProcessPoolExecutor
-        with ProcessPoolExecutor(max_workers=n_workers) as ex:
-            for row in ex.map(_run_star, jobs, chunksize=1):
-                rows.append(row)
-                if progress:
-                    progress(len(rows), len(jobs))
-    else:
-        for j in jobs:
-            rows.append(_run_star(j))
+    with open(out / "runs.csv", "w", newline="") as fh:
+        wr = None
+
+        def done(row):
+            nonlocal wr
+            rows.append(row)
+            if wr is None:
+                wr = csv.DictWriter(fh, fieldnames=list(row))
+                wr.writeheader()
+            wr.writerow(row)
+            fh.flush()
             if progress:
                 progress(len(rows), len(jobs))
+
+        if n_workers > 1 and len(jobs) > 1:
+            from concurrent.futures import ProcessPoolExecutor
+            with ProcessPoolExecutor(max_workers=n_workers) as ex:
+                for row in ex.map(_run_star, jobs, chunksize=1):
+                    done(row)
+        else:
+            for j in jobs:
+                done(_run_star(j))
     wall = time.perf_counter() - t0
-    with open(out / "runs.csv", "w", newline="") as fh:
-        wr = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        wr.writeheader()
-        wr.writerows(rows)
     per_law = {law: summarize([r for r in rows if r["law"] == law]) for law in laws}
     per_payload = {law: {str(g): summarize([r for r in rows if r["law"] == law and r["payload_g"] == g])
                          for g in payloads_g} for law in laws}
@@ -223,6 +241,7 @@ def repeatability(out, *, repetitions: int = 20, seed: int = 0, laws=("hybrid", 
     summary = {**{k: main[k] for k in ("mean_error_m", "p90_error_m", "radius_m", "convergence_rate",
                                        "settling_time_s")},
                "law": laws[0], "laws": per_law, "per_payload": per_payload, "repetitions": int(repetitions),
+               "compare_repetitions": int(compare_repetitions), "interaction": interaction,
                "seed": int(seed), "payloads_g": list(payloads_g), "start_poses_rad": poses.tolist(),
                "goal_camera_world_m": np.asarray(p_goal).tolist(), "wall_s": wall, "workers": n_workers,
                "seed_result_m": {"mean": 0.004, "p90": 0.008, "radius": 0.014},
