@@ -1,0 +1,168 @@
+"""Damping and collision modes switched through the adapter act on the simulated core (SimCore.set_modes)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tudorvision.joint import (Ack, CollisionMonitor, CollisionStrategy, Damping, DampingConfig, InProcessTransport,
+                               JointAdapter, JointLayerServer, LockstepClientTransport, Mode, MomentumObserver,
+                               ONE_WAY_GAINS, StateFlags, StrainDamper, aprbs, derivatives, fit_strain_dynamics,
+                               thresholds_from_residuals)
+from tudorvision.joint.server import ServerConfig
+from tudorvision.robot import load_robot_params
+from tudorvision.sim.arm import ControlledArm, ElasticArm, Payload, PlantConfig, SimCore, SpringDamperObstacle
+
+DT = 1.0 / 500.0
+DEG = np.pi / 180.0
+P = load_robot_params()
+
+
+def _lockstep(core):
+    client_end, server_end = InProcessTransport.pair()
+    server = JointLayerServer(server_end, core, config=ServerConfig(rate_hz=1.0 / DT))
+    return server, JointAdapter(LockstepClientTransport(client_end, server))
+
+
+def _run(server, seconds, probe=None):
+    out = []
+    for _ in range(int(round(seconds / DT))):
+        server.tick(DT)
+        if probe is not None:
+            out.append(probe())
+    return out
+
+
+def _oscillation_after_move(damping):
+    """Peak-to-peak link-2 root strain 3-4.5 s after the command of a 45 deg move (experiment 06, 300 g)."""
+    core = SimCore(np.zeros(3), payload=Payload.from_parts(P, plates=3), params=P,
+                   config=PlantConfig(two_way=False))
+    server, adapter = _lockstep(core)
+    assert isinstance(adapter.set_mode(Mode.SETPOINT, damping=damping), Ack)
+    assert isinstance(adapter.send_setpoint(np.array([0.0, 45.0, -45.0]) * DEG), Ack)
+    _run(server, 3.0)
+    eps = np.array(_run(server, 1.5, lambda: core.arm.strain[0]))
+    st = adapter.request_state()
+    return np.ptp(eps), core, st
+
+
+def test_damping_modes_install_the_damper_and_damp():
+    undamped, core0, st0 = _oscillation_after_move(Damping.OFF)
+    assert core0.controlled.damper is None and st0.damping == Damping.OFF
+    damped, core, st = _oscillation_after_move(Damping.PROPORTIONAL)
+    d = core.controlled.damper
+    assert isinstance(d, StrainDamper) and d.config.law == "proportional"
+    assert d.config.k_eps == ONE_WAY_GAINS["proportional"] and st.damping == Damping.PROPORTIONAL
+    assert damped < 0.4 * undamped                     # the damper acts on the plant
+    np.testing.assert_allclose(st.theta, np.array([0.0, 45.0, -45.0]) * DEG, atol=0.02 * DEG)
+
+
+def test_integral_law_halves_pd_gain_and_off_restores_it():
+    core = SimCore(params=P)
+    server, adapter = _lockstep(core)
+    kpd0 = list(core.controlled.controller._kpd)
+    adapter.set_mode(Mode.SETPOINT, damping=Damping.INTEGRAL)
+    assert core.controlled.damper.config.law == "integral"
+    np.testing.assert_allclose(core.controlled.controller._kpd, 0.5 * np.asarray(kpd0))
+    first = core.controlled.damper
+    adapter.set_mode(collision=CollisionStrategy.NONE)          # damping unchanged: the same damper stays
+    assert core.controlled.damper is first
+    adapter.set_mode(damping=Damping.OFF)
+    assert core.controlled.damper is None
+    np.testing.assert_allclose(core.controlled.controller._kpd, kpd0)
+    with pytest.raises(ValueError, match="codes"):
+        core.set_modes(damping=7, collision=0)
+
+
+def test_collision_mode_without_model_warns_and_detects_nothing():
+    core = SimCore(params=P)
+    server, adapter = _lockstep(core)
+    with pytest.warns(RuntimeWarning, match="collision_model"):
+        adapter.set_mode(Mode.SETPOINT, collision=CollisionStrategy.STOP)
+    assert core.controlled.reaction is None
+    st = adapter.request_state()
+    assert st.collision == CollisionStrategy.STOP and not st.flags & StateFlags.COLLISION
+    with pytest.raises(ValueError, match="both or neither"):
+        SimCore(params=P, collision_thresholds=[1e-4, 1e-4])
+
+
+# ------------------------------------------------------------------ collision through the adapter
+PLATES = 1
+K_EPS = (0.0, 400.0, 1600.0)
+START, GOAL = np.array([0.0, 45.0, -45.0]) * DEG, np.array([0.0, 150.0, 60.0]) * DEG
+
+
+def _damped_arm(theta0, obstacles=()):
+    arm = ElasticArm(theta0, payload=Payload.from_parts(P, plates=PLATES), params=P,
+                     config=PlantConfig(two_way=True), obstacles=obstacles)
+    ca = ControlledArm(arm)
+    ca.set_damper(StrainDamper(DampingConfig(law="proportional", k_eps=K_EPS), arm.measured_strain(), arm.config.dt))
+    return arm, ca
+
+
+@pytest.fixture(scope="module")
+def identified():
+    """Strain dynamics identified on a short APRBS run (one payload, no noise) and 6-sigma thresholds."""
+    rng = np.random.default_rng(3)
+    times, levels = aprbs(rng, 16.0, [30 * DEG, -60 * DEG], [150 * DEG, 60 * DEG], hold_s=(0.8, 1.6))
+    arm, ca = _damped_arm([0.0, levels[0, 0], levels[0, 1]])
+    th, eps, dth = [], [], []
+    nxt = 1
+    n = int(round(times[-1] / arm.config.dt)) + 2000
+    for k in range(n):
+        if nxt < times.size and k * arm.config.dt >= times[nxt]:
+            ca.set_goal([0.0, *levels[nxt]])
+            nxt += 1
+        ca.step()
+        th.append(arm.measured_theta())
+        eps.append((arm.strain[0], arm.strain[2]))
+        dth.append(list(ca.controller.velocity))
+    th, eps = np.asarray(th), np.asarray(eps)
+    t = np.arange(n) * arm.config.dt
+    d, dd = derivatives(t, th, window_s=0.04)
+    half = n // 2
+    sl = slice(200, half, 10)
+    model = fit_strain_dynamics(th[sl], d[sl], dd[sl], eps[sl], arm.payload.mass_kg)
+    obs = MomentumObserver(model, arm.payload.mass_kg, k_i=100.0, dt=arm.config.dt)
+    res = np.array([obs.step(th[k], dth[k], eps[k]) for k in range(half, n)])[400:]   # held-out half
+    return model, thresholds_from_residuals(res), arm.payload.mass_kg
+
+
+def _obstacle_in_path():
+    """A sphere where the end effector passes 0.6 s into the move (free run first)."""
+    arm, ca = _damped_arm(START)
+    ca.set_goal(GOAL)
+    for _ in range(int(round(0.6 / arm.config.dt))):
+        ca.step()
+    p0 = arm._probe_position(3, arm.bodies.l3)
+    ca.step()
+    v = arm._probe_position(3, arm.bodies.l3) - p0
+    centre = p0 + v / np.linalg.norm(v) * (0.05 + 0.02 + 0.002)
+    return SpringDamperObstacle(kind="sphere", point_base=centre, radius_m=0.05, probe_link=3, probe_radius_m=0.02,
+                                stiffness_N_m=5.0e3, damping_Ns_m=20.0)
+
+
+def _contact_run(identified, strategy):
+    model, thr, _ = identified
+    core = SimCore(START, payload=Payload.from_parts(P, plates=PLATES), params=P, config=PlantConfig(two_way=True),
+                   obstacles=(_obstacle_in_path(),), collision_model=model, collision_thresholds=thr)
+    server, adapter = _lockstep(core)
+    adapter.set_mode(Mode.SETPOINT, damping=Damping.PROPORTIONAL, collision=strategy)
+    assert isinstance(core.controlled.reaction, CollisionMonitor)
+    assert core.controlled.reaction.config.strategy == strategy.name.lower()
+    adapter.send_setpoint(GOAL, max_speed=float(np.deg2rad(60.0)))
+    force = _run(server, 1.5, lambda: float(np.linalg.norm(core.arm.contact_force)))
+    return core, adapter.request_state(), np.asarray(force)
+
+
+def test_stop_strategy_detects_isolates_and_stops(identified):
+    core, st, force = _contact_run(identified, CollisionStrategy.STOP)
+    mon = core.controlled.reaction
+    assert force.max() > 0.0                                   # the arm did hit the obstacle
+    assert st.flags & StateFlags.COLLISION and mon.collision and mon.isolated and mon.link == 3
+    assert np.max(np.abs(st.residuals)) > 0.0
+    assert np.all(np.abs(st.theta_dot) < 0.05)                 # stopped and holding
+    _, st_none, force_none = _contact_run(identified, CollisionStrategy.NONE)
+    assert st_none.flags & StateFlags.COLLISION                # detected and reported only
+    assert force_none.max() > 0.0
+    # without a reaction the arm pushes on past the sphere; the stop holds it near the contact
+    assert st.theta[1] < st_none.theta[1] - 10.0 * DEG
