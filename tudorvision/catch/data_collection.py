@@ -5,13 +5,32 @@ The seed sampled theta2 in 10 deg steps over [0, 180] deg and theta3 over
 recorded joint angles, settled strains and the end effector measured by its
 stereo system. Here each pose is the simulated elastic arm
 (:class:`tudorvision.sim.arm.ElasticArm`) at static equilibrium; the payload
-adds to the end-effector mount. The measured end effector is the true
-deflected one plus isotropic Gaussian noise of ``measurement_sigma_m``
-(``measure="noise"``; default 1 mm, about the project's stereo accuracy on
-rendered pairs). Ground truth is kept beside it (``p_true_base``) for
-evaluation only.
+adds to the end-effector mount. The end effector is measured in one of two
+ways (``CollectionOptions.measure``):
 
-Results are cached in an ``.npz`` file keyed by the grid, so the demo does
+``"stereo"``
+    As the seed did: every settled pose is rendered by the virtual lab's
+    ceiling stereo rig (:func:`tudorvision.sim.scenes.stereo_lab`) and tracked
+    by the project's stereo tracker (:class:`tudorvision.stereo.StereoPipeline`,
+    colour models fitted from one pick per camera and sphere on the first pair,
+    as ``tudorvision track stereo --pick`` does). The base frame comes from the
+    lab's own base calibration, a theta1 sweep tracked the same way
+    (:func:`tudorvision.stereo.base_frame_from_sweep`); the camera models are
+    the lab's calibration. Poses where a sphere is hidden are left out
+    (``valid`` False). Rendering and tracking take about 0.2 s per pose, so
+    the demo's collection (:data:`DEMO_COLLECTION`, the seed's full grid) is
+    shipped with the package (:data:`PACKAGED_DIR`) instead of being
+    collected on first use.
+``"noise"``
+    The true deflected end effector plus isotropic Gaussian noise of
+    ``measurement_sigma_m`` (fast; for tests and quick runs).
+
+Ground truth is kept beside it (``p_true_base``) for evaluation only. The
+picks that seed the colour models are placed at the projected sphere
+centres, as a user clicking on the first pair would (the tests and benchmarks
+of the stereo tracker do the same).
+
+Results are cached in an ``.npz`` file keyed by the options, so the demo does
 not recollect.
 """
 from __future__ import annotations
@@ -23,7 +42,10 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["CollectionOptions", "collect_settled_poses", "load_or_collect"]
+from .._progress import progress
+
+__all__ = ["CollectionOptions", "DEMO_COLLECTION", "PACKAGED_DIR", "collect_settled_poses", "load_or_collect",
+           "remap_errors", "stereo_base_calibration"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -41,7 +63,9 @@ class CollectionOptions:
     strain_sigma : float
         Standard deviation of the settled strain readings, m/m.
     seed : int
-        Measurement noise seed.
+        Measurement noise seed (and the stereo lab's lighting and clutter).
+    measure : str
+        ``"noise"`` (truth + Gaussian noise) or ``"stereo"`` (rendered pairs, stereo tracker).
     """
 
     theta2_deg: tuple = (0.0, 180.0, 10.0)
@@ -50,9 +74,19 @@ class CollectionOptions:
     measurement_sigma_m: float = 0.001
     strain_sigma: float = 1e-7
     seed: int = 0
+    measure: str = "noise"
+
+    def __post_init__(self):
+        if self.measure not in ("noise", "stereo"):
+            raise ValueError(f"measure: expected 'noise' or 'stereo', got {self.measure!r}")
 
     def key(self) -> str:
         return hashlib.sha1(json.dumps(asdict(self), sort_keys=True).encode()).hexdigest()[:12]
+
+
+#: The demo's collection: the seed's grid (1805 poses) measured through the stereo tracker on
+#: rendered pairs (about 6 minutes to render and track on one core; shipped in PACKAGED_DIR).
+DEMO_COLLECTION = CollectionOptions(measure="stereo")
 
 
 def _grid(spec):
@@ -72,7 +106,8 @@ def _settle_at(arm, theta) -> None:
     arm._outputs()
 
 
-def collect_settled_poses(options: CollectionOptions = CollectionOptions(), params=None) -> dict:
+def collect_settled_poses(options: CollectionOptions = CollectionOptions(), params=None, *,
+                          show_progress: bool | None = False) -> dict:
     """Settle the simulated arm on the joint grid for every payload and measure it.
 
     Returns
@@ -80,7 +115,9 @@ def collect_settled_poses(options: CollectionOptions = CollectionOptions(), para
     dict of ndarray
         ``theta`` (N, 3) rad (theta1 = 0), ``strains`` (N, 4) m/m,
         ``payload_kg`` (N,) (added payload, without the mount), ``mount_kg`` (scalar),
-        ``p_meas_base`` (N, 3) measured end effector, ``p_true_base`` (N, 3) ground truth (evaluation only).
+        ``p_meas_base`` (N, 3) measured end effector (NaN where not tracked), ``valid`` (N,) bool,
+        ``p_true_base`` (N, 3) ground truth (evaluation only); with ``measure="stereo"`` also
+        ``T_base_left`` (4, 4), the base calibration used.
 
     Examples
     --------
@@ -95,7 +132,7 @@ def collect_settled_poses(options: CollectionOptions = CollectionOptions(), para
     p = params or load_robot_params()
     rng = np.random.default_rng(options.seed)
     mount = float(p.end_effector_mount_mass_kg)
-    rows = []
+    rows, tips = [], []
     for m in options.payloads_kg:
         # one plant per payload (building the modal model is the expensive part); each pose is then
         # the static equilibrium at that configuration (what ElasticArm(theta) starts in)
@@ -104,22 +141,182 @@ def collect_settled_poses(options: CollectionOptions = CollectionOptions(), para
             for t3 in _grid(options.theta3_deg):
                 _settle_at(arm, [0.0, t2, t3])
                 rows.append((0.0, t2, t3, *arm.strain, float(m), *arm.ee_position()))
+                tips.append((np.array(arm.tip2, float), np.array(arm.tip3, float)))
     a = np.array(rows, float)
     n = len(a)
     p_true = a[:, 8:11]
-    return {"theta": a[:, 0:3], "strains": a[:, 3:7] + rng.normal(0.0, options.strain_sigma, (n, 4)),
-            "payload_kg": a[:, 7], "mount_kg": np.float64(mount),
-            "p_meas_base": p_true + rng.normal(0.0, options.measurement_sigma_m, (n, 3)),
-            "p_true_base": p_true}
+    out = {"theta": a[:, 0:3], "strains": a[:, 3:7] + rng.normal(0.0, options.strain_sigma, (n, 4)),
+           "payload_kg": a[:, 7], "mount_kg": np.float64(mount), "p_true_base": p_true}
+    if options.measure == "noise":
+        out["p_meas_base"] = p_true + rng.normal(0.0, options.measurement_sigma_m, (n, 3))
+        out["valid"] = np.ones(n, bool)
+        return out
+    # stereo: render each settled pose (the arm's shape: joint angles and tip deflections)
+    lab = _StereoLab(p, seed=options.seed)
+    poses = [(a[i, 0:3], tips[i][0], tips[i][1]) for i in range(n)]
+    meas = np.full((n, 3), np.nan)
+    for i in progress(range(n), desc="stereo poses", enabled=show_progress):
+        meas[i] = lab.measure(*poses[i])
+    out["p_meas_base"] = meas
+    out["valid"] = np.all(np.isfinite(meas), axis=1)
+    out["T_base_left"] = lab.T_base_left
+    return out
 
 
-def load_or_collect(cache_dir, options: CollectionOptions = CollectionOptions(), params=None) -> dict:
-    """Load the collection for ``options`` from ``cache_dir`` or collect and save it there."""
-    path = Path(cache_dir) / f"catch_kinematics_{options.key()}.npz"
-    if path.exists():
-        with np.load(path) as z:
-            return {k: z[k] for k in z.files}
-    d = collect_settled_poses(options, params)
+class _StereoLab:
+    """The ceiling stereo rig of the virtual lab, the stereo tracker and the lab's base calibration."""
+
+    def __init__(self, params, *, seed: int = 0, sweep_deg=(-80.0, 80.0, 10.0)):
+        from ..sim.record import T_WORLD_BASE, calibration_from_cameras, elastic_arm_geometry
+        from ..sim.scenes import stereo_lab
+        from ..stereo import PipelineOptions, StereoPipeline, fit_color_model_set
+
+        self.params = params
+        self._geometry = elastic_arm_geometry
+        self._shape = None
+        rng = np.random.default_rng([seed, 7])
+        self.rng = rng
+        self._set_shape(np.deg2rad([0.0, 90.0, 0.0]))
+        self.setup = stereo_lab(rng, arm=lambda t: self._shape, T_world_base=T_WORLD_BASE, t0=0.0)
+        self.left, self.right = self.setup.cameras["left"], self.setup.cameras["right"]
+        self.calibration = calibration_from_cameras({"left": self.left, "right": self.right},
+                                                    stereo=("left", "right"))
+        # colour models from one pick per camera and sphere on the first pair (the vertical posture)
+        pair = self._render()
+        picks = self._user_picks()
+        models = fit_color_model_set({"left": pair[0], "right": pair[1]}, picks)
+        self._opts = PipelineOptions(sphere_separation_m=float(np.linalg.norm(
+            np.subtract(*params.sphere_offsets_ee_m.values()))))
+        self._left_pipe = StereoPipeline(self.calibration, models, options=self._opts)
+        self.T_base_left = stereo_base_calibration(self, sweep_deg)
+        self.pipe = StereoPipeline(self.calibration, models, T_base_left=self.T_base_left, options=self._opts)
+
+    def _set_shape(self, theta, tip2=None, tip3=None) -> None:
+        from ..sim.record import static_arm_state
+        from ..sim.arm import Payload
+
+        if tip2 is None:
+            tip2, tip3 = static_arm_state(theta, Payload.from_parts(self.params), self.params)
+        self._shape = self._geometry(np.asarray(theta, float), tip2, tip3, self.params)
+        self._theta = np.asarray(theta, float)
+        self._tips = (tip2, tip3)
+
+    def _render(self):
+        from ..sim.render import render_bgr
+
+        return (render_bgr(self.left, self.setup.scene, 0.0, rng=self.rng),
+                render_bgr(self.right, self.setup.scene, 0.0, rng=self.rng))
+
+    def _user_picks(self) -> list:
+        # where a user clicks: the sphere centre and a point 0.75 radius to its right, per camera
+        from ..sim.arm import fk_elastic, spheres_from_T
+        from ..sim.camera import project_points
+        from ..sim.record import T_WORLD_BASE
+
+        T = fk_elastic(self._theta, *self._tips, self.params)
+        sph = spheres_from_T(T, self.params)
+        picks = []
+        for name, cam in (("left", self.left), ("right", self.right)):
+            for s in ("red", "green"):
+                pw = (T_WORLD_BASE @ np.r_[sph[s], 1.0])[:3]
+                uv = project_points(cam, pw[None])[0]
+                z = (np.linalg.inv(cam.T_world_cam) @ np.r_[pw, 1.0])[2]
+                r = 0.75 * cam.K[0, 0] * self.params.sphere_radius_m / z
+                picks.append(f"{name}:{s}:{uv[0]:.2f},{uv[1]:.2f}:{uv[0] + r:.2f},{uv[1]:.2f}")
+        return picks
+
+    def _track(self, pipe) -> np.ndarray:
+        from ..io.frames import StereoFrame
+
+        left, right = self._render()
+        pipe.reset()
+        res = pipe.process(StereoFrame(t=0.0, index=0, left=left, right=right))
+        return np.asarray(res.ee, float) if res.valid else np.full(3, np.nan)
+
+    def measure(self, theta, tip2, tip3) -> np.ndarray:
+        """End effector of the settled pose in the base frame (calibrated), NaN if not tracked."""
+        self._set_shape(theta, tip2, tip3)
+        return self._track(self.pipe)
+
+
+def stereo_base_calibration(lab, sweep_deg=(-80.0, 80.0, 10.0)) -> np.ndarray:
+    """``T_base_left`` from a rendered theta1 sweep (theta2 = theta3 = 0) and the vertical posture.
+
+    The seed's base calibration (section B.5) with the project's tracker and
+    :func:`tudorvision.stereo.base_frame_from_sweep`; ``lab`` is the
+    collection's stereo lab (private).
+    """
+    from ..stereo import base_frame_from_sweep
+
+    a, b, st = sweep_deg
+    th = np.column_stack([np.deg2rad(np.arange(a, b + 1e-9, st)), np.zeros(int(round((b - a) / st)) + 1),
+                          np.zeros(int(round((b - a) / st)) + 1)])
+    pts = []
+    for t in th:
+        lab._set_shape(t)
+        pts.append(lab._track(lab._left_pipe))
+    pts = np.array(pts)
+    ok = np.all(np.isfinite(pts), axis=1)
+    lab._set_shape(np.deg2rad([0.0, 90.0, 0.0]))
+    vert = lab._track(lab._left_pipe)
+    T, _ = base_frame_from_sweep(pts[ok], th[ok], vert if np.all(np.isfinite(vert)) else None, lab.params)
+    return T
+
+
+def remap_errors(ikm, params=None, *, n: int = 50, seed: int = 0, payload_range_kg=(0.0, 0.4),
+                 near_deg=(0.0, 60.0, 60.0)) -> dict:
+    """Remap error of compensated vs rigid inverse kinematics on the simulated arm (seed: 2.6 mm).
+
+    Random targets in the working plane (r in [-0.5, 0.5] m, z in [0.6, 1.1] m)
+    and payloads; each is solved by ``ikm`` (compensated, told the payload)
+    and by the rigid :func:`tudorvision.robot.ik`; the settled elastic arm at
+    each solution is compared with the target (ground truth, evaluation only).
+
+    Returns
+    -------
+    dict
+        ``compensated_m`` (n,), ``rigid_m`` (n,): end-effector distances from the targets.
+    """
+    from ..robot import ik, load_robot_params
+    from ..sim.arm import ElasticArm, Payload
+
+    p = params or load_robot_params()
+    rng = np.random.default_rng(seed)
+    near = np.deg2rad(near_deg)
+    e_c, e_r = [], []
+    while len(e_c) < n:
+        tgt = np.array([rng.uniform(-0.5, 0.5), 0.0, rng.uniform(0.6, 1.1)])
+        mass = rng.uniform(*payload_range_kg)
+        try:
+            th_c = ikm(tgt, 0.0, mass, near=near)
+            th_r = ik(tgt, p, near=near)
+        except ValueError:
+            continue
+        pay = Payload(mass_kg=p.end_effector_mount_mass_kg + mass)
+        e_c.append(np.linalg.norm(ElasticArm(th_c, payload=pay, params=p).ee_position() - tgt))
+        e_r.append(np.linalg.norm(ElasticArm(th_r, payload=pay, params=p).ee_position() - tgt))
+    return {"compensated_m": np.array(e_c), "rigid_m": np.array(e_r)}
+
+
+#: Where collections shipped with the package live (generated by :func:`load_or_collect` with
+#: ``cache_dir=PACKAGED_DIR``; see docs/catch.md).
+PACKAGED_DIR = Path(__file__).resolve().parent / "data"
+
+
+def load_or_collect(cache_dir, options: CollectionOptions = CollectionOptions(), params=None, *,
+                    show_progress: bool | None = False) -> dict:
+    """Load the collection for ``options`` from ``cache_dir`` (or the packaged data), else collect and save it.
+
+    The file name carries a hash of ``options``, so a changed grid or
+    measurement never reads a stale file.
+    """
+    name = f"catch_kinematics_{options.key()}.npz"
+    for path in (Path(cache_dir) / name, PACKAGED_DIR / name):
+        if path.exists():
+            with np.load(path) as z:
+                return {k: z[k] for k in z.files}
+    d = collect_settled_poses(options, params, show_progress=show_progress)
+    path = Path(cache_dir) / name
     path.parent.mkdir(parents=True, exist_ok=True)
     np.savez_compressed(path, **d)
     return d

@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from .ballistic import BallisticPredictor
+from .data_collection import DEMO_COLLECTION, CollectionOptions
 from .ekf import BallEKF, BallModel, EKFOptions
 from .intercept import InterceptOptions, InterceptPlanner, net_target, working_plane_normal
 from .lab import LockstepCore, LockstepLayer
@@ -92,7 +93,11 @@ class DemoOptions:
     layer_rate_hz : float
         Control rate of the lockstep joint layer (its over-speed and range checks run every period).
     cache_dir : str
-        Where the kinematics data collection is cached.
+        Where the kinematics data collection is cached (the default collection is shipped
+        with the package and found there first).
+    collection : CollectionOptions
+        The data collection the kinematics are learnt from (default: the seed's grid
+        measured through the stereo tracker, :data:`~tudorvision.catch.data_collection.DEMO_COLLECTION`).
     rerun, plots : bool
         Write a rerun recording / PNG plots.
     """
@@ -116,6 +121,7 @@ class DemoOptions:
     net_capacity_balls: int = 8
     drag_k_per_m: float = 0.012
     cache_dir: str = "out/catch/cache"
+    collection: CollectionOptions = DEMO_COLLECTION
     rerun: bool = True
     plots: bool = True
     show_progress: bool | None = None
@@ -236,10 +242,10 @@ class CatchPerception:
 
 # ------------------------------------------------------------------------------ the demo
 def _kinematics(options: DemoOptions, params):
-    from .data_collection import CollectionOptions, load_or_collect
+    from .data_collection import load_or_collect
     from .kinematics import InverseKinematics, fit_kinematics
 
-    data = load_or_collect(options.cache_dir, CollectionOptions(), params)
+    data = load_or_collect(options.cache_dir, options.collection, params)
     km = fit_kinematics(data, test_payloads_kg=[0.1], params=params)
     return km, InverseKinematics(km.deflection, params, margin_rad=np.deg2rad(1.0))
 

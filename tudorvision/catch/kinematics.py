@@ -281,7 +281,8 @@ def fit_kinematics(data: dict, *, test_payloads_kg=None, rng=None, params=None) 
     ----------
     data : dict
         ``theta`` (N, 3) rad, ``strains`` (N, 4), ``payload_kg`` (N,), ``p_meas_base`` (N, 3)
-        measured end effector (base frame), optionally ``p_true_base`` (N, 3) for evaluation.
+        measured end effector (base frame; NaN rows, or rows with ``valid`` False, were not
+        measured and only train the strain model), optionally ``p_true_base`` (N, 3) for evaluation.
     test_payloads_kg : sequence of float, optional
         Payloads held out entirely (the seed's unseen payload); otherwise a
         random 70/30 split.
@@ -302,16 +303,18 @@ def fit_kinematics(data: dict, *, test_payloads_kg=None, rng=None, params=None) 
         rng = np.random.default_rng(0) if rng is None else rng
         test = rng.random(len(th)) < 0.3
     train = ~test
+    # poses the measurement missed (a sphere hidden from a camera) train the strain model only
+    ok = np.all(np.isfinite(p), axis=1) & np.asarray(data.get("valid", np.ones(len(th), bool)), bool)
     t23 = th[:, 1:]
-    fwd = ForwardModel.fit(t23[train], eps[train], rz[train])
+    fwd = ForwardModel.fit(t23[train & ok], eps[train & ok], rz[train & ok])
     sm = StrainModel.fit(t23[train], m[train], eps[train])
-    dm = DeflectionModel.fit(t23[train], m[train], rz[train], params)
+    dm = DeflectionModel.fit(t23[train & ok], m[train & ok], rz[train & ok], params)
     truth = rz
     if "p_true_base" in data:
         pt = np.asarray(data["p_true_base"], float)
         truth = np.stack([pt[:, 0] * np.cos(th[:, 0]) + pt[:, 1] * np.sin(th[:, 0]), pt[:, 2]], axis=1)
     rmse = lambda e: np.sqrt(np.mean(e ** 2, axis=0)).tolist()
-    rep = {"n_train": int(train.sum()), "n_test": int(test.sum()),
+    rep = {"n_train": int(train.sum()), "n_test": int(test.sum()), "n_unmeasured": int((~ok).sum()),
            "forward_rmse_m": rmse(fwd(t23[test], eps[test]) - truth[test]) if test.any() else None,
            "deflection_model_rmse_m": rmse(dm(t23[test], m[test]) - truth[test]) if test.any() else None,
            "payload_rmse_kg": float(np.sqrt(np.mean((sm.payload(t23[test], eps[test]) - m[test]) ** 2)))
