@@ -20,6 +20,9 @@ from tudorvision.stereo.segment import SegmentParams, _circle_lsq, _fit_rim_circ
 CENTER = (60.37, 58.71)
 RADIUS = 9.0
 MOMENT = SegmentParams(centroid="moment")
+# the colour-rim circle alone, and with the luma-edge refinement (the default)
+RIM = pytest.mark.parametrize("params, method", [(SegmentParams(edge_refine=False), "shape"),
+                                                 (SegmentParams(), "edge")], ids=["colour-rim", "luma-edge"])
 
 
 def _background(seed=0, h=120, w=120):
@@ -83,34 +86,37 @@ def _err(uv):
     return float(np.hypot(uv[0] - CENTER[0], uv[1] - CENTER[1]))
 
 
-def test_unoccluded_sphere_shape_and_moment_agree(model):
+@RIM
+def test_unoccluded_sphere_shape_and_moment_agree(model, params, method):
     img = _background()
     sphere_patch(CENTER, RADIUS, RED_BGR, img)
     img = _finish(img, 3)
-    det = detect_sphere(img, model)
-    assert det.valid and det.method == "shape"
+    det = detect_sphere(img, model, params=params)
+    assert det.valid and det.method == method
     assert _err(det.uv) < 0.15 and _err(det.uv_moment) < 0.2
     assert det.rim_fraction > 0.9 and det.rim_rms_px < 0.5
 
 
+@RIM
 @pytest.mark.parametrize("angle", [0.0, 12.0, -25.0])
-def test_bar_occlusion_recovers_the_full_silhouette_centre(model, angle):
+def test_bar_occlusion_recovers_the_full_silhouette_centre(model, angle, params, method):
     img = _with_bar(angle_deg=angle)
     plain = detect_sphere(img, model, params=MOMENT)
-    det = detect_sphere(img, model)
+    det = detect_sphere(img, model, params=params)
     assert plain.valid and det.valid
-    assert plain.method == "moment" and det.method == "shape"
+    assert plain.method == "moment" and det.method == method
     assert _err(plain.uv) > 0.5, plain.uv          # the moment measures the visible part only
     assert _err(det.uv) < 0.2, (det.uv, det.rim_fraction)
     assert det.uv_moment == pytest.approx(plain.uv)
     assert 0.5 <= det.rim_fraction < 0.95           # the rim along the bar is not used
 
 
-def test_saturated_bright_cap_is_completed(model):
+@RIM
+def test_saturated_bright_cap_is_completed(model, params, method):
     img = _with_white_cap()
     plain = detect_sphere(img, model, params=MOMENT)
-    det = detect_sphere(img, model)
-    assert plain.valid and det.valid and det.method == "shape"
+    det = detect_sphere(img, model, params=params)
+    assert plain.valid and det.valid and det.method == method
     assert plain.uv[1] - CENTER[1] > 0.3               # the moment sinks below the missing top
     assert _err(det.uv) < 0.2, det.uv
 
@@ -143,3 +149,5 @@ def test_params_checked():
         SegmentParams(rim_prob=0.999)
     with pytest.raises(TudorVisionError, match="rim_tol_px"):
         SegmentParams(rim_tol_px=0.0)
+    with pytest.raises(TudorVisionError, match="edge_min_contrast"):
+        SegmentParams(edge_min_contrast=-1.0)

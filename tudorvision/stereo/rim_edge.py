@@ -1,0 +1,182 @@
+"""Sphere rim on the luma (brightness) edge: a refinement robust to chroma subsampling.
+
+JPEG (and most video codecs) store colour at half resolution (4:2:0): the
+decoded chroma is smeared over about a pixel either side of a colour edge, so
+a rim taken from the colour probability image is biased wherever the sphere's
+colour contrast differs around it (0.3-0.4 px median on the virtual lab's
+JPEG frames). The luma ``Y = 0.299 R + 0.587 G + 0.114 B`` is kept at full
+resolution, and ``cv2.COLOR_BGR2GRAY`` of the decoded frame recovers it (the
+chroma terms of the decoder's YCbCr -> RGB conversion cancel), so the sphere's
+silhouette edge is located on the luma instead:
+
+1. From a first circle (centre ``(u, v)``, radius ``r``: the colour rim's
+   circle or the region's moment and area radius), cast ``n`` rays, about
+   one per pixel of circumference (a multiple of 4 in 16-64), and sample the
+   luma bilinearly at radii ``r - span .. r + span`` in ``step`` px steps.
+2. Per ray, the polarity is the sign of outer minus inner brightness (a
+   sphere may be darker than the background on its shaded side and brighter
+   on its lit side); rays whose contrast is below ``min_contrast`` grey levels
+   are dropped (no luma edge: the colour rim is all there is).
+3. The edge is the centre of gravity of the polarity-signed luma derivative
+   in excess of 30 % of its peak, over the run of samples around the peak
+   where it exceeds that level.
+4. Colour gate: the colour log-odds must be positive 1.5 px inside the edge
+   and negative 2 px outside it, so an edge between an occluding link and the
+   background, or inside the sphere's own shading, is not taken for the rim.
+5. The circle is fitted robustly to the edge points (the rim fit of
+   :mod:`~tudorvision.stereo.segment`: rim points hidden by an occluder lie
+   inside the circle and are outvoted) and used only when it explains at least
+   half of the rays and stays within 1.5 px of the first circle in centre and
+   radius.
+
+On the virtual lab's static frames (5 seeds, both cameras, both spheres) the
+centroid RMS error of single full-frame detections is 0.12 px with PNG and
+0.13 px with JPEG frames (colour rim: 0.13 px PNG, 0.43 px JPEG).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["luma_rim_points", "refine_circle_on_luma"]
+
+
+def _bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Bilinear samples of ``img`` at float positions (edge pixels repeated beyond the border).
+
+    In float64 (``cv2.remap`` rounds positions to 1/32 px, enough to make a
+    symmetric disc's centre come out 0.01 px off).
+    """
+    h, w = img.shape
+    x = np.clip(x, 0.0, w - 1.0)
+    y = np.clip(y, 0.0, h - 1.0)
+    x0 = np.minimum(np.floor(x).astype(np.intp), w - 2) if w > 1 else np.zeros(x.shape, np.intp)
+    y0 = np.minimum(np.floor(y).astype(np.intp), h - 2) if h > 1 else np.zeros(y.shape, np.intp)
+    fx, fy = x - x0, y - y0
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    top = img[y0, x0] * (1.0 - fx) + img[y0, x1] * fx
+    bot = img[y1, x0] * (1.0 - fx) + img[y1, x1] * fx
+    return top * (1.0 - fy) + bot * fy
+
+
+def luma_rim_points(gray, log_odds, centre, radius: float, *, span: float = 3.0, step: float = 0.25,
+                    min_contrast: float = 8.0, n_rays: int | None = None):
+    """Sub-pixel luma edge points of a sphere's rim along rays from a first circle.
+
+    Parameters
+    ----------
+    gray : ndarray, shape (H, W)
+        Luma (``cv2.COLOR_BGR2GRAY``) of an image window, 0..255, float.
+    log_odds : ndarray, shape (H, W), float32, or None
+        The sphere's colour log-odds on the same window (the colour gate of
+        step 4 in the module docstring); None disables the gate.
+    centre : tuple of float
+        First estimate ``(u, v)`` of the circle centre, window pixels (u
+        right, v down, pixel centres at integers).
+    radius : float
+        First estimate of the radius, pixels.
+    span, step : float
+        Radii ``radius - span .. radius + span`` are sampled every ``step`` px.
+    min_contrast : float
+        Smallest outer-minus-inner luma difference (grey levels) of a ray.
+    n_rays : int, optional
+        Rays (default: about one per pixel of circumference, a multiple of 4
+        in 16..64).
+
+    Returns
+    -------
+    points : ndarray, shape (K, 2)
+        Edge points ``(u, v)`` in window pixels of the rays that passed the
+        contrast and colour gates.
+    n_rays : int
+        Rays cast.
+
+    Examples
+    --------
+    >>> yy, xx = np.mgrid[0:40, 0:40]
+    >>> disc = np.clip(8.5 - np.hypot(xx - 20.3, yy - 19.6), 0, 1)   # antialiased disc, r = 8
+    >>> gray = (160 - 100 * disc).astype(np.float32)                  # dark sphere, bright ground
+    >>> pts, n = luma_rim_points(gray, None, (20.0, 20.0), 7.0)
+    >>> n, len(pts), bool(np.abs(np.hypot(pts[:, 0] - 20.3, pts[:, 1] - 19.6) - 8.0).max() < 0.3)
+    (44, 44, True)
+    """
+    cu, cv_ = float(centre[0]), float(centre[1])
+    r = float(radius)
+    # a multiple of 4: the rays are symmetric about both image axes, so a symmetric disc comes out centred
+    k = 4 * int(np.clip(round(0.5 * math.pi * r), 4, 16)) if n_rays is None else int(n_rays)
+    ang = (2.0 * math.pi / k) * np.arange(k)
+    ca, sa = np.cos(ang)[:, None], np.sin(ang)[:, None]
+    s = r + np.arange(-span, span + 0.5 * step, step)
+    ns = len(s)
+    prof = _bilinear(gray, cu + ca * s, cv_ + sa * s)                               # (k, ns)
+    diff = prof[:, -3:].mean(axis=1) - prof[:, :3].mean(axis=1)
+    g = np.diff(prof, axis=1) * np.sign(diff)[:, None]                           # (k, ns - 1), at s + step/2
+    peak = np.argmax(g, axis=1)
+    rows = np.arange(k)
+    gmax = g[rows, peak]
+    # centre of gravity of the derivative's excess over 30 % of its peak, over the run of samples
+    # around the peak where it is positive: the weights vanish at the run's ends, so the position
+    # changes continuously with the image (ties at the peak, common on bilinear profiles, do not matter)
+    w = np.clip(g - 0.3 * gmax[:, None], 0.0, None)
+    j = np.arange(ns - 1)[None, :]
+    off = w <= 0.0
+    lo_end = np.where(off & (j < peak[:, None]), j, -1).max(axis=1)
+    hi_end = np.where(off & (j > peak[:, None]), j, ns - 1).min(axis=1)
+    w = np.where((j > lo_end[:, None]) & (j < hi_end[:, None]), w, 0.0)
+    wsum = w.sum(axis=1)
+    pos = s[0] + step * (0.5 + (w * j).sum(axis=1) / np.where(wsum > 0, wsum, 1.0))
+    ok = (np.abs(diff) >= min_contrast) & (gmax > 0) & (wsum > 0)
+    ok &= (lo_end >= 0) & (hi_end < ns - 1)       # an edge at the end of the span is no edge
+    if log_odds is not None:
+        inner, outer = pos - 1.5, pos + 2.0
+        ok &= _bilinear(log_odds, cu + ca[:, 0] * inner, cv_ + sa[:, 0] * inner) > 0
+        ok &= _bilinear(log_odds, cu + ca[:, 0] * outer, cv_ + sa[:, 0] * outer) < 0
+    pts = np.column_stack([cu + ca[ok, 0] * pos[ok], cv_ + sa[ok, 0] * pos[ok]])
+    return pts, k
+
+
+def refine_circle_on_luma(gray, log_odds, centre, radius: float, *, tol_px: float = 0.5,
+                          min_fraction: float = 0.5, max_shift_px: float = 1.5, min_contrast: float = 8.0):
+    """Circle fitted robustly to the luma rim points, or None when it is not trustworthy.
+
+    Parameters
+    ----------
+    gray, log_odds, centre, radius, min_contrast
+        As for :func:`luma_rim_points`.
+    tol_px : float
+        Edge points within this distance of the circle are inliers.
+    min_fraction : float
+        Smallest fraction of the rays cast whose edge points must be inliers.
+    max_shift_px : float
+        Largest change of centre and of radius from the first circle.
+
+    Returns
+    -------
+    tuple or None
+        ``(u, v, r, inlier_fraction, rms_px)`` in window pixels, or None.
+
+    Examples
+    --------
+    >>> yy, xx = np.mgrid[0:40, 0:40]
+    >>> disc = np.clip(8.5 - np.hypot(xx - 20.3, yy - 19.6), 0, 1)
+    >>> gray = (60 + 100 * disc).astype(np.float32)                   # bright sphere, dark ground
+    >>> u, v, r, frac, rms = refine_circle_on_luma(gray, None, (20.0, 20.0), 7.0)
+    >>> round(u, 1), round(v, 1), round(r, 1), frac
+    (20.3, 19.6, 8.0, 1.0)
+    """
+    from .segment import _fit_rim_circle
+
+    pts, n = luma_rim_points(gray, log_odds, centre, radius, min_contrast=min_contrast)
+    if len(pts) < max(8, min_fraction * n):
+        return None
+    fit = _fit_rim_circle(pts, tol_px)
+    if fit is None:
+        return None
+    fu, fv, fr, inl = fit
+    n_in = int(np.count_nonzero(inl))
+    if (n_in < min_fraction * n or abs(fr - radius) > max_shift_px
+            or math.hypot(fu - centre[0], fv - centre[1]) > max_shift_px):
+        return None
+    res = np.hypot(pts[inl, 0] - fu, pts[inl, 1] - fv) - fr
+    return fu, fv, fr, n_in / n, float(np.sqrt(np.mean(res * res)))
