@@ -1,6 +1,7 @@
 """External stereo tracking of the end effector (section 2.4 of the seed).
 
-Colour models (:mod:`.colormodel`), sphere segmentation (:mod:`.segment`),
+Colour models (:mod:`.colormodel`), sphere segmentation (:mod:`.segment`, with
+the luma-edge rim of :mod:`.rim_edge`),
 tracking mode (:mod:`.tracker2d`), triangulation with rolling-shutter
 compensation (:mod:`.triangulate`), trajectories (:mod:`.trajectory`), the
 per-frame tracking loop (:mod:`.pipeline`), checkerboard stereo calibration
@@ -15,6 +16,7 @@ from .calibrate import (BoardDetections, StereoCalibrationResult, board_object_p
 from .colormodel import (CHANNELS, HUE_LEVELS, ColorModel, ColorModelSet, circular_hue_stats, fit_color_model,
                          fit_color_model_set, load_color_models, parse_pick, save_color_models)
 from .rerun_log import RerunStereoLog
+from .rim_edge import luma_rim_points, refine_circle_on_luma
 from .pipeline import (MonoTrackResult, PipelineOptions, StereoFrameResult, StereoPipeline, StereoTrackResult,
                        TrackStats, iter_stereo, read_mono_track_csv, track_mono, track_stereo,
                        write_mono_track_csv)
@@ -33,7 +35,7 @@ __all__ = [
     "fit_color_model_set", "load_color_models", "parse_pick", "save_color_models",
     # segmentation and tracking mode
     "SegmentParams", "SphereDetection", "detect_sphere", "detect_spheres", "hsv_from_bgr", "log_odds_image",
-    "probability_image", "FrameTracker", "SphereTracker", "TrackerParams",
+    "probability_image", "luma_rim_points", "refine_circle_on_luma", "FrameTracker", "SphereTracker", "TrackerParams",
     # triangulation and trajectories
     "SphereTriangulation", "compensate_rolling_shutter", "projection_matrices", "rolling_shutter_times",
     "triangulate_dlt", "triangulate_points", "triangulate_spheres", "triangulate_stereo", "undistort_points",
