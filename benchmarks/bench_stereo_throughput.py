@@ -9,6 +9,8 @@ per-frame result; plus the trajectory at the end):
 
 - full-frame mode (``PipelineOptions(tracking=False)``),
 - tracking mode (``PipelineOptions()``, the default of ``tudorvision track stereo``),
+- both again without the luma-edge rim refinement
+  (``SegmentParams(edge_refine=False)``), to show its cost,
 - the tutorial-style peer (``peer_hsv.py``) on both images plus the same
   triangulation,
 
@@ -43,7 +45,8 @@ from test_stereo_pipeline import good_picks, gt_ee, gt_transform  # noqa: E402
 from tudorvision.io import open_sequence  # noqa: E402
 from tudorvision.io.frames import StereoFrame  # noqa: E402
 from tudorvision.sim import RecordOptions, record  # noqa: E402
-from tudorvision.stereo import PipelineOptions, fit_color_model_set, track_stereo, triangulate_spheres  # noqa: E402
+from tudorvision.stereo import (PipelineOptions, SegmentParams, TrackerParams, fit_color_model_set,  # noqa: E402
+                                track_stereo, triangulate_spheres)
 
 
 class InMemory:
@@ -113,9 +116,15 @@ def main(argv=None) -> int:
     n = len(frames)
     truth = gt_ee(seq)
     rows = {}
+    rim = TrackerParams(segment=SegmentParams(edge_refine=False))
     for label, fn in (
             ("full frame", lambda: time_ours(mem, seq, models, PipelineOptions(tracking=False), args.repeat)),
             ("tracking", lambda: time_ours(mem, seq, models, PipelineOptions(), args.repeat)),
+            ("full frame, no luma edge", lambda: time_ours(mem, seq, models,
+                                                           PipelineOptions(tracking=False, tracker=rim),
+                                                           args.repeat)),
+            ("tracking, no luma edge", lambda: time_ours(mem, seq, models, PipelineOptions(tracker=rim),
+                                                         args.repeat)),
             ("peer (HSV inRange + contours)", lambda: time_peer(mem, seq, args.repeat))):
         dt, ee = fn()
         err = np.linalg.norm(ee - truth, axis=1)
