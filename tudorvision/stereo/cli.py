@@ -285,5 +285,8 @@ def run_track_mono(args) -> int:
     out = write_mono_track_csv(args.out, res, comment=f"video: {args.video}\nsphere: {args.sphere} "
                                                       f"({args.camera}) from {args.colormodel}")
     print(f"wrote {out} ({len(res.t)} rows)")
+    if len(res.t) and not np.any(res.valid):
+        print(f"warning: sphere {args.sphere!r} found in no frame: check the colour model "
+              "(tudorvision colormodel --pick mono:...)")
     print(res.stats.summary())
     return 0
