@@ -17,8 +17,14 @@ Three parts, in one run:
    until it holds 8 (then it is emptied during the pause).
 3. Intercept prediction error vs time before the crossing, EKF (gravity +
    drag) against the drag-free ballistic least-squares peer on the same
-   detections; and the per-frame perception latency (detector on the
-   rendered frame + EKF + intercept), median and 95th percentile.
+   detections; and the per-frame perception latency (depth conversion +
+   detector on the rendered frame + EKF + intercept; the peer's time is not
+   counted), median and 95th percentile.
+4. Data-based kinematics (9.2): measurement error of the settled poses, the
+   models' test errors on the unseen 100 g payload, and the remap error of
+   compensated vs rigid inverse kinematics on the simulated arm (seed 2.6 mm),
+   for the demo's collection (stereo tracker on rendered pairs, the seed's
+   grid) and for the noise-model collection.
 
 Run::
 
@@ -87,9 +93,13 @@ def fit_noise_scale(n_throws: int, seed: int) -> dict:
             "scale": float(max(1.0, np.sqrt(np.median(nees) / 2.366)))}
 
 
+FAULTS = {}
+
+
 def run_until(min_crossing: int, opts: DemoOptions, out: str, batch: int = 30):
     """Batches of throws (fresh seeds) until ``min_crossing`` cross the workspace."""
     rows, preds, lat = [], [], []
+    faults = FAULTS.setdefault(out, [0, 0])
     b = 0
     while sum(r["crossing_workspace"] for r in rows) < min_crossing:
         s = run_demo(f"{out}/batch{b}", DemoOptions(**{**opts.__dict__, "seed": opts.seed * 1000 + b,
@@ -99,6 +109,8 @@ def run_until(min_crossing: int, opts: DemoOptions, out: str, batch: int = 30):
         rows += s["per_throw"]
         preds += [[b] + list(p) for p in s["predictions"]]
         lat += s["latencies_s"]
+        faults[0] += s["layer_faults_cleared"]
+        faults[1] += s["net_emptied"]
         b += 1
     return rows, preds, lat
 
@@ -139,6 +151,29 @@ def prediction_error_vs_lead(rows, preds, leads=(0.6, 0.5, 0.4, 0.3, 0.2)):
     return out
 
 
+def kinematics_report(cache_dir: str) -> None:
+    from tudorvision.catch.data_collection import DEMO_COLLECTION, CollectionOptions, load_or_collect, remap_errors
+    from tudorvision.catch.kinematics import InverseKinematics, fit_kinematics
+    from tudorvision.robot import load_robot_params
+
+    params = load_robot_params()
+    print("\n4. data-based kinematics (test payload 100 g unseen; remap: 50 random targets, 0-400 g)")
+    for name, opts in (("stereo tracker, rendered pairs", DEMO_COLLECTION),
+                       ("truth + 1 mm noise", CollectionOptions())):
+        d = load_or_collect(cache_dir, opts, params)
+        ok = d["valid"] if "valid" in d else np.ones(len(d["theta"]), bool)
+        e = np.linalg.norm(d["p_meas_base"][ok] - d["p_true_base"][ok], axis=1)
+        km = fit_kinematics(d, test_payloads_kg=[0.1], params=params)
+        rep = km.report
+        r = remap_errors(InverseKinematics(km.deflection, params, margin_rad=np.deg2rad(1.0)), params, n=50)
+        rms = lambda x: 1e3 * float(np.sqrt(np.mean(np.square(x))))
+        print(f"  {name}: {len(ok)} poses, {int(ok.sum())} measured; measurement error median "
+              f"{1e3 * np.median(e):.2f} mm, RMS {rms(e):.2f} mm; forward RMSE r/z "
+              f"{1e3 * rep['forward_rmse_m'][0]:.2f}/{1e3 * rep['forward_rmse_m'][1]:.2f} mm; payload RMSE "
+              f"{1e3 * rep['payload_rmse_kg']:.1f} g; remap RMS compensated {rms(r['compensated_m']):.2f} mm "
+              f"(max {1e3 * r['compensated_m'].max():.2f}), rigid {rms(r['rigid_m']):.1f} mm")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--min-crossing", type=int, default=200)
@@ -147,6 +182,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", default="out/bench_catch")
     ap.add_argument("--skip-rigid", action="store_true")
+    ap.add_argument("--cache", default="out/catch/cache", help="kinematics collections cache")
     args = ap.parse_args()
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
           f"Python {platform.python_version()}")
@@ -177,6 +213,8 @@ def main() -> None:
              "render": "compensated IK, rendered frames"}
     for k, (n, n_ws, c, reasons) in results.items():
         print(f"{names[k]:34s} {n:7d} {n_ws:9d} {c:7d} {100 * c / max(n_ws, 1):6.1f}%  {reasons}")
+    for out, (nf, ne) in FAULTS.items():
+        print(f"  {out}: joint-layer faults cleared {nf}, net emptied {ne} times")
     print("\n3a. intercept error vs time before crossing (noise-model run; median / 95th pct, cm)")
     print(f"{'lead (s)':>8s} {'throws':>7s} {'EKF med':>8s} {'EKF p95':>8s} {'LS med':>8s} {'LS p95':>8s}")
     for lead, (n, m, p95, mb, pb) in prediction_error_vs_lead(rows_m, preds_m).items():
@@ -188,6 +226,7 @@ def main() -> None:
     lat = np.array(s["latencies_s"]) * 1e3
     print(f"\n3b. per-frame perception latency (detector on the rendered 640x480 frame + EKF + intercept), "
           f"{len(lat)} frames: median {np.median(lat):.2f} ms, p95 {np.percentile(lat, 95):.2f} ms")
+    kinematics_report(args.cache)
     print(f"\ntotal {time.perf_counter() - t0:.0f} s")
 
 

@@ -261,13 +261,15 @@ def _true_crossing(tt, pp):
     return tt[i - 1] + a * (tt[i] - tt[i - 1]), pp[i - 1] + a * (pp[i] - pp[i - 1])
 
 
-def _pause(layer, t_now: float, duration: float, rate: float, weigh_s: float = 0.6):
+def _pause(layer, t_now: float, duration: float, rate: float, weigh_s: float = 0.6, on_frame=None):
     """Advance the layer by ``duration`` s; strains sampled at ``rate`` over the last ``weigh_s`` s."""
     t_end = t_now + duration
     strains = []
     while t_now < t_end - 1e-9:
         t_now = min(t_now + 1.0 / rate, t_end)
         layer.advance_to(t_now)
+        if on_frame is not None:
+            on_frame()
         if t_end - t_now < weigh_s:
             strains.append(np.asarray(layer.state().strains))
     return t_now, strains
@@ -283,7 +285,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
         ``predictions`` (the rows of ``predictions.csv``) and ``latencies_s``.
     """
     from .._progress import progress
-    from ..joint import Ack, Damping, Mode, Reason, Refusal
+    from ..joint import Ack, Damping, Mode, Reason, Refusal, StateFlags
     from ..rgbd.ball import BallDetector, BallDetectorOptions
     from ..rgbd.frames import Intrinsics
     from ..robot import load_robot_params
@@ -332,7 +334,10 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
     adapter.set_mode(Mode.SETPOINT, damping=damping)
     faults = []
 
+    last_sp = []
+
     def send(theta) -> bool:
+        last_sp[:] = [np.asarray(theta, float)]
         reply = adapter.send_setpoint(theta, max_speed=max_speed, max_accel=max_accel, timeout=5.0)
         if isinstance(reply, Refusal) and reply.code == Reason.FAULT:
             # the layer stopped the arm (speed or range fault): log it, clear it and send again
@@ -340,6 +345,15 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
             adapter.set_mode(Mode.SETPOINT, damping=damping)
             reply = adapter.send_setpoint(theta, max_speed=max_speed, max_accel=max_accel, timeout=5.0)
         return isinstance(reply, Ack)
+
+    def recover() -> None:
+        # checked every camera frame: a fault stop (the swing pushed a joint past the layer's speed
+        # limit) is cleared at once and the last setpoint sent again, instead of leaving the arm
+        # stopped until the next refinement or the next throw
+        if last_sp and core.state().flags & StateFlags.FAULT:
+            faults.append(float(t_now))
+            adapter.set_mode(Mode.SETPOINT, damping=damping)
+            adapter.send_setpoint(last_sp[0], max_speed=max_speed, max_accel=max_accel, timeout=5.0)
 
     # ---- scene (the ball and the arm read the demo's current state)
     current = {"flight": None, "t0": 0.0}
@@ -415,6 +429,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
                     net = sim.arm.ee_position().copy()
                 core.advance_to(t)
                 t_now = t
+            recover()
             st = core.state()
             if theta_sp is not None and arrive_t is None and np.max(np.abs(st.theta - theta_sp)) < np.deg2rad(1.0):
                 arrive_t = t
@@ -502,7 +517,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
         theta_ready = solve(ready, np.asarray(core.state().theta))
         if not send(theta_ready):
             refused += 1
-        t_now, strains = _pause(core, t_now, o.gap_s, rate)
+        t_now, strains = _pause(core, t_now, o.gap_s, rate, on_frame=recover)
         if balls >= o.net_capacity_balls:
             # the operator empties the net once the arm rests at the ready pose (removing a full net
             # from a still-swinging arm excites a sustained oscillation in the damped plant), then the
@@ -511,7 +526,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
             emptied += 1
             payload_true = Payload.from_parts(params, balls=0)
             sim.arm.set_payload(payload_true)
-            t_now, strains = _pause(core, t_now, o.empty_pause_s, rate)
+            t_now, strains = _pause(core, t_now, o.empty_pause_s, rate, on_frame=recover)
         if strains:     # mean over the last 0.6 s averages the residual swing; clipped to the trained range
             st = core.state()
             m = km.strain.payload(np.asarray(st.theta)[None, 1:], np.mean(strains, axis=0)[None])[0]
