@@ -33,9 +33,14 @@ def test_modelled_detections_several_throws_add_payload_and_weigh_it(tmp_path):
     s = run_demo(tmp_path / "c", DemoOptions(throws=6, seed=3, render=False, rerun=False, plots=False,
                                              cache_dir=str(tmp_path / "cache")))
     rows = s["per_throw"]
-    # one of the crossing throws was missed once in a run on a heavily loaded machine (server thread timing)
-    assert s["crossing_workspace"] >= 2 and s["caught_in_workspace"] >= 1
+    # the joint layer runs in lockstep with the simulation: the outcome does not depend on the machine's load
+    assert s["crossing_workspace"] >= 2 and s["caught_in_workspace"] == s["crossing_workspace"]
     assert s["balls_in_net"] == s["caught"]
+    assert s["kinematics"]["n_unmeasured"] > 0      # the stereo-measured collection (some poses hide a sphere)
+    again = run_demo(tmp_path / "c2", DemoOptions(throws=2, seed=3, render=False, rerun=False, plots=False,
+                                                  cache_dir=str(tmp_path / "cache")))["per_throw"]
+    for a, b in zip(again, rows[:2]):
+        assert a["miss_m"] == b["miss_m"] and a["x_net_m"] == b["x_net_m"]   # deterministic
     # caught balls add 30 g each; the strain-based estimate made at the ready pose follows it (within
     # about two balls: the caught balls still swing when it is made)
     caught_before = np.cumsum([0] + [r["caught"] for r in rows])[:-1]

@@ -295,7 +295,9 @@ def fit_kinematics(data: dict, *, test_payloads_kg=None, rng=None, params=None) 
     th = check_array(data["theta"], "theta", (None, 3))
     eps = check_array(data["strains"], "strains", (len(th), None))
     m = np.asarray(data["payload_kg"], float).ravel()
-    p = check_array(data["p_meas_base"], "p_meas_base", (len(th), 3))
+    p = np.asarray(data["p_meas_base"], dtype=np.float64)        # NaN rows: not measured
+    if p.shape != (len(th), 3):
+        raise ValueError(f"p_meas_base: expected shape ({len(th)}, 3), got {p.shape}")
     rz = np.stack([p[:, 0] * np.cos(th[:, 0]) + p[:, 1] * np.sin(th[:, 0]), p[:, 2]], axis=1)
     if test_payloads_kg is not None:
         test = np.isin(np.round(m, 6), np.round(np.asarray(test_payloads_kg, float), 6))
@@ -309,11 +311,11 @@ def fit_kinematics(data: dict, *, test_payloads_kg=None, rng=None, params=None) 
     fwd = ForwardModel.fit(t23[train & ok], eps[train & ok], rz[train & ok])
     sm = StrainModel.fit(t23[train], m[train], eps[train])
     dm = DeflectionModel.fit(t23[train & ok], m[train & ok], rz[train & ok], params)
-    truth = rz
+    truth = np.where(ok[:, None], rz, np.nan)
     if "p_true_base" in data:
         pt = np.asarray(data["p_true_base"], float)
         truth = np.stack([pt[:, 0] * np.cos(th[:, 0]) + pt[:, 1] * np.sin(th[:, 0]), pt[:, 2]], axis=1)
-    rmse = lambda e: np.sqrt(np.mean(e ** 2, axis=0)).tolist()
+    rmse = lambda e: np.sqrt(np.nanmean(e ** 2, axis=0)).tolist()
     rep = {"n_train": int(train.sum()), "n_test": int(test.sum()), "n_unmeasured": int((~ok).sum()),
            "forward_rmse_m": rmse(fwd(t23[test], eps[test]) - truth[test]) if test.any() else None,
            "deflection_model_rmse_m": rmse(dm(t23[test], m[test]) - truth[test]) if test.any() else None,
