@@ -88,3 +88,50 @@ def test_lost_square_and_bad_input():
         extract_square(img, np.zeros((10, 10)))
     with pytest.raises(ValueError, match="bgr"):
         extract_square(np.zeros((4, 4, 2), np.uint8))
+
+
+def test_blob_choice_matches_connected_components():
+    """The contour-based detector picks the blob that a full connected-components labelling picks."""
+    import cv2
+
+    from tudorvision.servo.features import _largest_inner_component
+    rng = np.random.default_rng(7)
+    for trial in range(60):
+        mask = np.zeros((60, 80), np.uint8)
+        for _ in range(rng.integers(0, 6)):
+            x, y = rng.integers(-5, 75), rng.integers(-5, 55)
+            w, h = rng.integers(1, 25, size=2)
+            mask[max(y, 0):y + h, max(x, 0):x + w] = 255
+            if rng.random() < 0.3:                      # a hole, sometimes with a blob inside
+                mask[max(y + 2, 0):y + h - 2, max(x + 2, 0):x + w - 2] = 0
+                if rng.random() < 0.5:
+                    mask[max(y + 4, 0):y + h - 4, max(x + 4, 0):x + w - 4] = 255
+        mask[rng.random(mask.shape) < 0.02] = 255      # speckle
+        border, min_area = 1, float(rng.integers(1, 40))
+        n, _, st, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        st = st[1:]
+        ok = ((st[:, 4] >= min_area) & (st[:, 0] >= border) & (st[:, 1] >= border)
+              & (st[:, 0] + st[:, 2] <= 80 - border) & (st[:, 1] + st[:, 3] <= 60 - border))
+        got = _largest_inner_component(mask, border, min_area)
+        if not ok.any():
+            assert got is None
+            continue
+        areas = np.where(ok, st[:, 4], -1)
+        winners = {tuple(int(v) for v in st[i, :4]) for i in np.nonzero(areas == areas.max())[0]}
+        assert got in winners
+
+
+def test_batched_depth_equals_the_single_estimate():
+    """depth_at_many is depth_at vectorised: same values (or NaN) on noisy, holed, outlier-ridden depth."""
+    from tudorvision.servo.features import depth_at_many
+    rng = np.random.default_rng(3)
+    for trial in range(40):
+        vv, uu = np.mgrid[0:40, 0:50]
+        d = (0.8 + rng.normal(0, 0.002, (40, 50)) + 0.001 * uu * rng.uniform(-1, 1)).astype(np.float32)
+        d[rng.random(d.shape) < rng.uniform(0, 0.95)] = np.nan
+        d[rng.random(d.shape) < 0.05] = 3.0                       # outliers
+        pts = rng.uniform(-3, [53, 43], (6, 2))                  # some windows cut by the border
+        got = depth_at_many(d, pts)
+        want = np.array([depth_at(d, q) for q in pts])
+        np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+        np.testing.assert_allclose(got[~np.isnan(want)], want[~np.isnan(want)], rtol=0, atol=1e-9)

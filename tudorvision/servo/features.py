@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FeatureConfig", "SquareFeatures", "extract_square", "depth_at", "order_corners",
+__all__ = ["FeatureConfig", "SquareFeatures", "extract_square", "depth_at", "depth_at_many", "order_corners",
            "polygon_centroid", "diagonal_intersection", "depth_m_from_raw"]
 
 
@@ -147,8 +147,15 @@ def diagonal_intersection(corners_uv) -> np.ndarray:
     """
     c = np.asarray(corners_uv, dtype=np.float64)
     h = np.hstack([c, np.ones((4, 1))])
-    p = np.cross(np.cross(h[0], h[2]), np.cross(h[1], h[3]))
+    p = _cross3(_cross3(h[0], h[2]), _cross3(h[1], h[3]))
     return p[:2] / p[2]
+
+
+def _cross3(a, b):
+    """Cross product of 3-vectors along the last axis (np.cross costs more than the arithmetic here)."""
+    a, b = np.asarray(a), np.asarray(b)
+    return np.stack([a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1], a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
+                     a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]], axis=-1)
 
 
 def order_corners(corners_uv) -> np.ndarray:
@@ -233,6 +240,112 @@ def depth_at(depth_m, uv, *, window_px: int = 6, min_samples: int = 12) -> float
     return float(coef[2])
 
 
+def depth_at_many(depth_m, uvs, *, window_px: int = 6, min_samples: int = 12) -> np.ndarray:
+    """:func:`depth_at` for several positions at once, shape (N,) (the same estimates, vectorised).
+
+    Windows that reach the image border, and ill-conditioned plane fits,
+    go through :func:`depth_at` itself.
+
+    Examples
+    --------
+    >>> vv, uu = np.mgrid[0:30, 0:30]
+    >>> d = 1.0 + 0.001 * uu
+    >>> depth_at_many(d, [(10.2, 12.0), (20.0, 7.5)]).round(6).tolist()
+    [1.0102, 1.02]
+    """
+    dm = np.asarray(depth_m)
+    p = np.asarray(uvs, dtype=np.float64).reshape(-1, 2)
+    out = np.full(len(p), np.nan)
+    h, w = dm.shape
+    k = int(window_px)
+    n_side = 2 * k + 1
+    finite = np.all(np.isfinite(p), axis=1)
+    iu = np.rint(np.where(finite, p[:, 0], 0.0)).astype(int)
+    iv = np.rint(np.where(finite, p[:, 1], 0.0)).astype(int)
+    inner = finite & (iu - k >= 0) & (iu + k < w) & (iv - k >= 0) & (iv + k < h) & (n_side >= 3)
+    for i in np.nonzero(finite & ~inner)[0]:
+        out[i] = depth_at(dm, p[i], window_px=window_px, min_samples=min_samples)
+    idx = np.nonzero(inner)[0]
+    if idx.size == 0:
+        return out
+    offs = np.arange(-k, k + 1)
+    win = dm[(iv[idx, None, None] + offs[None, :, None]), (iu[idx, None, None] + offs[None, None, :])]
+    win = win.reshape(len(idx), -1).astype(np.float64)
+    with np.errstate(invalid="ignore"):
+        ok = win > 0                                            # NaN compares False
+    nv = ok.sum(axis=1)
+
+    def _median(values, mask, counts):
+        srt = np.sort(np.where(mask, values, np.inf), axis=1)  # invalid last
+        lo = np.take_along_axis(srt, np.maximum((counts - 1) // 2, 0)[:, None], axis=1)[:, 0]
+        hi = np.take_along_axis(srt, np.maximum(counts // 2, 0)[:, None], axis=1)[:, 0]
+        return 0.5 * (lo + hi)
+
+    med = _median(win, ok, nv)
+    dev = np.abs(win - med[:, None])
+    mad = _median(dev, ok, nv) * 1.4826
+    keep = ok & (dev <= np.maximum(3.0 * mad, 1e-6)[:, None])
+    nk = keep.sum(axis=1)
+    gv, gu = np.meshgrid(offs, offs, indexing="ij")
+    du = gu.reshape(-1)[None, :] + (iu[idx] - p[idx, 0])[:, None]
+    dv = gv.reshape(-1)[None, :] + (iv[idx] - p[idx, 1])[:, None]
+    wk = keep.astype(np.float64)
+    zk = np.where(keep, win, 0.0)
+    su, sv = (wk * du).sum(axis=1), (wk * dv).sum(axis=1)
+    A = np.empty((len(idx), 3, 3))
+    A[:, 0, 0] = (wk * du * du).sum(axis=1)
+    A[:, 0, 1] = A[:, 1, 0] = (wk * du * dv).sum(axis=1)
+    A[:, 1, 1] = (wk * dv * dv).sum(axis=1)
+    A[:, 0, 2] = A[:, 2, 0] = su
+    A[:, 1, 2] = A[:, 2, 1] = sv
+    A[:, 2, 2] = nk
+    rhs = np.stack([(zk * du).sum(axis=1), (zk * dv).sum(axis=1), zk.sum(axis=1)], axis=1)
+    fit = nk >= min_samples
+    det = np.linalg.det(A)
+    well = fit & (np.abs(det) > 1e-9 * np.maximum(A[:, 0, 0] * A[:, 1, 1] * A[:, 2, 2], 1e-300))
+    c = np.full(len(idx), np.nan)
+    if well.any():
+        c[well] = np.linalg.solve(A[well], rhs[well][..., None])[:, 2, 0]
+    res = np.where(nv < min_samples, np.nan, np.where(fit, c, med))
+    for j in np.nonzero((nv >= min_samples) & fit & ~(well & np.isfinite(c)))[0]:
+        res[j] = depth_at(dm, p[idx[j]], window_px=window_px, min_samples=min_samples)
+    out[idx] = res
+    return out
+
+
+def _largest_inner_component(mask: np.ndarray, border: int, min_area: float):
+    """Bounding box ``(x, y, w, h)`` of the largest 8-connected blob of ``mask`` clear of a ``border`` margin.
+
+    The same choice as ``cv2.connectedComponentsWithStats`` over the whole
+    mask (largest pixel count among blobs with at least ``min_area`` pixels
+    whose box keeps ``border`` pixels from the image edges), at a fraction of
+    its cost: blobs are found as contours, and only candidates that
+    could win are counted exactly (a labelling of their box alone).
+    """
+    import cv2
+    H, W = mask.shape
+    # all borders (outer and hole): a blob inside another blob's hole is found too; a hole border
+    # lies on its enclosing blob, which it then stands for
+    cnts, _ = cv2.findContours(mask, cv2.RETR_LIST, cv2.CHAIN_APPROX_SIMPLE)
+    cands = []
+    for c in cnts:
+        x, y, w, h = cv2.boundingRect(c)
+        if x < border or y < border or x + w > W - border or y + h > H - border:
+            continue
+        upper = int(np.count_nonzero(mask[y:y + h, x:x + w]))      # >= the blob's own pixel count
+        if upper >= min_area:
+            cands.append((upper, x, y, w, h, c[0, 0]))
+    best, best_area = None, -1
+    for upper, x, y, w, h, p0 in sorted(cands, key=lambda t: -t[0]):
+        if upper <= best_area:
+            break
+        _, lab, st, _ = cv2.connectedComponentsWithStats(mask[y:y + h, x:x + w], connectivity=8)
+        area = int(st[lab[p0[1] - y, p0[0] - x], 4])
+        if area >= min_area and area > best_area:
+            best, best_area = (x, y, w, h), area
+    return best
+
+
 def extract_square(bgr, depth_m=None, *, config: FeatureConfig = FeatureConfig()) -> SquareFeatures:
     """Find the black square: sub-pixel centroid, ordered corners, depth at each.
 
@@ -278,15 +391,10 @@ def extract_square(bgr, depth_m=None, *, config: FeatureConfig = FeatureConfig()
     # detection at half resolution (4x fewer pixels), measurement at full resolution in a ROI
     small = cv2.resize(gray, (w // 2, h // 2), interpolation=cv2.INTER_AREA)
     thr, mask = cv2.threshold(small, 0, 255, cv2.THRESH_BINARY_INV | cv2.THRESH_OTSU)
-    n, labels_s, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-    st = stats[1:]
-    b = max(config.border_px // 2, 1)
-    ok = ((st[:, 4] * 4 >= config.min_area_px) & (st[:, 0] >= b) & (st[:, 1] >= b)
-          & (st[:, 0] + st[:, 2] <= w // 2 - b) & (st[:, 1] + st[:, 3] <= h // 2 - b))
-    if not ok.any():
+    found = _largest_inner_component(mask, max(config.border_px // 2, 1), config.min_area_px / 4)
+    if found is None:
         return SquareFeatures.lost("no dark region inside the image")
-    best_s = int(np.argmax(np.where(ok, st[:, 4], -1)))
-    xs, ys, ws, hs, _ = st[best_s]
+    xs, ys, ws, hs = found
     pad = 4
     x0, y0 = max(2 * xs - pad, 0), max(2 * ys - pad, 0)
     x1, y1 = min(2 * (xs + ws) + pad, w), min(2 * (ys + hs) + pad, h)
@@ -344,7 +452,7 @@ def extract_square(bgr, depth_m=None, *, config: FeatureConfig = FeatureConfig()
     else:
         dm = np.asarray(depth_m)
         kw = dict(window_px=config.depth_window_px, min_samples=config.min_depth_samples)
-        depth = np.array([depth_at(dm, centroid, **kw)] + [depth_at(dm, c, **kw) for c in corners])
+        depth = depth_at_many(dm, np.vstack([centroid, corners]), **kw)
     return SquareFeatures(found=True, centroid_uv=centroid, center_uv=center, corners_uv=corners,
                           depth_m=depth, area_px=float(m00))
 
@@ -364,49 +472,51 @@ def _refine_corners(gray: np.ndarray, quad: np.ndarray, level: float, *, search_
 
     Edge points: along the normal of each side, where the bilinearly
     interpolated grey level crosses ``level`` (midway between ground and
-    square); the 15 % of each side nearest to the corners are left out.
+    square); the 15 % of each side nearest to the corners are left out. The
+    four sides are sampled in one pass; each line is the total-least-squares
+    fit (principal axis) of its edge points.
     """
-    img = gray
     c = quad.mean(axis=0)
-    lines = []
-    for i in range(4):
-        a, b = quad[i], quad[(i + 1) % 4]
-        d = b - a
-        length = float(np.hypot(*d))
-        if length < 6:
-            return None
-        t_dir = d / length
-        n = np.array([-t_dir[1], t_dir[0]])
-        if n @ (0.5 * (a + b) - c) < 0:
-            n = -n                                          # outward normal
-        ts = np.linspace(0.15, 0.85, max(int(length * 0.35), 4))
-        offs = np.linspace(-search_px, search_px, int(4 * search_px) + 1)
-        base = a[None, :] + ts[:, None] * d[None, :]                          # (S, 2)
-        pts = base[:, None, :] + offs[None, :, None] * n[None, None, :]       # (S, O, 2)
-        prof = _bilinear(img, pts[..., 0], pts[..., 1]) - level                # dark inside: rises outward
-        up = (prof[:, :-1] < 0) & (prof[:, 1:] >= 0)
-        one = up.sum(axis=1) == 1
-        j = np.argmax(up, axis=1)
-        rows = np.nonzero(one)[0]
-        j = j[rows]
-        p0, p1 = prof[rows, j], prof[rows, j + 1]
-        frac = -p0 / (p1 - p0)
-        off = offs[j] + frac * (offs[1] - offs[0])
-        edge = base[rows] + off[:, None] * n[None, :]
-        if len(edge) < 4:
-            return None
-        e = edge
-        m = e.mean(axis=0)
-        _, _, vt = np.linalg.svd(e - m)
-        normal = vt[1]
-        lines.append(np.array([normal[0], normal[1], -normal @ m]))
-    out = []
-    for i in range(4):
-        p = np.cross(lines[i - 1], lines[i])
-        if abs(p[2]) < 1e-12:
-            return None
-        out.append(p[:2] / p[2])
-    return np.asarray(out)
+    d = np.roll(quad, -1, axis=0) - quad                                       # side i: quad[i] -> quad[i+1]
+    length = np.hypot(d[:, 0], d[:, 1])
+    if np.any(length < 6):
+        return None
+    t_dir = d / length[:, None]
+    n = np.stack([-t_dir[:, 1], t_dir[:, 0]], axis=1)
+    mid = quad + 0.5 * d
+    n *= np.where(np.sum(n * (mid - c), axis=1) < 0, -1.0, 1.0)[:, None]       # outward normals
+    counts = np.maximum((length * 0.35).astype(int), 4)
+    side = np.repeat(np.arange(4), counts)
+    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    k = np.arange(side.size) - start[side]
+    ts = 0.15 + 0.7 * k / (counts[side] - 1)                                   # linspace(0.15, 0.85, count)
+    offs = np.linspace(-search_px, search_px, int(4 * search_px) + 1)
+    base = quad[side] + ts[:, None] * d[side]                                  # (S, 2)
+    pts = base[:, None, :] + offs[None, :, None] * n[side][:, None, :]         # (S, O, 2)
+    prof = _bilinear(gray, pts[..., 0], pts[..., 1]) - level                    # dark inside: rises outward
+    up = (prof[:, :-1] < 0) & (prof[:, 1:] >= 0)
+    rows = np.nonzero(up.sum(axis=1) == 1)[0]
+    j = np.argmax(up[rows], axis=1)
+    p0, p1 = prof[rows, j], prof[rows, j + 1]
+    off = offs[j] + (-p0 / (p1 - p0)) * (offs[1] - offs[0])
+    edge = base[rows] + off[:, None] * n[side[rows]]
+    sid = side[rows]
+    cnt = np.bincount(sid, minlength=4)
+    if np.any(cnt < 4):
+        return None
+    m = np.stack([np.bincount(sid, edge[:, 0], 4), np.bincount(sid, edge[:, 1], 4)], axis=1) / cnt[:, None]
+    r = edge - m[sid]
+    cov = np.empty((4, 2, 2))
+    cov[:, 0, 0] = np.bincount(sid, r[:, 0] * r[:, 0], 4)
+    cov[:, 0, 1] = cov[:, 1, 0] = np.bincount(sid, r[:, 0] * r[:, 1], 4)
+    cov[:, 1, 1] = np.bincount(sid, r[:, 1] * r[:, 1], 4)
+    normal = np.linalg.eigh(cov)[1][:, :, 0]                                   # smallest-eigenvalue axis
+    lines = np.concatenate([normal, -np.sum(normal * m, axis=1, keepdims=True)], axis=1)   # (4, 3)
+    prev = np.roll(lines, 1, axis=0)                                           # side i-1 meets side i at quad[i]
+    p = _cross3(prev, lines)
+    if np.any(np.abs(p[:, 2]) < 1e-12):
+        return None
+    return p[:, :2] / p[:, 2:]
 
 
 def _mean_distance_to_polygon(pts: np.ndarray, poly: np.ndarray) -> float:

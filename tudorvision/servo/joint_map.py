@@ -88,10 +88,15 @@ def point_jacobian(theta, offset_ee=(0.0, 0.0, 0.0), params: RobotParams | None 
     """
     th = check_array(theta, "theta", (3,))
     off = check_array(offset_ee, "offset_ee", (3,))
+    return _point_jacobian(th, off, params, None)
+
+
+def _point_jacobian(th, off, params, T_be):
+    """:func:`point_jacobian` for checked inputs; ``T_be`` is ``T_base_ee(th)`` if already known."""
     J = jacobian_ee(th, params)
     if not np.any(off):
         return J
-    T = T_base_ee(th, params)
+    T = T_base_ee(th, params) if T_be is None else T_be
     r = T[:3, :3] @ off
     z_ee = T[:3, 2]                               # joint-2/3 axis: positive theta2 turns x_ee toward y_ee
     J_w = np.stack([[0.0, 0.0, 1.0], z_ee, z_ee], axis=1)
@@ -138,8 +143,9 @@ def joint_velocity(v_cam, theta, T_ee_cam, *, params: RobotParams | None = None,
     p = params or load_robot_params()
     th = check_array(theta, "theta", (3,))
     T = check_transform(T_ee_cam, "T_ee_cam")
-    v_base = base_from_cam_velocity(v_cam, th, T, p)
-    J = point_jacobian(th, T[:3, 3], p)
+    T_be = T_base_ee(th, p)
+    v_base = T_be[:3, :3] @ (T[:3, :3] @ check_array(v_cam, "v_cam", (3,)))
+    J = _point_jacobian(th, T[:3, 3], p, T_be)
     U, S, Vt = np.linalg.svd(J)
     smin = float(S[-1])
     if smin < config.sigma_stop:
