@@ -26,7 +26,7 @@ windows), as in the seed; ``dynamic`` is the noise-free true strain minus the
 static strain of the current pose (what oscillates).
 
 Run:  .venv/bin/python benchmarks/bench_damping_ch8.py [--reps 20] [--plant one-way|two-way|both]
-      [--noise 2e-6] [--jobs 2] [--tune] [--out out/damping_ch8]
+      [--noise 2e-6] [--jobs 2] [--tune] [--no-coulomb] [--out out/damping_ch8]
 """
 from __future__ import annotations
 
@@ -70,11 +70,11 @@ def static_strain_link2_root(arm: ElasticArm, theta) -> np.ndarray:
 
 
 def run_experiment(exp: str, law: str, k_eps, *, two_way: bool, noise: float, seed: int,
-                   horizon_s: float = HORIZON_S, plates: int = 3) -> dict:
+                   horizon_s: float = HORIZON_S, plates: int = 3, coulomb: bool = True) -> dict:
     """Simulate one run; return time series needed by the metrics (decimated to 500 Hz)."""
     p = load_robot_params()
     start, goal = (np.deg2rad(v) for v in EXPERIMENTS[exp])
-    cfg = PlantConfig(two_way=two_way, strain_noise_m_m=noise, noise_seed=seed)
+    cfg = PlantConfig(two_way=two_way, strain_noise_m_m=noise, noise_seed=seed, coulomb_friction=coulomb)
     arm = ElasticArm(start, payload=Payload.from_parts(p, plates=plates), params=p, config=cfg)
     ca = ControlledArm(arm)
     damper = StrainDamper(DampingConfig(law=law, k_eps=k_eps), arm.measured_strain(), cfg.dt)
@@ -111,8 +111,8 @@ def _dominant_freq(t, x) -> float:
 
 
 def _job(args):
-    exp, law, k, two_way, noise, seed = args
-    r = run_experiment(exp, law, k, two_way=two_way, noise=noise, seed=seed)
+    exp, law, k, two_way, noise, seed, coulomb = args
+    r = run_experiment(exp, law, k, two_way=two_way, noise=noise, seed=seed, coulomb=coulomb)
     return (exp, law, seed), r
 
 
@@ -233,6 +233,8 @@ def main(argv=None):
     ap.add_argument("--tune", action="store_true", help="tune gains on experiment 06 first")
     ap.add_argument("--gains", default=None, help="JSON {law: [k1,k2,k3]} overriding the defaults")
     ap.add_argument("--out", default="out/damping_ch8")
+    ap.add_argument("--no-coulomb", action="store_true",
+                    help="diagnostic: plant without the joints' Coulomb friction (viscous friction kept)")
     a = ap.parse_args(argv)
     exps = a.experiments.split(",")
     plants = ("one-way", "two-way") if a.plant == "both" else (a.plant,)
@@ -249,16 +251,17 @@ def main(argv=None):
                 gains[law], c = tune(law, two_way=two_way, x0=gains[law])
                 print(f"[{plant}] tuned {law}: k = {np.round(gains[law], 1).tolist()} (IATS cost {c:.3g})",
                       flush=True)
-        jobs = [(e, law, gains[law], two_way, a.noise, s) for e in exps for law in LAWS for s in range(a.reps)]
+        jobs = [(e, law, gains[law], two_way, a.noise, s, not a.no_coulomb) for e in exps for law in LAWS
+                for s in range(a.reps)]
         results = {}
         with ProcessPoolExecutor(max_workers=a.jobs) as ex:
             for key, r in ex.map(_job, jobs, chunksize=4):
                 results[key] = r
         table = evaluate(results, exps, LAWS, a.reps)
-        meta = {"plant": plant, "reps": a.reps, "noise": a.noise, "gains": gains, "experiments": exps,
+        meta = {"plant": plant + (" without Coulomb friction" if a.no_coulomb else ""), "reps": a.reps, "noise": a.noise, "gains": gains, "experiments": exps,
                 "wall_s": time.time() - t0, "cpu": cpu_model(), "jobs": a.jobs,
                 "operating_points_deg": OPS_DEG}
-        out = os.path.join(a.out, plant)
+        out = os.path.join(a.out, plant + ("-no-coulomb" if a.no_coulomb else ""))
         write_outputs(table, exps, LAWS, out, meta)
         r06 = table.get(("online", "06", "proportional"))
         if r06:

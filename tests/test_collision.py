@@ -134,3 +134,37 @@ def test_monitor_replaces_velocity_reference():
 def test_aprbs_levels_in_range():
     t, lv = aprbs(np.random.default_rng(0), 30.0, [0.1, -1.0], [2.0, 1.0])
     assert np.all(lv >= [0.1, -1.0]) and np.all(lv <= [2.0, 1.0]) and t[-1] < 30.0
+
+
+def _monitor_on(strain_rows, dt=5e-4, window=0.015):
+    """Run a monitor with a zero model (residual = strain through K_I / (s + K_I)) over strain samples."""
+    mon = CollisionMonitor(StrainDynamicsModel(chi=np.zeros((2, 2 * N_PARAMS))), [10e-6, 10e-6], 0.3, dt,
+                           reaction_config("none"), k_i=2000.0, isolation_window_s=window)
+    th, d = [0.0, 0.5, 0.1], [0.0, 0.0, 0.0]
+    for row in strain_rows:
+        mon.step(th, d, row, th, d, [0.0, 0.0, 0.0])
+    return mon
+
+
+def test_isolation_window_separates_link2_impact_transient_from_link3_contact():
+    dt = 5e-4
+    t = np.arange(0.0, 0.1, dt)
+    rng = np.random.default_rng(11)
+    for _ in range(5):
+        amp2, amp3, t0 = rng.uniform(30e-6, 80e-6), rng.uniform(20e-6, 60e-6), rng.uniform(0.01, 0.03)
+        on = t >= t0
+        # link-2 impact: persistent link-2 load, link-3 transient one way (~6 ms) then the other
+        e3 = np.where(on & (t < t0 + 0.006), amp3, np.where(on & (t < t0 + 0.03), -amp3, 0.0))
+        link2 = np.stack([np.where(on, amp2, 0.0), np.zeros_like(t), e3, np.zeros_like(t)], axis=1)
+        mon = _monitor_on(link2, dt)
+        assert mon.collision and mon.isolated and (mon.link, mon.direction) == (2, 1)
+        assert mon.detected_at == pytest.approx(t0, abs=2e-3)
+        plain = _monitor_on(link2, dt, window=0.0)               # the plain rule at first violation: link 3
+        assert plain.isolated and plain.link == 3
+        # link-3 contact: both roots loaded with one sign for the contact duration
+        link3 = np.stack([np.where(on, amp2, 0.0), np.zeros_like(t), np.where(on, -amp3, 0.0),
+                          np.zeros_like(t)], axis=1)
+        mon = _monitor_on(link3, dt)
+        assert mon.isolated and (mon.link, mon.direction) == (3, -1)
+    with pytest.raises(ValueError, match="isolation_window_s"):
+        _monitor_on([], window=-1.0)

@@ -50,9 +50,11 @@ changes sign within a few milliseconds (on the simulated arm: over the
 link-3 threshold for ~8 ms, then the opposite sign). A contact on link 3
 loads its root with one sign for as long as the contact lasts. The monitor
 therefore flags the collision (and reacts) at the first threshold violation
-and confirms link 3 only if the link-3 residual stays over its threshold
-with one sign for ``isolation_window_s`` (default 15 ms); otherwise the
-contact is isolated to link 2.
+and confirms link 3 only if the link-3 residual, from its first violation,
+stays over its threshold with that sign for ``isolation_window_s`` (default
+15 ms); if it falls back or reverses earlier, or does not cross within the
+window after detection, the contact is isolated to link 2. (A link-3
+contact shorter than the window is then isolated to link 2.)
 
 Reaction (11.2.1)
 -----------------
@@ -510,9 +512,10 @@ class CollisionMonitor:
         self.isolated = False
         self._k = getattr(self, "_k", 0)
         self._k_det = 0
-        self._l3_since = None       # sample at which the current one-signed link-3 violation began
+        self._l3_since = None       # sample of the first link-3 violation after detection
         self._l3_sign = 0
-        self._l2_sign = 0           # sign of the last link-2 violation since detection
+        self._l2_sign = 0           # sign of the first link-2 violation since detection
+        self._r2_last = 0.0
         for a in self._adm:
             a.reset()
 
@@ -542,19 +545,26 @@ class CollisionMonitor:
         return list(theta), [0.0, 0.0, 0.0], [v[j] + extra[j] for j in range(3)]
 
     def _isolate_step(self, r) -> None:
-        """Track the one-signed link-3 violation; finalise ``link`` when confirmed or at the window end."""
+        """Follow the first link-3 violation; finalise ``link`` when confirmed, refuted or at the window end."""
         thr = self.thresholds
         s3 = (1 if r[1] > 0 else -1) if abs(r[1]) > thr[1] else 0
-        if s3 != self._l3_sign:
-            self._l3_since, self._l3_sign = (self._k if s3 else None), s3
-        if abs(r[0]) > thr[0]:
+        if abs(r[0]) > thr[0] and not self._l2_sign:
             self._l2_sign = 1 if r[0] > 0 else -1
+        self._r2_last = r[0]
         window = int(round(self.isolation_window_s / self.dt))
-        if self._l3_since is not None and self._k - self._l3_since + 1 >= window:
-            self.link, self.direction, self.isolated = 3, self._l3_sign, True
-        elif self._k - self._k_det + 1 >= 2 * window:
-            # no sustained link-3 load: the contact is on link 2 (sign of its last violation, else at detection)
-            self.link, self.direction, self.isolated = 2, self._l2_sign or self.direction, True
+        if self._l3_since is None and s3:
+            self._l3_since, self._l3_sign = self._k, s3
+        if self._l3_since is not None:
+            if s3 != self._l3_sign:          # the link-3 load ended or reversed: an inertial transient
+                self._final(2)
+            elif self._k - self._l3_since + 1 >= window:
+                self.link, self.direction, self.isolated = 3, self._l3_sign, True
+        elif self._k - self._k_det + 1 >= window:
+            self._final(2)
+
+    def _final(self, link: int) -> None:
+        # direction: sign of the first link-2 violation, else of the link-2 residual now
+        self.link, self.direction, self.isolated = link, self._l2_sign or (1 if self._r2_last > 0 else -1), True
 
 
 def aprbs(rng: np.random.Generator, duration_s: float, lo, hi, *, hold_s=(0.6, 2.5)):
