@@ -26,8 +26,10 @@ separation check, as ``tudorvision track stereo``) and scores:
 - the tutorial-style peer (``peer_hsv.py``: HSV inRange, contours,
   minEnclosingCircle) through the same triangulation;
 - the centroid method: the same pipeline with ``SegmentParams(centroid=
-  "moment")`` (the region's first moment) against the default ``"shape"``
-  (robust circle fit to the rim, see ``docs/stereo.md``).
+  "moment")`` (the region's first moment) and with
+  ``SegmentParams(edge_refine=False)`` (the circle fitted to the colour rim
+  only) against the default (that circle refined on the luma edge, see
+  ``docs/stereo.md``).
 
 Run::
 
@@ -146,9 +148,9 @@ def centroid_errors(seq, uvl, uvr) -> np.ndarray:
                            for cam, uv in (("left", uvl), ("right", uvr)) for s in SPHERES])
 
 
-def ours(seq, models, *, rolling_comp: bool = True, centroid: str = "shape"):
+def ours(seq, models, *, rolling_comp: bool = True, centroid: str = "shape", edge: bool = True):
     opts = PipelineOptions(sphere_separation_m=SEPARATION_M, rolling_shutter=rolling_comp,
-                           tracker=TrackerParams(segment=SegmentParams(centroid=centroid)))
+                           tracker=TrackerParams(segment=SegmentParams(centroid=centroid, edge_refine=edge)))
     return track_stereo(seq, seq.calibration, models, T_base_left=gt_transform(seq), options=opts)
 
 
@@ -184,6 +186,9 @@ def evaluate(path: Path, *, rolling: bool) -> dict:
     row["moment_rms_3d_mm"] = 1e3 * rms(ee_errors(mom.trajectory.p, seq))
     row["moment_centroid_rms_px"] = rms(centroid_errors(seq, mom.uv_left, mom.uv_right))
     row["moment_centroid_median_px"] = float(np.nanmedian(centroid_errors(seq, mom.uv_left, mom.uv_right)))
+    rim = ours(seq, models, edge=False)
+    row["rim_rms_3d_mm"] = 1e3 * rms(ee_errors(rim.trajectory.p, seq))
+    row["rim_centroid_rms_px"] = rms(centroid_errors(seq, rim.uv_left, rim.uv_right))
     if rolling:
         raw = ours(seq, models, rolling_comp=False)
         row["rms_3d_mm_without_rs_comp"] = 1e3 * rms(ee_errors(raw.trajectory.p, seq))
@@ -217,7 +222,8 @@ def main(argv=None) -> int:
             print(f"seed {seed} {label:30s} ours {r['rms_3d_mm']:6.2f} mm ({100 * r['valid']:5.1f}% valid)  "
                   f"peer {r['peer_rms_3d_mm']:7.2f} mm ({100 * r['peer_valid']:5.1f}%)  oracle "
                   f"{r['oracle_rms_3d_mm']:5.2f} mm; centroid {r['centroid_rms_px']:.3f} px "
-                  f"(moment: {r['moment_rms_3d_mm']:.2f} mm, {r['moment_centroid_rms_px']:.3f} px)", flush=True)
+                  f"(moment: {r['moment_rms_3d_mm']:.2f} mm, {r['moment_centroid_rms_px']:.3f} px; colour rim: "
+                  f"{r['rim_rms_3d_mm']:.2f} mm, {r['rim_centroid_rms_px']:.3f} px)", flush=True)
 
     print("\nRMS over seeds " + ", ".join(map(str, args.seeds)) + " (3D: end effector, base frame, mm; "
           "centroid: px)")
@@ -237,7 +243,8 @@ def main(argv=None) -> int:
              "peak_speed_true_m_s": max(r["peak_speed_true_m_s"] for r in rows.values()),
              "peak_speed_measured_m_s": max(r["peak_speed_measured_m_s"] for r in rows.values()),
              "moment_rms_3d_mm": agg("moment_rms_3d_mm"), "moment_centroid_rms_px": agg("moment_centroid_rms_px"),
-             "moment_centroid_median_px": mean("moment_centroid_median_px")}
+             "moment_centroid_median_px": mean("moment_centroid_median_px"),
+             "rim_rms_3d_mm": agg("rim_rms_3d_mm"), "rim_centroid_rms_px": agg("rim_centroid_rms_px")}
         if "rms_3d_mm_without_rs_comp" in next(iter(rows.values())):
             s["rms_3d_mm_without_rs_comp"] = agg("rms_3d_mm_without_rs_comp")
             s["peer_rms_3d_mm_without_rs_comp"] = agg("peer_rms_3d_mm_without_rs_comp")
@@ -253,12 +260,14 @@ def main(argv=None) -> int:
           f"(median {st['centroid_median_px']:.3f} px), peer {st['peer_centroid_rms_px']:.1f} px "
           f"(non-gross detections: {st['peer_inlier_centroid_rms_px']:.3f} px, ratio peer/ours "
           f"{st['peer_inlier_centroid_rms_px'] / st['centroid_rms_px']:.1f})")
-    print("\ncentroid method (same pipeline; 3D RMS mm / centroid RMS px):")
-    print(f"{'case':30s} {'shape 3D':>9s} {'moment 3D':>10s} {'shape px':>9s} {'moment px':>10s}")
+    print("\ncentroid method (same pipeline; 3D RMS mm / centroid RMS px; default: colour-rim circle refined on "
+          "the luma edge; rim: colour-rim circle only; moment: first moment):")
+    print(f"{'case':30s} {'default 3D':>10s} {'rim 3D':>7s} {'moment 3D':>10s} {'default px':>10s} "
+          f"{'rim px':>7s} {'moment px':>10s}")
     for label, s in summary.items():
-        print(f"{label:30s} {s['rms_3d_mm']:9.2f} {s['moment_rms_3d_mm']:10.2f} {s['centroid_rms_px']:9.3f} "
-              f"{s['moment_centroid_rms_px']:10.3f}")
-    print(f"(static centroid median: shape {st['centroid_median_px']:.3f} px, moment "
+        print(f"{label:30s} {s['rms_3d_mm']:10.2f} {s['rim_rms_3d_mm']:7.2f} {s['moment_rms_3d_mm']:10.2f} "
+              f"{s['centroid_rms_px']:10.3f} {s['rim_centroid_rms_px']:7.3f} {s['moment_centroid_rms_px']:10.3f}")
+    print(f"(static centroid median: default {st['centroid_median_px']:.3f} px, moment "
           f"{st['moment_centroid_median_px']:.3f} px; the centroid columns of the step rows include blurred "
           f"frames)")
     rs = summary["step (blur, rolling shutter)"]
