@@ -49,7 +49,7 @@ PER_THROW_COLUMNS = ["throw", "t_release_s", "crosses_plane", "crossing_workspac
                      "x_cross_true_m", "z_cross_true_m", "detections", "released", "t_first_setpoint_s",
                      "lead_time_s", "x_pred_m", "z_pred_m", "pred_error_m", "ballistic_pred_error_m",
                      "x_net_m", "z_net_m", "miss_m", "time_margin_s", "payload_true_kg", "payload_est_kg",
-                     "caught", "reason"]
+                     "caught", "t_move_min_s", "in_time", "reason"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -90,6 +90,9 @@ class DemoOptions:
         the limit, the links' swing trips the layer's over-speed fault).
     reach_margin_m : float
         Net targets are kept this far inside full stretch (:func:`~tudorvision.catch.intercept.net_target`).
+    setpoint_margin_rad : float
+        Setpoints are clipped this far inside the joint ranges (the joints overshoot a few
+        degrees on fast moves, and the layer faults 1 deg outside a range).
     layer_rate_hz : float
         Control rate of the lockstep joint layer (its over-speed and range checks run every period).
     cache_dir : str
@@ -117,6 +120,7 @@ class DemoOptions:
     speed_fraction: float = 0.75
     layer_rate_hz: float = 500.0
     reach_margin_m: float = 0.05
+    setpoint_margin_rad: float = float(np.deg2rad(4.0))
     empty_pause_s: float = 1.0
     net_capacity_balls: int = 8
     drag_k_per_m: float = 0.012
@@ -261,6 +265,17 @@ def _true_crossing(tt, pp):
     return tt[i - 1] + a * (tt[i] - tt[i - 1]), pp[i - 1] + a * (pp[i] - pp[i - 1])
 
 
+def _min_move_time(solutions, theta_now, max_speed: float, max_accel: float) -> float:
+    """Shortest time to any of ``solutions`` (K, 3) from ``theta_now`` with a trapezoidal profile, s (inf if none)."""
+    best = np.inf
+    for th in np.reshape(solutions, (-1, 3)):
+        d = np.abs(np.asarray(th) - theta_now)
+        t = np.where(d >= max_speed ** 2 / max_accel, d / max_speed + max_speed / max_accel,
+                     2.0 * np.sqrt(d / max_accel))
+        best = min(best, float(np.max(t)))
+    return best
+
+
 def _pause(layer, t_now: float, duration: float, rate: float, weigh_s: float = 0.6, on_frame=None):
     """Advance the layer by ``duration`` s; strains sampled at ``rate`` over the last ``weigh_s`` s."""
     t_end = t_now + duration
@@ -322,6 +337,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
         return sols
 
     theta_ready = solve(ready, None, "up")
+    lims = np.asarray(params.joint_limits_rad, float)
     sim = SimCore(theta_ready, payload=payload_true, params=params)
     core = LockstepLayer(sim, rate_hz=o.layer_rate_hz)
     adapter = core.adapter
@@ -409,7 +425,12 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
         current["t0"] = t_rel
         crosses = tc_rel is not None
         from .intercept import reachable_solutions
-        in_ws = crosses and len(reachable_solutions(p_cross, theta1, params)) > 0
+        sols_cross = reachable_solutions(p_cross, theta1, params) if crosses else np.zeros((0, 3))
+        in_ws = len(sols_cross) > 0
+        # secondary, stricter count: could the arm get there at all, leaving the ready pose when the
+        # first three detections are in (a lower bound on the move time: trapezoidal profile)
+        t_move = _min_move_time(sols_cross, np.asarray(core.state().theta), max_speed, max_accel)
+        in_time = bool(in_ws and t_move <= tc_rel - 3.0 / rate)
         t_cross = t_rel + tc_rel if crosses else t_rel + tt[end]
         first_send, last_it, n_det = None, None, 0
         last_bal = (None, None)
@@ -468,6 +489,10 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
                         except ValueError:
                             th = None
                         if th is not None:
+                            # the joints overshoot by a few degrees on fast moves: a setpoint at the
+                            # edge of a range tripped the layer's range fault (1 deg tolerance)
+                            th = np.clip(th, lims[:, 0] + o.setpoint_margin_rad, lims[:, 1] - o.setpoint_margin_rad)
+                        if th is not None:
                             if not send(th):
                                 refused += 1
                             theta_sp, arrive_t = th, None
@@ -506,7 +531,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
                      (t_cross - first_send) if first_send is not None else np.nan,
                      *(last_it.p_base[[0, 2]] if last_it is not None else [np.nan, np.nan]), pred_err, bal_err,
                      *(net[[0, 2]] if net is not None else [np.nan, np.nan]), miss, margin,
-                     payload_true.mass_kg - mount, payload_est, int(caught), reason])
+                     payload_true.mass_kg - mount, payload_est, int(caught), t_move, int(in_time), reason])
         if caught:
             balls += 1
             total_caught += 1
@@ -537,11 +562,16 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
     r = np.array([x[:-1] for x in rows], float)
     n_ws = int(np.sum(r[:, 3]))
     caught_ws = int(np.sum(r[:, 3] * r[:, 21]))
+    n_it = int(np.sum(r[:, 23]))
+    caught_it = int(np.sum(r[:, 23] * r[:, 21]))
     lat = np.array(latencies) if latencies else np.array([np.nan])
     summary = {
         "throws": int(o.throws), "crossing_workspace": n_ws, "caught": int(np.sum(r[:, 21])),
         "caught_in_workspace": caught_ws,
         "success_rate": (caught_ws / n_ws) if n_ws else None,
+        # secondary: the crossing throws the arm could reach in time at all (lower bound on the move time)
+        "crossing_in_time": n_it, "caught_in_time": caught_it,
+        "success_rate_in_time": (caught_it / n_it) if n_it else None,
         "seed": o.seed, "render": o.render, "damping": o.damping, "compensate": o.compensate,
         "net_radius_m": o.net_radius_m, "balls_in_net": balls, "net_emptied": emptied,
         "median_pred_error_m": float(np.nanmedian(r[:, 13])) if np.any(np.isfinite(r[:, 13])) else None,
