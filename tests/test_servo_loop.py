@@ -72,3 +72,19 @@ def test_cli_open_loop_prints_one_line_per_frame(capsys):
     assert len(lines) == 9
     first = lines[0].split()
     assert first[2] == "1" and abs(float(first[3])) < 0.5 and abs(float(first[4])) < 0.5
+
+
+def test_run_stops_early_when_no_command_can_be_sent(small_lab):
+    """Square out of view from the start: zero commands only, the run ends after lost_stop_s, not at t_max_s."""
+    cfg, goal, p_goal, _ = small_lab
+    cfg = replace(cfg, lost_stop_s=0.5, square_center_world=(3.0, 3.0, 0.0))
+    lab = ServoLab(cfg, cfg.theta_goal, rng=np.random.default_rng(1), scene_seed=5)
+    servo = VisualServo(goal, cfg.T_ee_cam, smoothing_frames=DEFAULT_SMOOTHING_FRAMES)
+    r = run_closed_loop(lab, servo, p_goal)
+    h = r.history
+    assert r.end_reason == "stalled" and not r.converged
+    assert not h["ok"].any()
+    assert 0.5 <= h["t"][-1] < 0.6                         # stopped one frame after 0.5 s without a command
+    assert np.ptp(h["p_cam_world"], axis=0).max() < 5e-3      # zero commands: only the mode-switch transient
+    # the recorded true camera poses are the positions reported
+    np.testing.assert_allclose(h["T_world_cam"][:, :3, 3], h["p_cam_world"])

@@ -252,8 +252,9 @@ def _tracking(args) -> int:
     out.mkdir(parents=True, exist_ok=True)
     r = track_moving_square(seed=args.seed, cfg=_lab_config(args), law=args.law)
     (out / "tracking.json").write_text(json.dumps(r, indent=2))
-    print(f"tracking {r['speed_m_s'] * 1e3:.0f} mm/s: steady error mean {r['steady_error_mean_m'] * 1e3:.1f} mm, "
-          f"max {r['steady_error_max_m'] * 1e3:.1f} mm")
+    print(f"tracking {r['speed_m_s'] * 1e3:.0f} mm/s: steady error (square in the camera frame vs goal view) "
+          f"mean {r['steady_error_mean_m'] * 1e3:.1f} mm, max {r['steady_error_max_m'] * 1e3:.1f} mm; camera "
+          f"{r['world_offset_end_m'] * 1e3:.0f} mm from the goal pose carried along, tilted {r['tilt_end_deg']:.1f} deg")
     return 0
 
 

@@ -520,10 +520,12 @@ def _refine_corners(gray: np.ndarray, quad: np.ndarray, level: float, *, search_
 
 
 def _mean_distance_to_polygon(pts: np.ndarray, poly: np.ndarray) -> float:
-    d = np.full(len(pts), np.inf)
-    for i in range(len(poly)):
-        a, b = poly[i], poly[(i + 1) % len(poly)]
-        ab = b - a
-        t = np.clip(((pts - a) @ ab) / max(ab @ ab, 1e-12), 0.0, 1.0)
-        d = np.minimum(d, np.linalg.norm(pts - (a + t[:, None] * ab), axis=1))
-    return float(d.mean())
+    """Mean distance of points (N, 2) to the closed polygon's edges (all edges at once)."""
+    a = poly
+    ab = np.roll(poly, -1, axis=0) - poly                                    # (E, 2)
+    rel = pts[:, None, :] - a[None, :, :]                                    # (N, E, 2)
+    t = np.clip((rel[..., 0] * ab[:, 0] + rel[..., 1] * ab[:, 1]) / np.maximum((ab * ab).sum(axis=1), 1e-12),
+                0.0, 1.0)
+    dx = rel[..., 0] - t * ab[:, 0]
+    dy = rel[..., 1] - t * ab[:, 1]
+    return float(np.sqrt(dx * dx + dy * dy).min(axis=1).mean())

@@ -430,7 +430,8 @@ class RunResult:
         Per frame: ``t`` (s, capture time), ``e_u``, ``e_v`` (px, ``s* - s``),
         ``e_z`` (m), ``error_est_m`` (``||L^-1 e||``), ``error_true_m`` (true
         camera distance to the goal camera position), ``ok`` (command sent
-        non-zero), ``theta`` (N, 3), ``p_cam_world`` (N, 3).
+        non-zero), ``theta`` (N, 3), ``p_cam_world`` (N, 3), ``T_world_cam``
+        (N, 4, 4) (true camera poses at capture).
     converged : bool
     settling_time_s : float
         First capture time from which the estimated error stayed within the
@@ -482,7 +483,7 @@ def run_closed_loop(lab: ServoLab, servo: VisualServo, p_goal_world, *, on_frame
     pending = []                                   # (t_send, t_capture, bgr, depth, theta)
     next_capture = 0.0
     hist = {k: [] for k in ("t", "e_u", "e_v", "e_z", "error_est_m", "error_true_m", "ok", "image_error_px")}
-    hist_theta, hist_p = [], []
+    hist_theta, hist_p, hist_T = [], [], []
     streak, t_streak = 0, np.nan
     p_goal = np.asarray(p_goal_world, float)
     converged = stalled = False
@@ -492,10 +493,11 @@ def run_closed_loop(lab: ServoLab, servo: VisualServo, p_goal_world, *, on_frame
             st = ad.request_state()
             bgr, depth = lab.capture()
             pending.append((lab.t + cfg.latency_s, lab.t, bgr, depth, np.asarray(st.theta, float),
-                            lab.T_world_cam()[:3, 3].copy()))
+                            lab.T_world_cam()))
             next_capture += period
         while pending and lab.t >= pending[0][0] - 1e-9:
-            _, t_cap, bgr, depth, theta, p_true = pending.pop(0)
+            _, t_cap, bgr, depth, theta, T_true = pending.pop(0)
+            p_true = T_true[:3, 3]
             step = servo.step(bgr, depth, theta)
             ad.send_velocity(step.theta_dot)
             c = step.command
@@ -508,6 +510,7 @@ def run_closed_loop(lab: ServoLab, servo: VisualServo, p_goal_world, *, on_frame
             hist["ok"].append(bool(c.ok and step.joint.ok))
             hist_theta.append(theta)
             hist_p.append(p_true)
+            hist_T.append(T_true)
             if on_frame is not None:
                 on_frame(t_cap, bgr, depth, step)
             if c.ok and c.error_m < cfg.converge_tol_m:
@@ -534,6 +537,7 @@ def run_closed_loop(lab: ServoLab, servo: VisualServo, p_goal_world, *, on_frame
     h = {k: np.asarray(v) for k, v in hist.items()}
     h["theta"] = np.asarray(hist_theta).reshape(-1, 3)
     h["p_cam_world"] = np.asarray(hist_p).reshape(-1, 3)
+    h["T_world_cam"] = np.asarray(hist_T).reshape(-1, 4, 4)
     return RunResult(history=h, converged=converged, settling_time_s=float(t_streak) if converged else float("nan"),
                      final_error_m=float(np.linalg.norm(off)), final_offset_world=off, p_goal_world=p_goal,
                      end_reason="converged" if converged else ("stalled" if stalled else "timeout"))
