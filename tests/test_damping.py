@@ -115,3 +115,21 @@ def test_damper_laws_outputs():
         DampingConfig(law="pid")
     with pytest.raises(ValueError, match="k_eps"):
         DampingConfig(law="proportional", k_eps=(1.0, 2.0))
+
+
+def test_coulomb_friction_switch_of_the_plant_sticks_or_slides():
+    """PlantConfig(coulomb_friction=False) (the chapter-8 diagnostic) removes sticking, keeps the rest."""
+    from tudorvision.robot import load_robot_params
+    from tudorvision.sim.arm import ElasticArm, PlantConfig
+    p = load_robot_params()
+    moved = {}
+    for coulomb in (True, False):
+        cfg = PlantConfig(gravity=False, elastic=False, coulomb_friction=coulomb)
+        arm = ElasticArm([0.0, 1.0, 0.0], params=p, config=cfg)
+        k_m = arm.kM[1]
+        tau = 0.5 * float(p.gear_ratio[1] * min(p.coulomb_pos_Nm[1], p.coulomb_neg_Nm[1]))  # half the breakaway
+        for _ in range(400):
+            arm.step([0.0, tau / k_m, 0.0])
+        moved[coulomb] = arm.theta[1] - 1.0
+    assert moved[True] == 0.0                 # below breakaway: the joint sticks
+    assert moved[False] > 1e-4                # without Coulomb friction the same torque turns it
