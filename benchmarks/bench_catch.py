@@ -29,6 +29,11 @@ Three parts, in one run:
 Run::
 
     .venv/bin/python benchmarks/bench_catch.py [--min-crossing 200] [--throws-render 30] [--seed 0]
+    .venv/bin/python benchmarks/bench_catch.py --latency-only      # part 3b alone, about a minute
+
+``--latency-only`` renders a few throws first, then times each stage per
+detected frame (depth conversion, detector, EKF + intercept + release rule)
+on the stored frames, so rendering never competes with the timed code.
 """
 from __future__ import annotations
 
@@ -41,7 +46,11 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
 
-from tudorvision.catch.demo import DemoOptions, run_demo
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _machine import cpu_model  # noqa: E402
+from tudorvision.catch.demo import DemoOptions, run_demo  # noqa: E402
 
 
 def fit_noise_scale(n_throws: int, seed: int) -> dict:
@@ -152,6 +161,65 @@ def prediction_error_vs_lead(rows, preds, leads=(0.6, 0.5, 0.4, 0.3, 0.2)):
     return out
 
 
+def latency_only(n_throws: int, seed: int, repeats: int = 5) -> None:
+    """Per-frame latency of the catching perception on pre-rendered wall-camera frames."""
+    from tudorvision.catch.demo import CatchPerception, detection_to_base
+    from tudorvision.rgbd.ball import BallDetector, BallDetectorOptions
+    from tudorvision.rgbd.frames import Intrinsics
+    from tudorvision.robot import load_robot_params
+    from tudorvision.sim.record import T_WORLD_BASE, random_throw, throw_trajectory
+    from tudorvision.sim.render import render_rgbd
+    from tudorvision.sim.scenes import ball_throw
+
+    rng = np.random.default_rng(seed)
+    cur = {"f": None}
+
+    def ball(t):
+        f = cur["f"]
+        if f is None or t > f[0][-1]:
+            return np.array([5.0, 5.0, -5.0])
+        return np.array([np.interp(t, f[0], f[1][:, j]) for j in range(3)])
+
+    setup = ball_throw(ball, rng, T_world_base=T_WORLD_BASE)
+    cam = setup.cameras["rgbd"]
+    K = Intrinsics.from_matrix(cam.K, cam.width, cam.height)
+    T_base_cam = np.linalg.inv(T_WORLD_BASE) @ cam.T_world_cam
+    background = [render_rgbd(cam, setup.scene, 0.0, rng=rng)[1] for _ in range(10)]
+    throws = []
+    for _ in range(n_throws):
+        p0, v0 = random_throw(rng, target_height_m=(0.45, 1.2))
+        tt, pp, _ = throw_trajectory(p0, v0, duration_s=1.2)
+        cur["f"] = (tt, pp)
+        throws.append([(t, render_rgbd(cam, setup.scene, t, rng=rng)[1]) for t in np.arange(0.0, 0.8, 1 / 30)])
+    params = load_robot_params()
+    conv, det_t, filt = [], [], []
+    for _ in range(repeats):
+        det = BallDetector(K, BallDetectorOptions(), n_background=10)
+        for d in background:
+            det.update(d.astype(np.float32) / 1000.0)
+        for k, frames in enumerate(throws):
+            per = CatchPerception(params=params, peer=False)
+            for t, d in frames:
+                t0 = time.perf_counter()
+                dm = d.astype(np.float32) / 1000.0
+                t1 = time.perf_counter()
+                r = det.update(dm)
+                t2 = time.perf_counter()
+                if r is None:
+                    continue
+                p, C = detection_to_base(r.p_cam, r.cov_cam, T_base_cam)
+                per.step(t + 10.0 * k, p, C)
+                t3 = time.perf_counter()
+                conv.append(t1 - t0); det_t.append(t2 - t1); filt.append(t3 - t2)
+    tot = np.array(conv) + det_t + filt
+    ms = lambda x: f"median {1e3 * np.median(x):.2f} ms, p95 {1e3 * np.percentile(x, 95):.2f} ms"
+    print(f"3b. per-frame latency over {len(tot)} detected frames ({n_throws} throws x {repeats} passes):")
+    print(f"    depth uint16 mm -> float32 m: {ms(conv)}")
+    print(f"    ball detector (tudorvision.rgbd): {ms(det_t)}")
+    print(f"    EKF + intercept + release rule: {ms(filt)}")
+    print(f"    total: {ms(tot)}   (goal <= 3 ms)")
+
+
 def kinematics_report(cache_dir: str) -> None:
     from tudorvision.catch.data_collection import DEMO_COLLECTION, CollectionOptions, load_or_collect, remap_errors
     from tudorvision.catch.kinematics import InverseKinematics, fit_kinematics
@@ -184,9 +252,12 @@ def main() -> None:
     ap.add_argument("--out", default="out/bench_catch")
     ap.add_argument("--skip-rigid", action="store_true")
     ap.add_argument("--cache", default="out/catch/cache", help="kinematics collections cache")
+    ap.add_argument("--latency-only", action="store_true", help="only the per-frame latency (part 3b)")
     args = ap.parse_args()
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
-          f"Python {platform.python_version()}")
+    print(f"machine: {cpu_model()}, {os.cpu_count()} cores, Python {platform.python_version()}")
+    if args.latency_only:
+        latency_only(6, args.seed + 7)
+        return
     t0 = time.perf_counter()
     nm = fit_noise_scale(args.noise_throws, args.seed + 99)
     print(f"\n1. detection-noise model from {nm['detected']} detections in {nm['frames_in_range']} rendered frames "
