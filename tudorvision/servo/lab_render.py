@@ -39,6 +39,13 @@ class RoiRenderer:
     max_fraction : float
         Fall back to the full render when the foreground box covers more than
         this fraction of the frame.
+    supersample : int
+        1 (default): colour point-sampled at pixel centres, like
+        :func:`~tudorvision.sim.render.render_rgbd`. ``k > 1``: the colour of
+        the foreground box is the mean of ``k x k`` samples per pixel (pixel
+        area integration, as a real sensor does; edges become grey ramps with
+        sub-pixel information). Depth stays point-sampled. A departure from
+        the simulator's camera model, for studying its effect.
 
     Examples
     --------
@@ -54,13 +61,17 @@ class RoiRenderer:
     (True, 0)
     """
 
-    def __init__(self, scene, depth_model, *, sensor=None, ground_name: str = "ground", max_fraction: float = 0.5):
+    def __init__(self, scene, depth_model, *, sensor=None, ground_name: str = "ground", max_fraction: float = 0.5,
+                 supersample: int = 1):
         from ..sim.lighting import AmbientLight, DirectionalLight, SensorModel
         from ..sim.render import Rectangle
         self.scene = scene
         self.depth_model = depth_model
         self.sensor = sensor if sensor is not None else SensorModel()
         self.max_fraction = float(max_fraction)
+        if int(supersample) != supersample or supersample < 1:
+            raise ValueError(f"supersample: expected a positive integer, got {supersample!r}")
+        self.supersample = int(supersample)
         grounds = [s for s in scene.static if s.name == ground_name]
         self.ground = grounds[0] if len(grounds) == 1 else None
         self.foreground_static = [s for s in scene.static if s is not self.ground]
@@ -170,9 +181,29 @@ class RoiRenderer:
             box = np.s_[v0 - a0:v1 - a0, u0 - b0:u1 - b0]
             gb = render_gbuffer(crop, self.scene, t)
             depth[v0:v1, u0:u1] = depth_mm_from_gbuffer(gb, self.depth_model, rng)[box]
-            bgr[v0:v1, u0:u1] = apply_sensor(render_radiance(crop, self.scene, t)[box], self.sensor, rng)
+            if self.supersample == 1:
+                rad = render_radiance(crop, self.scene, t)[box]
+            else:
+                rad = self._supersampled_radiance(camera, t, v0, v1, u0, u1)
+            bgr[v0:v1, u0:u1] = apply_sensor(rad, self.sensor, rng)
         self.n_roi += 1
         return bgr, depth
+
+    def _supersampled_radiance(self, camera, t, v0, v1, u0, u1):
+        """Radiance of the box averaged over ``k x k`` samples per pixel (float32, (h, w, 3))."""
+        from ..sim.camera import PinholeCamera
+        from ..sim.render import render_radiance
+        k = self.supersample
+        K = np.array(camera.K, dtype=np.float64)
+        Ks = K.copy()
+        # sample s of the fine grid sits at u = u0 + (s + 0.5) / k - 0.5 in the full image
+        Ks[0, 0], Ks[1, 1], Ks[0, 1] = k * K[0, 0], k * K[1, 1], k * K[0, 1]
+        Ks[0, 2] = k * (K[0, 2] - u0 + 0.5) - 0.5
+        Ks[1, 2] = k * (K[1, 2] - v0 + 0.5) - 0.5
+        h, w = v1 - v0, u1 - u0
+        fine = PinholeCamera(K=Ks, dist=camera.dist, width=k * w, height=k * h, T_world_cam=camera.T_world_cam)
+        rad = render_radiance(fine, self.scene, t)
+        return rad.reshape(h, k, w, k, 3).mean(axis=(1, 3), dtype=np.float32)
 
     # ---------------------------------------------------------------------------------------
     def _ground_bgr(self, ground_rad, shape, rng):

@@ -241,6 +241,9 @@ class LabConfig:
         the frame with the ground's radiance and plane depth
         (:class:`~tudorvision.servo.lab_render.RoiRenderer`: the same image
         distribution as the full render, several times faster).
+    supersample : int
+        With ``roi_render``: ``k x k`` colour samples per pixel around the
+        square (pixel-area integration; 1 = the simulator's point sampling).
     """
 
     pedestal_m: float = 0.85
@@ -259,6 +262,7 @@ class LabConfig:
     converge_frames: int = 15
     lost_stop_s: float = 1.0
     roi_render: bool = True
+    supersample: int = 1
 
     @property
     def T_world_base(self) -> np.ndarray:
@@ -375,7 +379,8 @@ class ServoLab:
         rng = self.rng if self.noise else None
         if self.config.roi_render:
             if self._renderer is None or self._renderer.scene is not self.setup.scene:
-                self._renderer = RoiRenderer(self.setup.scene, self.depth_model)
+                self._renderer = RoiRenderer(self.setup.scene, self.depth_model,
+                                             supersample=self.config.supersample)
             bgr, depth = self._renderer.render(cam, self.t, rng=rng)
         else:
             bgr, depth, _ = render_rgbd(cam, self.setup.scene, self.t, rng=rng, depth_model=self.depth_model)
