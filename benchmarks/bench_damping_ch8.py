@@ -258,7 +258,8 @@ def main(argv=None):
             for key, r in ex.map(_job, jobs, chunksize=4):
                 results[key] = r
         table = evaluate(results, exps, LAWS, a.reps)
-        meta = {"plant": plant + (" without Coulomb friction" if a.no_coulomb else ""), "reps": a.reps, "noise": a.noise, "gains": gains, "experiments": exps,
+        meta = {"plant": plant + (" without Coulomb friction" if a.no_coulomb else ""), "reps": a.reps,
+                "noise": a.noise, "gains": gains, "experiments": exps,
                 "wall_s": time.time() - t0, "cpu": cpu_model(), "jobs": a.jobs,
                 "operating_points_deg": OPS_DEG}
         out = os.path.join(a.out, plant + ("-no-coulomb" if a.no_coulomb else ""))
