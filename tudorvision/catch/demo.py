@@ -91,8 +91,8 @@ class DemoOptions:
     reach_margin_m : float
         Net targets are kept this far inside full stretch (:func:`~tudorvision.catch.intercept.net_target`).
     setpoint_margin_rad : float
-        Setpoints are clipped this far inside the joint ranges (the joints overshoot a few
-        degrees on fast moves, and the layer faults 1 deg outside a range).
+        Setpoints are clipped this far inside the joint ranges (the joints overshot by up to
+        8 deg on fast moves, and the layer faults 1 deg outside a range, then cannot clear it).
     layer_rate_hz : float
         Control rate of the lockstep joint layer (its over-speed and range checks run every period).
     cache_dir : str
@@ -120,7 +120,7 @@ class DemoOptions:
     speed_fraction: float = 0.75
     layer_rate_hz: float = 500.0
     reach_margin_m: float = 0.05
-    setpoint_margin_rad: float = float(np.deg2rad(4.0))
+    setpoint_margin_rad: float = float(np.deg2rad(10.0))
     empty_pause_s: float = 1.0
     net_capacity_balls: int = 8
     drag_k_per_m: float = 0.012
@@ -489,7 +489,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
                         except ValueError:
                             th = None
                         if th is not None:
-                            # the joints overshoot by a few degrees on fast moves: a setpoint at the
+                            # the joints overshoot by up to 8 deg on fast moves: a setpoint near the
                             # edge of a range tripped the layer's range fault (1 deg tolerance)
                             th = np.clip(th, lims[:, 0] + o.setpoint_margin_rad, lims[:, 1] - o.setpoint_margin_rad)
                         if th is not None:
