@@ -80,6 +80,14 @@ def test_track_stereo_round_trip(lab, static_models, tmp_path, capsys):
     rrd = tmp_path / "traj.rrd"
     assert rrd.stat().st_size > 10_000
     assert "4/4 frames tracked, 100.0% valid" in stdout and "fps" in stdout
+    assert "luma edge: on (static is JPEG frames or a video)" in stdout      # the lab writes JPEG frames
+    # forced off: the colour-rim circle alone, still within the static target of the issue (1 mm)
+    rc, stdout, err = _run(capsys, "track", "stereo", lab["static"], "--colormodel", static_models,
+                           "--base-calib", base, "--out", tmp_path / "rim.csv", "--luma-edge", "off")
+    assert rc == 0, err
+    assert "luma edge: off (--luma-edge)" in stdout
+    rim = read_trajectory_csv(tmp_path / "rim.csv")
+    assert rim.valid.all() and not np.allclose(rim.p, traj.p, atol=1e-7)
 
 
 def test_track_stereo_left_frame_without_base(lab, static_models, tmp_path, capsys):

@@ -16,7 +16,8 @@ from tudorvision.stereo.colormodel import fit_color_model
 from tudorvision.stereo.rim_edge import luma_rim_points, refine_circle_on_luma
 
 SS = 8
-COLOUR_RIM = SegmentParams(edge_refine=False)
+COLOUR_RIM = SegmentParams()                      # the default: colour rim only
+EDGE = SegmentParams(edge_refine=True)
 
 
 def _coverage(h, w, cu, cv_, r):
@@ -87,7 +88,7 @@ def test_low_contrast_gives_none_and_the_colour_rim_stands():
     # a red whose luma equals the ground's: the detection keeps the colour-rim circle
     img = np.full((60, 80, 3), 90, np.uint8)
     cv2.circle(img, (40, 30), 10, (40, 40, 200), -1, lineType=cv2.LINE_AA)   # Y = 88
-    det = detect_sphere(img, fit_color_model(img, (40, 30), (47, 30)))
+    det = detect_sphere(img, fit_color_model(img, (40, 30), (47, 30)), params=EDGE)
     assert det.valid and det.method == "shape"
 
 
@@ -103,7 +104,7 @@ def test_colour_gate_ignores_an_occluding_bar():
     img[:] = bar[..., None] * np.float32((70, 70, 75)) + (1 - bar[..., None]) * img
     img = np.clip(np.rint(img + rng.normal(0, 1.5, img.shape)), 0, 255).astype(np.uint8)
     model = fit_color_model(img, (40, 37), (46, 37))
-    det = detect_sphere(img, model)
+    det = detect_sphere(img, model, params=EDGE)
     assert det.valid and det.method == "edge"
     assert np.hypot(det.uv[0] - c[0], det.uv[1] - c[1]) < 0.3
     gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float64)
@@ -121,7 +122,7 @@ def test_jpeg_chroma_smear_is_undone_by_the_luma_edge():
         jpg = _jpeg(png)
         for name, img in (("png", png), ("jpg", jpg)):
             model = fit_color_model(img, (round(c[0]), round(c[1])), (round(c[0]) + 5, round(c[1])))
-            for label, params in (("colour-rim", COLOUR_RIM), ("edge", SegmentParams())):
+            for label, params in (("colour-rim", COLOUR_RIM), ("edge", EDGE)):
                 det = detect_sphere(img, model, params=params)
                 assert det.valid, det.reason
                 err[f"{label} {name}"].append(np.hypot(det.uv[0] - c[0], det.uv[1] - c[1]))
@@ -130,3 +131,15 @@ def test_jpeg_chroma_smear_is_undone_by_the_luma_edge():
     assert rms["edge jpg"] < 0.17, rms
     # on the JPEG frames the colour rim is clearly worse than the luma edge
     assert rms["colour-rim jpg"] > 1.5 * rms["edge jpg"], rms
+
+
+def test_chroma_subsampled_source(tmp_path):
+    from tudorvision.stereo import chroma_subsampled_source
+    (tmp_path / "jpg" / "left").mkdir(parents=True)
+    (tmp_path / "jpg" / "left" / "000000.jpg").write_bytes(b"x")
+    (tmp_path / "png" / "left").mkdir(parents=True)
+    (tmp_path / "png" / "left" / "000000.png").write_bytes(b"x")
+    (tmp_path / "png" / "sequence.yaml").write_text("kind: stereo\n")
+    assert chroma_subsampled_source(tmp_path / "jpg")
+    assert not chroma_subsampled_source(tmp_path / "png")
+    assert chroma_subsampled_source(tmp_path / "clip.MP4") and not chroma_subsampled_source(tmp_path / "none")

@@ -22,7 +22,8 @@ RADIUS = 9.0
 MOMENT = SegmentParams(centroid="moment")
 # the colour-rim circle alone, and with the luma-edge refinement (the default)
 RIM = pytest.mark.parametrize("params, method", [(SegmentParams(edge_refine=False), "shape"),
-                                                 (SegmentParams(), "edge")], ids=["colour-rim", "luma-edge"])
+                                                 (SegmentParams(edge_refine=True), "edge")],
+                         ids=["colour-rim", "luma-edge"])
 
 
 def _background(seed=0, h=120, w=120):

@@ -16,7 +16,7 @@ from .calibrate import (BoardDetections, StereoCalibrationResult, board_object_p
 from .colormodel import (CHANNELS, HUE_LEVELS, ColorModel, ColorModelSet, circular_hue_stats, fit_color_model,
                          fit_color_model_set, load_color_models, parse_pick, save_color_models)
 from .rerun_log import RerunStereoLog
-from .rim_edge import luma_rim_points, refine_circle_on_luma
+from .rim_edge import LOSSY_SUFFIXES, chroma_subsampled_source, luma_rim_points, refine_circle_on_luma
 from .pipeline import (MonoTrackResult, PipelineOptions, StereoFrameResult, StereoPipeline, StereoTrackResult,
                        TrackStats, iter_stereo, read_mono_track_csv, track_mono, track_stereo,
                        write_mono_track_csv)
@@ -35,7 +35,8 @@ __all__ = [
     "fit_color_model_set", "load_color_models", "parse_pick", "save_color_models",
     # segmentation and tracking mode
     "SegmentParams", "SphereDetection", "detect_sphere", "detect_spheres", "hsv_from_bgr", "log_odds_image",
-    "probability_image", "luma_rim_points", "refine_circle_on_luma", "FrameTracker", "SphereTracker", "TrackerParams",
+    "probability_image", "luma_rim_points", "refine_circle_on_luma", "LOSSY_SUFFIXES", "chroma_subsampled_source",
+    "FrameTracker", "SphereTracker", "TrackerParams",
     # triangulation and trajectories
     "SphereTriangulation", "compensate_rolling_shutter", "projection_matrices", "rolling_shutter_times",
     "triangulate_dlt", "triangulate_points", "triangulate_spheres", "triangulate_stereo", "undistort_points",

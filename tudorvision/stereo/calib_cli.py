@@ -66,6 +66,9 @@ def register(calib_sub) -> None:
                         "[0, 90, 0] deg within --tol-deg)")
     b.add_argument("--tol-deg", type=float, default=1.0, help="joint tolerance for sweep/vertical rows (default 1)")
     b.add_argument("--robot-params", help="robot parameter YAML (default: packaged TUDOR parameters)")
+    b.add_argument("--luma-edge", choices=("auto", "on", "off"), default="auto",
+                   help="when tracking SEQ: locate the sphere rims on the luma edge (auto = on for JPEG "
+                        "frames and video; see 'track stereo --help')")
     b.add_argument("--out", required=True,
                    help="calibration file; T_base_left and circle_rmse_m are added (kept content otherwise)")
     b.set_defaults(func=run_base_stereo)
@@ -166,8 +169,9 @@ def _track_sweep(args):
     """Track SEQ in the left camera frame: (Trajectory, Calibration used)."""
     from ..io import load_calibration
     from ..io.sequence import open_sequence
+    from .cli import luma_edge_params
     from .colormodel import load_color_models
-    from .pipeline import track_stereo
+    from .pipeline import PipelineOptions, track_stereo
 
     if not args.seq:
         raise TudorVisionError("give SEQ (tracked with --calib and --colormodel) or --traj CSV")
@@ -185,7 +189,10 @@ def _track_sweep(args):
             cal = seq.calibration
             if cal is None:
                 raise TudorVisionError(f"{args.seq}: no calibration in the sequence; give --calib FILE")
-        res = track_stereo(seq, cal, load_color_models(args.colormodel), show_progress=None)
+        tracker, edge_note = luma_edge_params(args.luma_edge, args.seq)
+        print(edge_note)
+        res = track_stereo(seq, cal, load_color_models(args.colormodel), show_progress=None,
+                           options=PipelineOptions(tracker=tracker))
     finally:
         seq.close()
     print(f"tracked {args.seq}: {res.stats.summary()}")

@@ -67,6 +67,9 @@ def register(subparsers) -> None:
                    help="known sphere distance in metres; frames whose triangulated distance is off by more "
                         "than 3 cm are flagged invalid (default: from the robot parameters; 0 disables)")
     s.add_argument("--strict", action="store_true", help="stop at the first corrupt frame instead of skipping it")
+    s.add_argument("--luma-edge", choices=("auto", "on", "off"), default="auto",
+                   help="locate the sphere rims on the luma edge (robust to the colour smear of JPEG and video; "
+                        "about halves the tracking speed): auto = on for JPEG frames and video files (default auto)")
     s.set_defaults(func=run_track_stereo)
 
     m = tsub.add_parser(
@@ -80,10 +83,32 @@ def register(subparsers) -> None:
     m.add_argument("--out", required=True, help="pixel track CSV to write")
     m.add_argument("--full-frame", action="store_true", help="search every full frame (no tracking windows)")
     m.add_argument("--strict", action="store_true", help="stop at the first undecodable frame")
+    m.add_argument("--luma-edge", choices=("auto", "on", "off"), default="auto",
+                   help="locate the sphere rims on the luma edge (robust to the colour smear of JPEG and video; "
+                        "about halves the tracking speed): auto = on for JPEG frames and video files (default auto)")
     m.set_defaults(func=run_track_mono)
 
 
 # ----------------------------------------------------------------------------- helpers
+def luma_edge_params(choice: str, source):
+    """``TrackerParams`` for ``--luma-edge`` (auto: on for JPEG frames and video) and a line saying which.
+
+    Examples
+    --------
+    >>> luma_edge_params("auto", "ball.mp4")[1]
+    'luma edge: on (ball.mp4 is JPEG frames or a video)'
+    """
+    from .rim_edge import chroma_subsampled_source
+    from .segment import SegmentParams
+    from .tracker2d import TrackerParams
+
+    if choice == "auto":
+        on = chroma_subsampled_source(source)
+        why = f"{Path(source).name} is {'' if on else 'not '}JPEG frames or a video"
+    else:
+        on, why = choice == "on", "--luma-edge"
+    return TrackerParams(segment=SegmentParams(edge_refine=on)), f"luma edge: {'on' if on else 'off'} ({why})"
+
 def _open(path, *, strict: bool = False):
     from ..io import open_sequence
 
@@ -223,7 +248,9 @@ def run_track_stereo(args) -> int:
     sep = _sphere_separation(models) if args.sphere_separation is None else args.sphere_separation
     if sep is not None and sep < 0:
         raise TudorVisionError(f"--sphere-separation: must be a non-negative distance in metres, got {sep}")
-    options = PipelineOptions(tracking=not args.full_frame, method=args.method,
+    tracker, edge_note = luma_edge_params(args.luma_edge, args.seq)
+    print(edge_note)
+    options = PipelineOptions(tracking=not args.full_frame, method=args.method, tracker=tracker,
                               rolling_shutter=not args.no_rolling_shutter, sphere_separation_m=sep or None)
     log = None
     if args.rerun:
@@ -278,7 +305,9 @@ def run_track_mono(args) -> int:
     models = _load_models(args.colormodel)
     model = models.get(args.camera, args.sphere)
     try:
-        res = track_mono(seq, model, tracking=not args.full_frame, show_progress=None)
+        tracker, edge_note = luma_edge_params(args.luma_edge, args.video)
+        print(edge_note)
+        res = track_mono(seq, model, tracking=not args.full_frame, params=tracker, show_progress=None)
     finally:
         seq.close()
     _report_problems(seq)
