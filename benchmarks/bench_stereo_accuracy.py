@@ -25,11 +25,11 @@ separation check, as ``tudorvision track stereo``) and scores:
   by calibration and triangulation);
 - the tutorial-style peer (``peer_hsv.py``: HSV inRange, contours,
   minEnclosingCircle) through the same triangulation;
-- the centroid method: the same pipeline with ``SegmentParams(centroid=
-  "moment")`` (the region's first moment) and with
-  ``SegmentParams(edge_refine=False)`` (the circle fitted to the colour rim
-  only) against the default (that circle refined on the luma edge, see
-  ``docs/stereo.md``).
+- the centroid method: ours uses the circle fitted to the colour rim, refined
+  on the luma edge when the frames are JPEG (``--luma-edge auto``, as
+  ``tudorvision track stereo``); the same pipeline is also run with the other
+  luma-edge setting ("alt") and with ``SegmentParams(centroid="moment")``
+  (the region's first moment), see ``docs/stereo.md``.
 
 Run::
 
@@ -148,7 +148,11 @@ def centroid_errors(seq, uvl, uvr) -> np.ndarray:
                            for cam, uv in (("left", uvl), ("right", uvr)) for s in SPHERES])
 
 
-def ours(seq, models, *, rolling_comp: bool = True, centroid: str = "shape", edge: bool = True):
+EDGE = {"on": True, "off": False}
+
+
+def ours(seq, models, *, rolling_comp: bool = True, centroid: str = "shape", edge: bool | None = None):
+    edge = EDGE["ours"] if edge is None else edge
     opts = PipelineOptions(sphere_separation_m=SEPARATION_M, rolling_shutter=rolling_comp,
                            tracker=TrackerParams(segment=SegmentParams(centroid=centroid, edge_refine=edge)))
     return track_stereo(seq, seq.calibration, models, T_base_left=gt_transform(seq), options=opts)
@@ -186,7 +190,7 @@ def evaluate(path: Path, *, rolling: bool) -> dict:
     row["moment_rms_3d_mm"] = 1e3 * rms(ee_errors(mom.trajectory.p, seq))
     row["moment_centroid_rms_px"] = rms(centroid_errors(seq, mom.uv_left, mom.uv_right))
     row["moment_centroid_median_px"] = float(np.nanmedian(centroid_errors(seq, mom.uv_left, mom.uv_right)))
-    rim = ours(seq, models, edge=False)
+    rim = ours(seq, models, edge=not EDGE["ours"])
     row["rim_rms_3d_mm"] = 1e3 * rms(ee_errors(rim.trajectory.p, seq))
     row["rim_centroid_rms_px"] = rms(centroid_errors(seq, rim.uv_left, rim.uv_right))
     if rolling:
@@ -204,12 +208,15 @@ def main(argv=None) -> int:
     ap.add_argument("--static-frames", type=int, default=None, help="poses per static recording (default 12)")
     ap.add_argument("--step-frames", type=int, default=None, help="frames per step recording (default 80)")
     ap.add_argument("--workdir", default="/tmp/tudorvision_bench_stereo", help="render cache")
+    ap.add_argument("--luma-edge", choices=("auto", "on", "off"), default="auto",
+                    help="luma-edge rim refinement of ours (auto: on for .jpg frames, as the CLI)")
     ap.add_argument("--json", help="also write the results to this file")
     args = ap.parse_args(argv)
+    EDGE["ours"] = args.image_ext == ".jpg" if args.luma_edge == "auto" else args.luma_edge == "on"
     work = Path(args.workdir)
     work.mkdir(parents=True, exist_ok=True)
     print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, Python "
-          f"{platform.python_version()}; frames {args.image_ext}")
+          f"{platform.python_version()}; frames {args.image_ext}; luma edge {'on' if EDGE['ours'] else 'off'}")
     cases = [("static", "stereo-static", False, args.static_frames),
              ("step (blur)", "stereo-step", False, args.step_frames),
              ("step (blur, rolling shutter)", "stereo-step", True, args.step_frames)]
@@ -222,7 +229,7 @@ def main(argv=None) -> int:
             print(f"seed {seed} {label:30s} ours {r['rms_3d_mm']:6.2f} mm ({100 * r['valid']:5.1f}% valid)  "
                   f"peer {r['peer_rms_3d_mm']:7.2f} mm ({100 * r['peer_valid']:5.1f}%)  oracle "
                   f"{r['oracle_rms_3d_mm']:5.2f} mm; centroid {r['centroid_rms_px']:.3f} px "
-                  f"(moment: {r['moment_rms_3d_mm']:.2f} mm, {r['moment_centroid_rms_px']:.3f} px; colour rim: "
+                  f"(moment: {r['moment_rms_3d_mm']:.2f} mm, {r['moment_centroid_rms_px']:.3f} px; alt: "
                   f"{r['rim_rms_3d_mm']:.2f} mm, {r['rim_centroid_rms_px']:.3f} px)", flush=True)
 
     print("\nRMS over seeds " + ", ".join(map(str, args.seeds)) + " (3D: end effector, base frame, mm; "
@@ -260,14 +267,15 @@ def main(argv=None) -> int:
           f"(median {st['centroid_median_px']:.3f} px), peer {st['peer_centroid_rms_px']:.1f} px "
           f"(non-gross detections: {st['peer_inlier_centroid_rms_px']:.3f} px, ratio peer/ours "
           f"{st['peer_inlier_centroid_rms_px'] / st['centroid_rms_px']:.1f})")
-    print("\ncentroid method (same pipeline; 3D RMS mm / centroid RMS px; default: colour-rim circle refined on "
-          "the luma edge; rim: colour-rim circle only; moment: first moment):")
-    print(f"{'case':30s} {'default 3D':>10s} {'rim 3D':>7s} {'moment 3D':>10s} {'default px':>10s} "
-          f"{'rim px':>7s} {'moment px':>10s}")
+    on = "on" if EDGE["ours"] else "off"
+    print(f"\ncentroid method (same pipeline; 3D RMS mm / centroid RMS px; ours: colour-rim circle, luma edge "
+          f"{on}; alt: luma edge {'off' if EDGE['ours'] else 'on'}; moment: first moment):")
+    print(f"{'case':30s} {'ours 3D':>10s} {'alt 3D':>7s} {'moment 3D':>10s} {'ours px':>10s} "
+          f"{'alt px':>7s} {'moment px':>10s}")
     for label, s in summary.items():
         print(f"{label:30s} {s['rms_3d_mm']:10.2f} {s['rim_rms_3d_mm']:7.2f} {s['moment_rms_3d_mm']:10.2f} "
               f"{s['centroid_rms_px']:10.3f} {s['rim_centroid_rms_px']:7.3f} {s['moment_centroid_rms_px']:10.3f}")
-    print(f"(static centroid median: default {st['centroid_median_px']:.3f} px, moment "
+    print(f"(static centroid median: ours {st['centroid_median_px']:.3f} px, moment "
           f"{st['moment_centroid_median_px']:.3f} px; the centroid columns of the step rows include blurred "
           f"frames)")
     rs = summary["step (blur, rolling shutter)"]
