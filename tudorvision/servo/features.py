@@ -424,8 +424,8 @@ def extract_square(bgr, depth_m=None, *, config: FeatureConfig = FeatureConfig()
     near = cv2.dilate(region.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
     wgt = np.clip((light - roi) / (light - dark), 0.0, 1.0) * near
     m00 = wgt.sum()
-    vv, uu = np.mgrid[y0:y1, x0:x1]
-    centroid = np.array([(wgt * uu).sum() / m00, (wgt * vv).sum() / m00])
+    centroid = np.array([wgt.sum(axis=0) @ np.arange(x0, x1, dtype=np.float64),
+                         wgt.sum(axis=1) @ np.arange(y0, y1, dtype=np.float64)]) / m00
     # corners: 4-gon of the contour, refined on the grey image
     cnts, _ = cv2.findContours(region.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     cnt = max(cnts, key=cv2.contourArea)
