@@ -84,7 +84,7 @@ def random_motion(plates, seconds, *, noise, seed, monitor_args=None, record=Tru
     th, eps, res = np.empty((n, 3)), np.empty((n, 2)), np.empty((n, 2))
     nxt = 1
     detections = []
-    in_event = False
+    last_over = -np.inf
     for k in range(n):
         t = k * arm.config.dt
         if nxt < times.size and t >= times[nxt]:
@@ -97,13 +97,11 @@ def random_motion(plates, seconds, *, noise, seed, monitor_args=None, record=Tru
             eps[k] = s[0], s[2]
         if mon is not None:
             res[k] = mon.residual[1], mon.residual[2]
-            if mon.collision:       # count events: re-arm once both residuals are back under threshold
-                if not in_event and t >= armed_after_s:
+            if mon.collision:       # count events: one event until both residuals stay under threshold 0.5 s
+                if t - last_over > 0.5 and t >= armed_after_s:
                     detections.append((round(t - armed_after_s, 4), plates, seed, mon.link, mon.direction))
-                in_event = True
-                if abs(mon.residual[1]) <= mon.thresholds[0] and abs(mon.residual[2]) <= mon.thresholds[1]:
-                    mon.reset()
-                    in_event = False
+                last_over = t
+                mon.reset()
     # measurement noise on the recorded strains (the online loop drew its own)
     eps += np.random.default_rng(seed + 10_000).normal(0.0, noise, size=eps.shape) if noise else 0.0
     return {"theta": th, "eps": eps, "res": res, "payload": arm.payload.mass_kg, "detections": detections,
@@ -266,7 +264,8 @@ def _markdown(rep, path):
              "| contact | strategy | onset (s) | detected (s) | delay (ms) | link | dir | peak force (N) | "
              "final force (N) |", "|---|---|---|---|---|---|---|---|---|"]
     for o in rep["contacts"]:
-        lines.append(f"| {o['kind']} | {o['strategy']} | {o['onset_s']} | {o.get('detected_s', '')} | "
+        det = "" if o.get("detected_s") is None else f"{o['detected_s']:.4f}"
+        lines.append(f"| {o['kind']} | {o['strategy']} | {o['onset_s']:.4f} | {det} | "
                      f"{'' if o.get('delay_ms') is None else round(o['delay_ms'], 1)} | {o.get('link', '')} | "
                      f"{o.get('direction', '')} | {o['peak_force_N']:.2f} | {o['final_force_N']:.2f} |")
     with open(path, "w") as fh:
