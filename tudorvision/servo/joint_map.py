@@ -141,10 +141,14 @@ def joint_velocity(v_cam, theta, T_ee_cam, *, params: RobotParams | None = None,
     (True, [0.0, 0.0, 0.0])
     """
     p = params or load_robot_params()
-    th = check_array(theta, "theta", (3,))
-    T = check_transform(T_ee_cam, "T_ee_cam")
+    return _joint_velocity(check_array(v_cam, "v_cam", (3,)), check_array(theta, "theta", (3,)),
+                           check_transform(T_ee_cam, "T_ee_cam"), p, config)
+
+
+def _joint_velocity(v_cam, th, T, p, config) -> JointCommand:
+    """:func:`joint_velocity` for checked inputs (the servo checks its hand-eye transform once)."""
     T_be = T_base_ee(th, p)
-    v_base = T_be[:3, :3] @ (T[:3, :3] @ check_array(v_cam, "v_cam", (3,)))
+    v_base = T_be[:3, :3] @ (T[:3, :3] @ v_cam)
     J = _point_jacobian(th, T[:3, 3], p, T_be)
     U, S, Vt = np.linalg.svd(J)
     smin = float(S[-1])

@@ -34,14 +34,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._checks import check_transform
+from .._checks import check_array, check_transform
 from ..joint.adapter import JointAdapter
 from ..joint.protocol import Damping, Mode
 from ..joint.server import JointLayerServer, ServerConfig
 from ..joint.transport import InProcessTransport
 from ..robot import load_robot_params
 from .features import FeatureConfig, SquareFeatures, extract_square
-from .joint_map import JointCommand, JointMapConfig, joint_velocity
+from .joint_map import JointCommand, JointMapConfig, _joint_velocity, joint_velocity
 from .laws import GoalFeatures, LawConfig, ServoCommand, servo_command
 
 __all__ = ["default_T_ee_cam", "LabConfig", "ServoLab", "VisualServo", "ServoStep", "servo_step",
@@ -195,7 +195,8 @@ class VisualServo:
         if not cmd.ok:
             jc = JointCommand(theta_dot=np.zeros(3), ok=False, reason=cmd.reason)
         else:
-            jc = joint_velocity(cmd.v_cam, theta, self.T_ee_cam, params=self.params, config=self.joint_map)
+            jc = _joint_velocity(cmd.v_cam, check_array(theta, "theta", (3,)), self.T_ee_cam, self.params,
+                                 self.joint_map)
         return ServoStep(features=raw if raw is not None else features, command=cmd, joint=jc)
 
 
