@@ -134,7 +134,7 @@ def luma_rim_points(gray, log_odds, centre, radius: float, *, span: float = 3.0,
     ns = len(s)
     prof = cv2.remap(gray, (cu + ca * s).astype(np.float32), (cv_ + sa * s).astype(np.float32),
                      cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)                # (k, ns)
-    diff = prof[:, -3:].mean(axis=1) - prof[:, :3].mean(axis=1)
+    diff = (prof[:, -3:].sum(axis=1) - prof[:, :3].sum(axis=1)) * (1.0 / 3.0)    # outer - inner level
     g = np.diff(prof, axis=1) * np.sign(diff)[:, None]                           # (k, ns - 1), at s + step/2
     peak = np.argmax(g, axis=1)
     rows = np.arange(k)

@@ -104,6 +104,7 @@ import numpy as np
 
 from tudorvision._checks import TudorVisionError
 from tudorvision.stereo.colormodel import ColorModel, _check_frame
+from tudorvision.stereo.rim_edge import refine_circle_on_luma
 
 __all__ = [
     "SegmentParams",
@@ -724,8 +725,6 @@ class _EdgeSource:
 
     def refine(self, centre: tuple, radius: float, params: SegmentParams):
         """Circle centre ``(u, v)`` on the luma edge in frame pixels, or None."""
-        from .rim_edge import refine_circle_on_luma
-
         f = self.frame
         m = int(math.ceil(radius)) + 7
         px0, py0 = max(int(centre[0]) - m, 0), max(int(centre[1]) - m, 0)
