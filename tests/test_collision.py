@@ -168,3 +168,14 @@ def test_isolation_window_separates_link2_impact_transient_from_link3_contact():
         assert mon.isolated and (mon.link, mon.direction) == (3, -1)
     with pytest.raises(ValueError, match="isolation_window_s"):
         _monitor_on([], window=-1.0)
+
+
+def test_monitor_arms_after_the_given_time():
+    rows = np.tile([0.0, 0.0, 30e-6, 0.0], (200, 1))              # a violation from the second sample
+    mon = CollisionMonitor(StrainDynamicsModel(chi=np.zeros((2, 2 * N_PARAMS))), [10e-6, 10e-6], 0.3, 5e-4,
+                           reaction_config("none"), k_i=2000.0, armed_after_s=0.05)
+    for row in rows:
+        mon.step([0.0, 0.5, 0.1], [0.0] * 3, row, [0.0] * 3, [0.0] * 3, [0.0] * 3)
+        if mon.collision:
+            break
+    assert mon.detected_at == pytest.approx(0.0505, abs=1e-9)    # the first armed sample (k_i dt = 1)

@@ -474,6 +474,9 @@ class CollisionMonitor:
         How long the link-3 residual must stay over its threshold with one
         sign to isolate link 3 (module docstring); 0 applies the plain rule
         of :func:`isolate` at the first violation.
+    armed_after_s : float
+        No detection during this time after construction (the observer runs):
+        e.g. while the cascade takes up the gravity load after power-up.
 
     Attributes
     ----------
@@ -492,9 +495,11 @@ class CollisionMonitor:
 
     def __init__(self, model: StrainDynamicsModel, thresholds, payload_kg: float, dt: float,
                  config: ReactionConfig = ReactionConfig(), *, k_i: float = 100.0,
-                 isolation_window_s: float = 0.015):
-        if not isolation_window_s >= 0:
-            raise ValueError(f"isolation_window_s: expected >= 0, got {isolation_window_s}")
+                 isolation_window_s: float = 0.015, armed_after_s: float = 0.0):
+        if not isolation_window_s >= 0 or not armed_after_s >= 0:
+            raise ValueError(f"isolation_window_s, armed_after_s: expected >= 0, got {isolation_window_s}, "
+                             f"{armed_after_s}")
+        self._armed_k = int(round(float(armed_after_s) / float(dt)))
         self.isolation_window_s = float(isolation_window_s)
         self.observer = MomentumObserver(model, payload_kg, k_i=k_i, dt=dt)
         self.thresholds = [float(x) for x in check_array(thresholds, "thresholds", (2,), finite=False)]
@@ -524,7 +529,7 @@ class CollisionMonitor:
         r = self.observer.step(theta, dtheta, (strain[ROOT_GAUGES[0]], strain[ROOT_GAUGES[1]]))
         self.residual = [0.0, r[0], r[1]]
         self._k += 1
-        if not self.collision:
+        if not self.collision and self._k > self._armed_k:
             link, direction = isolate(r, self.thresholds)
             if link is not None:
                 self.collision = True

@@ -1477,7 +1477,8 @@ class SimCore:
         else:                   # a fresh monitor: the latch is cleared, the observer restarts at rest state
             ca.reaction = CollisionMonitor(self.collision_model, self.collision_thresholds, arm.payload.mass_kg,
                                            arm.config.dt, reaction_config(
-                                               strategy, torque_per_strain=root_torque_per_strain(arm.params)))
+                                               strategy, torque_per_strain=root_torque_per_strain(arm.params)),
+                                           armed_after_s=0.1 if arm.t < 0.1 else 0.0)   # start-up sag
         self.damping, self.collision = damping, collision
 
     def step(self, dt: float) -> None:
