@@ -52,6 +52,8 @@ def test_cli_bad_input(tmp_path, capsys):
     assert "--out" in capsys.readouterr().err
     assert main(["servo", "--sim", "--payload-g", "150", "--out", str(tmp_path / "o")]) == 2
     assert "payload" in capsys.readouterr().err
+    assert main(["servo", "--sim", "--supersample", "0", "--out", str(tmp_path / "o")]) == 2
+    assert "--supersample" in capsys.readouterr().err
     assert main(["servo", "sample_data/servo-views", "--goal", str(tmp_path / "none.png")]) == 2
     assert "none.png" in capsys.readouterr().err
     # a goal image without a square

@@ -50,6 +50,9 @@ def register(sub) -> None:
     p.add_argument("--no-damping", action="store_true", help="run the joint layer without strain damping")
     p.add_argument("--smoothing-frames", type=int, default=None,
                    help="moving average of the features over N frames (default 15 with --sim, 1 for SEQ)")
+    p.add_argument("--supersample", type=int, default=1, metavar="K",
+                   help="--sim: K x K colour samples per pixel around the square (pixel-area integration; "
+                        "1 = the simulator's point sampling)")
     p.add_argument("--workers", type=int, default=None, help="repeatability: parallel processes")
     p.add_argument("--compare-repetitions", type=int, default=None,
                    help="repeatability: runs per payload and pose for the compared law (default --repetitions)")
@@ -85,6 +88,10 @@ def _lab_config(args):
     cfg = LabConfig()
     if args.no_damping:
         cfg = replace(cfg, damping=False)
+    if args.supersample < 1:
+        raise TudorVisionError(f"--supersample: expected a positive integer, got {args.supersample}")
+    if args.supersample > 1:
+        cfg = replace(cfg, supersample=args.supersample)
     return cfg
 
 
