@@ -93,6 +93,8 @@ class DemoOptions:
     setpoint_margin_rad : float
         Setpoints are clipped this far inside the joint ranges (the joints overshot by up to
         8 deg on fast moves, and the layer faults 1 deg outside a range, then cannot clear it).
+    accel_fraction : float
+        Setpoint profile acceleration as a fraction of the joints' limit (400 deg/s^2).
     layer_rate_hz : float
         Control rate of the lockstep joint layer (its over-speed and range checks run every period).
     cache_dir : str
@@ -118,6 +120,7 @@ class DemoOptions:
     ball_radius_m: float = 0.045
     release_sigma_m: float = 0.1
     speed_fraction: float = 0.75
+    accel_fraction: float = 1.0
     layer_rate_hz: float = 500.0
     reach_margin_m: float = 0.05
     setpoint_margin_rad: float = float(np.deg2rad(10.0))
@@ -344,7 +347,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
     # profile speed 90 % of the slowest joint's limit: at the limit itself the links' swing pushed
     # the measured joint speed past the layer's fault threshold (105 %)
     max_speed = o.speed_fraction * float(np.min(params.max_speed_rad_s))
-    max_accel = float(np.max(params.max_accel_rad_s2))
+    max_accel = o.accel_fraction * float(np.min(params.max_accel_rad_s2))
     damping = {"off": Damping.OFF, "proportional": Damping.PROPORTIONAL, "integral": Damping.INTEGRAL,
                "half_integrator": Damping.HALF_INTEGRATOR}[o.damping]
     adapter.set_mode(Mode.SETPOINT, damping=damping)
