@@ -103,7 +103,8 @@ def random_motion(plates, seconds, *, noise, seed, monitor_args=None, record=Tru
                 last_over = t
                 mon.reset()
     # measurement noise on the recorded strains (the online loop drew its own)
-    eps += np.random.default_rng(seed + 10_000).normal(0.0, noise, size=eps.shape) if noise else 0.0
+    if record and noise:
+        eps += np.random.default_rng(seed + 10_000).normal(0.0, noise, size=eps.shape)
     return {"theta": th, "eps": eps, "res": res, "payload": arm.payload.mass_kg, "detections": detections,
             "dt": arm.config.dt}
 
