@@ -19,7 +19,7 @@ damping on as in the seed; strain noise on the gauges; joint 1 held at 0):
    direction, contact force peak and force at the end.
 
 Run:  .venv/bin/python benchmarks/bench_collision.py [--id-seconds 60] [--thr-seconds 60]
-      [--fp-minutes 10] [--noise 2e-6] [--jobs 2] [--out out/collision]
+      [--fp-minutes 10] [--noise 2e-6] [--k-i 100] [--reuse | --reuse-model] [--jobs 2] [--out out/collision]
 """
 from __future__ import annotations
 
@@ -63,7 +63,7 @@ def _make_arm(plates, theta0, *, noise, seed, obstacles=(), two_way=True):
     return arm, ca
 
 
-def random_motion(plates, seconds, *, noise, seed, monitor_args=None, record=True, armed_after_s=0.0):
+def random_motion(plates, seconds, *, noise, seed, monitor_args=None, record=True, armed_after_s=0.0, k_i=100.0):
     """APRBS motion of joints 2, 3; returns 2 kHz records and (optionally) online residuals.
 
     Detections before ``armed_after_s`` are not counted: at start the cascade's PI
@@ -78,7 +78,7 @@ def random_motion(plates, seconds, *, noise, seed, monitor_args=None, record=Tru
     mon = None
     if monitor_args is not None:
         model, thr, strategy = monitor_args
-        mon = CollisionMonitor(model, thr, arm.payload.mass_kg, arm.config.dt, reaction_config(strategy))
+        mon = CollisionMonitor(model, thr, arm.payload.mass_kg, arm.config.dt, reaction_config(strategy), k_i=k_i)
         ca.reaction = mon
     n = int(round(seconds / arm.config.dt))
     th, eps, res = np.empty((n, 3)), np.empty((n, 2)), np.empty((n, 2))
@@ -120,14 +120,14 @@ def _id_job(args):
 
 
 def _res_job(args):
-    plates, seconds, noise, seed, model, thr, strategy = args
+    plates, seconds, noise, seed, model, thr, strategy, k_i = args
     r = random_motion(plates, seconds + ARMED_AFTER_S, noise=noise, seed=seed, monitor_args=(model, thr, strategy),
-                      record=False, armed_after_s=ARMED_AFTER_S)
+                      record=False, armed_after_s=ARMED_AFTER_S, k_i=k_i)
     skip = int(round(ARMED_AFTER_S / r["dt"]))
     return {"plates": plates, "res": r["res"][skip:], "detections": r["detections"], "seconds": seconds}
 
 
-def contact_scenario(kind, strategy, model, thr, *, noise, seed=7, seconds=2.5, plates=3):
+def contact_scenario(kind, strategy, model, thr, *, noise, seed=7, seconds=2.5, plates=3, k_i=100.0):
     """An obstacle sphere in the path; returns timing, isolation and force figures."""
     start, goal = np.array([0.0, 45.0, -45.0]) * DEG, np.array([0.0, 150.0, 60.0]) * DEG
     # free run to find where the probe passes 0.6 s into the motion
@@ -152,7 +152,7 @@ def contact_scenario(kind, strategy, model, thr, *, noise, seed=7, seconds=2.5, 
     mon = None
     if strategy != "no detection":
         mon = CollisionMonitor(model, thr, arm.payload.mass_kg, arm.config.dt, reaction_config(
-            strategy, torque_per_strain=root_torque_per_strain(arm.params)))
+            strategy, torque_per_strain=root_torque_per_strain(arm.params)), k_i=k_i)
         ca.reaction = mon
     ca.set_goal(goal)
     n = int(round(seconds / arm.config.dt))
@@ -179,12 +179,15 @@ def main(argv=None):
     ap.add_argument("--noise", type=float, default=2e-6)
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--out", default="out/collision")
+    ap.add_argument("--k-i", type=float, default=100.0, help="observer gain K_I of the residual, 1/s")
+    ap.add_argument("--reuse-model", action="store_true",
+                    help="load the identified model from --out and recompute the thresholds (e.g. for another K_I)")
     ap.add_argument("--reuse", action="store_true",
                     help="load the model and thresholds of an earlier run from --out (skip steps 1-2)")
     a = ap.parse_args(argv)
     os.makedirs(a.out, exist_ok=True)
     t0 = time.time()
-    report = {"cpu": cpu_model(), "jobs": a.jobs, "noise": a.noise, "k_eps": K_EPS}
+    report = {"cpu": cpu_model(), "jobs": a.jobs, "noise": a.noise, "k_eps": K_EPS, "k_i": a.k_i}
     with ProcessPoolExecutor(max_workers=a.jobs) as ex:
         if a.reuse:
             prev = json.load(open(os.path.join(a.out, "collision.json")))
@@ -198,7 +201,7 @@ def main(argv=None):
         if a.fp_minutes > 0:
             per = a.fp_minutes * 60.0 / len(PLATES)
             chunks = max(1, int(np.ceil(per / 60.0)))
-            jobs = [(pl, per / chunks, a.noise, 1000 + 10 * pl + c, model, thr, "none") for pl in PLATES
+            jobs = [(pl, per / chunks, a.noise, 1000 + 10 * pl + c, model, thr, "none", a.k_i) for pl in PLATES
                     for c in range(chunks)]
             fp = list(ex.map(_res_job, jobs))
             n_fp = sum(len(r["detections"]) for r in fp)
@@ -210,7 +213,7 @@ def main(argv=None):
             report["false_positives"] = prev["false_positives"]
         # 4. contacts
         scen = [(k, s) for k in ("link3", "link2") for s in ("no detection", "stop", "reflex", "interaction")]
-        outs = list(ex.map(_contact_job, [(k, s, model, thr, a.noise) for k, s in scen]))
+        outs = list(ex.map(_contact_job, [(k, s, model, thr, a.noise, a.k_i) for k, s in scen]))
     report["contacts"] = outs
     for o in outs:
         print(o, flush=True)
@@ -221,9 +224,8 @@ def main(argv=None):
     print(f"wrote {a.out} in {report['wall_s']:.0f} s")
 
 
-def _identify(ex, a, report):
-    """Steps 1 (identification) and 2 (thresholds); saves ``chi.npy`` and ``thr.npy`` to ``a.out``."""
-    # 1. identification
+def _fit(ex, a, report):
+    """Step 1: identification on APRBS data; saves ``chi.npy``."""
     data = list(ex.map(_id_job, [(pl, a.id_seconds, a.noise, 100 + pl) for pl in PLATES]))
     cat = {k: np.concatenate([d[k] for d in data]) for k in ("theta", "d", "dd", "eps", "m")}
     blk = np.concatenate([(d["t"] // 5.0).astype(int) % 2 for d in data]).astype(bool)
@@ -238,9 +240,20 @@ def _identify(ex, a, report):
     report["identification"] = {"seconds_per_payload": a.id_seconds, "validation": fits}
     print("fit (validation, link-2 / link-3 root):", fits, flush=True)
     np.save(os.path.join(a.out, "chi.npy"), model.chi)
+    return model
+
+
+def _identify(ex, a, report):
+    """Steps 1 (identification) and 2 (thresholds); saves ``chi.npy`` and ``thr.npy`` to ``a.out``."""
+    if a.reuse_model:
+        model = StrainDynamicsModel(chi=np.load(os.path.join(a.out, "chi.npy")))
+        report["identification"] = json.load(open(os.path.join(a.out, "collision.json")))["identification"]
+    else:
+        model = _fit(ex, a, report)
     # 2. thresholds from collision-free residuals
     inf = [np.inf, np.inf]
-    rs = list(ex.map(_res_job, [(pl, a.thr_seconds, a.noise, 200 + pl, model, inf, "none") for pl in PLATES]))
+    rs = list(ex.map(_res_job, [(pl, a.thr_seconds, a.noise, 200 + pl, model, inf, "none", a.k_i)
+                                for pl in PLATES]))
     res = np.concatenate([r["res"] for r in rs])
     thr = thresholds_from_residuals(res)
     report["thresholds_um_m"] = np.round(thr * 1e6, 2).tolist()
@@ -251,8 +264,8 @@ def _identify(ex, a, report):
 
 
 def _contact_job(args):
-    kind, strategy, model, thr, noise = args
-    return contact_scenario(kind, strategy, model, thr, noise=noise)
+    kind, strategy, model, thr, noise, k_i = args
+    return contact_scenario(kind, strategy, model, thr, noise=noise, k_i=k_i)
 
 
 def _markdown(rep, path):
