@@ -80,6 +80,9 @@ class DemoOptions:
     net_radius_m, ball_radius_m : float
     release_sigma_m : float
         Intercept release threshold (largest in-plane standard deviation).
+    refine_sigma_factor : float
+        A refinement is sent only if the intercept moved more than this many of its current
+        standard deviations (and more than 2 cm); 0: the 2 cm rule alone.
     net_capacity_balls : int
         The net is emptied (by the operator, during the pause) once it holds this
         many balls; keeps the payload within the kinematics' trained range (400 g).
@@ -119,6 +122,7 @@ class DemoOptions:
     net_radius_m: float = 0.09
     ball_radius_m: float = 0.045
     release_sigma_m: float = 0.1
+    refine_sigma_factor: float = 2.0
     speed_fraction: float = 0.75
     accel_fraction: float = 1.0
     layer_rate_hz: float = 500.0
@@ -322,7 +326,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
     rng_noise = np.random.default_rng([o.seed, 3])
     model = BallModel(drag_k_per_m=o.drag_k_per_m)
     ekf_opts = EKFOptions(**{**asdict(o.ekf), "model": model})
-    iopts = InterceptOptions(release_sigma_m=o.release_sigma_m)
+    iopts = InterceptOptions(release_sigma_m=o.release_sigma_m, refine_sigma_factor=o.refine_sigma_factor)
     perception = CatchPerception(ekf_opts, iopts, params)
     theta1 = iopts.theta1_rad
     ready = np.asarray(o.ready_point_base, float)

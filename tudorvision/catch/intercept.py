@@ -232,7 +232,8 @@ class InterceptOptions:
         Release the setpoint once the crossing's largest in-plane standard
         deviation is below this.
     refine_tol_m : float
-        After release, a new setpoint is sent when the intercept moved more than this ...
+        After release, a new setpoint is sent when the intercept moved more than this
+        (and more than ``refine_sigma_factor`` times its current standard deviation) ...
     min_interval_s : float
         ... and at least this long after the previous one (every new setpoint re-plans the
         joint layer's smooth point-to-point profile; re-planning at the camera rate would
@@ -246,6 +247,7 @@ class InterceptOptions:
     theta1_rad: float = 0.0
     release_sigma_m: float = 0.03
     refine_tol_m: float = 0.02
+    refine_sigma_factor: float = 0.0
     min_interval_s: float = 0.2
     margin_rad: float = np.deg2rad(2.0)
     min_height_m: float = -0.3
@@ -333,7 +335,8 @@ class InterceptPlanner:
         ok = self._reachable(c.p_base)
         send = False
         if ok and c.sigma_m <= o.release_sigma_m:
-            send = self.released is None or (np.linalg.norm(c.p_base - self.released.p_base) > o.refine_tol_m
+            tol = max(o.refine_tol_m, o.refine_sigma_factor * c.sigma_m)
+            send = self.released is None or (np.linalg.norm(c.p_base - self.released.p_base) > tol
                                               and t - self.released.t >= o.min_interval_s)
         it = Intercept(t=float(t), t_cross=float(t) + c.dt_s, p_base=c.p_base, cov_base=c.cov_base,
                        sigma_m=c.sigma_m, reachable=ok, send=send)
