@@ -61,3 +61,21 @@ def test_net_target_pulls_in_from_full_stretch_only():
             # moved radially, by less than the margin
             np.testing.assert_allclose(np.cross(out - shoulder, q - shoulder), 0.0, atol=1e-12)
             assert np.linalg.norm(out - q) <= 0.05 + 1e-12
+
+
+def test_refinement_needs_a_change_beyond_the_sigma_factor():
+    # the same states through two planners: a sideways move of the intercept of 1.5 sigma (> 2 cm) is
+    # refined with the plain 2 cm rule, not when it must exceed 2 sigma; a 3 sigma move is refined by both
+    x0 = np.array([0.1, -2.0, 1.3, 0.0, 6.0, 1.0])
+    P = np.diag([4e-4, 4e-4, 4e-4, 1e-6, 1e-6, 1e-6])
+    plain = InterceptPlanner(InterceptOptions(release_sigma_m=0.05))
+    strict = InterceptPlanner(InterceptOptions(release_sigma_m=0.05, refine_sigma_factor=2.0))
+    first = [pl.update(0.0, x0, P) for pl in (plain, strict)]
+    assert all(it.send and it.reachable for it in first)
+    sigma = first[1].sigma_m
+    assert 0.0134 < sigma < 0.05
+    x1 = x0.copy(); x1[0] += 1.5 * sigma
+    a, b = plain.update(0.3, x1, P), strict.update(0.3, x1, P)
+    assert a.send and not b.send
+    x2 = x0.copy(); x2[0] += 3.0 * sigma
+    assert strict.update(0.6, x2, P).send
