@@ -152,7 +152,8 @@ def contact_scenario(kind, strategy, model, thr, *, noise, seed=7, seconds=2.5, 
     mon = None
     if strategy != "no detection":
         mon = CollisionMonitor(model, thr, arm.payload.mass_kg, arm.config.dt, reaction_config(
-            strategy, torque_per_strain=root_torque_per_strain(arm.params)), k_i=k_i)
+            strategy, torque_per_strain=root_torque_per_strain(arm.params)), k_i=k_i,
+            armed_after_s=0.1)                              # start-up sag, as SimCore
         ca.reaction = mon
     ca.set_goal(goal)
     n = int(round(seconds / arm.config.dt))
@@ -279,7 +280,8 @@ def _markdown(rep, path):
              "final force (N) |", "|---|---|---|---|---|---|---|---|---|"]
     for o in rep["contacts"]:
         det = "" if o.get("detected_s") is None else f"{o['detected_s']:.4f}"
-        lines.append(f"| {o['kind']} | {o['strategy']} | {o['onset_s']:.4f} | {det} | "
+        onset = "none" if o["onset_s"] is None else f"{o['onset_s']:.4f}"
+        lines.append(f"| {o['kind']} | {o['strategy']} | {onset} | {det} | "
                      f"{'' if o.get('delay_ms') is None else round(o['delay_ms'], 1)} | {o.get('link', '')} | "
                      f"{o.get('direction', '')} | {o['peak_force_N']:.2f} | {o['final_force_N']:.2f} |")
     with open(path, "w") as fh:
