@@ -243,15 +243,32 @@ def test_core_fault_stops_and_refuses_until_mode_switch(request, kind):
     assert isinstance(r, Refusal) and r.code in (Reason.FAULT, Reason.WRONG_MODE)
     st = link.adapter.request_state(timeout=3.0)
     assert st.flags & StateFlags.FAULT and st.mode == Mode.IDLE
-    # while the arm is outside its range, clearing the fault does not stick
-    assert isinstance(link.adapter.set_mode(Mode.SETPOINT, timeout=3.0), Ack)
-    assert link.core.wait_until(lambda c: c.stop_calls >= 3, timeout=5.0)
-    with link.core._cond:
-        link.core.theta = np.array([0.0, 1.0, 0.0])                  # repaired
+    # outside its range but at rest, a cleared fault sticks and a setpoint brings the arm back
     assert isinstance(link.adapter.set_mode(Mode.SETPOINT, timeout=3.0), Ack)
     assert isinstance(link.adapter.send_setpoint([0.0, 1.1, 0.0], timeout=3.0), Ack)
+    assert link.core.wait_until(lambda c: abs(c.theta[1] - 1.1) < 1e-4, timeout=10.0)
     st = link.adapter.request_state(timeout=3.0)
     assert not st.flags & StateFlags.FAULT and st.mode == Mode.SETPOINT
+    hist = link.core.history()
+    back = hist[hist[:, 2] < LIMITS[1, 0] - np.deg2rad(1.0)]
+    assert back.size and np.all(back[:, 5] >= 0.0)          # it only ever moved back toward the range
+
+
+@KINDS
+def test_core_moving_further_out_of_range_faults_again(request, kind):
+    link = _make(request)
+    assert isinstance(link.adapter.set_mode(Mode.SETPOINT, timeout=3.0), Ack)
+    with link.core._cond:
+        link.core.theta = np.array([0.0, LIMITS[1, 0] - 0.1, 0.0])   # a broken core
+    assert link.core.wait_until(lambda c: c.stop_calls >= 2, timeout=5.0)
+    assert isinstance(link.adapter.set_mode(Mode.SETPOINT, timeout=3.0), Ack)   # clears; at rest it sticks
+    st = link.adapter.request_state(timeout=3.0)
+    assert not st.flags & StateFlags.FAULT and st.mode == Mode.SETPOINT
+    with link.core._cond:
+        link.core.mode, link.core.v_cmd = "velocity", np.array([0.0, -0.2, 0.0])   # drifting further out
+    assert link.core.wait_until(lambda c: c.stop_calls >= 3, timeout=5.0)
+    st = link.adapter.request_state(timeout=3.0)
+    assert st.flags & StateFlags.FAULT and st.mode == Mode.IDLE
 
 
 def test_request_state_times_out_without_server():

@@ -265,8 +265,10 @@ class ServerConfig:
     rest_speed_rad_s : float
         Joint speed below which the arm is not ``MOVING``.
     fault_speed_factor, fault_range_tol_rad : float
-        A core state faster than factor x speed limit, or further than the
-        tolerance outside a range, is a fault.
+        A core state faster than factor x speed limit is a fault; so is a
+        joint that goes further than the tolerance outside its range, or is
+        outside and moving further out (outside and at rest or moving back,
+        it may be brought back after the fault is cleared).
     max_clients, seq_window, log_size, max_backlog_ticks : int
         Bounds of the per-client tables, the duplicate window, the command log
         and of catch-up ticks after a stall (beyond it ticks are skipped and
@@ -395,6 +397,7 @@ class JointLayerServer:
         self._t_ctrl = 0.0          # control time: sum of the dt given to the core
         self._armed = False
         self._holding = False       # velocity mode at rest: the core holds position via stop()
+        self._outside = np.zeros(3, dtype=bool)   # joints beyond range + tolerance at the last tick
         self._period = 1.0 / config.rate_hz
         core.set_modes(damping=self._damping, collision=self._collision)
         core.stop()
@@ -568,11 +571,25 @@ class JointLayerServer:
             self._core_state = cs = self.core.state()
             over_speed = np.any(np.abs(cs.theta_dot)
                                 > self.config.fault_speed_factor * self.limits.max_speed_rad_s)
-            lim, tol = self.limits.joint_limits_rad, self.config.fault_range_tol_rad
-            out = np.any(cs.theta < lim[:, 0] - tol) or np.any(cs.theta > lim[:, 1] + tol)
+            out = self._range_fault(cs)
             if (over_speed or out) and not self._flags & _F.FAULT:
                 self._flags |= _F.FAULT
                 self._enter_mode(P.Mode.IDLE)
+
+    def _range_fault(self, cs) -> bool:
+        """A joint left its range (beyond the tolerance) on this tick, or is outside and moving further out.
+
+        A joint that is already outside and at rest or moving back does not
+        fault again, so a cleared fault sticks and a setpoint can bring the
+        arm back into its range.
+        """
+        lim, tol = self.limits.joint_limits_rad, self.config.fault_range_tol_rad
+        below, above = cs.theta < lim[:, 0] - tol, cs.theta > lim[:, 1] + tol
+        v, rest = np.asarray(cs.theta_dot), self.config.rest_speed_rad_s
+        outward = (below & (v < -rest)) | (above & (v > rest))
+        entered = (below | above) & ~self._outside
+        self._outside = below | above
+        return bool(np.any(entered) or np.any(outward))
 
     def _enter_mode(self, mode: P.Mode) -> None:
         if mode == P.Mode.VELOCITY:
