@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import csv
 import json
-import threading
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -40,9 +39,9 @@ from .ballistic import BallisticPredictor
 from .data_collection import DEMO_COLLECTION, CollectionOptions
 from .ekf import BallEKF, BallModel, EKFOptions
 from .intercept import InterceptOptions, InterceptPlanner, net_target, working_plane_normal
-from .lab import LockstepCore, LockstepLayer
+from .lab import LockstepLayer
 
-__all__ = ["DemoOptions", "LockstepCore", "CatchPerception", "simulated_detection", "run_demo",
+__all__ = ["DemoOptions", "CatchPerception", "simulated_detection", "run_demo",
            "detection_to_base", "PER_THROW_COLUMNS"]
 
 PER_THROW_COLUMNS = ["throw", "t_release_s", "crosses_plane", "crossing_workspace", "t_cross_true_s",

@@ -7,78 +7,13 @@ the layer's control loop runs in the caller's simulated time
 (:meth:`JointLayerServer.tick`) instead of a wall-clock thread: every run is
 deterministic for a seed, whatever the machine's load.
 
-Commands are answered at once: the client end hands each datagram to the
-server's :meth:`~JointLayerServer.poll` as it is sent.
+Commands are answered at once: the client end
+(:class:`~tudorvision.joint.transport.LockstepClientTransport`) hands each
+datagram to the server's :meth:`~JointLayerServer.poll` as it is sent.
 """
 from __future__ import annotations
 
-import numpy as np
-
-__all__ = ["LockstepCore", "LockstepLayer"]
-
-
-class LockstepCore:
-    """A :class:`~tudorvision.joint.server.JointCore` around :class:`~tudorvision.sim.arm.SimCore`.
-
-    Forwards everything to the simulated arm; a damping mode set through the
-    layer installs a :class:`~tudorvision.joint.damping.StrainDamper` on the
-    plant's cascade unless the simulated core has installed one itself.
-
-    Parameters
-    ----------
-    sim : SimCore
-    """
-
-    def __init__(self, sim):
-        self.sim = sim
-
-    def apply_velocity(self, theta_dot) -> None:
-        self.sim.apply_velocity(theta_dot)
-
-    def apply_setpoint(self, theta, *, max_speed_rad_s, max_accel_rad_s2) -> None:
-        self.sim.apply_setpoint(theta, max_speed_rad_s=max_speed_rad_s, max_accel_rad_s2=max_accel_rad_s2)
-
-    def stop(self) -> None:
-        self.sim.stop()
-
-    def set_modes(self, *, damping, collision) -> None:
-        from ..joint.damping import StrainDamper, default_damping_config
-
-        self.sim.set_modes(damping=damping, collision=collision)
-        law = {0: "off", 1: "proportional", 2: "integral", 3: "half_integrator"}[int(damping)]
-        ctl = self.sim.controlled
-        if law == "off":
-            ctl.set_damper(None)
-        elif getattr(ctl, "damper", None) is None:     # the plant did not install one itself
-            arm = self.sim.arm
-            ctl.set_damper(StrainDamper(default_damping_config(law), arm.strain, arm.config.dt))
-
-    def step(self, dt: float) -> None:
-        self.sim.step(dt)
-
-    def state(self):
-        return self.sim.state()
-
-
-class _Immediate:
-    """Client transport whose every send is handled by the lockstep server at once."""
-
-    def __init__(self, inner, server):
-        self._inner, self._server = inner, server
-
-    @property
-    def address(self):
-        return self._inner.address
-
-    def send(self, data, addr=None):
-        self._inner.send(data, addr)
-        self._server.poll()
-
-    def recv(self, timeout):
-        return self._inner.recv(0.0)
-
-    def close(self):
-        self._inner.close()
+__all__ = ["LockstepLayer"]
 
 
 class LockstepLayer:
@@ -100,16 +35,17 @@ class LockstepLayer:
     """
 
     def __init__(self, sim, *, rate_hz: float = 500.0):
-        from ..joint import InProcessTransport, JointAdapter, JointLayerServer, ServerConfig
+        from ..joint import (InProcessTransport, JointAdapter, JointLayerServer, LockstepClientTransport,
+                             ServerConfig)
 
         if not rate_hz > 0:
             raise ValueError(f"rate_hz: expected > 0, got {rate_hz}")
         self.sim = sim
-        self.core = LockstepCore(sim)
+        self.core = sim       # SimCore installs the damper and collision monitor the layer switches on
         client, end = InProcessTransport.pair()
         # simulated time: the wall-clock age of a command means nothing here
         self.server = JointLayerServer(end, self.core, config=ServerConfig(rate_hz=rate_hz, max_command_age_s=None))
-        self.adapter = JointAdapter(_Immediate(client, self.server))
+        self.adapter = JointAdapter(LockstepClientTransport(client, self.server))
         self.period = 1.0 / float(rate_hz)
         self.t = float(sim.arm.t)
 
