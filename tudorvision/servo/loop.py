@@ -38,7 +38,7 @@ from .._checks import check_array, check_transform
 from ..joint.adapter import JointAdapter
 from ..joint.protocol import Damping, Mode
 from ..joint.server import JointLayerServer, ServerConfig
-from ..joint.transport import InProcessTransport
+from ..joint.transport import InProcessTransport, LockstepClientTransport
 from ..robot import load_robot_params
 from .features import FeatureConfig, SquareFeatures, extract_square
 from .joint_map import JointCommand, JointMapConfig, _joint_velocity, joint_velocity
@@ -276,27 +276,6 @@ def _true_camera_pose(arm, cfg: LabConfig) -> np.ndarray:
     return cfg.T_world_base @ arm.T_base_ee() @ cfg.T_ee_cam
 
 
-class _ClientEnd:
-    """Client transport that lets the lockstep server answer at once (requests never block)."""
-
-    def __init__(self, inner, server: JointLayerServer):
-        self._inner, self._server = inner, server
-
-    @property
-    def address(self):
-        return self._inner.address
-
-    def send(self, data, addr=None):
-        self._inner.send(data, addr)
-        self._server.poll()
-
-    def recv(self, timeout):
-        return self._inner.recv(0.0)
-
-    def close(self):
-        self._inner.close()
-
-
 class ServoLab:
     """The simulated arm behind its joint layer, with an eye-in-hand RGB-D camera.
 
@@ -330,7 +309,7 @@ class ServoLab:
         client, end = InProcessTransport.pair()
         self.server = JointLayerServer(end, self.core, config=ServerConfig(rate_hz=cfg.server_rate_hz,
                                                                           max_command_age_s=None))
-        self.adapter = JointAdapter(_ClientEnd(client, self.server))
+        self.adapter = JointAdapter(LockstepClientTransport(client, self.server))
         self.square_center_world = (np.asarray(cfg.square_center_world, float) if cfg.square_center_world
                                     is not None else _goal_square_center(cfg, self.params))
         w, h = cfg.image_size
