@@ -461,10 +461,13 @@ def _bilinear(img: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     h, w = img.shape
     u = np.clip(u, 0, w - 1.001)
     v = np.clip(v, 0, h - 1.001)
-    u0, v0 = np.floor(u).astype(int), np.floor(v).astype(int)
+    u0, v0 = np.floor(u), np.floor(v)
     a, b = u - u0, v - v0
-    return ((1 - a) * (1 - b) * img[v0, u0] + a * (1 - b) * img[v0, u0 + 1]
-            + (1 - a) * b * img[v0 + 1, u0] + a * b * img[v0 + 1, u0 + 1])
+    i = v0.astype(np.intp) * w + u0.astype(np.intp)                 # flat index of the top-left neighbour
+    flat = img.reshape(-1)
+    top = (1 - a) * flat.take(i) + a * flat.take(i + 1)
+    bottom = (1 - a) * flat.take(i + w) + a * flat.take(i + w + 1)
+    return (1 - b) * top + b * bottom
 
 
 def _refine_corners(gray: np.ndarray, quad: np.ndarray, level: float, *, search_px: float = 3.0):
