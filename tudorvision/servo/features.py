@@ -240,6 +240,21 @@ def depth_at(depth_m, uv, *, window_px: int = 6, min_samples: int = 12) -> float
     return float(coef[2])
 
 
+_MOMENTS: dict = {}
+
+
+def _window_moments(k: int) -> np.ndarray:
+    """Columns 1, g_u, g_v, g_u^2, g_u g_v, g_v^2 over a (2k+1)^2 window in row-major order, (n, 6)."""
+    G = _MOMENTS.get(k)
+    if G is None:
+        offs = np.arange(-k, k + 1, dtype=np.float64)
+        gv, gu = (x.reshape(-1) for x in np.meshgrid(offs, offs, indexing="ij"))
+        G = np.stack([np.ones_like(gu), gu, gv, gu * gu, gu * gv, gv * gv], axis=1)
+        G.setflags(write=False)
+        _MOMENTS[k] = G
+    return G
+
+
 def depth_at_many(depth_m, uvs, *, window_px: int = 6, min_samples: int = 12) -> np.ndarray:
     """:func:`depth_at` for several positions at once, shape (N,) (the same estimates, vectorised).
 
@@ -286,20 +301,22 @@ def depth_at_many(depth_m, uvs, *, window_px: int = 6, min_samples: int = 12) ->
     mad = _median(dev, ok, nv) * 1.4826
     keep = ok & (dev <= np.maximum(3.0 * mad, 1e-6)[:, None])
     nk = keep.sum(axis=1)
-    gv, gu = np.meshgrid(offs, offs, indexing="ij")
-    du = gu.reshape(-1)[None, :] + (iu[idx] - p[idx, 0])[:, None]
-    dv = gv.reshape(-1)[None, :] + (iv[idx] - p[idx, 1])[:, None]
-    wk = keep.astype(np.float64)
-    zk = np.where(keep, win, 0.0)
-    su, sv = (wk * du).sum(axis=1), (wk * dv).sum(axis=1)
+    # plane-fit sums about the feature from grid moments of each window (one product for all windows):
+    # with du = g_u + a, a = iu - u: sum w du = S_u + a S_0, sum w du^2 = S_uu + 2 a S_u + a^2 S_0, ...
+    G = _window_moments(k)
+    S0, Su, Sv, Suu, Suv, Svv = (keep.astype(np.float64) @ G).T
+    Z0, Zu, Zv = (np.where(keep, win, 0.0) @ G[:, :3]).T
+    a = iu[idx] - p[idx, 0]
+    b = iv[idx] - p[idx, 1]
+    su, sv = Su + a * S0, Sv + b * S0
     A = np.empty((len(idx), 3, 3))
-    A[:, 0, 0] = (wk * du * du).sum(axis=1)
-    A[:, 0, 1] = A[:, 1, 0] = (wk * du * dv).sum(axis=1)
-    A[:, 1, 1] = (wk * dv * dv).sum(axis=1)
+    A[:, 0, 0] = Suu + 2 * a * Su + a * a * S0
+    A[:, 0, 1] = A[:, 1, 0] = Suv + a * Sv + b * Su + a * b * S0
+    A[:, 1, 1] = Svv + 2 * b * Sv + b * b * S0
     A[:, 0, 2] = A[:, 2, 0] = su
     A[:, 1, 2] = A[:, 2, 1] = sv
     A[:, 2, 2] = nk
-    rhs = np.stack([(zk * du).sum(axis=1), (zk * dv).sum(axis=1), zk.sum(axis=1)], axis=1)
+    rhs = np.stack([Zu + a * Z0, Zv + b * Z0, Z0], axis=1)
     fit = nk >= min_samples
     det = np.linalg.det(A)
     well = fit & (np.abs(det) > 1e-9 * np.maximum(A[:, 0, 0] * A[:, 1, 1] * A[:, 2, 2], 1e-300))
