@@ -26,7 +26,7 @@ windows), as in the seed; ``dynamic`` is the noise-free true strain minus the
 static strain of the current pose (what oscillates).
 
 Run:  .venv/bin/python benchmarks/bench_damping_ch8.py [--reps 20] [--plant one-way|two-way|both]
-      [--noise 2e-6] [--jobs 2] [--tune] [--no-coulomb] [--out out/damping_ch8]
+      [--noise 2e-6] [--jobs 2] [--tune] [--no-coulomb] [--friction-ff SRC:SCALE:BAND] [--out out/damping_ch8]
 """
 from __future__ import annotations
 
@@ -41,6 +41,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
+from tudorvision.joint.cascade import friction_compensation
 from tudorvision.joint.damping import ONE_WAY_GAINS, TWO_WAY_GAINS, DampingConfig, StrainDamper
 from tudorvision.joint.metrics import METRIC_NAMES, damping_metrics, iats, normalise_metrics
 from tudorvision.robot import load_robot_params
@@ -70,13 +71,14 @@ def static_strain_link2_root(arm: ElasticArm, theta) -> np.ndarray:
 
 
 def run_experiment(exp: str, law: str, k_eps, *, two_way: bool, noise: float, seed: int,
-                   horizon_s: float = HORIZON_S, plates: int = 3, coulomb: bool = True) -> dict:
+                   horizon_s: float = HORIZON_S, plates: int = 3, coulomb: bool = True,
+                   friction_ff: str | None = None) -> dict:
     """Simulate one run; return time series needed by the metrics (decimated to 500 Hz)."""
     p = load_robot_params()
     start, goal = (np.deg2rad(v) for v in EXPERIMENTS[exp])
     cfg = PlantConfig(two_way=two_way, strain_noise_m_m=noise, noise_seed=seed, coulomb_friction=coulomb)
     arm = ElasticArm(start, payload=Payload.from_parts(p, plates=plates), params=p, config=cfg)
-    ca = ControlledArm(arm)
+    ca = ControlledArm(arm, friction=_friction(friction_ff, p))
     damper = StrainDamper(DampingConfig(law=law, k_eps=k_eps), arm.measured_strain(), cfg.dt)
     ca.set_damper(damper)
     ca.set_goal(goal)
@@ -102,6 +104,15 @@ def run_experiment(exp: str, law: str, k_eps, *, two_way: bool, noise: float, se
             "goal2": float(goal[1]), "final_err_deg": np.rad2deg(np.asarray(arm.theta) - goal).tolist()}
 
 
+def _friction(spec: str | None, params):
+    """``"SOURCE:SCALE:BAND"`` (e.g. ``measured:1.0:0.01``) -> FrictionCompensation, or None."""
+    if not spec:
+        return None
+    import dataclasses
+    src, scale, band = spec.split(":")
+    return dataclasses.replace(friction_compensation(params, scale=float(scale), w_band=float(band)), source=src)
+
+
 def _dominant_freq(t, x) -> float:
     dt = t[1] - t[0]
     f = np.fft.rfftfreq(t.size, dt)
@@ -111,8 +122,8 @@ def _dominant_freq(t, x) -> float:
 
 
 def _job(args):
-    exp, law, k, two_way, noise, seed, coulomb = args
-    r = run_experiment(exp, law, k, two_way=two_way, noise=noise, seed=seed, coulomb=coulomb)
+    exp, law, k, two_way, noise, seed, coulomb, ff = args
+    r = run_experiment(exp, law, k, two_way=two_way, noise=noise, seed=seed, coulomb=coulomb, friction_ff=ff)
     return (exp, law, seed), r
 
 
@@ -235,6 +246,9 @@ def main(argv=None):
     ap.add_argument("--out", default="out/damping_ch8")
     ap.add_argument("--no-coulomb", action="store_true",
                     help="diagnostic: plant without the joints' Coulomb friction (viscous friction kept)")
+    ap.add_argument("--friction-ff", default=None, metavar="SOURCE:SCALE:BAND",
+                    help="Coulomb feed-forward of the velocity loop from the A.3 friction model, "
+                         "e.g. measured:1.0:0.01 (source reference|measured|command, scale, ramp rad/s)")
     a = ap.parse_args(argv)
     exps = a.experiments.split(",")
     plants = ("one-way", "two-way") if a.plant == "both" else (a.plant,)
@@ -251,18 +265,20 @@ def main(argv=None):
                 gains[law], c = tune(law, two_way=two_way, x0=gains[law])
                 print(f"[{plant}] tuned {law}: k = {np.round(gains[law], 1).tolist()} (IATS cost {c:.3g})",
                       flush=True)
-        jobs = [(e, law, gains[law], two_way, a.noise, s, not a.no_coulomb) for e in exps for law in LAWS
+        jobs = [(e, law, gains[law], two_way, a.noise, s, not a.no_coulomb, a.friction_ff) for e in exps for law in LAWS
                 for s in range(a.reps)]
         results = {}
         with ProcessPoolExecutor(max_workers=a.jobs) as ex:
             for key, r in ex.map(_job, jobs, chunksize=4):
                 results[key] = r
         table = evaluate(results, exps, LAWS, a.reps)
-        meta = {"plant": plant + (" without Coulomb friction" if a.no_coulomb else ""), "reps": a.reps,
+        meta = {"plant": plant + (" without Coulomb friction" if a.no_coulomb else "")
+                + (f", Coulomb feed-forward {a.friction_ff}" if a.friction_ff else ""), "reps": a.reps,
                 "noise": a.noise, "gains": gains, "experiments": exps,
                 "wall_s": time.time() - t0, "cpu": cpu_model(), "jobs": a.jobs,
                 "operating_points_deg": OPS_DEG}
-        out = os.path.join(a.out, plant + ("-no-coulomb" if a.no_coulomb else ""))
+        out = os.path.join(a.out, plant + ("-no-coulomb" if a.no_coulomb else "")
+                           + (f"-ff-{a.friction_ff.replace(':', '_')}" if a.friction_ff else ""))
         write_outputs(table, exps, LAWS, out, meta)
         r06 = table.get(("online", "06", "proportional"))
         if r06:

@@ -86,3 +86,57 @@ def test_bad_design_arguments_raise():
         design_cascade(P, [0.1, 0.2])
     with pytest.raises(ValueError, match="dt"):
         JointCascade(design_cascade(P, INERTIA), 0.0, [0, 0, 0])
+
+
+# -- Coulomb feed-forward of the velocity loop -----------------------------------------------------
+def test_friction_feedforward_matches_coulomb_part_of_model_outside_ramp():
+    from tudorvision.joint.cascade import friction_compensation
+    fc = friction_compensation(P, w_band=0.01)
+    rng = np.random.default_rng(3)
+    w = rng.uniform(0.02, 1.0, size=(20, 3)) * rng.choice([-1.0, 1.0], size=(20, 3))
+    # oracle: model 3.1.3 minus its viscous part is the Coulomb torque
+    coul = friction_torque(w, P)
+    n2 = np.asarray(P.gear_ratio) ** 2
+    visc = np.where(w > 0, n2 * P.viscous_pos_Nms_rad, n2 * P.viscous_neg_Nms_rad) * w
+    assert np.allclose(fc.voltage(w) * motor_gain(P), coul - visc)
+    # inside the ramp: linear, zero at zero reference (no torque at rest)
+    assert np.allclose(fc.voltage([0.0, 0.0, 0.0]), 0.0)
+    assert np.allclose(fc.voltage([0.005, 0.005, -0.005]),
+                       0.5 * fc.voltage([0.01, 0.01, -0.01]))
+
+
+def test_friction_compensation_arguments_checked():
+    from tudorvision.joint.cascade import friction_compensation
+    with pytest.raises(ValueError, match="scale, w_band"):
+        friction_compensation(P, scale=-0.1)
+    with pytest.raises(ValueError, match="scale, w_band"):
+        friction_compensation(P, w_band=0.0)
+
+
+def _track_small_sine(friction, duration_s=1.5):
+    """Joint 2 of the rigid plant with Coulomb friction follows a 2.4 Hz, 0.02 rad/s velocity command."""
+    from tudorvision.sim.arm import ElasticArm, PlantConfig, zero_config_inertia
+    arm = ElasticArm([0.0, 0.8, -0.8], params=P, config=PlantConfig(elastic=False))
+    ctrl = JointCascade(design_cascade(P, zero_config_inertia(arm)), arm.config.dt, arm.measured_theta(),
+                        friction=friction)
+    w, amp = 2 * np.pi * 2.4, 0.02
+    th0 = list(arm.theta)
+    err = []
+    for k in range(int(duration_s / arm.config.dt)):
+        t = k * arm.config.dt
+        wref = amp * np.sin(w * t)
+        ref = [th0[0], th0[1] + amp / w * (1.0 - np.cos(w * t)), th0[2]]
+        arm.step(ctrl.step(arm.measured_theta(), ref, [0.0, wref, 0.0]))
+        if t > 0.5:          # after the gravity sag is integrated away
+            err.append(arm.dtheta[1] - amp * np.sin(w * (t + arm.config.dt)))
+    return float(np.sqrt(np.mean(np.square(err))))
+
+
+def test_friction_feedforward_improves_small_velocity_tracking_against_coulomb_friction():
+    import dataclasses
+
+    from tudorvision.joint.cascade import friction_compensation
+    bare = _track_small_sine(None)
+    fc = dataclasses.replace(friction_compensation(P, w_band=0.01), source="measured")
+    comp = _track_small_sine(fc)
+    assert comp < 0.7 * bare

@@ -36,6 +36,18 @@ feed-forward is the planned velocity and ``extra`` is the damping input of
 the oscillation controllers (e.g. ``-k_eps * eps_tilde``, eq. 5.2.1). The
 output voltage saturates at the intermittent torque limit; the integrator
 stops integrating while saturated (anti-windup).
+
+Friction feed-forward (optional, :class:`FrictionCompensation`): the
+controller's own identified Coulomb terms of (3.1.3) (appendix A.3, reflected
+through the gear) are added to the PI output as a voltage
+``(k_c+ s+(w) - k_c- s-(w)) / k_M`` with the switching functions of (3.1.5)
+smoothed into ramps over ``|w| < w_band`` on the velocity reference ``w`` of
+the PI loop (not on the measured velocity: no chatter from encoder
+quantisation at rest). The PI integrator then only carries gravity and
+model error, so small velocity commands (e.g. the damping input of 5.2.1 at
+small strain amplitude) move the joint at once instead of waiting until the
+integrator has built up the break-away torque (section 3.2: the velocity
+loop compensates the joint friction).
 """
 from __future__ import annotations
 
@@ -47,7 +59,8 @@ from .._checks import check_array
 from ..robot.params import RobotParams
 
 __all__ = ["motor_gain", "reflected_inertia", "reflected_viscous", "friction_torque",
-           "CascadeGains", "design_cascade", "JointCascade"]
+           "CascadeGains", "design_cascade", "FrictionCompensation", "friction_compensation",
+           "JointCascade"]
 
 
 def motor_gain(params: RobotParams) -> np.ndarray:
@@ -177,6 +190,77 @@ def design_cascade(params: RobotParams, effective_inertia_kg_m2, *, t_d: float =
     )
 
 
+@dataclass(frozen=True, kw_only=True)
+class FrictionCompensation:
+    """Coulomb friction feed-forward of the velocity loop (model 3.1.3).
+
+    Attributes
+    ----------
+    coulomb_pos, coulomb_neg : ndarray, shape (3,)
+        Coulomb magnitudes at the gear output for positive / negative motion, N m (>= 0).
+    motor_gain : ndarray, shape (3,)
+        ``k_M`` (N m per volt) to turn the torque into an amplifier voltage.
+    w_band : float
+        Half-width of the linear ramp replacing the sign switch around zero
+        velocity reference, rad/s (> 0).
+    """
+
+    coulomb_pos: np.ndarray
+    coulomb_neg: np.ndarray
+    motor_gain: np.ndarray
+    w_band: float = 0.002
+    source: str = "reference"
+
+    def voltage(self, w_ref) -> np.ndarray:
+        """Feed-forward voltages for velocity references ``w_ref`` (shape (3,) or (N, 3)), volts.
+
+        Examples
+        --------
+        >>> from tudorvision.robot import load_robot_params
+        >>> fc = friction_compensation(load_robot_params())
+        >>> v = fc.voltage([0.1, -0.1, 0.0])
+        >>> bool(v[0] > 0 and v[1] < 0 and v[2] == 0)
+        True
+        """
+        w = np.asarray(w_ref, dtype=np.float64)
+        s = np.clip(w / self.w_band, -1.0, 1.0)
+        tau = np.where(s > 0, self.coulomb_pos * s, self.coulomb_neg * s)
+        return tau / self.motor_gain
+
+
+def friction_compensation(params: RobotParams, *, scale: float = 1.0,
+                          w_band: float = 0.002) -> FrictionCompensation:
+    """Coulomb feed-forward from the identified friction model of appendix A.3.
+
+    Parameters
+    ----------
+    params : RobotParams
+    scale : float
+        Fraction of the identified Coulomb torque to compensate (0..1.5);
+        below 1 leaves a margin for friction that dropped since identification.
+    w_band : float
+        Ramp half-width around zero velocity reference, rad/s (> 0).
+
+    Raises
+    ------
+    ValueError
+        On a negative or too large ``scale`` or a non-positive ``w_band``.
+
+    Examples
+    --------
+    >>> from tudorvision.robot import load_robot_params
+    >>> fc = friction_compensation(load_robot_params())
+    >>> np.round(fc.coulomb_pos, 3).tolist()
+    [0.072, 0.768, 0.367]
+    """
+    if not 0.0 <= scale <= 1.5 or not w_band > 0:
+        raise ValueError(f"scale, w_band: expected 0 <= scale <= 1.5 and w_band > 0, got {scale}, {w_band}")
+    n = np.asarray(params.gear_ratio, float)
+    return FrictionCompensation(coulomb_pos=scale * n * np.asarray(params.coulomb_pos_Nm, float),
+                                coulomb_neg=scale * n * np.asarray(params.coulomb_neg_Nm, float),
+                                motor_gain=motor_gain(params), w_band=float(w_band))
+
+
 class JointCascade:
     """Discrete cascaded controller for the three joints (state between samples).
 
@@ -187,6 +271,9 @@ class JointCascade:
         Sample time, seconds (0.0005 at 2 kHz).
     theta0 : array_like, shape (3,)
         Initial encoder reading, radians.
+    friction : FrictionCompensation, optional
+        Coulomb feed-forward on the velocity reference (default none: the PI
+        integrator alone overcomes friction).
 
     Examples
     --------
@@ -197,7 +284,7 @@ class JointCascade:
     True
     """
 
-    def __init__(self, gains: CascadeGains, dt: float, theta0):
+    def __init__(self, gains: CascadeGains, dt: float, theta0, *, friction: FrictionCompensation | None = None):
         if not dt > 0:
             raise ValueError(f"dt: expected > 0, got {dt}")
         self.gains = gains
@@ -212,6 +299,11 @@ class JointCascade:
         self._tpd = [float(g.t_pd[j]) for j in range(3)]
         self._tl = [float(g.t_l[j]) for j in range(3)]
         self._vlim = [float(g.v_limit[j]) for j in range(3)]
+        self.friction = friction
+        self._fc = None if friction is None else (
+            [float(friction.coulomb_pos[j] / friction.motor_gain[j]) for j in range(3)],
+            [float(friction.coulomb_neg[j] / friction.motor_gain[j]) for j in range(3)],
+            1.0 / float(friction.w_band), ("reference", "measured", "command").index(friction.source))
         self.reset(th)
 
     def reset(self, theta) -> None:
@@ -246,6 +338,7 @@ class JointCascade:
             Amplifier input voltages ``v_M``, volts (``tau_E = k_M v_M``).
         """
         dt = self.dt
+        fc = self._fc
         out = [0.0, 0.0, 0.0]
         for j in range(3):
             th = theta_meas[j]
@@ -264,6 +357,11 @@ class JointCascade:
             ew = wref - vel
             integ = self._integ[j] + self._ki_vel[j] * ew * dt
             u = self._kp_vel[j] * ew + integ
+            if fc is not None:          # Coulomb feed-forward on the velocity reference
+                src = fc[3]
+                s = (wref if src == 0 else (vel if src == 1 else dtheta_ff[j] + dtheta_extra[j])) * fc[2]
+                s = 1.0 if s > 1.0 else (-1.0 if s < -1.0 else s)
+                u += (fc[0][j] if s > 0 else fc[1][j]) * s
             lim = self._vlim[j]
             if u > lim:
                 u = lim

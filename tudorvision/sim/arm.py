@@ -1223,6 +1223,8 @@ class ControlledArm:
     damping : callable, optional
         ``f(arm) -> 3 floats`` added at the velocity-loop input every sample
         (e.g. ``-k_eps * eps_tilde``, eq. 5.2.1).
+    friction : tudorvision.joint.cascade.FrictionCompensation, optional
+        Coulomb feed-forward of the velocity loop (default none, the bare PI loop).
 
     Examples
     --------
@@ -1233,7 +1235,7 @@ class ControlledArm:
     0.2
     """
 
-    def __init__(self, arm: ElasticArm, *, gains=None, v_max=None, a_max=None, damping=None):
+    def __init__(self, arm: ElasticArm, *, gains=None, v_max=None, a_max=None, damping=None, friction=None):
         from ..joint.planner import OnlinePlanner
         self.arm = arm
         p = arm.params
@@ -1242,7 +1244,7 @@ class ControlledArm:
         self.a_max = np.minimum(p.experiment_accel_rad_s2, p.max_accel_rad_s2) if a_max is None \
             else check_vector(np.broadcast_to(np.asarray(a_max, float), (3,)), "a_max", 3)
         self.controller = JointCascade(gains or design_cascade(p, zero_config_inertia(arm)),
-                                       arm.config.dt, arm.measured_theta())
+                                       arm.config.dt, arm.measured_theta(), friction=friction)
         self.damping = damping
         # -- joint-layer hooks (tudorvision.joint.damping / .collision) --------------------
         self.damper = None          # StrainDamper: strain feedback (velocity and position level)
