@@ -363,6 +363,10 @@ def _largest_inner_component(mask: np.ndarray, border: int, min_area: float):
     return best
 
 
+_K5 = np.ones((5, 5), np.uint8)
+_K3 = np.ones((3, 3), np.uint8)
+
+
 def extract_square(bgr, depth_m=None, *, config: FeatureConfig = FeatureConfig()) -> SquareFeatures:
     """Find the black square: sub-pixel centroid, ordered corners, depth at each.
 
@@ -426,25 +430,26 @@ def extract_square(bgr, depth_m=None, *, config: FeatureConfig = FeatureConfig()
             or x0 + st_r[best, 0] + st_r[best, 2] > w - config.border_px
             or y0 + st_r[best, 1] + st_r[best, 3] > h - config.border_px):
         return SquareFeatures.lost("no dark region inside the image")
-    roi = roi8.astype(np.float64)
     region = labels == best
-    dark = float(np.median(roi[region]))
-    ring = cv2.dilate(region.astype(np.uint8), np.ones((5, 5), np.uint8), iterations=2).astype(bool) & ~cv2.dilate(
-        region.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
+    region8 = region.view(np.uint8)
+    dark = float(np.median(roi8[region]))
+    # the region grown by 2 px (5x5 once); grown twice it bounds the ground ring
+    near8 = cv2.dilate(region8, _K5)
+    ring = cv2.dilate(near8, _K5).view(bool) & ~cv2.dilate(region8, _K3).view(bool)
     if not ring.any():
         return SquareFeatures.lost("no ground around the dark region")
-    light = float(np.median(roi[ring]))
+    light = float(np.median(roi8[ring]))
     if light - dark < config.min_contrast:
         return SquareFeatures.lost(f"contrast {light - dark:.0f} below {config.min_contrast:.0f}")
     # grey-level weights: 1 inside, 0 on the ground, fractional on anti-aliased edges;
     # restricted to the region grown by 2 px so other dark things do not pull
-    near = cv2.dilate(region.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
-    wgt = np.clip((light - roi) / (light - dark), 0.0, 1.0) * near
+    roi = roi8.astype(np.float64)
+    wgt = np.clip((light - roi) / (light - dark), 0.0, 1.0) * near8
     m00 = wgt.sum()
     centroid = np.array([wgt.sum(axis=0) @ np.arange(x0, x1, dtype=np.float64),
                          wgt.sum(axis=1) @ np.arange(y0, y1, dtype=np.float64)]) / m00
     # corners: 4-gon of the contour, refined on the grey image
-    cnts, _ = cv2.findContours(region.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    cnts, _ = cv2.findContours(region8, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     cnt = max(cnts, key=cv2.contourArea)
     peri = cv2.arcLength(cnt, True)
     quad = None
