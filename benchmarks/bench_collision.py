@@ -50,6 +50,11 @@ V_ID, A_ID = np.array([1.0, 70.0, 70.0]) * DEG, np.array([1.0, 200.0, 200.0]) * 
 K_EPS = (0.0, 400.0, 1600.0)
 #: Residual runs start 1 s before the counted/evaluated period (start-up sag, see random_motion).
 ARMED_AFTER_S = 1.0
+#: Lag (s) of the observer's angle and strain inputs, matched to the cascade's velocity filter t_d
+#: (set by --input-lag; 0: raw angles and strains with the filtered velocity).
+INPUT_LAG_S = [0.0]
+#: Corner (Hz) of the high-pass on the detection residual (set by --detect-highpass; 0: off).
+DETECT_HP_HZ = [0.0]
 
 
 
@@ -78,7 +83,8 @@ def random_motion(plates, seconds, *, noise, seed, monitor_args=None, record=Tru
     mon = None
     if monitor_args is not None:
         model, thr, strategy = monitor_args
-        mon = CollisionMonitor(model, thr, arm.payload.mass_kg, arm.config.dt, reaction_config(strategy), k_i=k_i)
+        mon = CollisionMonitor(model, thr, arm.payload.mass_kg, arm.config.dt, reaction_config(strategy), k_i=k_i,
+                              input_lag_s=INPUT_LAG_S[0], detect_highpass_hz=DETECT_HP_HZ[0])
         ca.reaction = mon
     n = int(round(seconds / arm.config.dt))
     th, eps, res = np.empty((n, 3)), np.empty((n, 2)), np.empty((n, 2))
@@ -153,7 +159,7 @@ def contact_scenario(kind, strategy, model, thr, *, noise, seed=7, seconds=2.5, 
     if strategy != "no detection":
         mon = CollisionMonitor(model, thr, arm.payload.mass_kg, arm.config.dt, reaction_config(
             strategy, torque_per_strain=root_torque_per_strain(arm.params)), k_i=k_i,
-            armed_after_s=0.1)                              # start-up sag, as SimCore
+            armed_after_s=0.1, input_lag_s=INPUT_LAG_S[0], detect_highpass_hz=DETECT_HP_HZ[0])    # start-up sag, as SimCore
         ca.reaction = mon
     ca.set_goal(goal)
     n = int(round(seconds / arm.config.dt))
@@ -185,10 +191,16 @@ def main(argv=None):
                     help="load the identified model from --out and recompute the thresholds (e.g. for another K_I)")
     ap.add_argument("--reuse", action="store_true",
                     help="load the model and thresholds of an earlier run from --out (skip steps 1-2)")
+    ap.add_argument("--detect-highpass", type=float, default=0.0,
+                    help="corner (Hz) of the high-pass on the detection residual; 0: off (the seed's rule)")
+    ap.add_argument("--input-lag", type=float, default=0.0,
+                    help="lag (s) of the observer's angle/strain inputs, matched to the velocity filter")
     a = ap.parse_args(argv)
+    DETECT_HP_HZ[0], INPUT_LAG_S[0] = a.detect_highpass, a.input_lag
     os.makedirs(a.out, exist_ok=True)
     t0 = time.time()
-    report = {"cpu": cpu_model(), "jobs": a.jobs, "noise": a.noise, "k_eps": K_EPS, "k_i": a.k_i}
+    report = {"cpu": cpu_model(), "jobs": a.jobs, "noise": a.noise, "k_eps": K_EPS, "k_i": a.k_i,
+              "detect_highpass_hz": a.detect_highpass, "input_lag_s": a.input_lag}
     with ProcessPoolExecutor(max_workers=a.jobs) as ex:
         if a.reuse:
             prev = json.load(open(os.path.join(a.out, "collision.json")))

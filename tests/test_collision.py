@@ -179,3 +179,56 @@ def test_monitor_arms_after_the_given_time():
         if mon.collision:
             break
     assert mon.detected_at == pytest.approx(0.0505, abs=1e-9)    # the first armed sample (k_i dt = 1)
+
+
+def test_detection_highpass_removes_slow_unmodelled_strain_and_keeps_contact_onset():
+    """Residual of a zero model = strain; a 1.5 Hz oscillation is attenuated, a step onset passes."""
+    dt, fc = 5e-4, 5.0
+    t = np.arange(0.0, 3.0, dt)
+    zero = StrainDynamicsModel(chi=np.zeros((2, 2 * N_PARAMS)))
+
+    def run(rows, hp):
+        mon = CollisionMonitor(zero, [np.inf, np.inf], 0.3, dt, reaction_config("none"), k_i=2000.0,
+                               detect_highpass_hz=hp)
+        out = []
+        for row in rows:
+            mon.step([0.0, 0.5, 0.1], [0.0] * 3, row, [0.0] * 3, [0.0] * 3, [0.0] * 3)
+            out.append(mon.residual[1])
+        return np.asarray(out)
+
+    osc = np.zeros((t.size, 4))
+    osc[:, 0] = 100e-6 * np.sin(2 * np.pi * 1.5 * t)
+    tail = t > 1.0
+    ratio = np.abs(run(osc, fc)[tail]).max() / np.abs(run(osc, 0.0)[tail]).max()
+    # first-order high-pass gain at 1.5 Hz: (f/fc) / sqrt(1 + (f/fc)^2) = 0.287
+    assert ratio == pytest.approx(0.287, abs=0.02)
+    step = np.zeros((t.size, 4))
+    step[t >= 1.0, 0] = 100e-6
+    r = run(step, fc)
+    k = np.searchsorted(t, 1.005)                 # 5 ms after onset: exp(-2 pi fc 5 ms) = 0.855 remains
+    assert r[k] == pytest.approx(100e-6 * np.exp(-2 * np.pi * fc * 0.005), rel=0.05)
+    assert abs(r[-1]) < 1e-6                      # a sustained load fades from the detection residual
+    with pytest.raises(ValueError, match="detect_highpass_hz"):
+        CollisionMonitor(zero, [1e-5, 1e-5], 0.3, dt, detect_highpass_hz=-1.0)
+
+
+def test_input_lag_keeps_model_consistent_residual_small():
+    """With all inputs through the same first-order filter, a model-consistent motion gives a small residual."""
+    rng = np.random.default_rng(5)
+    model = _true_model(rng)
+    dt, td = 5e-4, 0.003
+    t = np.arange(0, 2.0, dt)
+    th, d, dd = _trajectory(t)
+    eps = model.predict(th, d, dd, 0.3)
+    a = dt / (td + dt)
+    d_f = np.zeros_like(d)                      # the cascade's filtered velocity
+    d_f[0] = d[0]
+    for k in range(1, t.size):
+        d_f[k] = d_f[k - 1] + a * (d[k] - d_f[k - 1])
+    res = {}
+    for lag in (0.0, td):
+        obs = MomentumObserver(model, 0.3, k_i=100.0, dt=dt, input_lag_s=lag)
+        res[lag] = np.array([obs.step(th[k], d_f[k], eps[k]) for k in range(t.size)])
+    assert np.abs(res[td][t > 0.2]).max() < 0.5 * np.abs(res[0.0][t > 0.2]).max()
+    with pytest.raises(ValueError, match="input_lag_s"):
+        MomentumObserver(model, 0.3, dt=dt, input_lag_s=-1.0)

@@ -262,9 +262,14 @@ class MomentumObserver:
         Sample time, seconds.
     """
 
-    def __init__(self, model: StrainDynamicsModel, payload_kg: float, *, k_i=100.0, dt: float):
+    def __init__(self, model: StrainDynamicsModel, payload_kg: float, *, k_i=100.0, dt: float,
+                 input_lag_s: float = 0.0):
         if not dt > 0:
             raise ValueError(f"dt: expected > 0, got {dt}")
+        if not input_lag_s >= 0:
+            raise ValueError(f"input_lag_s: expected >= 0, got {input_lag_s}")
+        # the same first-order filter 1/(t s + 1) on angles and strains as on the velocity input
+        self._alpha = float(dt) / (float(input_lag_s) + float(dt))
         k = np.broadcast_to(np.asarray(k_i, dtype=np.float64), (2,))
         if np.any(k <= 0):
             raise ValueError(f"k_i: expected > 0, got {k_i}")
@@ -284,7 +289,24 @@ class MomentumObserver:
         self.r = [0.0, 0.0]
 
     def step(self, theta, dtheta, eps2) -> list:
-        """One sample; ``eps2`` are the two root strains (m/m). Returns the residual (2 floats)."""
+        """One sample; ``eps2`` are the two root strains (m/m). Returns the residual (2 floats).
+
+        With ``input_lag_s > 0`` the angles and strains first pass the same
+        first-order filter as the (filtered encoder) velocity ``dtheta``, so
+        that all inputs of the model carry the same lag.
+        """
+        a = self._alpha
+        if a < 1.0:
+            if not self._started:
+                self._thf = [float(theta[1]), float(theta[2])]
+                self._ef = [float(eps2[0]), float(eps2[1])]
+            thf, ef = self._thf, self._ef
+            thf[0] += a * (theta[1] - thf[0])
+            thf[1] += a * (theta[2] - thf[1])
+            ef[0] += a * (eps2[0] - ef[0])
+            ef[1] += a * (eps2[1] - ef[1])
+            theta = (0.0, thf[0], thf[1])
+            eps2 = ef
         I, dI, cor, g = StrainDynamicsModel.terms(self._chi, theta[2], theta[1], dtheta[1], dtheta[2])
         d2, d3 = dtheta[1], dtheta[2]
         p = [I[0, 0] * d2 + I[0, 1] * d3, I[1, 0] * d2 + I[1, 1] * d3]
@@ -477,11 +499,23 @@ class CollisionMonitor:
     armed_after_s : float
         No detection during this time after construction (the observer runs):
         e.g. while the cascade takes up the gravity load after power-up.
+    input_lag_s : float
+        Lag of the first-order filter applied to the observer's angle and
+        strain inputs (match the cascade's velocity filter ``t_d``); 0: raw.
+    detect_highpass_hz : float
+        Corner of a first-order high-pass on the residual used for detection
+        and isolation (not for the reaction torque); 0: off (the seed's
+        rule on the residual itself). It removes the slow part of the
+        residual, i.e. the unmodelled link oscillation below the corner
+        (first mode 1.5-3 Hz with payload), and keeps the contact onset; a
+        sustained contact fades from the detection residual after detection
+        (the latch holds).
 
     Attributes
     ----------
     residual : list of 3 floats
-        Per joint (joint 1: 0).
+        Per joint (joint 1: 0); the detection residual (high-passed when
+        ``detect_highpass_hz > 0``).
     collision : bool
         Latched after the first detection until :meth:`reset`.
     detected_at : float or None
@@ -495,13 +529,17 @@ class CollisionMonitor:
 
     def __init__(self, model: StrainDynamicsModel, thresholds, payload_kg: float, dt: float,
                  config: ReactionConfig = ReactionConfig(), *, k_i: float = 100.0,
-                 isolation_window_s: float = 0.015, armed_after_s: float = 0.0):
-        if not isolation_window_s >= 0 or not armed_after_s >= 0:
-            raise ValueError(f"isolation_window_s, armed_after_s: expected >= 0, got {isolation_window_s}, "
-                             f"{armed_after_s}")
+                 isolation_window_s: float = 0.015, armed_after_s: float = 0.0, input_lag_s: float = 0.0,
+                 detect_highpass_hz: float = 0.0):
+        if not isolation_window_s >= 0 or not armed_after_s >= 0 or not detect_highpass_hz >= 0:
+            raise ValueError(f"isolation_window_s, armed_after_s, detect_highpass_hz: expected >= 0, got "
+                             f"{isolation_window_s}, {armed_after_s}, {detect_highpass_hz}")
+        w = 2.0 * math.pi * float(detect_highpass_hz) * float(dt)
+        self._hp_a = w / (1.0 + w)          # backward-Euler low-pass; high-pass = r - low-pass
+        self._lp = None
         self._armed_k = int(round(float(armed_after_s) / float(dt)))
         self.isolation_window_s = float(isolation_window_s)
-        self.observer = MomentumObserver(model, payload_kg, k_i=k_i, dt=dt)
+        self.observer = MomentumObserver(model, payload_kg, k_i=k_i, dt=dt, input_lag_s=input_lag_s)
         self.thresholds = [float(x) for x in check_array(thresholds, "thresholds", (2,), finite=False)]
         self.config = config
         self.dt = float(dt)
@@ -526,7 +564,15 @@ class CollisionMonitor:
 
     def step(self, theta, dtheta, strain, theta_ref, dtheta_ref, extra):
         """One control sample; see the class docstring for the return value."""
-        r = self.observer.step(theta, dtheta, (strain[ROOT_GAUGES[0]], strain[ROOT_GAUGES[1]]))
+        r_full = self.observer.step(theta, dtheta, (strain[ROOT_GAUGES[0]], strain[ROOT_GAUGES[1]]))
+        r = r_full
+        if self._hp_a > 0.0:
+            if self._lp is None:
+                self._lp = list(r_full)
+            lp, a = self._lp, self._hp_a
+            lp[0] += a * (r_full[0] - lp[0])
+            lp[1] += a * (r_full[1] - lp[1])
+            r = [r_full[0] - lp[0], r_full[1] - lp[1]]
         self.residual = [0.0, r[0], r[1]]
         self._k += 1
         if not self.collision and self._k > self._armed_k:
@@ -545,7 +591,7 @@ class CollisionMonitor:
         v = [0.0, 0.0, 0.0]
         if c.strategy != "stop":
             for i in range(2):
-                tau = -c.torque_per_strain[i] * r[i]
+                tau = -c.torque_per_strain[i] * r_full[i]
                 v[i + 1] = self._adm[i].step(tau)
         return list(theta), [0.0, 0.0, 0.0], [v[j] + extra[j] for j in range(3)]
 
