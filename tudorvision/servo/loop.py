@@ -240,7 +240,7 @@ class LabConfig:
     roi_render : bool
         Ray-cast only the pixel box around the square and fill the rest of
         the frame with the ground's radiance and plane depth
-        (:class:`~tudorvision.servo.lab_render.RoiRenderer`: the same image
+        (:class:`~tudorvision.sim.roi_render.RoiRenderer`: the same image
         distribution as the full render, several times faster).
     supersample : int
         With ``roi_render``: ``k x k`` colour samples per pixel around the
@@ -354,7 +354,7 @@ class ServoLab:
         """Render the eye-in-hand RGB-D frame now: ``(bgr, depth_m)`` with NaN invalid depth."""
         from ..sim import render_rgbd, with_pose
         from .features import depth_m_from_raw
-        from .lab_render import RoiRenderer
+        from ..sim.roi_render import RoiRenderer
         cam = with_pose(self.camera, self.T_world_cam())
         rng = self.rng if self.noise else None
         if self.config.roi_render:

@@ -12,6 +12,7 @@ from .camera import (PinholeCamera, intrinsic_matrix, look_at, project_points, s
                      with_pose)
 from .lighting import AmbientLight, DirectionalLight, PointLight, SensorModel, Varying
 from .record import KINDS, RecordOptions, elastic_arm_geometry, record
+from .roi_render import RoiRenderer
 from .render import (Box, Capsule, Cylinder, Disc, GBuffer, Rectangle, Scene, Sphere, depth_sigma_m,
                      render_bgr, render_gbuffer, render_rgbd)
 from .render import DepthModel as DepthNoiseModel
@@ -25,7 +26,7 @@ __all__ = [
     "ModalBasis", "cantilever_static", "modal_basis", "surface_strain",
     "PinholeCamera", "intrinsic_matrix", "look_at", "project_points", "sphere_silhouette_centroid", "with_pose",
     "AmbientLight", "DirectionalLight", "PointLight", "SensorModel", "Varying",
-    "KINDS", "RecordOptions", "elastic_arm_geometry", "record",
+    "KINDS", "RecordOptions", "elastic_arm_geometry", "record", "RoiRenderer",
     "Box", "Capsule", "Cylinder", "Disc", "GBuffer", "Rectangle", "Scene", "Sphere", "depth_sigma_m",
     "render_bgr", "render_gbuffer", "render_rgbd", "DepthNoiseModel",
     "ArmGeometry", "SimSetup", "StereoRigConfig", "arm_geometry_from_joints", "ball_throw", "checkerboard_lab",

@@ -4,7 +4,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from tudorvision.servo.lab_render import RoiRenderer
+from tudorvision.sim.roi_render import RoiRenderer
 from tudorvision.sim import eye_in_hand, render_rgbd, with_pose
 from tudorvision.sim.lighting import PointLight
 from tudorvision.sim.render import DepthModel, Scene

@@ -63,8 +63,8 @@ class RoiRenderer:
 
     def __init__(self, scene, depth_model, *, sensor=None, ground_name: str = "ground", max_fraction: float = 0.5,
                  supersample: int = 1):
-        from ..sim.lighting import AmbientLight, DirectionalLight, SensorModel
-        from ..sim.render import Rectangle
+        from .lighting import AmbientLight, DirectionalLight, SensorModel
+        from .render import Rectangle
         self.scene = scene
         self.depth_model = depth_model
         self.sensor = sensor if sensor is not None else SensorModel()
@@ -85,7 +85,7 @@ class RoiRenderer:
 
     # ---------------------------------------------------------------------------------------
     def _full(self, camera, t, rng):
-        from ..sim import render_rgbd
+        from .render import render_rgbd
         self.n_full += 1
         bgr, depth, _ = render_rgbd(camera, self.scene, t, rng=rng, depth_model=self.depth_model,
                                     sensor=self.sensor)
@@ -93,7 +93,7 @@ class RoiRenderer:
 
     @staticmethod
     def _crop(camera, v0, v1, u0, u1):
-        from ..sim.camera import PinholeCamera
+        from .camera import PinholeCamera
         K = np.array(camera.K, dtype=np.float64)
         K[0, 2] -= u0
         K[1, 2] -= v0
@@ -116,7 +116,7 @@ class RoiRenderer:
 
     def _ground_covers(self, camera) -> bool:
         """All four image-corner rays hit the ground rectangle (then, it being convex, every ray does)."""
-        from ..sim.camera import camera_center_world
+        from .camera import camera_center_world
         H, W = camera.height, camera.width
         K = camera.K
         uv = np.array([[0.0, 0.0], [W - 1.0, 0.0], [W - 1.0, H - 1.0], [0.0, H - 1.0]])
@@ -139,8 +139,8 @@ class RoiRenderer:
         rng : numpy.random.Generator, optional
             Sensor noise; None renders noise-free.
         """
-        from ..sim.lighting import apply_sensor
-        from ..sim.render import depth_mm_from_gbuffer, pixel_bboxes, render_gbuffer, render_radiance
+        from .lighting import apply_sensor
+        from .render import depth_mm_from_gbuffer, pixel_bboxes, render_gbuffer, render_radiance
         if not self.applicable or np.any(np.asarray(camera.dist) != 0) or not self._ground_covers(camera):
             return self._full(camera, t, rng)
         H, W = camera.height, camera.width
@@ -191,8 +191,8 @@ class RoiRenderer:
 
     def _supersampled_radiance(self, camera, t, v0, v1, u0, u1):
         """Radiance of the box averaged over ``k x k`` samples per pixel (float32, (h, w, 3))."""
-        from ..sim.camera import PinholeCamera
-        from ..sim.render import render_radiance
+        from .camera import PinholeCamera
+        from .render import render_radiance
         k = self.supersample
         K = np.array(camera.K, dtype=np.float64)
         Ks = K.copy()
@@ -214,7 +214,7 @@ class RoiRenderer:
         65536 outputs per channel is computed by ``apply_sensor`` itself, then
         each pixel draws a uniform 16-bit index (from ``rng.bytes``).
         """
-        from ..sim.lighting import apply_sensor
+        from .lighting import apply_sensor
         H, W = shape
         key = tuple(np.asarray(ground_rad, np.float32).tolist())
         table = self._tables.get(key)
@@ -243,7 +243,7 @@ class RoiRenderer:
         None when the plane itself would show depth edges (grazing view),
         so that the caller falls back to the full render.
         """
-        from ..sim.render import depth_sigma_m
+        from .render import depth_sigma_m
         m = self.depth_model
         z = self._ground_depth(camera)
         if not np.all(np.isfinite(z)) or np.any(z <= 0):
@@ -279,101 +279,3 @@ class _IndexRng:
             raise TypeError("_IndexRng only serves the sensor model's 16-bit table draws")
         idx = np.arange(65536, dtype=dtype).reshape((65536,) + (1,) * (len(size) - 1))
         return np.broadcast_to(idx, size).copy()
-
-    @staticmethod
-    def _crop(camera, v0, v1, u0, u1):
-        from ..sim.camera import PinholeCamera
-        K = np.array(camera.K, dtype=np.float64)
-        K[0, 2] -= u0
-        K[1, 2] -= v0
-        return PinholeCamera(K=K, dist=camera.dist, width=u1 - u0, height=v1 - v0, T_world_cam=camera.T_world_cam)
-
-    def _ground_depth(self, camera) -> np.ndarray:
-        """Depth z (H, W) of the ground plane at every pixel centre (zero distortion)."""
-        H, W = camera.height, camera.width
-        T = camera.T_world_cam
-        n = self.ground.normal
-        n_cam = T[:3, :3].T @ n
-        h = float(n @ (self.ground.center - T[:3, 3]))
-        K = camera.K
-        y = (np.arange(H, dtype=np.float64) - K[1, 2]) / K[1, 1]
-        x = (np.arange(W, dtype=np.float64) - K[0, 2]) / K[0, 0]
-        # x of pixel (u, v) is (u - cx - s y) / fx; s is zero for this lab's cameras but kept exact
-        den = (n_cam[0] * x)[None, :] + (n_cam[1] * y + n_cam[2] - n_cam[0] * K[0, 1] / K[0, 0] * y)[:, None]
-        with np.errstate(divide="ignore"):
-            return h / den
-
-    def _ground_covers(self, camera) -> bool:
-        """All four image-corner rays hit the ground rectangle (then, it being convex, every ray does)."""
-        from ..sim.camera import camera_center_world
-        H, W = camera.height, camera.width
-        K = camera.K
-        uv = np.array([[0.0, 0.0], [W - 1.0, 0.0], [W - 1.0, H - 1.0], [0.0, H - 1.0]])
-        y = (uv[:, 1] - K[1, 2]) / K[1, 1]
-        x = (uv[:, 0] - K[0, 2] - K[0, 1] * y) / K[0, 0]
-        d_cam = np.stack([x, y, np.ones(4)])
-        d = camera.T_world_cam[:3, :3] @ (d_cam / np.linalg.norm(d_cam, axis=0))
-        t = self.ground.intersect(camera_center_world(camera), d)
-        return bool(np.all(np.isfinite(t)))
-
-    def render(self, camera, t: float, *, rng: np.random.Generator | None = None):
-        """One frame: ``(bgr uint8 (H, W, 3), depth uint16 (H, W))`` as :func:`~tudorvision.sim.render.render_rgbd`.
-
-        Parameters
-        ----------
-        camera : PinholeCamera
-            The full camera at its current pose.
-        t : float
-            Scene time, seconds.
-        rng : numpy.random.Generator, optional
-            Sensor noise; None renders noise-free.
-        """
-        from ..sim.lighting import apply_sensor
-        from ..sim.render import depth_mm_from_gbuffer, pixel_bboxes, render_gbuffer, render_radiance
-        if not self.applicable or np.any(np.asarray(camera.dist) != 0) or not self._ground_covers(camera):
-            return self._full(camera, t, rng)
-        H, W = camera.height, camera.width
-        shapes = list(self.foreground_static)
-        if self.scene.dynamic is not None:
-            shapes += list(self.scene.dynamic(t))
-        boxes = [b for b in pixel_bboxes(camera, [s.corners() for s in shapes]) if b is not None]
-        if any(s.corners() is None for s in shapes):
-            return self._full(camera, t, rng)
-        if boxes:
-            v0, v1 = min(b[0] for b in boxes), max(b[1] for b in boxes)
-            u0, u1 = min(b[2] for b in boxes), max(b[3] for b in boxes)
-            if (v1 - v0) * (u1 - u0) > self.max_fraction * H * W:
-                return self._full(camera, t, rng)
-        else:
-            v0 = v1 = u0 = u1 = 0
-        # a ground-only pixel: the image corner farthest from the box
-        corners = [(0, 0), (0, W - 1), (H - 1, 0), (H - 1, W - 1)]
-        gv, gu = max(corners, key=lambda c: max(v0 - c[0], c[0] - v1 + 1, 0) + max(u0 - c[1], c[1] - u1 + 1, 0))
-        if v0 <= gv < v1 and u0 <= gu < u1:
-            return self._full(camera, t, rng)
-        one = self._crop(camera, gv, gv + 1, gu, gu + 1)
-        g_one = render_gbuffer(one, self.scene, t)
-        if g_one.object_id[0, 0] != self.scene.static.index(self.ground) + 1:
-            return self._full(camera, t, rng)
-        ground_rad = render_radiance(one, self.scene, t)[0, 0]
-        ground_alb = g_one.albedo_rgb[0, 0]
-        rad, alb = self._buffers.get((H, W), (None, None))
-        if rad is None:
-            rad = np.empty((H, W, 3), np.float32)
-            alb = np.empty((H, W, 3), np.float32)
-            self._buffers[(H, W)] = (rad, alb)
-        rad[:] = ground_rad
-        alb[:] = ground_alb
-        z = self._ground_depth(camera)
-        if v1 > v0:
-            crop = self._crop(camera, v0, v1, u0, u1)
-            gb = render_gbuffer(crop, self.scene, t)
-            rad[v0:v1, u0:u1] = render_radiance(crop, self.scene, t)
-            alb[v0:v1, u0:u1] = gb.albedo_rgb
-            z[v0:v1, u0:u1] = gb.depth_m
-        self.n_roi += 1
-        bgr = apply_sensor(rad, self.sensor, rng)
-        depth = depth_mm_from_gbuffer(GBuffer(distance_m=None, depth_m=z, normal_world=None, object_id=None,
-                                              albedo_rgb=alb), self.depth_model, rng)
-        return bgr, depth
-
