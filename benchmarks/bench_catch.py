@@ -53,15 +53,18 @@ from _machine import cpu_model  # noqa: E402
 from tudorvision.catch.demo import DemoOptions, run_demo  # noqa: E402
 
 
-def fit_noise_scale(n_throws: int, seed: int) -> dict:
-    """Render throws, detect, and compare with the truth under the detector's covariance."""
-    from tudorvision.rgbd.ball import BallDetector, BallDetectorOptions
+
+def _throw_scene(rng):
+    """The wall camera's throw scene; the ball follows ``cur["f"] = (t, p)`` (off-stage when None).
+
+    Returns ``(cur, ball, setup, cam, K)``: the mutable flight holder, the
+    ball's true position ``ball(t)`` (world frame), the lab set-up, the RGB-D
+    camera and its intrinsics.
+    """
     from tudorvision.rgbd.frames import Intrinsics
-    from tudorvision.sim.record import T_WORLD_BASE, random_throw, throw_trajectory
-    from tudorvision.sim.render import render_rgbd
+    from tudorvision.sim.record import T_WORLD_BASE
     from tudorvision.sim.scenes import ball_throw
 
-    rng = np.random.default_rng(seed)
     cur = {"f": None}
 
     def ball(t):
@@ -72,7 +75,17 @@ def fit_noise_scale(n_throws: int, seed: int) -> dict:
 
     setup = ball_throw(ball, rng, T_world_base=T_WORLD_BASE)
     cam = setup.cameras["rgbd"]
-    K = Intrinsics.from_matrix(cam.K, cam.width, cam.height)
+    return cur, ball, setup, cam, Intrinsics.from_matrix(cam.K, cam.width, cam.height)
+
+
+def fit_noise_scale(n_throws: int, seed: int) -> dict:
+    """Render throws, detect, and compare with the truth under the detector's covariance."""
+    from tudorvision.rgbd.ball import BallDetector, BallDetectorOptions
+    from tudorvision.sim.record import random_throw, throw_trajectory
+    from tudorvision.sim.render import render_rgbd
+
+    rng = np.random.default_rng(seed)
+    cur, ball, setup, cam, K = _throw_scene(rng)
     det = BallDetector(K, BallDetectorOptions(), n_background=10)
     for k in range(10):
         det.update(render_rgbd(cam, setup.scene, 0.0, rng=rng)[1].astype(np.float32) / 1000)
@@ -165,24 +178,12 @@ def latency_only(n_throws: int, seed: int, repeats: int = 5) -> None:
     """Per-frame latency of the catching perception on pre-rendered wall-camera frames."""
     from tudorvision.catch.demo import CatchPerception, detection_to_base
     from tudorvision.rgbd.ball import BallDetector, BallDetectorOptions
-    from tudorvision.rgbd.frames import Intrinsics
     from tudorvision.robot import load_robot_params
     from tudorvision.sim.record import T_WORLD_BASE, random_throw, throw_trajectory
     from tudorvision.sim.render import render_rgbd
-    from tudorvision.sim.scenes import ball_throw
 
     rng = np.random.default_rng(seed)
-    cur = {"f": None}
-
-    def ball(t):
-        f = cur["f"]
-        if f is None or t > f[0][-1]:
-            return np.array([5.0, 5.0, -5.0])
-        return np.array([np.interp(t, f[0], f[1][:, j]) for j in range(3)])
-
-    setup = ball_throw(ball, rng, T_world_base=T_WORLD_BASE)
-    cam = setup.cameras["rgbd"]
-    K = Intrinsics.from_matrix(cam.K, cam.width, cam.height)
+    cur, _ball, setup, cam, K = _throw_scene(rng)
     T_base_cam = np.linalg.inv(T_WORLD_BASE) @ cam.T_world_cam
     background = [render_rgbd(cam, setup.scene, 0.0, rng=rng)[1] for _ in range(10)]
     throws = []
