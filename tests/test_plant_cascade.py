@@ -140,3 +140,34 @@ def test_friction_feedforward_improves_small_velocity_tracking_against_coulomb_f
     fc = dataclasses.replace(friction_compensation(P, w_band=0.01), source="measured")
     comp = _track_small_sine(fc)
     assert comp < 0.7 * bare
+
+
+def test_velocity_reference_saturates_at_the_rated_speed_only_when_asked():
+    p = load_robot_params()
+    gains = design_cascade(p, [0.3, 0.8, 0.15])
+    wmax = np.asarray(p.max_speed_rad_s)
+    extra = [3.0 * wmax[0], -3.0 * wmax[1], 0.5 * wmax[2]]         # damping input far past the limit
+    capped = JointCascade(gains, 0.0005, [0, 0, 0], max_speed_rad_s=wmax)
+    free = JointCascade(gains, 0.0005, [0, 0, 0])
+    capped.step([0.0, 0.0, 0.0], [0.0, 0.0, 0.0], dtheta_extra=extra)
+    free.step([0.0, 0.0, 0.0], [0.0, 0.0, 0.0], dtheta_extra=extra)
+    np.testing.assert_allclose(capped.velocity_ref, [wmax[0], -wmax[1], 0.5 * wmax[2]])
+    np.testing.assert_allclose(free.velocity_ref, extra)
+    with pytest.raises(ValueError, match="max_speed_rad_s"):
+        JointCascade(gains, 0.0005, [0, 0, 0], max_speed_rad_s=[1.0, 0.0, 1.0])
+
+
+def test_simulated_joint_stays_near_its_rated_speed_under_a_huge_damping_input():
+    from tudorvision.sim.arm import ControlledArm, ElasticArm
+    p = load_robot_params()
+    for saturate, bound in ((True, 1.05), (False, None)):
+        ca = ControlledArm(ElasticArm([0.0, 0.8, 0.0]), damping=lambda arm: (0.0, 5.0, 0.0),
+                           saturate_speed=saturate)
+        peak = 0.0
+        for _ in range(600):                       # 0.3 s at 2 kHz; the position loop then pulls back
+            ca.step()
+            peak = max(peak, abs(ca.arm.dtheta[1]))
+        if bound is not None:
+            assert peak <= bound * p.max_speed_rad_s[1]
+        else:
+            assert peak > 1.1 * p.max_speed_rad_s[1]      # past the layer's 1.05 over-speed fault

@@ -51,6 +51,7 @@ loop compensates the joint friction).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -274,6 +275,11 @@ class JointCascade:
     friction : FrictionCompensation, optional
         Coulomb feed-forward on the velocity reference (default none: the PI
         integrator alone overcomes friction).
+    max_speed_rad_s : array_like, shape (3,), optional
+        Saturation of the velocity reference (PD output + planned velocity +
+        damping input) per joint, rad/s; default none. With the rated joint
+        speeds, a damping input on top of a fast profile cannot ask the
+        velocity loop for more than the actuator's rated speed.
 
     Examples
     --------
@@ -284,7 +290,8 @@ class JointCascade:
     True
     """
 
-    def __init__(self, gains: CascadeGains, dt: float, theta0, *, friction: FrictionCompensation | None = None):
+    def __init__(self, gains: CascadeGains, dt: float, theta0, *, friction: FrictionCompensation | None = None,
+                 max_speed_rad_s=None):
         if not dt > 0:
             raise ValueError(f"dt: expected > 0, got {dt}")
         self.gains = gains
@@ -299,6 +306,13 @@ class JointCascade:
         self._tpd = [float(g.t_pd[j]) for j in range(3)]
         self._tl = [float(g.t_l[j]) for j in range(3)]
         self._vlim = [float(g.v_limit[j]) for j in range(3)]
+        if max_speed_rad_s is None:
+            self._wmax = [math.inf] * 3
+        else:
+            wmax = check_array(max_speed_rad_s, "max_speed_rad_s", (3,))
+            if np.any(wmax <= 0):
+                raise ValueError(f"max_speed_rad_s: expected positive speeds, got {wmax.tolist()}")
+            self._wmax = [float(x) for x in wmax]
         self.friction = friction
         self._fc = None if friction is None else (
             [float(friction.coulomb_pos[j] / friction.motor_gain[j]) for j in range(3)],
@@ -354,6 +368,11 @@ class JointCascade:
             self._pd[j] = pd
             self._e_prev[j] = e
             wref = pd + dtheta_ff[j] + dtheta_extra[j]
+            wmax = self._wmax[j]
+            if wref > wmax:
+                wref = wmax
+            elif wref < -wmax:
+                wref = -wmax
             ew = wref - vel
             integ = self._integ[j] + self._ki_vel[j] * ew * dt
             u = self._kp_vel[j] * ew + integ

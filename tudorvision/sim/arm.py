@@ -1225,6 +1225,10 @@ class ControlledArm:
         (e.g. ``-k_eps * eps_tilde``, eq. 5.2.1).
     friction : tudorvision.joint.cascade.FrictionCompensation, optional
         Coulomb feed-forward of the velocity loop (default none, the bare PI loop).
+    saturate_speed : bool
+        Saturate the velocity-loop reference at the rated joint speeds
+        (default True: a damping input on top of a fast profile cannot
+        drive a joint past its rated speed).
 
     Examples
     --------
@@ -1235,7 +1239,8 @@ class ControlledArm:
     0.2
     """
 
-    def __init__(self, arm: ElasticArm, *, gains=None, v_max=None, a_max=None, damping=None, friction=None):
+    def __init__(self, arm: ElasticArm, *, gains=None, v_max=None, a_max=None, damping=None, friction=None,
+                 saturate_speed: bool = True):
         from ..joint.planner import OnlinePlanner
         self.arm = arm
         p = arm.params
@@ -1244,7 +1249,8 @@ class ControlledArm:
         self.a_max = np.minimum(p.experiment_accel_rad_s2, p.max_accel_rad_s2) if a_max is None \
             else check_vector(np.broadcast_to(np.asarray(a_max, float), (3,)), "a_max", 3)
         self.controller = JointCascade(gains or design_cascade(p, zero_config_inertia(arm)),
-                                       arm.config.dt, arm.measured_theta(), friction=friction)
+                                       arm.config.dt, arm.measured_theta(), friction=friction,
+                                       max_speed_rad_s=p.max_speed_rad_s if saturate_speed else None)
         self.damping = damping
         # -- joint-layer hooks (tudorvision.joint.damping / .collision) --------------------
         self.damper = None          # StrainDamper: strain feedback (velocity and position level)
