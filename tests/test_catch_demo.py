@@ -90,3 +90,30 @@ def test_cli_open_loop_on_recorded_throws(tmp_path, capsys):
     # without T_base_cam: one clear line, exit 2
     assert main(["catch", str(SAMPLE), "--out", str(tmp_path / "ol2")]) == 2
     assert "T_base_cam" in capsys.readouterr().err
+
+
+class _FakeLayer:
+    """Layer stand-in: joint speed ``speed(t)``, constant strains."""
+
+    def __init__(self, speed):
+        self.t, self.speed = 0.0, speed
+
+    def advance_to(self, t):
+        self.t = t
+
+    def state(self):
+        from types import SimpleNamespace
+        return SimpleNamespace(strains=(1e-4, 2e-4, 3e-4, 4e-4), theta_dot=(0.0, self.speed(self.t), 0.0))
+
+
+def test_payload_is_weighed_only_with_the_arm_at_rest():
+    from tudorvision.catch.demo import WEIGH_REST_SPEED_RAD_S, _pause
+    t, strains = _pause(_FakeLayer(lambda t: 0.0), 0.0, 1.0, 30.0)
+    assert t == pytest.approx(1.0) and len(strains) == 18                 # the last 0.6 s at 30 Hz
+    np.testing.assert_allclose(np.mean(strains, axis=0), [1e-4, 2e-4, 3e-4, 4e-4])
+    # still arriving at the ready pose during the window: no weighing
+    _, strains = _pause(_FakeLayer(lambda t: 0.5 if t < 0.7 else 0.0), 0.0, 1.0, 30.0)
+    assert strains == []
+    # moving before the window only: weighed
+    _, strains = _pause(_FakeLayer(lambda t: 0.5 if t < 0.3 else 0.5 * WEIGH_REST_SPEED_RAD_S), 0.0, 1.0, 30.0)
+    assert len(strains) == 18

@@ -282,18 +282,28 @@ def _min_move_time(solutions, theta_now, max_speed: float, max_accel: float) -> 
     return best
 
 
+WEIGH_REST_SPEED_RAD_S = 0.02   # joints slower than this throughout the weighing window: the arm rests
+
+
 def _pause(layer, t_now: float, duration: float, rate: float, weigh_s: float = 0.6, on_frame=None):
-    """Advance the layer by ``duration`` s; strains sampled at ``rate`` over the last ``weigh_s`` s."""
+    """Advance the layer by ``duration`` s; strains sampled at ``rate`` over the last ``weigh_s`` s.
+
+    Returns the time and the strain samples, or an empty list when a joint
+    still moved during the weighing window (the arm had not reached the
+    ready pose yet: its strains carry the motion, not the payload).
+    """
     t_end = t_now + duration
-    strains = []
+    strains, moving = [], False
     while t_now < t_end - 1e-9:
         t_now = min(t_now + 1.0 / rate, t_end)
         layer.advance_to(t_now)
         if on_frame is not None:
             on_frame()
         if t_end - t_now < weigh_s:
-            strains.append(np.asarray(layer.state().strains))
-    return t_now, strains
+            st = layer.state()
+            strains.append(np.asarray(st.strains))
+            moving |= bool(np.max(np.abs(st.theta_dot)) > WEIGH_REST_SPEED_RAD_S)
+    return t_now, ([] if moving else strains)
 
 
 def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
@@ -558,7 +568,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
             payload_true = Payload.from_parts(params, balls=0)
             sim.arm.set_payload(payload_true)
             t_now, strains = _pause(core, t_now, o.empty_pause_s, rate, on_frame=recover)
-        if strains:     # mean over the last 0.6 s averages the residual swing; clipped to the trained range
+        if strains:     # at rest only; the mean over 0.6 s averages the residual swing; clipped to the trained range
             st = core.state()
             m = km.strain.payload(np.asarray(st.theta)[None, 1:], np.mean(strains, axis=0)[None])[0]
             payload_est = float(np.clip(m, 0.0, 0.5))
