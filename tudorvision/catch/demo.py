@@ -357,8 +357,8 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
     sim = SimCore(theta_ready, payload=payload_true, params=params)
     core = LockstepLayer(sim, rate_hz=o.layer_rate_hz)
     adapter = core.adapter
-    # profile speed 90 % of the slowest joint's limit: at the limit itself the links' swing pushed
-    # the measured joint speed past the layer's fault threshold (105 %)
+    # profile speed a fraction (speed_fraction) of the slowest joint's limit: at the limit itself the
+    # links' swing pushed the measured joint speed past the layer's fault threshold (105 %)
     max_speed = o.speed_fraction * float(np.min(params.max_speed_rad_s))
     max_accel = o.accel_fraction * float(np.min(params.max_accel_rad_s2))
     damping = {"off": Damping.OFF, "proportional": Damping.PROPORTIONAL, "integral": Damping.INTEGRAL,
@@ -368,24 +368,27 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
 
     last_sp = []
 
+    def setpoint(theta):
+        return adapter.send_setpoint(theta, max_speed=max_speed, max_accel=max_accel, timeout=5.0)
+
+    def clear_fault_and_resend(theta):
+        # the layer stopped the arm (speed or range fault): log it, clear it and send again
+        faults.append(float(t_now))
+        adapter.set_mode(Mode.SETPOINT, damping=damping)
+        return setpoint(theta)
+
     def send(theta) -> bool:
         last_sp[:] = [np.asarray(theta, float)]
-        reply = adapter.send_setpoint(theta, max_speed=max_speed, max_accel=max_accel, timeout=5.0)
+        reply = setpoint(theta)
         if isinstance(reply, Refusal) and reply.code == Reason.FAULT:
-            # the layer stopped the arm (speed or range fault): log it, clear it and send again
-            faults.append(float(t_now))
-            adapter.set_mode(Mode.SETPOINT, damping=damping)
-            reply = adapter.send_setpoint(theta, max_speed=max_speed, max_accel=max_accel, timeout=5.0)
+            reply = clear_fault_and_resend(theta)
         return isinstance(reply, Ack)
 
     def recover() -> None:
-        # checked every camera frame: a fault stop (the swing pushed a joint past the layer's speed
-        # limit) is cleared at once and the last setpoint sent again, instead of leaving the arm
-        # stopped until the next refinement or the next throw
+        # checked every camera frame: a fault stop is cleared at once and the last setpoint sent
+        # again, instead of leaving the arm stopped until the next refinement or the next throw
         if last_sp and core.state().flags & StateFlags.FAULT:
-            faults.append(float(t_now))
-            adapter.set_mode(Mode.SETPOINT, damping=damping)
-            adapter.send_setpoint(last_sp[0], max_speed=max_speed, max_accel=max_accel, timeout=5.0)
+            clear_fault_and_resend(last_sp[0])
 
     # ---- scene (the ball and the arm read the demo's current state)
     current = {"flight": None, "t0": 0.0}
@@ -508,7 +511,6 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
                             # the joints overshoot by up to 8 deg on fast moves: a setpoint near the
                             # edge of a range tripped the layer's range fault (1 deg tolerance)
                             th = np.clip(th, lims[:, 0] + o.setpoint_margin_rad, lims[:, 1] - o.setpoint_margin_rad)
-                        if th is not None:
                             if not send(th):
                                 refused += 1
                             theta_sp, arrive_t = th, None

@@ -184,13 +184,22 @@ def propagate(x, dt: float, model: BallModel = BallModel(), *, jacobian: bool = 
     [1.0, 0.0, -4.905, 1.0, 0.0, -9.81]
     """
     x = _check_state(x)
-    dt = float(dt)
-    k, g = model.drag_k_per_m, model.gravity_m_s2
-    n = max(1, int(np.ceil(abs(dt) / model.max_step_s)))
-    h = dt / n
     if jacobian:
-        return _propagate_floats_jac(x, n, h, k, g)
-    return _propagate_floats(x, n, h, k, g)
+        n, h = _substeps(float(dt), model)
+        return _propagate_floats_jac(x, n, h, model.drag_k_per_m, model.gravity_m_s2)
+    return _propagate_state(x, float(dt), model)
+
+
+def _substeps(dt: float, model: BallModel):
+    """RK4 sub-steps for ``dt``: their number and length (at most ``model.max_step_s`` each)."""
+    n = max(1, int(math.ceil(abs(dt) / model.max_step_s)))
+    return n, dt / n
+
+
+def _propagate_state(x, dt: float, model: BallModel) -> np.ndarray:
+    """:func:`propagate` without Jacobian and without the argument check (inner loops)."""
+    n, h = _substeps(dt, model)
+    return _propagate_floats(x, n, h, model.drag_k_per_m, model.gravity_m_s2)
 
 
 def _propagate_reference(x, dt, model):
@@ -198,8 +207,7 @@ def _propagate_reference(x, dt, model):
     # plain form of _propagate_floats_jac, kept as its test oracle
     x = _check_state(x).copy()
     k, g = model.drag_k_per_m, model.gravity_m_s2
-    n = max(1, int(np.ceil(abs(dt) / model.max_step_s)))
-    h = dt / n
+    n, h = _substeps(float(dt), model)
     F = np.eye(6)
     for _ in range(n):
         k1 = _f(x, k, g); K1 = _A(x, k) @ F

@@ -41,9 +41,9 @@ Friction feed-forward (optional, :class:`FrictionCompensation`): the
 controller's own identified Coulomb terms of (3.1.3) (appendix A.3, reflected
 through the gear) are added to the PI output as a voltage
 ``(k_c+ s+(w) - k_c- s-(w)) / k_M`` with the switching functions of (3.1.5)
-smoothed into ramps over ``|w| < w_band`` on the velocity reference ``w`` of
-the PI loop (not on the measured velocity: no chatter from encoder
-quantisation at rest). The PI integrator then only carries gravity and
+smoothed into ramps over ``|w| < w_band``, by default on the velocity
+reference ``w`` of the PI loop (``source="reference"``; the measured velocity,
+``"measured"``, chatters on the encoder quantisation at rest). The PI integrator then only carries gravity and
 model error, so small velocity commands (e.g. the damping input of 5.2.1 at
 small strain amplitude) move the joint at once instead of waiting until the
 integrator has built up the break-away torque (section 3.2: the velocity
@@ -191,6 +191,9 @@ def design_cascade(params: RobotParams, effective_inertia_kg_m2, *, t_d: float =
     )
 
 
+FRICTION_SOURCES = ("reference", "measured", "command")
+
+
 @dataclass(frozen=True, kw_only=True)
 class FrictionCompensation:
     """Coulomb friction feed-forward of the velocity loop (model 3.1.3).
@@ -204,6 +207,10 @@ class FrictionCompensation:
     w_band : float
         Half-width of the linear ramp replacing the sign switch around zero
         velocity reference, rad/s (> 0).
+    source : str
+        Signal the switching functions follow: ``"reference"`` (the PI loop's
+        velocity reference), ``"measured"`` (filtered encoder velocity) or
+        ``"command"`` (planned velocity + damping input).
     """
 
     coulomb_pos: np.ndarray
@@ -211,6 +218,10 @@ class FrictionCompensation:
     motor_gain: np.ndarray
     w_band: float = 0.002
     source: str = "reference"
+
+    def __post_init__(self):
+        if self.source not in FRICTION_SOURCES:
+            raise ValueError(f"source: expected one of {FRICTION_SOURCES}, got {self.source!r}")
 
     def voltage(self, w_ref) -> np.ndarray:
         """Feed-forward voltages for velocity references ``w_ref`` (shape (3,) or (N, 3)), volts.
@@ -317,7 +328,7 @@ class JointCascade:
         self._fc = None if friction is None else (
             [float(friction.coulomb_pos[j] / friction.motor_gain[j]) for j in range(3)],
             [float(friction.coulomb_neg[j] / friction.motor_gain[j]) for j in range(3)],
-            1.0 / float(friction.w_band), ("reference", "measured", "command").index(friction.source))
+            1.0 / float(friction.w_band), FRICTION_SOURCES.index(friction.source))
         self.reset(th)
 
     def reset(self, theta) -> None:

@@ -69,7 +69,7 @@ the damping law keeps acting. Strategies: ``stop`` (theta_dot_r = 0),
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -539,6 +539,7 @@ class CollisionMonitor:
         self._lp = None
         self._armed_k = int(round(float(armed_after_s) / float(dt)))
         self.isolation_window_s = float(isolation_window_s)
+        self._window_k = int(round(self.isolation_window_s / float(dt)))
         self.observer = MomentumObserver(model, payload_kg, k_i=k_i, dt=dt, input_lag_s=input_lag_s)
         self.thresholds = [float(x) for x in check_array(thresholds, "thresholds", (2,), finite=False)]
         self.config = config
@@ -602,7 +603,7 @@ class CollisionMonitor:
         if abs(r[0]) > thr[0] and not self._l2_sign:
             self._l2_sign = 1 if r[0] > 0 else -1
         self._r2_last = r[0]
-        window = int(round(self.isolation_window_s / self.dt))
+        window = self._window_k
         if self._l3_since is None and s3:
             self._l3_since, self._l3_sign = self._k, s3
         if self._l3_since is not None:

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..robot import T_base_ee, load_robot_params, within_limits
+from ..robot import T_base_ee, load_robot_params
 from .laws import LawConfig
 from .loop import (DEFAULT_SMOOTHING_FRAMES, LabConfig, ServoLab, VisualServo, run_closed_loop, teach_goal)
 
@@ -114,7 +114,8 @@ def run_one(spec: RunSpec, cfg: LabConfig, goal, p_goal, scene_seed: int) -> dic
     e0 = r.history["error_true_m"][0] if len(r.history["error_true_m"]) else float("nan")
     return {"law": spec.law, "payload_g": spec.payload_g, "pose": spec.pose,
             "start": "near" if spec.pose < 4 else "far", "repetition": spec.repetition,
-            "converged": int(r.converged), "end": r.end_reason, "settling_time_s": r.settling_time_s, "error_m": r.final_error_m,
+            "converged": int(r.converged), "end": r.end_reason, "settling_time_s": r.settling_time_s,
+            "error_m": r.final_error_m,
             "dx_m": r.final_offset_world[0], "dy_m": r.final_offset_world[1], "dz_m": r.final_offset_world[2],
             "start_error_m": float(e0), "frames": int(len(r.history["t"])),
             "stopped_frames": int(np.sum(~r.history["ok"])),
@@ -189,8 +190,9 @@ def repeatability(out, *, repetitions: int = 20, seed: int = 0, laws=("hybrid", 
         The summary (also written).
     """
     compare_repetitions = repetitions if compare_repetitions is None else int(compare_repetitions)
-    if repetitions < 1 or compare_repetitions < 1:
-        raise ValueError(f"repetitions: expected >= 1, got {repetitions}, {compare_repetitions}")
+    for name, n in (("repetitions", repetitions), ("compare_repetitions", compare_repetitions)):
+        if n < 1:
+            raise ValueError(f"{name}: expected >= 1, got {n}")
     for g in payloads_g:
         if g % 100 or g < 0:
             raise ValueError(f"payloads_g: expected multiples of 100 g, got {g}")

@@ -1,7 +1,6 @@
 """``tudorvision sim``: the virtual lab's commands (recordings and plant runs)."""
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
 import numpy as np

@@ -30,7 +30,7 @@ import numpy as np
 
 from .._checks import TudorVisionError
 from .._progress import progress
-from ..robot import load_robot_params, T_base_ee
+from ..robot import load_robot_params
 from ..robot.params import RobotParams
 from .arm import Payload, fk_elastic, simulate_ptp, spheres_from_T, ElasticArm
 from .camera import PinholeCamera, look_at

@@ -20,6 +20,8 @@ _IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".ppm", ".p
 
 def register(calib_sub) -> None:
     """Add the stereo calibration subcommands to the ``calib`` group."""
+    from .cli import add_luma_edge_argument
+
     p = calib_sub.add_parser(
         "stereo", help="stereo intrinsics/extrinsics from checkerboard image pairs",
         description="Calibrate a stereo pair from checkerboard image pairs: intrinsics, distortion, "
@@ -66,9 +68,8 @@ def register(calib_sub) -> None:
                         "[0, 90, 0] deg within --tol-deg)")
     b.add_argument("--tol-deg", type=float, default=1.0, help="joint tolerance for sweep/vertical rows (default 1)")
     b.add_argument("--robot-params", help="robot parameter YAML (default: packaged TUDOR parameters)")
-    b.add_argument("--luma-edge", choices=("auto", "on", "off"), default="auto",
-                   help="when tracking SEQ: locate the sphere rims on the luma edge (auto = on for JPEG "
-                        "frames and video; see 'track stereo --help')")
+    add_luma_edge_argument(b, "when tracking SEQ: locate the sphere rims on the luma edge (auto = on for JPEG "
+                              "frames and video; see 'track stereo --help')")
     b.add_argument("--out", required=True,
                    help="calibration file; T_base_left and circle_rmse_m are added (kept content otherwise)")
     b.set_defaults(func=run_base_stereo)

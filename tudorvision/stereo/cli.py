@@ -67,9 +67,7 @@ def register(subparsers) -> None:
                    help="known sphere distance in metres; frames whose triangulated distance is off by more "
                         "than 3 cm are flagged invalid (default: from the robot parameters; 0 disables)")
     s.add_argument("--strict", action="store_true", help="stop at the first corrupt frame instead of skipping it")
-    s.add_argument("--luma-edge", choices=("auto", "on", "off"), default="auto",
-                   help="locate the sphere rims on the luma edge (robust to the colour smear of JPEG and video; "
-                        "about halves the tracking speed): auto = on for JPEG frames and video files (default auto)")
+    add_luma_edge_argument(s)
     s.set_defaults(func=run_track_stereo)
 
     m = tsub.add_parser(
@@ -83,13 +81,18 @@ def register(subparsers) -> None:
     m.add_argument("--out", required=True, help="pixel track CSV to write")
     m.add_argument("--full-frame", action="store_true", help="search every full frame (no tracking windows)")
     m.add_argument("--strict", action="store_true", help="stop at the first undecodable frame")
-    m.add_argument("--luma-edge", choices=("auto", "on", "off"), default="auto",
-                   help="locate the sphere rims on the luma edge (robust to the colour smear of JPEG and video; "
-                        "about halves the tracking speed): auto = on for JPEG frames and video files (default auto)")
+    add_luma_edge_argument(m)
     m.set_defaults(func=run_track_mono)
 
 
 # ----------------------------------------------------------------------------- helpers
+def add_luma_edge_argument(parser, help_text: str = "locate the sphere rims on the luma edge (robust to the "
+                           "colour smear of JPEG and video; about halves the tracking speed): auto = on for JPEG "
+                           "frames and video files (default auto)") -> None:
+    """The ``--luma-edge auto|on|off`` option of the commands that track spheres (see :func:`luma_edge_params`)."""
+    parser.add_argument("--luma-edge", choices=("auto", "on", "off"), default="auto", help=help_text)
+
+
 def luma_edge_params(choice: str, source):
     """``TrackerParams`` for ``--luma-edge`` (auto: on for JPEG frames and video) and a line saying which.
 

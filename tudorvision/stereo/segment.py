@@ -713,6 +713,11 @@ def _refine_shape(filled: np.ndarray, r_area: float, params: SegmentParams, box_
     return fu + bx, fv + by, fr, frac, rms, used
 
 
+def _edge_source(frame, model, params, blur):
+    """The frame's :class:`_EdgeSource` when ``params.edge_refine`` asks for the luma edge, else None."""
+    return _EdgeSource(frame, model, blur) if params.edge_refine else None
+
+
 class _EdgeSource:
     """Luma and log-odds patches of the full frame for the luma edge (step 4c), private.
 
@@ -756,7 +761,7 @@ def _detect_window(frame: _Frame, model: ColorModel, params: SegmentParams, roi:
     x0, y0, w, h = roi
     lo = _log_odds_planes(frame.window_planes(x0, y0, w, h), model, blur)
     return _candidates(lo, params, (x0, y0), (frame.width, frame.height), blur,
-                       erode=int(params.erode_radius_px), edge_src=_EdgeSource(frame, model, blur))
+                       erode=int(params.erode_radius_px), edge_src=_edge_source(frame, model, params, blur))
 
 
 def _grow_roi(bbox, margin: int, width: int, height: int) -> tuple:
@@ -771,7 +776,7 @@ def _detect_full(frame: _Frame, model: ColorModel, params: SegmentParams, blur: 
     if step == 1:
         lo = _log_odds_planes(frame.full_planes(), model, blur)
         found = _candidates(lo, params, (0, 0), (frame.width, frame.height), blur,
-                            erode=int(params.erode_radius_px), edge_src=_EdgeSource(frame, model, blur))
+                            erode=int(params.erode_radius_px), edge_src=_edge_source(frame, model, params, blur))
         return found[0] if found else _none()
     # coarse pass on the decimated frame, no erosion (it would erase small spheres there)
     lo = _log_odds_planes(frame.coarse_planes(step), model, blur)
