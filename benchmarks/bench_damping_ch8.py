@@ -25,8 +25,17 @@ controller sees (double moving average of the noisy measurement, 0.5 s
 windows), as in the seed; ``dynamic`` is the noise-free true strain minus the
 static strain of the current pose (what oscillates).
 
+Model-assisted static strain cancellation (``--model-assist``, off by default):
+a strain-referred dynamics model (chapter 10) is identified on the same plant
+by least squares from APRBS motions with payloads 0-400 g (damping on, other
+noise seeds than the experiments), or loaded with ``--model chi.npy``; the
+damper subtracts the model's expected root strains along the planned reference
+before the double moving average (:class:`tudorvision.joint.damping.StrainDamper`,
+``strain_model``). Proportional gains then default to ``ASSISTED_GAINS``.
+
 Run:  .venv/bin/python benchmarks/bench_damping_ch8.py [--reps 20] [--plant one-way|two-way|both]
-      [--noise 2e-6] [--jobs 2] [--tune] [--no-coulomb] [--friction-ff SRC:SCALE:BAND] [--out out/damping_ch8]
+      [--noise 2e-6] [--jobs 2] [--tune] [--no-coulomb] [--friction-ff SRC:SCALE:BAND]
+      [--model-assist [--model chi.npy] [--id-seconds 30]] [--laws off,proportional] [--out out/damping_ch8]
 """
 from __future__ import annotations
 
@@ -42,7 +51,9 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from tudorvision.joint.cascade import friction_compensation
-from tudorvision.joint.damping import ONE_WAY_GAINS, TWO_WAY_GAINS, DampingConfig, StrainDamper
+from tudorvision.joint.collision import StrainDynamicsModel, aprbs, derivatives, fit_report, fit_strain_dynamics
+from tudorvision.joint.damping import (ASSISTED_GAINS, ONE_WAY_GAINS, TWO_WAY_GAINS, DampingConfig,
+                                       StrainDamper)
 from tudorvision.joint.metrics import METRIC_NAMES, damping_metrics, iats, normalise_metrics
 from tudorvision.robot import load_robot_params
 from tudorvision.sim.arm import ControlledArm, ElasticArm, Payload, PlantConfig, link_static_loads
@@ -72,14 +83,16 @@ def static_strain_link2_root(arm: ElasticArm, theta) -> np.ndarray:
 
 def run_experiment(exp: str, law: str, k_eps, *, two_way: bool, noise: float, seed: int,
                    horizon_s: float = HORIZON_S, plates: int = 3, coulomb: bool = True,
-                   friction_ff: str | None = None) -> dict:
+                   friction_ff: str | None = None, model_chi=None) -> dict:
     """Simulate one run; return time series needed by the metrics (decimated to 500 Hz)."""
     p = load_robot_params()
     start, goal = (np.deg2rad(v) for v in EXPERIMENTS[exp])
     cfg = PlantConfig(two_way=two_way, strain_noise_m_m=noise, noise_seed=seed, coulomb_friction=coulomb)
     arm = ElasticArm(start, payload=Payload.from_parts(p, plates=plates), params=p, config=cfg)
     ca = ControlledArm(arm, friction=_friction(friction_ff, p))
-    damper = StrainDamper(DampingConfig(law=law, k_eps=k_eps), arm.measured_strain(), cfg.dt)
+    model = None if model_chi is None else StrainDynamicsModel(chi=np.asarray(model_chi))
+    damper = StrainDamper(DampingConfig(law=law, k_eps=k_eps), arm.measured_strain(), cfg.dt,
+                          strain_model=model, payload_kg=arm.payload.mass_kg)
     ca.set_damper(damper)
     ca.set_goal(goal)
     n = int(round(horizon_s / cfg.dt))
@@ -122,9 +135,75 @@ def _dominant_freq(t, x) -> float:
 
 
 def _job(args):
-    exp, law, k, two_way, noise, seed, coulomb, ff = args
-    r = run_experiment(exp, law, k, two_way=two_way, noise=noise, seed=seed, coulomb=coulomb, friction_ff=ff)
+    exp, law, k, two_way, noise, seed, coulomb, ff, chi = args
+    r = run_experiment(exp, law, k, two_way=two_way, noise=noise, seed=seed, coulomb=coulomb, friction_ff=ff,
+                       model_chi=chi)
     return (exp, law, seed), r
+
+
+#: APRBS ranges of the identification for the model-assisted cancellation (joints 2, 3): they
+#: cover the operating points of figure 8.1 (joint 2 from horizontal to horizontal).
+ID_LO, ID_HI = np.deg2rad([-5.0, -60.0]), np.deg2rad([185.0, 60.0])
+
+
+def _id_run(args):
+    """APRBS motion of joints 2, 3 with proportional damping; 100 Hz samples for the fit."""
+    plates, seconds, two_way, noise, seed, coulomb = args
+    p = load_robot_params()
+    rng = np.random.default_rng(seed)
+    times, levels = aprbs(rng, seconds, ID_LO, ID_HI)
+    cfg = PlantConfig(two_way=two_way, strain_noise_m_m=noise, noise_seed=seed, coulomb_friction=coulomb)
+    arm = ElasticArm([0.0, levels[0, 0], levels[0, 1]], payload=Payload.from_parts(p, plates=plates), params=p,
+                     config=cfg)
+    ca = ControlledArm(arm)
+    # damped as in the seed's identification (10.4); ONE_WAY_GAINS' link-3 gain lets the long APRBS
+    # runs grow joint-3 oscillations (see ASSISTED_GAINS), so the assisted gains damp here
+    k = ASSISTED_GAINS["two-way" if two_way else "one-way"]
+    ca.set_damper(StrainDamper(DampingConfig(law="proportional", k_eps=k), arm.measured_strain(), cfg.dt))
+    n = int(round(seconds / cfg.dt))
+    th, eps = np.empty((n, 3)), np.empty((n, 2))
+    nxt = 1
+    for k in range(n):
+        if nxt < times.size and k * cfg.dt >= times[nxt]:
+            ca.set_goal([0.0, levels[nxt, 0], levels[nxt, 1]])
+            nxt += 1
+        ca.step()
+        th[k] = arm.measured_theta()
+        ms = arm.measured_strain()
+        eps[k] = ms[0], ms[2]
+    t = np.arange(n) * cfg.dt
+    d, dd = derivatives(t, th, window_s=0.04)
+    sl = slice(200, -200, 20)
+    return {"t": t[sl], "theta": th[sl], "d": d[sl], "dd": dd[sl], "eps": eps[sl],
+            "m": np.full(t[sl].size, arm.payload.mass_kg), "plates": plates}
+
+
+def identify(*, two_way: bool, seconds: float, noise: float, coulomb: bool, jobs: int):
+    """Strain-referred dynamics (10.2.8) by least squares on APRBS runs, payloads 0-400 g.
+
+    Fit on alternate 5 s blocks, validation (B.4 goodness of fit) on the others. Noise
+    seeds 900+ (the experiments use 0..reps-1).
+
+    Returns
+    -------
+    model : StrainDynamicsModel
+    fits : dict
+        Validation fit (%) and RMSE (um/m) of the link-2 / link-3 root strain per payload.
+    """
+    args = [(pl, seconds, two_way, noise, 900 + pl, coulomb) for pl in range(5)]
+    with ProcessPoolExecutor(max_workers=jobs) as ex:
+        data = list(ex.map(_id_run, args))
+    cat = {k: np.concatenate([d[k] for d in data]) for k in ("theta", "d", "dd", "eps", "m")}
+    blk = np.concatenate([(d["t"] // 5.0).astype(int) % 2 for d in data]).astype(bool)
+    model = fit_strain_dynamics(cat["theta"][~blk], cat["d"][~blk], cat["dd"][~blk], cat["eps"][~blk],
+                                cat["m"][~blk])
+    fits = {}
+    for d in data:
+        b = ((d["t"] // 5.0).astype(int) % 2).astype(bool)
+        rep = fit_report(model, d["theta"][b], d["d"][b], d["dd"][b], d["eps"][b], d["m"][b])
+        fits[f"{100 * d['plates']} g"] = {"fit_pct": np.round(rep.fit_pct, 1).tolist(),
+                                          "rmse_um_m": np.round(np.array(rep.rmse) * 1e6, 2).tolist()}
+    return model, fits
 
 
 def tune(law: str, *, two_way: bool, x0=None, maxiter: int = 40) -> tuple:
@@ -249,14 +328,35 @@ def main(argv=None):
     ap.add_argument("--friction-ff", default=None, metavar="SOURCE:SCALE:BAND",
                     help="Coulomb feed-forward of the velocity loop from the A.3 friction model, "
                          "e.g. measured:1.0:0.01 (source reference|measured|command, scale, ramp rad/s)")
+    ap.add_argument("--model-assist", action="store_true",
+                    help="model-assisted static strain cancellation (identified strain dynamics, chapter 10)")
+    ap.add_argument("--model", default=None, help="chi.npy of a StrainDynamicsModel (default: identify first)")
+    ap.add_argument("--id-seconds", type=float, default=30.0, help="APRBS seconds per payload (identification)")
+    ap.add_argument("--laws", default=",".join(LAWS), help="comma-separated laws (off is always run)")
     a = ap.parse_args(argv)
     exps = a.experiments.split(",")
+    laws = tuple(["off"] + [x for x in a.laws.split(",") if x and x != "off"])
+    bad = [x for x in laws if x not in LAWS]
+    if bad:
+        ap.error(f"--laws: unknown {bad}; expected some of {list(LAWS)}")
     plants = ("one-way", "two-way") if a.plant == "both" else (a.plant,)
     for plant in plants:
         two_way = plant == "two-way"
         table = TWO_WAY_GAINS if two_way else ONE_WAY_GAINS
         gains = {law: table.get(law, (0.0, 0.0, 0.0)) for law in LAWS}
         gains["off"] = (0.0, 0.0, 0.0)
+        chi, fits = None, None
+        if a.model_assist:
+            gains["proportional"] = ASSISTED_GAINS["two-way" if two_way else "one-way"]
+            if a.model:
+                chi = np.load(a.model)
+            else:
+                t_id = time.time()
+                model, fits = identify(two_way=two_way, seconds=a.id_seconds, noise=a.noise,
+                                       coulomb=not a.no_coulomb, jobs=a.jobs)
+                chi = model.chi
+                print(f"[{plant}] identified strain dynamics in {time.time() - t_id:.0f} s; validation fit "
+                      f"(link-2 / link-3 root): {fits}", flush=True)
         if a.gains:
             gains.update({k: tuple(v) for k, v in json.loads(a.gains).get(plant, {}).items()})
         t0 = time.time()
@@ -265,21 +365,28 @@ def main(argv=None):
                 gains[law], c = tune(law, two_way=two_way, x0=gains[law])
                 print(f"[{plant}] tuned {law}: k = {np.round(gains[law], 1).tolist()} (IATS cost {c:.3g})",
                       flush=True)
-        jobs = [(e, law, gains[law], two_way, a.noise, s, not a.no_coulomb, a.friction_ff) for e in exps for law in LAWS
-                for s in range(a.reps)]
+        jobs = [(e, law, gains[law], two_way, a.noise, s, not a.no_coulomb, a.friction_ff, chi) for e in exps
+                for law in laws for s in range(a.reps)]
         results = {}
         with ProcessPoolExecutor(max_workers=a.jobs) as ex:
             for key, r in ex.map(_job, jobs, chunksize=4):
                 results[key] = r
-        table = evaluate(results, exps, LAWS, a.reps)
+        table = evaluate(results, exps, laws, a.reps)
         meta = {"plant": plant + (" without Coulomb friction" if a.no_coulomb else "")
-                + (f", Coulomb feed-forward {a.friction_ff}" if a.friction_ff else ""), "reps": a.reps,
+                + (f", Coulomb feed-forward {a.friction_ff}" if a.friction_ff else "")
+                + (", model-assisted static strain cancellation" if a.model_assist else ""), "reps": a.reps,
                 "noise": a.noise, "gains": gains, "experiments": exps,
                 "wall_s": time.time() - t0, "cpu": cpu_model(), "jobs": a.jobs,
                 "operating_points_deg": OPS_DEG}
+        if fits is not None:
+            meta["identification_fit"] = fits
+            meta["identification_seconds_per_payload"] = a.id_seconds
         out = os.path.join(a.out, plant + ("-no-coulomb" if a.no_coulomb else "")
-                           + (f"-ff-{a.friction_ff.replace(':', '_')}" if a.friction_ff else ""))
-        write_outputs(table, exps, LAWS, out, meta)
+                           + (f"-ff-{a.friction_ff.replace(':', '_')}" if a.friction_ff else "")
+                           + ("-model-assist" if a.model_assist else ""))
+        write_outputs(table, exps, laws, out, meta)
+        if chi is not None:
+            np.save(os.path.join(out, "chi.npy"), chi)
         r06 = table.get(("online", "06", "proportional"))
         if r06:
             print(f"[{plant}] exp 06 proportional: strain settling {r06['strain_settling_s_abs']:.2f} s "

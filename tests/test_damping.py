@@ -133,3 +133,101 @@ def test_coulomb_friction_switch_of_the_plant_sticks_or_slides():
         moved[coulomb] = arm.theta[1] - 1.0
     assert moved[True] == 0.0                 # below breakaway: the joint sticks
     assert moved[False] > 1e-4                # without Coulomb friction the same torque turns it
+
+
+# --------------------------------------------------------------- model-assisted static strain cancellation
+class _QuasiStaticModel:
+    """Root strains of a known linear quasi-static law, ``a sin(theta2) + b ddtheta2`` (links 2, 3)."""
+
+    def __init__(self, a=(4e-4, 1e-4), b=(3e-5, -2e-5)):
+        self.a, self.b = np.asarray(a), np.asarray(b)
+        self.calls = []
+
+    def predict(self, theta, dtheta, ddtheta, payload_kg):
+        th, ddth = np.asarray(theta), np.asarray(ddtheta)
+        self.calls.append((th.copy(), np.asarray(dtheta).copy(), ddth.copy(), payload_kg))
+        return np.sin(th[:, 1:2]) * self.a + ddth[:, 1:2] * self.b
+
+
+def _motion(n, dt):
+    """Smooth 0 -> 0.8 rad move of joint 2 (cosine velocity profile over 0.6 s), then rest."""
+    t = np.arange(n) * dt
+    T = 0.6
+    tau = np.clip(t / T, 0.0, 1.0)
+    th2 = 0.8 * (tau - np.sin(2 * np.pi * tau) / (2 * np.pi))
+    dth2 = np.where(t < T, 0.8 / T * (1 - np.cos(2 * np.pi * tau)), 0.0)
+    ddth2 = np.where(t < T, 0.8 / T * (2 * np.pi / T) * np.sin(2 * np.pi * tau), 0.0)
+    return th2, dth2, ddth2
+
+
+def test_model_assisted_cancellation_removes_the_quasi_static_strain():
+    """Strain = the model's quasi-static strain + an oscillation: with the model the filter output is
+    the oscillation from the start (oracle: the same filter applied to the oscillation alone), without
+    it the quasi-static change leaks through for the filter's 2N samples."""
+    dt, n = 1e-3, 3000
+    th2, dth2, ddth2 = _motion(n, dt)
+    osc = 2e-5 * np.sin(2 * np.pi * 2.5 * np.arange(n) * dt)
+    model = _QuasiStaticModel()
+    ref = [([0.0, th2[k], 0.0], [0.0, dth2[k], 0.0], [0.0, ddth2[k], 0.0]) for k in range(n)]
+    q = model.predict(np.array([r[0] for r in ref]), None, np.array([r[2] for r in ref]), 0.3)
+    model.calls.clear()
+    strain = np.zeros((n, 4))
+    strain[:, 0] = 1e-4 + q[:, 0] + osc
+    strain[:, 2] = -5e-5 + q[:, 1] - osc
+    cfg = DampingConfig(law="proportional", k_eps=(0.0, 100.0, 100.0), n_window=200)
+    plain = StrainDamper(cfg, strain[0], dt)
+    assisted = StrainDamper(cfg, strain[0], dt, strain_model=model, payload_kg=0.3)
+    oracle = StaticStrainFilter([0.0, 0.0], n_window=200)
+    e_plain, e_ass, e_or, dv_ass = [], [], [], []
+    for k in range(n):
+        plain.step(strain[k], ref[k])                                    # no model: reference ignored
+        e_plain.append(plain.eps_tilde[0])
+        dv, _ = assisted.step(strain[k], ref[k])
+        e_ass.append(assisted.eps_tilde[0])
+        dv_ass.append(dv)
+        e_or.append(oracle.step([osc[k], -osc[k]])[1])
+    e_plain, e_ass, e_or = np.array(e_plain), np.array(e_ass), np.array(e_or)
+    np.testing.assert_allclose(e_ass, e_or[:, 0], atol=1e-12)
+    np.testing.assert_allclose(assisted.eps_tilde[2], e_or[-1, 1], atol=1e-12)
+    assert np.max(np.abs(e_plain - e_or[:, 0])) > 5e-5             # the quasi-static change leaks
+    assert dv_ass[-1][1] == pytest.approx(-100.0 * e_ass[-1])        # the law acts on the assisted signal
+    # the model saw the cascade's reference and the payload at every step
+    assert len(model.calls) == n and model.calls[7][3] == 0.3
+    np.testing.assert_array_equal(model.calls[7][2], [ref[7][2]])
+
+
+def test_model_assisted_damper_checks_and_falls_back_without_reference():
+    cfg = DampingConfig(law="proportional", k_eps=(0.0, 100.0, 100.0), n_window=10)
+    with pytest.raises(TypeError, match="strain_model"):
+        StrainDamper(cfg, [0.0] * 4, 1e-3, strain_model=object())
+    with pytest.raises(ValueError, match="payload_kg"):
+        StrainDamper(cfg, [0.0] * 4, 1e-3, strain_model=_QuasiStaticModel(), payload_kg=-1.0)
+    a = StrainDamper(cfg, [0.0] * 4, 1e-3, strain_model=_QuasiStaticModel())
+    b = StrainDamper(cfg, [0.0] * 4, 1e-3)
+    e = [1e-4, 0.0, -2e-4, 0.0]
+    assert a.step(e) == b.step(e)                                    # no reference: the plain filter
+
+
+def test_controlled_arm_passes_its_reference_to_the_damper():
+    """ControlledArm hands the planned (theta, dtheta, ddtheta) to a damper with a strain model."""
+    from tudorvision.robot import load_robot_params
+    from tudorvision.sim.arm import ControlledArm, ElasticArm, PlantConfig
+    p = load_robot_params()
+    arm = ElasticArm([0.0, 0.3, 0.0], params=p, config=PlantConfig())
+    ca = ControlledArm(arm)
+    model = _QuasiStaticModel()
+    ca.set_damper(StrainDamper(DampingConfig(law="proportional", k_eps=(0.0, 10.0, 10.0)), arm.measured_strain(),
+                               arm.config.dt, strain_model=model, payload_kg=0.35))
+    ca.set_goal([0.0, 0.5, 0.0])
+    for _ in range(200):
+        ca.step()
+    th, dth, ddth, m = model.calls[-1]
+    planned = ca._planner.sample_scalar(arm.t - arm.config.dt)
+    np.testing.assert_allclose(th[0], ca.theta_ref)
+    np.testing.assert_allclose(dth[0], ca.dtheta_ref)
+    np.testing.assert_allclose(ddth[0], planned[2], atol=1e-12)
+    assert ddth[0][1] > 0 and m == 0.35                              # accelerating toward the goal
+    # velocity mode: the acceleration is the ramp of the commanded velocity
+    ca.set_velocity([0.0, -0.2, 0.0])
+    ca.step()
+    assert model.calls[-1][2][0][1] < 0

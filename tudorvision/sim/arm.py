@@ -1261,6 +1261,7 @@ class ControlledArm:
         self.mode = "setpoint"
         self.theta_ref = list(arm.theta)
         self.dtheta_ref = [0.0, 0.0, 0.0]
+        self.ddtheta_ref = [0.0, 0.0, 0.0]
         self._v_cmd = [0.0, 0.0, 0.0]
         self._lo = [float(x) for x in p.joint_limits_rad[:, 0]]
         self._hi = [float(x) for x in p.joint_limits_rad[:, 1]]
@@ -1298,9 +1299,9 @@ class ControlledArm:
         self.set_velocity([0.0, 0.0, 0.0])
 
     def _reference(self, t: float):
+        """Reference ``(theta, dtheta, ddtheta)`` of the cascade at time ``t``."""
         if self.mode == "setpoint":
-            th, dth, _ = self._planner.sample_scalar(t)
-            return th, dth
+            return self._planner.sample_scalar(t)
         dt = self.arm.config.dt
         th, dth = self.theta_ref, self.dtheta_ref
         out_th, out_dth = [0.0] * 3, [0.0] * 3
@@ -1316,12 +1317,12 @@ class ControlledArm:
                 v = min(dth[j] + dv_max, 0.0)
             out_dth[j] = v
             out_th[j] = min(self._hi[j], max(self._lo[j], th[j] + v * dt))
-        return out_th, out_dth
+        return out_th, out_dth, [(out_dth[j] - dth[j]) / dt for j in range(3)]
 
     def step(self) -> None:
         """Advance one control sample (``arm.config.dt``)."""
         arm = self.arm
-        th_ref, dth_ref = self._reference(arm.t)
+        th_ref, dth_ref, self.ddtheta_ref = self._reference(arm.t)
         self.theta_ref, self.dtheta_ref = th_ref, dth_ref
         extra = self.damping(arm) if self.damping is not None else (0.0, 0.0, 0.0)
         th_meas = arm.measured_theta()
@@ -1344,7 +1345,7 @@ class ControlledArm:
         """Apply the damping law and the collision reaction to the cascade inputs."""
         arm = self.arm
         if self.damper is not None:
-            dv, dth = self.damper.step(arm.measured_strain())
+            dv, dth = self.damper.step(arm.measured_strain(), (th_ref, dth_ref, self.ddtheta_ref))
             extra = [extra[j] + dv[j] for j in range(3)]
             th_ref = [th_ref[j] + dth[j] for j in range(3)]
         if self.reaction is not None:
@@ -1404,6 +1405,11 @@ class SimCore:
     collision_thresholds : array_like, shape (2,), optional
         Residual thresholds of the link-2 and link-3 root strains, m/m
         (required with ``collision_model``).
+    damping_model : StrainDynamicsModel, optional
+        Identified strain-referred dynamics for the model-assisted static
+        strain cancellation of the installed damper (``StrainDamper(...,
+        strain_model=...)``, proportional gains ``ASSISTED_GAINS``); default
+        none (the seed's double moving average alone).
 
     Examples
     --------
@@ -1417,8 +1423,9 @@ class SimCore:
 
     def __init__(self, theta0=None, *, payload: Payload | None = None, params: RobotParams | None = None,
                  config: PlantConfig = PlantConfig(), obstacles=(), settle_band: float = 15e-6,
-                 collision_model=None, collision_thresholds=None):
+                 collision_model=None, collision_thresholds=None, damping_model=None):
         th = np.array([0.0, np.pi / 2, 0.0]) if theta0 is None else check_vector(theta0, "theta0", 3)
+        self.damping_model = damping_model
         if (collision_model is None) != (collision_thresholds is None):
             raise ValueError("collision_model, collision_thresholds: give both or neither")
         self.collision_model = collision_model
@@ -1474,8 +1481,10 @@ class SimCore:
             raise ValueError(f"damping, collision: unknown codes {damping!r}, {collision!r}")
         ca, arm = self.controlled, self.arm
         if ca.damper is None or ca.damper.config.law != LAWS[d]:
-            ca.set_damper(None if d == 0 else StrainDamper(default_damping_config(LAWS[d], two_way=arm._two_way),
-                                                            arm.measured_strain(), arm.config.dt))
+            m = self.damping_model
+            ca.set_damper(None if d == 0 else StrainDamper(
+                default_damping_config(LAWS[d], two_way=arm._two_way, assisted=m is not None),
+                arm.measured_strain(), arm.config.dt, strain_model=m, payload_kg=arm.payload.mass_kg))
         strategy = STRATEGY_OF_CODE[c]
         if self.collision_model is None:
             ca.reaction = None
