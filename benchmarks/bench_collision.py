@@ -20,6 +20,7 @@ damping on as in the seed; strain noise on the gauges; joint 1 held at 0):
 
 Run:  .venv/bin/python benchmarks/bench_collision.py [--id-seconds 60] [--thr-seconds 60]
       [--fp-minutes 10] [--noise 2e-6] [--k-i 100] [--reuse | --reuse-model] [--jobs 2] [--out out/collision]
+      [--k-eps 800 3200] [--n-window 2000] [--no-decouple] [--tune-damping K2,K3 ...]
 """
 from __future__ import annotations
 
@@ -33,9 +34,9 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from tudorvision.joint.collision import (CollisionMonitor, StrainDynamicsModel, aprbs, derivatives, fit_report,
-                                         fit_strain_dynamics, reaction_config, root_torque_per_strain,
-                                         thresholds_from_residuals)
+from tudorvision.joint.collision import (CollisionMonitor, ResidualCoupling, StrainDynamicsModel, aprbs, derivatives,
+                                         fit_report, fit_residual_coupling, fit_strain_dynamics, reaction_config,
+                                         root_torque_per_strain, thresholds_from_residuals)
 from tudorvision.joint.damping import DampingConfig, StrainDamper
 from tudorvision.robot import load_robot_params
 from tudorvision.sim.arm import ControlledArm, ElasticArm, Payload, PlantConfig, SpringDamperObstacle
@@ -44,10 +45,22 @@ DEG = np.pi / 180
 PLATES = (0, 1, 2, 3, 4)
 LO, HI = np.array([20.0, -80.0]) * DEG, np.array([160.0, 80.0]) * DEG
 V_ID, A_ID = np.array([1.0, 70.0, 70.0]) * DEG, np.array([1.0, 200.0, 200.0]) * DEG
-#: Proportional damping gains during the benchmark (rad/s per m/m). TWO_WAY_GAINS (tuned on
-#: experiment 06 at 300 g) drive the 400 g arm into bursts of large oscillation during long APRBS
-#: runs (joint speeds up to 3.5 rad/s); the lower link-3 gain keeps every payload stable.
-K_EPS = (0.0, 400.0, 1600.0)
+#: Proportional damping gains during the benchmark (rad/s per m/m) and the window of the static
+#: strain filter (samples at 2 kHz). TWO_WAY_GAINS (tuned on experiment 06 at 300 g) drive the 400 g
+#: arm into bursts of large oscillation during long APRBS runs (joint speeds up to 3.5 rad/s). Tuned
+#: for the smallest collision-free residual over 0-400 g on tuning seeds (``--tune-damping``): with
+#: the 1 s window (2000) the link-2 gain 800 and link-3 gain 3200 stay stable at 400 g (with the
+#: 0.5 s window they burst at 400 g); set by --k-eps / --n-window.
+K_EPS = [0.0, 800.0, 3200.0]
+N_WINDOW = [2000]
+#: Damping of the heavy payloads (plates >= HEAVY_FROM[0]), scheduled on the known payload: at 400 g
+#: every gain set tried over 2 min runs (tuning seeds) oscillates as much as or more than
+#: (400, 1600) with the 0.5 s window, and the higher gains burst (set by --heavy-*).
+HEAVY_FROM = [4]
+HEAVY_K_EPS = [0.0, 400.0, 1600.0]
+HEAVY_N_WINDOW = [1000]
+#: Isolation window of the monitor, s (set by --isolation-window).
+ISOLATION_WINDOW_S = [0.02]
 #: Residual runs start 1 s before the counted/evaluated period (start-up sag, see random_motion).
 ARMED_AFTER_S = 1.0
 #: Lag (s) of the observer's angle and strain inputs, matched to the cascade's velocity filter t_d
@@ -64,7 +77,9 @@ def _make_arm(plates, theta0, *, noise, seed, obstacles=(), two_way=True):
     arm = ElasticArm(theta0, payload=Payload.from_parts(p, plates=plates), params=p, config=cfg,
                      obstacles=obstacles)
     ca = ControlledArm(arm, v_max=V_ID, a_max=A_ID)
-    ca.set_damper(StrainDamper(DampingConfig(law="proportional", k_eps=K_EPS), arm.measured_strain(), cfg.dt))
+    k, nw = (HEAVY_K_EPS, HEAVY_N_WINDOW[0]) if plates >= HEAVY_FROM[0] else (K_EPS, N_WINDOW[0])
+    ca.set_damper(StrainDamper(DampingConfig(law="proportional", k_eps=tuple(k), n_window=nw),
+                               arm.measured_strain(), cfg.dt))
     return arm, ca
 
 
@@ -82,9 +97,10 @@ def random_motion(plates, seconds, *, noise, seed, monitor_args=None, record=Tru
     arm, ca = _make_arm(plates, th0, noise=noise, seed=seed)
     mon = None
     if monitor_args is not None:
-        model, thr, strategy = monitor_args
+        model, thr, strategy, coupling = monitor_args
         mon = CollisionMonitor(model, thr, arm.payload.mass_kg, arm.config.dt, reaction_config(strategy), k_i=k_i,
-                              input_lag_s=INPUT_LAG_S[0], detect_highpass_hz=DETECT_HP_HZ[0])
+                              input_lag_s=INPUT_LAG_S[0], detect_highpass_hz=DETECT_HP_HZ[0],
+                              isolation_coupling=coupling, isolation_window_s=ISOLATION_WINDOW_S[0])
         ca.reaction = mon
     n = int(round(seconds / arm.config.dt))
     th, eps, res = np.empty((n, 3)), np.empty((n, 2)), np.empty((n, 2))
@@ -126,14 +142,16 @@ def _id_job(args):
 
 
 def _res_job(args):
-    plates, seconds, noise, seed, model, thr, strategy, k_i = args
-    r = random_motion(plates, seconds + ARMED_AFTER_S, noise=noise, seed=seed, monitor_args=(model, thr, strategy),
+    plates, seconds, noise, seed, model, thr, strategy, k_i, coupling = args
+    r = random_motion(plates, seconds + ARMED_AFTER_S, noise=noise, seed=seed,
+                      monitor_args=(model, thr, strategy, coupling),
                       record=False, armed_after_s=ARMED_AFTER_S, k_i=k_i)
     skip = int(round(ARMED_AFTER_S / r["dt"]))
-    return {"plates": plates, "res": r["res"][skip:], "detections": r["detections"], "seconds": seconds}
+    return {"plates": plates, "res": r["res"][skip:], "detections": r["detections"], "seconds": seconds,
+            "payload": r["payload"]}
 
 
-def contact_scenario(kind, strategy, model, thr, *, noise, seed=7, seconds=2.5, plates=3, k_i=100.0):
+def contact_scenario(kind, strategy, model, thr, *, noise, seed=7, seconds=2.5, plates=3, k_i=100.0, coupling=None):
     """An obstacle sphere in the path; returns timing, isolation and force figures."""
     start, goal = np.array([0.0, 45.0, -45.0]) * DEG, np.array([0.0, 150.0, 60.0]) * DEG
     # free run to find where the probe passes 0.6 s into the motion
@@ -159,7 +177,8 @@ def contact_scenario(kind, strategy, model, thr, *, noise, seed=7, seconds=2.5, 
     if strategy != "no detection":
         mon = CollisionMonitor(model, thr, arm.payload.mass_kg, arm.config.dt, reaction_config(
             strategy, torque_per_strain=root_torque_per_strain(arm.params)), k_i=k_i,
-            armed_after_s=0.1, input_lag_s=INPUT_LAG_S[0], detect_highpass_hz=DETECT_HP_HZ[0])    # start-up sag, as SimCore
+            armed_after_s=0.1, input_lag_s=INPUT_LAG_S[0], detect_highpass_hz=DETECT_HP_HZ[0],  # start-up sag, as SimCore
+            isolation_coupling=coupling, isolation_window_s=ISOLATION_WINDOW_S[0])
         ca.reaction = mon
     ca.set_goal(goal)
     n = int(round(seconds / arm.config.dt))
@@ -195,30 +214,65 @@ def main(argv=None):
                     help="corner (Hz) of the high-pass on the detection residual; 0: off (the seed's rule)")
     ap.add_argument("--input-lag", type=float, default=0.0,
                     help="lag (s) of the observer's angle/strain inputs, matched to the velocity filter")
+    ap.add_argument("--k-eps", type=float, nargs=2, default=K_EPS[1:], metavar=("K2", "K3"),
+                    help="proportional damping gains of joints 2, 3 (rad/s per m/m)")
+    ap.add_argument("--n-window", type=int, default=N_WINDOW[0],
+                    help="moving-average window of the damping's static strain filter (samples at 2 kHz)")
+    ap.add_argument("--heavy-from", type=int, default=HEAVY_FROM[0],
+                    help="plates (100 g each) from which the heavy damping applies (5: never)")
+    ap.add_argument("--heavy-k-eps", type=float, nargs=2, default=HEAVY_K_EPS[1:], metavar=("K2", "K3"))
+    ap.add_argument("--heavy-n-window", type=int, default=HEAVY_N_WINDOW[0])
+    ap.add_argument("--isolation-window", type=float, default=ISOLATION_WINDOW_S[0],
+                    help="how long the (decoupled) link-3 residual must stay over its threshold for link 3, s")
+    ap.add_argument("--no-decouple", action="store_true",
+                    help="isolate on the link-3 residual itself (no ResidualCoupling)")
+    ap.add_argument("--tune-damping", nargs="+", metavar="K2,K3",
+                    help="only compare damping gains: per pair, identify on 20 s APRBS per payload and report the "
+                         "collision-free residual on 20 s more (tuning seeds 5000+, not the benchmark's)")
     a = ap.parse_args(argv)
     DETECT_HP_HZ[0], INPUT_LAG_S[0] = a.detect_highpass, a.input_lag
+    K_EPS[1:], N_WINDOW[0] = [float(x) for x in a.k_eps], a.n_window
+    HEAVY_FROM[0], HEAVY_K_EPS[1:], HEAVY_N_WINDOW[0] = a.heavy_from, [float(x) for x in a.heavy_k_eps], a.heavy_n_window
+    ISOLATION_WINDOW_S[0] = a.isolation_window
+    if a.tune_damping:
+        for pair in a.tune_damping:
+            K_EPS[1:] = [float(x) for x in pair.split(",")]
+            print(json.dumps(tune_damping(a.noise, a.k_i)), flush=True)
+        return
     os.makedirs(a.out, exist_ok=True)
     t0 = time.time()
-    report = {"cpu": cpu_model(), "jobs": a.jobs, "noise": a.noise, "k_eps": K_EPS, "k_i": a.k_i,
+    report = {"cpu": cpu_model(), "jobs": a.jobs, "noise": a.noise, "k_eps": K_EPS, "n_window": N_WINDOW[0],
+              "heavy": {"from_plates": HEAVY_FROM[0], "k_eps": HEAVY_K_EPS, "n_window": HEAVY_N_WINDOW[0]},
+              "isolation_window_s": ISOLATION_WINDOW_S[0],
+              "decouple": not a.no_decouple, "k_i": a.k_i,
               "detect_highpass_hz": a.detect_highpass, "input_lag_s": a.input_lag}
     with ProcessPoolExecutor(max_workers=a.jobs) as ex:
         if a.reuse:
             prev = json.load(open(os.path.join(a.out, "collision.json")))
             model = StrainDynamicsModel(chi=np.load(os.path.join(a.out, "chi.npy")))
             thr = np.load(os.path.join(a.out, "thr.npy"))
-            for key in ("identification", "thresholds_um_m", "residual_sigma_um_m"):
-                report[key] = prev[key]
+            coupling = ResidualCoupling(*np.load(os.path.join(a.out, "coupling.npy")))
+            for key in ("identification", "thresholds_um_m", "residual_sigma_um_m", "residual_sigma_per_payload_um_m",
+                        "residual_mean_per_payload_um_m", "coupling"):
+                if key in prev:
+                    report[key] = prev[key]
         else:
-            model, thr = _identify(ex, a, report)
+            model, thr, coupling = _identify(ex, a, report)
+        if a.no_decouple:
+            coupling = None
         # 3. false positives
         if a.fp_minutes > 0:
             per = a.fp_minutes * 60.0 / len(PLATES)
             chunks = max(1, int(np.ceil(per / 60.0)))
-            jobs = [(pl, per / chunks, a.noise, 1000 + 10 * pl + c, model, thr, "none", a.k_i) for pl in PLATES
-                    for c in range(chunks)]
+            jobs = [(pl, per / chunks, a.noise, 1000 + 10 * pl + c, model, thr, "none", a.k_i, coupling)
+                    for pl in PLATES for c in range(chunks)]
             fp = list(ex.map(_res_job, jobs))
             n_fp = sum(len(r["detections"]) for r in fp)
-            report["false_positives"] = {"minutes": a.fp_minutes, "count": n_fp,
+            per_pl = {f"{100 * pl} g": sum(len(r["detections"]) for r in fp if r["plates"] == pl) for pl in PLATES}
+            peak = {f"{100 * pl} g": np.round(np.max([np.abs(r["res"]).max(axis=0) / thr for r in fp
+                                                      if r["plates"] == pl], axis=0), 2).tolist() for pl in PLATES}
+            report["false_positives"] = {"minutes": a.fp_minutes, "count": n_fp, "per_payload": per_pl,
+                                         "peak_over_threshold": peak,
                                          "events_note": "(seconds after arming, plates, seed, link, direction)",
                                          "events": [d for r in fp for d in r["detections"]][:20]}
             print(f"false positives in {a.fp_minutes:g} min: {n_fp}", flush=True)
@@ -226,7 +280,7 @@ def main(argv=None):
             report["false_positives"] = prev["false_positives"]
         # 4. contacts
         scen = [(k, s) for k in ("link3", "link2") for s in ("no detection", "stop", "reflex", "interaction")]
-        outs = list(ex.map(_contact_job, [(k, s, model, thr, a.noise, a.k_i) for k, s in scen]))
+        outs = list(ex.map(_contact_job, [(k, s, model, thr, a.noise, a.k_i, coupling) for k, s in scen]))
     report["contacts"] = outs
     for o in outs:
         print(o, flush=True)
@@ -265,27 +319,59 @@ def _identify(ex, a, report):
         model = _fit(ex, a, report)
     # 2. thresholds from collision-free residuals
     inf = [np.inf, np.inf]
-    rs = list(ex.map(_res_job, [(pl, a.thr_seconds, a.noise, 200 + pl, model, inf, "none", a.k_i)
+    rs = list(ex.map(_res_job, [(pl, a.thr_seconds, a.noise, 200 + pl, model, inf, "none", a.k_i, None)
                                 for pl in PLATES]))
     res = np.concatenate([r["res"] for r in rs])
     thr = thresholds_from_residuals(res)
+    # isolation: the link-3 residual less its share of the common arm mode, from the same data
+    coupling = fit_residual_coupling(res, np.concatenate([np.full(r["res"].shape[0], r["payload"]) for r in rs]))
     report["thresholds_um_m"] = np.round(thr * 1e6, 2).tolist()
     report["residual_sigma_um_m"] = np.round(res.std(axis=0) * 1e6, 3).tolist()
-    print("thresholds (um/m):", report["thresholds_um_m"], flush=True)
+    report["residual_sigma_per_payload_um_m"] = {f"{100 * r['plates']} g": np.round(r["res"].std(axis=0) * 1e6, 1)
+                                                 .tolist() for r in rs}
+    report["residual_mean_per_payload_um_m"] = {f"{100 * r['plates']} g": np.round(r["res"].mean(axis=0) * 1e6, 1)
+                                                .tolist() for r in rs}
+    report["coupling"] = {"c0": round(coupling.c0, 4), "c1_per_kg": round(coupling.c1, 4),
+                          "threshold_um_m": round(coupling.threshold * 1e6, 2)}
+    print("thresholds (um/m):", report["thresholds_um_m"], "coupling:", report["coupling"], flush=True)
     np.save(os.path.join(a.out, "thr.npy"), thr)
-    return model, thr
+    np.save(os.path.join(a.out, "coupling.npy"), np.array([coupling.c0, coupling.c1, coupling.threshold]))
+    return model, thr, coupling
+
+
+def tune_damping(noise, k_i, seconds=20.0, seed0=5000):
+    """Residual figures of the current K_EPS / N_WINDOW on tuning seeds (one process)."""
+    t0 = time.time()
+    data = [_id_job((pl, seconds, noise, seed0 + pl)) for pl in PLATES]
+    cat = {q: np.concatenate([d[q] for d in data]) for q in ("theta", "d", "dd", "eps", "m")}
+    model = fit_strain_dynamics(cat["theta"], cat["d"], cat["dd"], cat["eps"], cat["m"])
+    fits = [fit_report(model, d["theta"], d["d"], d["dd"], d["eps"], d["m"]).fit_pct for d in data]
+    rs = [_res_job((pl, seconds, noise, seed0 + 100 + pl, model, [np.inf, np.inf], "none", k_i, None))
+          for pl in PLATES]
+    res = np.concatenate([r["res"] for r in rs])
+    thr = thresholds_from_residuals(res)
+    return {"k_eps": list(K_EPS), "n_window": N_WINDOW[0], "fit_pct_in_sample": np.round(fits, 1).tolist(),
+            "max_speed_rad_s": [round(float(np.abs(d["d"][:, 1:]).max()), 2) for d in data],
+            "sigma_um_m": np.round(res.std(0) * 1e6, 1).tolist(), "thr_um_m": np.round(thr * 1e6).tolist(),
+            "sigma_per_payload": [np.round(r["res"].std(0) * 1e6, 1).tolist() for r in rs],
+            "peak_over_thr": [np.round(np.abs(r["res"]).max(0) / thr, 2).tolist() for r in rs],
+            "wall_s": round(time.time() - t0, 1)}
 
 
 def _contact_job(args):
-    kind, strategy, model, thr, noise, k_i = args
-    return contact_scenario(kind, strategy, model, thr, noise=noise, k_i=k_i)
+    kind, strategy, model, thr, noise, k_i, coupling = args
+    return contact_scenario(kind, strategy, model, thr, noise=noise, k_i=k_i, coupling=coupling)
 
 
 def _markdown(rep, path):
     fp = rep.get("false_positives", {"minutes": 0.0, "count": "not run"})
     lines = ["# Collision detection on the simulated TUDOR", "",
              f"Thresholds (6 sigma, link-2 / link-3 root residual): {rep['thresholds_um_m']} um/m; "
-             f"false positives in {fp['minutes']:g} min of random motion (0-400 g): {fp['count']}.", "",
+             f"false positives in {fp['minutes']:g} min of random motion (0-400 g): {fp['count']} "
+             f"(per payload {fp.get('per_payload', '-')}; peak residual / threshold {fp.get('peak_over_threshold', '-')})."
+             , "", f"Damping k_eps {rep['k_eps']}, static-filter window {rep.get('n_window', 1000)}; heavy payloads "
+             f"{json.dumps(rep.get('heavy'))}; isolation window {rep.get('isolation_window_s')} s on "
+             f"{'r3 - c(m) r2, coupling ' + json.dumps(rep.get('coupling')) if rep.get('decouple') else 'r3'}.", "",
              "Validation fit (B.4): " + json.dumps(
                  rep["identification"]["validation"]), "",
              "| contact | strategy | onset (s) | detected (s) | delay (ms) | link | dir | peak force (N) | "

@@ -78,7 +78,7 @@ from .._checks import check_array
 __all__ = ["N_PARAMS", "STRATEGIES", "regressor", "regressor_payload", "StrainDynamicsModel", "fit_strain_dynamics",
            "FitReport", "fit_report", "derivatives", "MomentumObserver", "thresholds_from_residuals", "isolate",
            "ReactionConfig", "reaction_config", "Admittance", "CollisionMonitor", "aprbs", "root_torque_per_strain",
-           "STRATEGY_OF_CODE"]
+           "STRATEGY_OF_CODE", "ResidualCoupling", "fit_residual_coupling"]
 
 N_PARAMS = 16
 STRATEGIES = ("none", "stop", "reflex", "interaction")
@@ -510,6 +510,10 @@ class CollisionMonitor:
         (first mode 1.5-3 Hz with payload), and keeps the contact onset; a
         sustained contact fades from the detection residual after detection
         (the latch holds).
+    isolation_coupling : ResidualCoupling or (c0, c1, threshold), optional
+        Isolation on the decoupled link-3 residual ``r3 - c(m) r2`` (see
+        :class:`ResidualCoupling`) with its own threshold instead of ``r3``;
+        ``None``: ``r3`` and its threshold (the seed's residual).
 
     Attributes
     ----------
@@ -530,10 +534,12 @@ class CollisionMonitor:
     def __init__(self, model: StrainDynamicsModel, thresholds, payload_kg: float, dt: float,
                  config: ReactionConfig = ReactionConfig(), *, k_i: float = 100.0,
                  isolation_window_s: float = 0.015, armed_after_s: float = 0.0, input_lag_s: float = 0.0,
-                 detect_highpass_hz: float = 0.0):
+                 detect_highpass_hz: float = 0.0, isolation_coupling=None):
         if not isolation_window_s >= 0 or not armed_after_s >= 0 or not detect_highpass_hz >= 0:
             raise ValueError(f"isolation_window_s, armed_after_s, detect_highpass_hz: expected >= 0, got "
                              f"{isolation_window_s}, {armed_after_s}, {detect_highpass_hz}")
+        self.isolation_coupling = None if isolation_coupling is None else ResidualCoupling(*isolation_coupling) \
+            if not isinstance(isolation_coupling, ResidualCoupling) else isolation_coupling
         w = 2.0 * math.pi * float(detect_highpass_hz) * float(dt)
         self._hp_a = w / (1.0 + w)          # backward-Euler low-pass; high-pass = r - low-pass
         self._lp = None
@@ -599,7 +605,12 @@ class CollisionMonitor:
     def _isolate_step(self, r) -> None:
         """Follow the first link-3 violation; finalise ``link`` when confirmed, refuted or at the window end."""
         thr = self.thresholds
-        s3 = (1 if r[1] > 0 else -1) if abs(r[1]) > thr[1] else 0
+        cp = self.isolation_coupling
+        if cp is None:
+            r3, thr3 = r[1], thr[1]
+        else:                               # the link-3 residual less its share of the arm mode (r2)
+            r3, thr3 = r[1] - cp.at_payload(self.observer.payload_kg) * r[0], cp.threshold
+        s3 = (1 if r3 > 0 else -1) if abs(r3) > thr3 else 0
         if abs(r[0]) > thr[0] and not self._l2_sign:
             self._l2_sign = 1 if r[0] > 0 else -1
         self._r2_last = r[0]
@@ -617,6 +628,61 @@ class CollisionMonitor:
     def _final(self, link: int) -> None:
         # direction: sign of the first link-2 violation, else of the link-2 residual now
         self.link, self.direction, self.isolated = link, self._l2_sign or (1 if self._r2_last > 0 else -1), True
+
+
+@dataclass(frozen=True)
+class ResidualCoupling:
+    """Share of the link-2 residual in the link-3 residual, ``c(m) = c0 + m c1``, for isolation.
+
+    On the simulated arm the collision-free residuals of the two root strains
+    are almost collinear (correlation 0.99: both are the unmodelled first
+    bending mode of the whole arm, which loads both roots in a fixed ratio),
+    and so is the inertial answer of link 3 to an impact on link 2. The
+    decoupled residual ``r3 - c(m) r2`` removes that common part; a load on
+    link 3 itself shows in it, a load on link 2 only transiently.
+
+    Attributes
+    ----------
+    c0, c1 : float
+        Regression coefficient of ``r3`` on ``r2`` at zero payload and its
+        slope per kg (least squares on collision-free residuals).
+    threshold : float
+        Threshold of the decoupled residual (6 sigma of the collision-free
+        data), m/m.
+    """
+
+    c0: float
+    c1: float
+    threshold: float
+
+    def at_payload(self, payload_kg: float) -> float:
+        return self.c0 + float(payload_kg) * self.c1
+
+
+def fit_residual_coupling(residuals, payload_kg, *, n_sigma: float = 6.0) -> ResidualCoupling:
+    """Least squares ``r3 ~ (c0 + c1 m) r2`` on collision-free residuals and 6 sigma of what is left.
+
+    Parameters
+    ----------
+    residuals : array_like, shape (N, 2)
+        Collision-free residuals ``(r2, r3)``, m/m.
+    payload_kg : array_like, shape (N,) or float
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> r2 = rng.normal(0, 1e-4, 20000); m = np.repeat([0.0, 0.4], 10000)
+    >>> r = np.stack([r2, (0.3 + 0.2 * m) * r2 + rng.normal(0, 1e-6, 20000)], axis=1)
+    >>> c = fit_residual_coupling(r, m)
+    >>> round(c.c0, 2), round(c.c1, 2), round(c.threshold * 1e6, 1)
+    (0.3, 0.2, 6.0)
+    """
+    r = check_array(residuals, "residuals", (None, 2))
+    m = np.broadcast_to(np.asarray(payload_kg, dtype=np.float64), (r.shape[0],))
+    A = np.stack([r[:, 0], m * r[:, 0]], axis=1)
+    (c0, c1), *_ = np.linalg.lstsq(A, r[:, 1], rcond=None)
+    left = r[:, 1] - A @ np.array([c0, c1])
+    return ResidualCoupling(float(c0), float(c1), float(n_sigma * left.std()))
 
 
 def aprbs(rng: np.random.Generator, duration_s: float, lo, hi, *, hold_s=(0.6, 2.5)):
