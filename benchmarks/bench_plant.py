@@ -28,7 +28,8 @@ from tudorvision.joint.cascade import JointCascade, design_cascade
 from tudorvision.joint.planner import plan_motion
 from tudorvision.robot import load_robot_params
 from tudorvision.sim.arm import (ElasticArm, Payload, PlantConfig, bias_torques, mass_matrix,
-                                 simulate_ptp, zero_config_inertia)
+                                 zero_config_inertia)
+from tudorvision.sim.controlled import simulate_ptp
 
 DEG = np.pi / 180
 

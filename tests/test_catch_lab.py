@@ -6,7 +6,8 @@ from tudorvision.catch.data_collection import CollectionOptions, collect_settled
 from tudorvision.catch.lab import LockstepLayer
 from tudorvision.joint import Ack, Damping, Mode
 from tudorvision.robot import load_robot_params
-from tudorvision.sim.arm import Payload, SimCore
+from tudorvision.sim.arm import Payload
+from tudorvision.sim.controlled import SimCore
 
 
 def _layer(params):

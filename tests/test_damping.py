@@ -211,7 +211,8 @@ def test_model_assisted_damper_checks_and_falls_back_without_reference():
 def test_controlled_arm_passes_its_reference_to_the_damper():
     """ControlledArm hands the planned (theta, dtheta, ddtheta) to a damper with a strain model."""
     from tudorvision.robot import load_robot_params
-    from tudorvision.sim.arm import ControlledArm, ElasticArm, PlantConfig
+    from tudorvision.sim.arm import ElasticArm, PlantConfig
+    from tudorvision.sim.controlled import ControlledArm
     p = load_robot_params()
     arm = ElasticArm([0.0, 0.3, 0.0], params=p, config=PlantConfig())
     ca = ControlledArm(arm)

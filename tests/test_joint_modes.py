@@ -10,7 +10,8 @@ from tudorvision.joint import (Ack, CollisionMonitor, CollisionStrategy, Damping
                                thresholds_from_residuals)
 from tudorvision.joint.server import ServerConfig
 from tudorvision.robot import load_robot_params
-from tudorvision.sim.arm import ControlledArm, ElasticArm, Payload, PlantConfig, SimCore, SpringDamperObstacle
+from tudorvision.sim.arm import ElasticArm, Payload, PlantConfig, SpringDamperObstacle
+from tudorvision.sim.controlled import ControlledArm, SimCore
 
 DT = 1.0 / 500.0
 DEG = np.pi / 180.0

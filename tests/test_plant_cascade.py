@@ -158,7 +158,8 @@ def test_velocity_reference_saturates_at_the_rated_speed_only_when_asked():
 
 
 def test_simulated_joint_stays_near_its_rated_speed_under_a_huge_damping_input():
-    from tudorvision.sim.arm import ControlledArm, ElasticArm
+    from tudorvision.sim.arm import ElasticArm
+    from tudorvision.sim.controlled import ControlledArm
     p = load_robot_params()
     for saturate, bound in ((True, 1.05), (False, None)):
         ca = ControlledArm(ElasticArm([0.0, 0.8, 0.0]), damping=lambda arm: (0.0, 5.0, 0.0),

@@ -320,7 +320,8 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
     from ..rgbd.ball import BallDetector, BallDetectorOptions
     from ..rgbd.frames import Intrinsics
     from ..robot import load_robot_params
-    from ..sim.arm import Payload, SimCore
+    from ..sim.arm import Payload
+    from ..sim.controlled import SimCore
     from ..sim.record import T_WORLD_BASE, elastic_arm_geometry, random_throw, throw_trajectory
     from ..sim.scenes import ball_throw
 

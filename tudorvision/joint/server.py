@@ -234,7 +234,7 @@ def make_core(name: str, **options) -> JointCore:
 
 def _sim_core(**options) -> JointCore:
     """The simulated elastic TUDOR with its cascade (imported on first use)."""
-    from ..sim.arm import SimCore
+    from ..sim.controlled import SimCore
     return SimCore(**options)
 
 

@@ -299,7 +299,7 @@ class ServoLab:
                  noise: bool = True, scene_seed: int = 0):
         from ..sim import DepthNoiseModel, Payload, eye_in_hand
         from ..sim.render import pixel_bboxes
-        from ..sim.arm import SimCore
+        from ..sim.controlled import SimCore
         self.config = cfg = config
         self.params = load_robot_params()
         self.rng = rng

@@ -5,8 +5,9 @@ never read its ground truth. Recordings are written as sequence directories
 (:func:`record`), the plant runs at 2 kHz with the joint cascade
 (:func:`simulate_ptp`, :class:`ControlledArm`, :class:`SimCore`).
 """
-from .arm import (ASSUMPTIONS, ControlledArm, ElasticArm, Payload, PlantConfig, SimCore, SimLog,
-                  SpringDamperObstacle, fk_elastic, simulate, simulate_ptp, spheres_from_T)
+from .arm import (ASSUMPTIONS, ElasticArm, Payload, PlantConfig, SimLog, SpringDamperObstacle, fk_elastic,
+                  spheres_from_T)
+from .controlled import ControlledArm, SimCore, simulate, simulate_ptp
 from .beam import ModalBasis, cantilever_static, modal_basis, surface_strain
 from .camera import (PinholeCamera, intrinsic_matrix, look_at, project_points, sphere_silhouette_centroid,
                      with_pose)

@@ -35,7 +35,8 @@ def _cmd_record(args) -> int:
 
 def _cmd_ptp(args) -> int:
     from ..robot import load_robot_params
-    from .arm import Payload, simulate_ptp
+    from .arm import Payload
+    from .controlled import simulate_ptp
     p = load_robot_params()
     start, goal = _deg3(args.start, "--from"), _deg3(args.to, "--to")
     if args.plates < 0:

@@ -32,7 +32,8 @@ from .._checks import TudorVisionError
 from .._progress import progress
 from ..robot import load_robot_params
 from ..robot.params import RobotParams
-from .arm import Payload, fk_elastic, simulate_ptp, spheres_from_T, ElasticArm
+from .arm import Payload, fk_elastic, spheres_from_T, ElasticArm
+from .controlled import simulate_ptp
 from .camera import PinholeCamera, look_at
 from .render import render_bgr, render_rgbd
 from .scenes import (ArmGeometry, StereoRigConfig, ball_throw, checkerboard_lab, eye_in_hand, planar_target,

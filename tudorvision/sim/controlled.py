@@ -1,0 +1,476 @@
+"""The simulated arm under its joint controller: simulation runs, the controlled arm, the layer's core.
+
+* :func:`simulate`, :func:`simulate_ptp`: the plant (:class:`tudorvision.sim.arm.ElasticArm`)
+  and the joint cascade run together, recorded as a :class:`tudorvision.sim.arm.SimLog`;
+* :class:`ControlledArm`: the plant, the cascade and the online planner stepped at 2 kHz,
+  with the joint layer's hooks (damper, collision reaction);
+* :class:`SimCore`: the controlled arm as the core of the joint-layer server
+  (:class:`tudorvision.joint.server.JointCore`), where mode switches install the damping
+  and collision handling.
+
+Split from :mod:`tudorvision.sim.arm` (the plant); the names stay importable from there.
+"""
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from .._checks import check_vector
+from ..joint.cascade import JointCascade, design_cascade
+from ..joint.planner import plan_motion
+from ..robot.params import RobotParams, load_robot_params
+from .arm import ElasticArm, Payload, PlantConfig, SimLog, zero_config_inertia
+
+__all__ = ["simulate", "simulate_ptp", "ControlledArm", "SimCore"]
+
+
+def simulate(arm: ElasticArm, controller: JointCascade, reference, duration_s: float, *,
+             dtheta_extra=None) -> SimLog:
+    """Run the plant and the joint cascade together for ``duration_s``.
+
+    Parameters
+    ----------
+    arm : ElasticArm
+        Plant, advanced in place.
+    controller : JointCascade
+        Joint controller, advanced in place (same ``dt`` as the plant).
+    reference : object with ``sample(t) -> (theta, dtheta, ddtheta)``
+        E.g. a :class:`tudorvision.joint.planner.JointMotion`; sampled at all
+        step times up front.
+    duration_s : float
+        Simulated time, seconds.
+    dtheta_extra : callable, optional
+        ``f(arm) -> 3 floats`` added at the velocity-loop input each step (damping hook).
+
+    Returns
+    -------
+    SimLog
+    """
+    dt = arm.config.dt
+    if abs(controller.dt - dt) > 1e-12:
+        raise ValueError(f"controller.dt: expected the plant step {dt}, got {controller.dt}")
+    n = int(round(duration_s / dt))
+    if n < 1:
+        raise ValueError(f"duration_s: expected at least one step of {dt} s, got {duration_s}")
+    times = arm.t + dt * np.arange(n)          # reference at the sample instant
+    ref_th, ref_dth, _ = reference.sample(times)
+    ref_th, ref_dth = ref_th.tolist(), ref_dth.tolist()
+    rec = _Recorder()
+    zero = (0.0, 0.0, 0.0)
+    for k in range(n):
+        extra = dtheta_extra(arm) if dtheta_extra is not None else zero
+        v = controller.step(arm.measured_theta(), ref_th[k], ref_dth[k], extra)
+        arm.step(v)
+        rec.add(arm, ref_th[k], ref_dth[k])
+    return rec.log(arm.params)
+
+
+class _Recorder:
+    """Collects the per-step state of an :class:`ElasticArm` into a :class:`SimLog`."""
+
+    _KEYS = ("t", "theta", "dtheta", "ddtheta", "ref", "dref", "tau", "strain", "tip2", "tip3", "fc")
+
+    def __init__(self):
+        self.cols = {k: [] for k in self._KEYS}
+
+    def add(self, arm: "ElasticArm", theta_ref, dtheta_ref) -> None:
+        c = self.cols
+        c["t"].append(arm.t)
+        c["theta"].append(list(arm.theta))
+        c["dtheta"].append(list(arm.dtheta))
+        c["ddtheta"].append(list(arm.ddtheta))
+        c["ref"].append(theta_ref)
+        c["dref"].append(dtheta_ref)
+        c["tau"].append(arm.tau)
+        c["strain"].append(arm.strain)
+        c["tip2"].append(arm.tip2)
+        c["tip3"].append(arm.tip3)
+        c["fc"].append(arm.contact_force)
+
+    def log(self, params: RobotParams) -> SimLog:
+        c = {k: np.asarray(v, dtype=np.float64) for k, v in self.cols.items()}
+        return SimLog(t=c["t"], theta=c["theta"], dtheta=c["dtheta"], ddtheta=c["ddtheta"],
+                      theta_ref=c["ref"], dtheta_ref=c["dref"], tau=c["tau"], strain=c["strain"],
+                      tip2=c["tip2"], tip3=c["tip3"], contact_force=c["fc"], params=params)
+
+
+def simulate_ptp(theta_start, theta_goal, duration_s: float, *, payload: Payload | None = None,
+                 v_max=None, a_max=None, t_move: float = 0.0, params: RobotParams | None = None,
+                 config: PlantConfig = PlantConfig(), obstacles=()) -> SimLog:
+    """Simulate a point-to-point motion with the planner, cascade and elastic plant.
+
+    Parameters
+    ----------
+    theta_start, theta_goal : array_like, shape (3,)
+        Radians. The arm starts at rest in static equilibrium at ``theta_start``.
+    duration_s : float
+        Total simulated time, seconds.
+    payload : Payload, optional
+    v_max, a_max : float or array_like, optional
+        Planner limits; default the experiment values of chapter 8 (60 deg/s,
+        200 deg/s^2) capped by each joint's maximum speed and acceleration.
+    t_move : float
+        When the motion starts, seconds.
+
+    Returns
+    -------
+    SimLog
+
+    Raises
+    ------
+    ValueError
+        If a goal lies outside the joint ranges or a limit exceeds the hardware limits.
+
+    Examples
+    --------
+    >>> log = simulate_ptp([0, 0.5, 0], [0, 0.6, 0], 0.05)
+    >>> log.strain.shape
+    (100, 4)
+    """
+    p = params or load_robot_params()
+    goal = check_vector(theta_goal, "theta_goal", 3)
+    start = check_vector(theta_start, "theta_start", 3)
+    lo, hi = p.joint_limits_rad[:, 0], p.joint_limits_rad[:, 1]
+    for name, th in (("theta_start", start), ("theta_goal", goal)):
+        if np.any(th < lo - 1e-9) or np.any(th > hi + 1e-9):
+            raise ValueError(f"{name}: {np.round(np.rad2deg(th), 2).tolist()} deg "
+                             "is outside the joint ranges")
+    vmax = np.minimum(p.experiment_speed_rad_s, p.max_speed_rad_s) if v_max is None \
+        else np.broadcast_to(np.asarray(v_max, float), (3,))
+    amax = np.minimum(p.experiment_accel_rad_s2, p.max_accel_rad_s2) if a_max is None \
+        else np.broadcast_to(np.asarray(a_max, float), (3,))
+    if np.any(vmax > p.max_speed_rad_s + 1e-9) or np.any(amax > p.max_accel_rad_s2 + 1e-9):
+        raise ValueError("v_max, a_max: exceed the joint speed or acceleration limits of the parameter file")
+    arm = ElasticArm(start, payload=payload, params=p, config=config, obstacles=obstacles)
+    gains = design_cascade(p, zero_config_inertia(arm))
+    ctrl = JointCascade(gains, config.dt, arm.measured_theta())
+    motion = plan_motion(start, goal, v_max=vmax, a_max=amax, t0=t_move)
+    return simulate(arm, ctrl, motion, duration_s)
+
+
+class ControlledArm:
+    """The simulated arm with its joint cascade, driven by setpoints or velocity commands.
+
+    This is the joint-control layer's view of the plant at 2 kHz: a
+    point-to-point setpoint starts a B.6 motion (re-planned from the current
+    reference when a new one arrives in motion); a velocity command is
+    followed with the acceleration limits and integrated into the position
+    reference; :meth:`stop` brakes at the acceleration limits and holds.
+
+    Parameters
+    ----------
+    arm : ElasticArm
+        The plant (advanced in place).
+    gains : CascadeGains, optional
+        Default: designed from the zero-configuration inertia (section 3.2).
+    v_max, a_max : array_like, shape (3,), optional
+        Default limits for setpoints and velocity commands (rad/s, rad/s^2);
+        default the chapter-8 values capped by the hardware limits.
+    damping : callable, optional
+        ``f(arm) -> 3 floats`` added at the velocity-loop input every sample
+        (e.g. ``-k_eps * eps_tilde``, eq. 5.2.1).
+    friction : tudorvision.joint.cascade.FrictionCompensation, optional
+        Coulomb feed-forward of the velocity loop (default none, the bare PI loop).
+    saturate_speed : bool
+        Saturate the velocity-loop reference at the rated joint speeds
+        (default True: a damping input on top of a fast profile cannot
+        drive a joint past its rated speed).
+
+    Examples
+    --------
+    >>> ca = ControlledArm(ElasticArm([0.0, 0.5, 0.0]))
+    >>> ca.set_velocity([0.0, 0.2, 0.0])
+    >>> ca.run(0.5)
+    >>> round(ca.arm.dtheta[1], 2)
+    0.2
+    """
+
+    def __init__(self, arm: ElasticArm, *, gains=None, v_max=None, a_max=None, damping=None, friction=None,
+                 saturate_speed: bool = True):
+        from ..joint.planner import OnlinePlanner
+        self.arm = arm
+        p = arm.params
+        self.v_max = np.minimum(p.experiment_speed_rad_s, p.max_speed_rad_s) if v_max is None \
+            else check_vector(np.broadcast_to(np.asarray(v_max, float), (3,)), "v_max", 3)
+        self.a_max = np.minimum(p.experiment_accel_rad_s2, p.max_accel_rad_s2) if a_max is None \
+            else check_vector(np.broadcast_to(np.asarray(a_max, float), (3,)), "a_max", 3)
+        self.controller = JointCascade(gains or design_cascade(p, zero_config_inertia(arm)),
+                                       arm.config.dt, arm.measured_theta(), friction=friction,
+                                       max_speed_rad_s=p.max_speed_rad_s if saturate_speed else None)
+        self.damping = damping
+        # -- joint-layer hooks (tudorvision.joint.damping / .collision) --------------------
+        self.damper = None          # StrainDamper: strain feedback (velocity and position level)
+        self.reaction = None        # CollisionMonitor: residual observer and reaction admittance
+        self._kpd0 = list(self.controller._kpd)
+        # ----------------------------------------------------------------------------------
+        self._planner = OnlinePlanner(arm.theta, v_max=self.v_max, a_max=self.a_max, t0=arm.t)
+        self.mode = "setpoint"
+        self.theta_ref = list(arm.theta)
+        self.dtheta_ref = [0.0, 0.0, 0.0]
+        self.ddtheta_ref = [0.0, 0.0, 0.0]
+        self._v_cmd = [0.0, 0.0, 0.0]
+        self._lo = [float(x) for x in p.joint_limits_rad[:, 0]]
+        self._hi = [float(x) for x in p.joint_limits_rad[:, 1]]
+
+    def set_goal(self, theta_goal, *, v_max=None, a_max=None) -> None:
+        """Start (or re-plan) a point-to-point motion to ``theta_goal`` (rad).
+
+        Raises
+        ------
+        ValueError
+            If the goal lies outside the joint ranges or a limit exceeds the hardware limits.
+        """
+        from ..joint.planner import plan_motion as _plan
+        goal = check_vector(theta_goal, "theta_goal", 3)
+        p = self.arm.params
+        if np.any(goal < p.joint_limits_rad[:, 0]) or np.any(goal > p.joint_limits_rad[:, 1]):
+            raise ValueError(f"theta_goal: {np.round(np.rad2deg(goal), 2).tolist()} deg "
+                             "is outside the joint ranges")
+        vmax = self.v_max if v_max is None else np.broadcast_to(np.asarray(v_max, float), (3,))
+        amax = self.a_max if a_max is None else np.broadcast_to(np.asarray(a_max, float), (3,))
+        if np.any(vmax > p.max_speed_rad_s + 1e-9) or np.any(amax > p.max_accel_rad_s2 + 1e-9):
+            raise ValueError("v_max, a_max: exceed the joint speed or acceleration limits")
+        self._planner.motion = _plan(self.theta_ref, goal, v_max=vmax, a_max=amax,
+                                     dtheta_start=self.dtheta_ref, t0=self.arm.t)
+        self.mode = "setpoint"
+
+    def set_velocity(self, dtheta_cmd) -> None:
+        """Follow a joint velocity command (rad/s), clipped to ``v_max``, ramped at ``a_max``."""
+        v = check_vector(dtheta_cmd, "dtheta_cmd", 3)
+        self._v_cmd = [float(x) for x in np.clip(v, -self.v_max, self.v_max)]
+        self.mode = "velocity"
+
+    def stop(self) -> None:
+        """Brake at the acceleration limits and hold where the arm comes to rest."""
+        self.set_velocity([0.0, 0.0, 0.0])
+
+    def _reference(self, t: float):
+        """Reference ``(theta, dtheta, ddtheta)`` of the cascade at time ``t``."""
+        if self.mode == "setpoint":
+            return self._planner.sample_scalar(t)
+        dt = self.arm.config.dt
+        th, dth = self.theta_ref, self.dtheta_ref
+        out_th, out_dth = [0.0] * 3, [0.0] * 3
+        for j in range(3):
+            dv_max = float(self.a_max[j]) * dt
+            v = dth[j] + max(-dv_max, min(dv_max, self._v_cmd[j] - dth[j]))
+            # brake so that the joint stops inside its range
+            a = float(self.a_max[j])
+            room_hi, room_lo = self._hi[j] - th[j], th[j] - self._lo[j]
+            if v > 0 and v * v / a > 2 * max(room_hi, 0.0):
+                v = max(dth[j] - dv_max, 0.0)
+            elif v < 0 and v * v / a > 2 * max(room_lo, 0.0):
+                v = min(dth[j] + dv_max, 0.0)
+            out_dth[j] = v
+            out_th[j] = min(self._hi[j], max(self._lo[j], th[j] + v * dt))
+        return out_th, out_dth, [(out_dth[j] - dth[j]) / dt for j in range(3)]
+
+    def step(self) -> None:
+        """Advance one control sample (``arm.config.dt``)."""
+        arm = self.arm
+        th_ref, dth_ref, self.ddtheta_ref = self._reference(arm.t)
+        self.theta_ref, self.dtheta_ref = th_ref, dth_ref
+        extra = self.damping(arm) if self.damping is not None else (0.0, 0.0, 0.0)
+        th_meas = arm.measured_theta()
+        if self.damper is not None or self.reaction is not None:
+            th_ref, dth_ref, extra = self._joint_layer(th_meas, th_ref, dth_ref, extra)
+        arm.step(self.controller.step(th_meas, th_ref, dth_ref, extra))
+
+    # -- joint-layer hooks ----------------------------------------------------------------------
+    def set_damper(self, damper) -> None:
+        """Use a :class:`tudorvision.joint.damping.StrainDamper` (``None``: bare cascade).
+
+        The damper's ``pd_scale`` multiplies the PD position gain while it is set
+        (0.5 for the integral law of section 6.5).
+        """
+        self.damper = damper
+        scale = 1.0 if damper is None else float(damper.pd_scale)
+        self.controller._kpd = [k * scale for k in self._kpd0]
+
+    def _joint_layer(self, th_meas, th_ref, dth_ref, extra):
+        """Apply the damping law and the collision reaction to the cascade inputs."""
+        arm = self.arm
+        if self.damper is not None:
+            dv, dth = self.damper.step(arm.measured_strain(), (th_ref, dth_ref, self.ddtheta_ref))
+            extra = [extra[j] + dv[j] for j in range(3)]
+            th_ref = [th_ref[j] + dth[j] for j in range(3)]
+        if self.reaction is not None:
+            out = self.reaction.step(th_meas, self.controller.velocity, arm.measured_strain(),
+                                     th_ref, dth_ref, extra)
+            if out is not None:      # the reaction replaces the PD output (section 11.2)
+                th_ref, dth_ref, extra = out
+                self.theta_ref, self.dtheta_ref = list(th_ref), [0.0, 0.0, 0.0]
+                self.mode, self._v_cmd = "velocity", [0.0, 0.0, 0.0]   # hold after the release
+        return th_ref, dth_ref, extra
+
+    def run(self, duration_s: float, *, record: bool = False):
+        """Advance ``duration_s`` seconds (rounded to whole samples).
+
+        With ``record=True`` the states after every sample are returned as a
+        :class:`SimLog` (e.g. to change goals between calls and concatenate).
+        """
+        rec = _Recorder() if record else None
+        for _ in range(int(round(duration_s / self.arm.config.dt))):
+            self.step()
+            if rec is not None:
+                rec.add(self.arm, self.theta_ref, self.dtheta_ref)
+        return rec.log(self.arm.params) if rec is not None else None
+
+
+class SimCore:
+    """The simulated arm as a core of the joint-layer server (:class:`tudorvision.joint.server.JointCore`).
+
+    Wraps :class:`ControlledArm`; :meth:`step` sub-steps at the plant's 2 kHz.
+    Register it with ``register_core("sim", SimCore)``.
+
+    :meth:`set_modes` (called by the server on a mode switch) installs the
+    joint layer's damping and collision handling on the cascade: a
+    :class:`tudorvision.joint.damping.StrainDamper` with the tuned gains of
+    the law (one-way or two-way plant) and, when a strain-dynamics model is
+    given, a :class:`tudorvision.joint.collision.CollisionMonitor` with the
+    strategy (``NONE`` detects and reports only). The residuals and the
+    latched collision flag appear in :meth:`state`; a detected collision
+    stays latched (the reaction keeps replacing the PD output) until the
+    next :meth:`set_modes` call. The selected codes are kept in
+    ``self.damping`` and ``self.collision``.
+
+    Parameters
+    ----------
+    theta0 : array_like, shape (3,), optional
+        Initial angles (rad); default the vertical posture [0, 90 deg, 0].
+    payload : Payload, optional
+    params : RobotParams, optional
+    config : PlantConfig, optional
+    obstacles : sequence of SpringDamperObstacle, optional
+    settle_band : float
+        Strain settling band, m/m (15 um/m in the seed).
+    collision_model : StrainDynamicsModel, optional
+        Identified strain-referred dynamics (10.2.8) for the momentum
+        residual; without it collision modes are recorded but nothing is
+        detected (a warning is issued when a reaction strategy is selected).
+    collision_thresholds : array_like, shape (2,), optional
+        Residual thresholds of the link-2 and link-3 root strains, m/m
+        (required with ``collision_model``).
+    damping_model : StrainDynamicsModel, optional
+        Identified strain-referred dynamics for the model-assisted static
+        strain cancellation of the installed damper (``StrainDamper(...,
+        strain_model=...)``, proportional gains ``ASSISTED_GAINS``); default
+        none (the seed's double moving average alone).
+
+    Examples
+    --------
+    >>> core = SimCore()
+    >>> core.apply_setpoint(np.deg2rad([0.0, 80.0, 0.0]), max_speed_rad_s=np.full(3, 1.0),
+    ...                     max_accel_rad_s2=np.full(3, 3.0))
+    >>> core.step(1.5)
+    >>> round(float(np.rad2deg(core.state().theta[1])), 1)
+    80.0
+    """
+
+    def __init__(self, theta0=None, *, payload: Payload | None = None, params: RobotParams | None = None,
+                 config: PlantConfig = PlantConfig(), obstacles=(), settle_band: float = 15e-6,
+                 collision_model=None, collision_thresholds=None, damping_model=None):
+        th = np.array([0.0, np.pi / 2, 0.0]) if theta0 is None else check_vector(theta0, "theta0", 3)
+        self.damping_model = damping_model
+        if (collision_model is None) != (collision_thresholds is None):
+            raise ValueError("collision_model, collision_thresholds: give both or neither")
+        self.collision_model = collision_model
+        self.collision_thresholds = None if collision_thresholds is None else \
+            [float(x) for x in check_vector(collision_thresholds, "collision_thresholds", 2)]
+        arm = ElasticArm(th, payload=payload, params=params, config=config, obstacles=obstacles)
+        p = arm.params
+        self.controlled = ControlledArm(arm, v_max=p.max_speed_rad_s, a_max=p.max_accel_rad_s2)
+        self.damping, self.collision = 0, 0
+        self._band = float(settle_band)
+        self._mean = list(arm.strain)              # static strain estimate (two cascaded EMAs)
+        self._mean1 = list(arm.strain)
+        self._env = [0.0, 0.0, 0.0, 0.0]          # decaying peak of |strain - mean|
+        self._goal = None
+
+    @property
+    def arm(self) -> ElasticArm:
+        return self.controlled.arm
+
+    def apply_velocity(self, theta_dot) -> None:
+        self._goal = None
+        self.controlled.set_velocity(theta_dot)
+
+    def apply_setpoint(self, theta, *, max_speed_rad_s, max_accel_rad_s2) -> None:
+        p = self.arm.params
+        self.controlled.set_goal(theta, v_max=np.minimum(max_speed_rad_s, p.max_speed_rad_s),
+                                 a_max=np.minimum(max_accel_rad_s2, p.max_accel_rad_s2))
+        self._goal = check_vector(theta, "theta", 3)
+
+    def stop(self) -> None:
+        self._goal = None
+        self.controlled.stop()
+
+    def set_modes(self, *, damping, collision) -> None:
+        """Install the damping law and the collision monitor of the given codes.
+
+        Parameters
+        ----------
+        damping : int or Damping
+            0 off, 1 proportional, 2 integral, 3 half-integrator.
+        collision : int or CollisionStrategy
+            0 none (detect and report only), 1 stop, 2 reflex, 3 interaction.
+
+        Raises
+        ------
+        ValueError
+            On an unknown code.
+        """
+        from ..joint.collision import STRATEGY_OF_CODE, CollisionMonitor, reaction_config, root_torque_per_strain
+        from ..joint.damping import LAWS, StrainDamper, default_damping_config
+        d, c = int(damping), int(collision)
+        if not 0 <= d < len(LAWS) or c not in STRATEGY_OF_CODE:
+            raise ValueError(f"damping, collision: unknown codes {damping!r}, {collision!r}")
+        ca, arm = self.controlled, self.arm
+        if ca.damper is None or ca.damper.config.law != LAWS[d]:
+            m = self.damping_model
+            ca.set_damper(None if d == 0 else StrainDamper(
+                default_damping_config(LAWS[d], two_way=arm._two_way, assisted=m is not None),
+                arm.measured_strain(), arm.config.dt, strain_model=m, payload_kg=arm.payload.mass_kg))
+        strategy = STRATEGY_OF_CODE[c]
+        if self.collision_model is None:
+            ca.reaction = None
+            if strategy != "none":
+                warnings.warn(f"SimCore: collision strategy {strategy!r} selected without a collision_model; "
+                              "nothing is detected", RuntimeWarning, stacklevel=2)
+        else:                   # a fresh monitor: the latch is cleared, the observer restarts at rest state
+            ca.reaction = CollisionMonitor(self.collision_model, self.collision_thresholds, arm.payload.mass_kg,
+                                           arm.config.dt, reaction_config(
+                                               strategy, torque_per_strain=root_torque_per_strain(arm.params)),
+                                           armed_after_s=0.1 if arm.t < 0.1 else 0.0)   # start-up sag
+        self.damping, self.collision = damping, collision
+
+    def step(self, dt: float) -> None:
+        arm = self.arm
+        n = max(1, int(round(float(dt) / arm.config.dt)))
+        a = arm.config.dt / 0.5                    # second-order smoothing (section 2.2), 0.5 s
+        decay = math.exp(-arm.config.dt / 0.5)     # peak envelope forgets within ~0.5 s
+        for _ in range(n):
+            self.controlled.step()
+            s = arm.strain
+            for k in range(4):
+                self._mean1[k] += a * (s[k] - self._mean1[k])
+                self._mean[k] += a * (self._mean1[k] - self._mean[k])
+                self._env[k] = max(abs(s[k] - self._mean[k]), self._env[k] * decay)
+
+    def state(self):
+        from ..joint.server import CoreState
+        arm = self.arm
+        strain = np.asarray(arm.measured_strain())
+        calm = max(self._env) < self._band
+        at_rest = bool(np.all(np.abs(np.asarray(arm.dtheta)) < 1e-3))
+        reached = self._goal is None or bool(np.all(np.abs(np.asarray(arm.theta) - self._goal) < 1e-3))
+        settled = calm and at_rest and reached and self.controlled.mode == "setpoint" \
+            or (calm and at_rest and self.controlled.mode == "velocity"
+                and not any(self.controlled._v_cmd))
+        mon = self.controlled.reaction
+        residuals = np.zeros(3) if mon is None else np.asarray(mon.residual, float)
+        return CoreState(t=arm.t, theta=np.asarray(arm.theta, float), theta_dot=np.asarray(arm.dtheta, float),
+                         strains=strain, residuals=residuals, collision=bool(mon is not None and mon.collision),
+                         settled=bool(settled))
