@@ -51,7 +51,8 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from tudorvision.joint.cascade import friction_compensation
-from tudorvision.joint.collision import StrainDynamicsModel, aprbs, derivatives, fit_report, fit_strain_dynamics
+from tudorvision.joint.collision import StrainDynamicsModel, aprbs, derivatives
+from tudorvision.joint.identification import fit_with_validation
 from tudorvision.joint.damping import (ASSISTED_GAINS, ONE_WAY_GAINS, TWO_WAY_GAINS, DampingConfig,
                                        StrainDamper)
 from tudorvision.joint.metrics import METRIC_NAMES, damping_metrics, iats, normalise_metrics
@@ -194,17 +195,7 @@ def identify(*, two_way: bool, seconds: float, noise: float, coulomb: bool, jobs
     args = [(pl, seconds, two_way, noise, 900 + pl, coulomb) for pl in range(5)]
     with ProcessPoolExecutor(max_workers=jobs) as ex:
         data = list(ex.map(_id_run, args))
-    cat = {k: np.concatenate([d[k] for d in data]) for k in ("theta", "d", "dd", "eps", "m")}
-    blk = np.concatenate([(d["t"] // 5.0).astype(int) % 2 for d in data]).astype(bool)
-    model = fit_strain_dynamics(cat["theta"][~blk], cat["d"][~blk], cat["dd"][~blk], cat["eps"][~blk],
-                                cat["m"][~blk])
-    fits = {}
-    for d in data:
-        b = ((d["t"] // 5.0).astype(int) % 2).astype(bool)
-        rep = fit_report(model, d["theta"][b], d["d"][b], d["dd"][b], d["eps"][b], d["m"][b])
-        fits[f"{100 * d['plates']} g"] = {"fit_pct": np.round(rep.fit_pct, 1).tolist(),
-                                          "rmse_um_m": np.round(np.array(rep.rmse) * 1e6, 2).tolist()}
-    return model, fits
+    return fit_with_validation(data)
 
 
 def tune(law: str, *, two_way: bool, x0=None, maxiter: int = 40) -> tuple:
