@@ -1,7 +1,8 @@
 """Benchmark: collision detection, isolation and reaction on the simulated TUDOR (chapter 11).
 
 Steps (two-way coupled plant, the contact-consistent model; proportional
-damping on as in the seed; strain noise on the gauges; joint 1 held at 0):
+damping on as in the seed, gains scheduled on the known payload, see K_EPS;
+strain noise on the gauges; joint 1 held at 0):
 
 1. identification (10.4): APRBS setpoints for joints 2 and 3 (70 deg/s,
    200 deg/s^2) with payloads 0, 100, 200, 300, 400 g (plates on the 50 g
@@ -10,10 +11,14 @@ damping on as in the seed; strain noise on the gauges; joint 1 held at 0):
    payload-affine least squares on half of the data (alternating 5 s
    blocks), goodness of fit (B.4) on the other half;
 2. thresholds: 6 sigma of the online momentum residual on fresh
-   collision-free APRBS runs (all payloads);
+   collision-free APRBS runs, per payload the larger of the payload's own
+   6 sigma and the pooled 6 sigma of all payloads (``--pooled-thresholds``:
+   the pooled pair for every payload); from the same data the share
+   ``c(m)`` of the link-2 residual in the link-3 residual and the 6-sigma
+   threshold of ``r3 - c(m) r2`` for isolation (``ResidualCoupling``);
 3. false positives: further collision-free random motion with payloads
    0-400 g for ``--fp-minutes`` (default 10) with the detector armed;
-4. contacts: an obstacle sphere put in the path of the end effector (link 3)
+4. contacts (300 g and 400 g): an obstacle sphere put in the path of the end effector (link 3)
    and of a point on link 2, with each strategy (none = no detection, stop,
    reflex, interaction): contact onset, detection delay, isolated link,
    direction, contact force peak and force at the end.
@@ -61,6 +66,8 @@ HEAVY_K_EPS = [0.0, 400.0, 1600.0]
 HEAVY_N_WINDOW = [1000]
 #: Isolation window of the monitor, s (set by --isolation-window).
 ISOLATION_WINDOW_S = [0.02]
+#: Also detect on the decoupled link-3 residual (set by --detect-decoupled).
+DETECT_DECOUPLED = [False]
 #: Residual runs start 1 s before the counted/evaluated period (start-up sag, see random_motion).
 ARMED_AFTER_S = 1.0
 #: Lag (s) of the observer's angle and strain inputs, matched to the cascade's velocity filter t_d
@@ -100,7 +107,8 @@ def random_motion(plates, seconds, *, noise, seed, monitor_args=None, record=Tru
         model, thr, strategy, coupling = monitor_args
         mon = CollisionMonitor(model, thr, arm.payload.mass_kg, arm.config.dt, reaction_config(strategy), k_i=k_i,
                               input_lag_s=INPUT_LAG_S[0], detect_highpass_hz=DETECT_HP_HZ[0],
-                              isolation_coupling=coupling, isolation_window_s=ISOLATION_WINDOW_S[0])
+                              isolation_coupling=coupling, isolation_window_s=ISOLATION_WINDOW_S[0],
+                              detect_decoupled=DETECT_DECOUPLED[0] and coupling is not None)
         ca.reaction = mon
     n = int(round(seconds / arm.config.dt))
     th, eps, res = np.empty((n, 3)), np.empty((n, 2)), np.empty((n, 2))
@@ -151,7 +159,11 @@ def _res_job(args):
             "payload": r["payload"]}
 
 
-def contact_scenario(kind, strategy, model, thr, *, noise, seed=7, seconds=2.5, plates=3, k_i=100.0, coupling=None):
+CONTACT_PLATES = 3
+
+
+def contact_scenario(kind, strategy, model, thr, *, noise, seed=7, seconds=2.5, plates=CONTACT_PLATES, k_i=100.0,
+                     coupling=None):
     """An obstacle sphere in the path; returns timing, isolation and force figures."""
     start, goal = np.array([0.0, 45.0, -45.0]) * DEG, np.array([0.0, 150.0, 60.0]) * DEG
     # free run to find where the probe passes 0.6 s into the motion
@@ -178,7 +190,8 @@ def contact_scenario(kind, strategy, model, thr, *, noise, seed=7, seconds=2.5, 
         mon = CollisionMonitor(model, thr, arm.payload.mass_kg, arm.config.dt, reaction_config(
             strategy, torque_per_strain=root_torque_per_strain(arm.params)), k_i=k_i,
             armed_after_s=0.1, input_lag_s=INPUT_LAG_S[0], detect_highpass_hz=DETECT_HP_HZ[0],  # start-up sag, as SimCore
-            isolation_coupling=coupling, isolation_window_s=ISOLATION_WINDOW_S[0])
+            isolation_coupling=coupling, isolation_window_s=ISOLATION_WINDOW_S[0],
+                              detect_decoupled=DETECT_DECOUPLED[0] and coupling is not None)
         ca.reaction = mon
     ca.set_goal(goal)
     n = int(round(seconds / arm.config.dt))
@@ -224,16 +237,26 @@ def main(argv=None):
     ap.add_argument("--heavy-n-window", type=int, default=HEAVY_N_WINDOW[0])
     ap.add_argument("--isolation-window", type=float, default=ISOLATION_WINDOW_S[0],
                     help="how long the (decoupled) link-3 residual must stay over its threshold for link 3, s")
+    ap.add_argument("--pooled-thresholds", action="store_true",
+                    help="one pair of thresholds (6 sigma of all payloads pooled) instead of per payload: "
+                         "max(6 sigma of the payload's own collision-free residual, pooled 6 sigma)")
+    ap.add_argument("--fp-seed0", type=int, default=1000,
+                    help="first seed of the false-positive runs (seed0 + 10 plates + chunk)")
+    ap.add_argument("--contact-plates", type=int, nargs="+", default=[CONTACT_PLATES, 4],
+                    help="payloads (plates of 100 g) of the contact scenarios")
+    ap.add_argument("--detect-decoupled", action="store_true",
+                    help="also flag a collision when the decoupled link-3 residual exceeds its threshold")
     ap.add_argument("--no-decouple", action="store_true",
                     help="isolate on the link-3 residual itself (no ResidualCoupling)")
     ap.add_argument("--tune-damping", nargs="+", metavar="K2,K3",
                     help="only compare damping gains: per pair, identify on 20 s APRBS per payload and report the "
                          "collision-free residual on 20 s more (tuning seeds 5000+, not the benchmark's)")
     a = ap.parse_args(argv)
+    a.per_payload_thresholds = not a.pooled_thresholds
     DETECT_HP_HZ[0], INPUT_LAG_S[0] = a.detect_highpass, a.input_lag
     K_EPS[1:], N_WINDOW[0] = [float(x) for x in a.k_eps], a.n_window
     HEAVY_FROM[0], HEAVY_K_EPS[1:], HEAVY_N_WINDOW[0] = a.heavy_from, [float(x) for x in a.heavy_k_eps], a.heavy_n_window
-    ISOLATION_WINDOW_S[0] = a.isolation_window
+    ISOLATION_WINDOW_S[0], DETECT_DECOUPLED[0] = a.isolation_window, a.detect_decoupled
     if a.tune_damping:
         for pair in a.tune_damping:
             K_EPS[1:] = [float(x) for x in pair.split(",")]
@@ -243,16 +266,18 @@ def main(argv=None):
     t0 = time.time()
     report = {"cpu": cpu_model(), "jobs": a.jobs, "noise": a.noise, "k_eps": K_EPS, "n_window": N_WINDOW[0],
               "heavy": {"from_plates": HEAVY_FROM[0], "k_eps": HEAVY_K_EPS, "n_window": HEAVY_N_WINDOW[0]},
-              "isolation_window_s": ISOLATION_WINDOW_S[0],
+              "isolation_window_s": ISOLATION_WINDOW_S[0], "detect_decoupled": a.detect_decoupled,
+              "per_payload_thresholds": a.per_payload_thresholds,
               "decouple": not a.no_decouple, "k_i": a.k_i,
               "detect_highpass_hz": a.detect_highpass, "input_lag_s": a.input_lag}
     with ProcessPoolExecutor(max_workers=a.jobs) as ex:
         if a.reuse:
             prev = json.load(open(os.path.join(a.out, "collision.json")))
             model = StrainDynamicsModel(chi=np.load(os.path.join(a.out, "chi.npy")))
-            thr = np.load(os.path.join(a.out, "thr.npy"))
+            thr = np.load(os.path.join(a.out, "thr_per_payload.npy" if a.per_payload_thresholds else "thr.npy"))
             coupling = ResidualCoupling(*np.load(os.path.join(a.out, "coupling.npy")))
-            for key in ("identification", "thresholds_um_m", "residual_sigma_um_m", "residual_sigma_per_payload_um_m",
+            for key in ("identification", "thresholds_um_m", "thresholds_per_payload_um_m", "residual_sigma_um_m",
+                        "residual_sigma_per_payload_um_m",
                         "residual_mean_per_payload_um_m", "coupling"):
                 if key in prev:
                     report[key] = prev[key]
@@ -264,14 +289,14 @@ def main(argv=None):
         if a.fp_minutes > 0:
             per = a.fp_minutes * 60.0 / len(PLATES)
             chunks = max(1, int(np.ceil(per / 60.0)))
-            jobs = [(pl, per / chunks, a.noise, 1000 + 10 * pl + c, model, thr, "none", a.k_i, coupling)
+            jobs = [(pl, per / chunks, a.noise, a.fp_seed0 + 10 * pl + c, model, thr_of(thr, pl), "none", a.k_i, coupling)
                     for pl in PLATES for c in range(chunks)]
             fp = list(ex.map(_res_job, jobs))
             n_fp = sum(len(r["detections"]) for r in fp)
             per_pl = {f"{100 * pl} g": sum(len(r["detections"]) for r in fp if r["plates"] == pl) for pl in PLATES}
-            peak = {f"{100 * pl} g": np.round(np.max([np.abs(r["res"]).max(axis=0) / thr for r in fp
+            peak = {f"{100 * pl} g": np.round(np.max([np.abs(r["res"]).max(axis=0) / thr_of(thr, pl) for r in fp
                                                       if r["plates"] == pl], axis=0), 2).tolist() for pl in PLATES}
-            report["false_positives"] = {"minutes": a.fp_minutes, "count": n_fp, "per_payload": per_pl,
+            report["false_positives"] = {"minutes": a.fp_minutes, "seed0": a.fp_seed0, "count": n_fp, "per_payload": per_pl,
                                          "peak_over_threshold": peak,
                                          "events_note": "(seconds after arming, plates, seed, link, direction)",
                                          "events": [d for r in fp for d in r["detections"]][:20]}
@@ -279,8 +304,10 @@ def main(argv=None):
         elif a.reuse and "false_positives" in prev:
             report["false_positives"] = prev["false_positives"]
         # 4. contacts
-        scen = [(k, s) for k in ("link3", "link2") for s in ("no detection", "stop", "reflex", "interaction")]
-        outs = list(ex.map(_contact_job, [(k, s, model, thr, a.noise, a.k_i, coupling) for k, s in scen]))
+        scen = [(pl, k, s) for pl in a.contact_plates for k in ("link3", "link2")
+                for s in ("no detection", "stop", "reflex", "interaction")]
+        outs = list(ex.map(_contact_job, [(k, s, model, thr_of(thr, pl), a.noise, a.k_i, coupling, pl)
+                                          for pl, k, s in scen]))
     report["contacts"] = outs
     for o in outs:
         print(o, flush=True)
@@ -336,6 +363,15 @@ def _identify(ex, a, report):
     print("thresholds (um/m):", report["thresholds_um_m"], "coupling:", report["coupling"], flush=True)
     np.save(os.path.join(a.out, "thr.npy"), thr)
     np.save(os.path.join(a.out, "coupling.npy"), np.array([coupling.c0, coupling.c1, coupling.threshold]))
+    # per payload: 6 sigma of the payload's own collision-free data, never below the pooled 6 sigma
+    own = np.array([thresholds_from_residuals(r["res"]) for r in sorted(rs, key=lambda r: r["plates"])])
+    thr_pl = np.maximum(own, thr)
+    np.save(os.path.join(a.out, "thr_per_payload.npy"), thr_pl)
+    report["thresholds_per_payload_um_m"] = {f"{100 * pl} g": np.round(thr_pl[pl] * 1e6, 1).tolist()
+                                             for pl in PLATES}
+    if a.per_payload_thresholds:
+        print("per-payload thresholds (um/m):", report["thresholds_per_payload_um_m"], flush=True)
+        return model, thr_pl, coupling
     return model, thr, coupling
 
 
@@ -358,9 +394,17 @@ def tune_damping(noise, k_i, seconds=20.0, seed0=5000):
             "wall_s": round(time.time() - t0, 1)}
 
 
+def thr_of(thr, plates):
+    """Thresholds (2,) for a payload: ``thr`` itself (pooled) or its row ``plates`` (per payload, shape (5, 2))."""
+    thr = np.asarray(thr)
+    return thr[plates] if thr.ndim == 2 else thr
+
+
 def _contact_job(args):
-    kind, strategy, model, thr, noise, k_i, coupling = args
-    return contact_scenario(kind, strategy, model, thr, noise=noise, k_i=k_i, coupling=coupling)
+    kind, strategy, model, thr, noise, k_i, coupling, plates = args
+    out = contact_scenario(kind, strategy, model, thr, noise=noise, k_i=k_i, coupling=coupling, plates=plates)
+    out["payload_g"] = 100 * plates
+    return out
 
 
 def _markdown(rep, path):
@@ -369,17 +413,19 @@ def _markdown(rep, path):
              f"Thresholds (6 sigma, link-2 / link-3 root residual): {rep['thresholds_um_m']} um/m; "
              f"false positives in {fp['minutes']:g} min of random motion (0-400 g): {fp['count']} "
              f"(per payload {fp.get('per_payload', '-')}; peak residual / threshold {fp.get('peak_over_threshold', '-')})."
-             , "", f"Damping k_eps {rep['k_eps']}, static-filter window {rep.get('n_window', 1000)}; heavy payloads "
+             , "", "Per-payload thresholds (max of own and pooled 6 sigma) used: "
+             f"{json.dumps(rep.get('thresholds_per_payload_um_m')) if rep.get('per_payload_thresholds') else 'no'}.",
+             "", f"Damping k_eps {rep['k_eps']}, static-filter window {rep.get('n_window', 1000)}; heavy payloads "
              f"{json.dumps(rep.get('heavy'))}; isolation window {rep.get('isolation_window_s')} s on "
              f"{'r3 - c(m) r2, coupling ' + json.dumps(rep.get('coupling')) if rep.get('decouple') else 'r3'}.", "",
              "Validation fit (B.4): " + json.dumps(
                  rep["identification"]["validation"]), "",
-             "| contact | strategy | onset (s) | detected (s) | delay (ms) | link | dir | peak force (N) | "
-             "final force (N) |", "|---|---|---|---|---|---|---|---|---|"]
+             "| payload | contact | strategy | onset (s) | detected (s) | delay (ms) | link | dir | peak force (N) | "
+             "final force (N) |", "|---|---|---|---|---|---|---|---|---|---|"]
     for o in rep["contacts"]:
         det = "" if o.get("detected_s") is None else f"{o['detected_s']:.4f}"
         onset = "none" if o["onset_s"] is None else f"{o['onset_s']:.4f}"
-        lines.append(f"| {o['kind']} | {o['strategy']} | {onset} | {det} | "
+        lines.append(f"| {o.get('payload_g', 300)} g | {o['kind']} | {o['strategy']} | {onset} | {det} | "
                      f"{'' if o.get('delay_ms') is None else round(o['delay_ms'], 1)} | {o.get('link', '')} | "
                      f"{o.get('direction', '')} | {o['peak_force_N']:.2f} | {o['final_force_N']:.2f} |")
     with open(path, "w") as fh:

@@ -59,3 +59,25 @@ def test_fit_residual_coupling_recovers_payload_affine_share_and_six_sigma():
     assert cp.c0 == pytest.approx(0.27, abs=2e-3) and cp.c1 == pytest.approx(0.25, abs=5e-3)
     assert cp.threshold == pytest.approx(18e-6, rel=0.03)
     assert cp.at_payload(0.4) == pytest.approx(cp.c0 + 0.4 * cp.c1)
+
+
+def test_detect_decoupled_flags_an_own_link3_load_under_the_plain_thresholds():
+    t = np.arange(0.0, 0.1, DT)
+    on = np.where(t >= 0.02, 1.0, 0.0)
+    cp = ResidualCoupling(0.3, 0.0, 2e-6)
+    rows = _rows(20e-6 * on, (0.3 * 20e-6 - 5e-6) * on)     # r2 = 20e-6 and r3 = 1e-6: both under 1e-4
+    zero = StrainDynamicsModel(chi=np.zeros((2, 2 * N_PARAMS)))
+
+    def run(detect):
+        mon = CollisionMonitor(zero, [1e-4, 1e-4], 0.3, DT, reaction_config("none"), k_i=2000.0,
+                               isolation_coupling=cp, detect_decoupled=detect)
+        for row in rows:
+            mon.step([0.0, 0.5, 0.1], [0.0] * 3, row, [0.0] * 3, [0.0] * 3, [0.0] * 3)
+        return mon
+
+    assert not run(False).collision
+    mon = run(True)
+    assert mon.collision and mon.detected_at == pytest.approx(0.02, abs=2e-3)
+    assert (mon.link, mon.direction) == (3, -1)
+    with pytest.raises(ValueError, match="detect_decoupled"):
+        CollisionMonitor(zero, [1e-4, 1e-4], 0.3, DT, detect_decoupled=True)
