@@ -221,3 +221,18 @@ def test_model_assisted_damping_through_the_adapter_settles_sooner():
         out[name] = settling_time(np.arange(e.size) * DT, e, band=15e-6)
         np.testing.assert_allclose(core.arm.theta, np.array([0.0, 45.0, -45.0]) * DEG, atol=0.01 * DEG)
     assert out["assisted"] < out["plain"] - 0.4, out
+
+
+def test_sim_core_passes_the_residual_coupling_to_the_monitor():
+    from tudorvision.joint.collision import ResidualCoupling, StrainDynamicsModel
+    model = StrainDynamicsModel(chi=np.zeros((2, 32)))
+    coupling = ResidualCoupling(c0=0.24, c1=0.29, threshold=1.2e-5)
+    core = SimCore(params=P, collision_model=model, collision_thresholds=[6e-4, 2e-4], collision_coupling=coupling)
+    core.set_modes(damping=0, collision=1)
+    mon = core.controlled.reaction
+    assert isinstance(mon, CollisionMonitor) and mon.isolation_coupling is coupling
+    plain = SimCore(params=P, collision_model=model, collision_thresholds=[6e-4, 2e-4])
+    plain.set_modes(damping=0, collision=1)
+    assert plain.controlled.reaction.isolation_coupling is None
+    with pytest.raises(ValueError, match="collision_coupling"):
+        SimCore(params=P, collision_coupling=coupling)

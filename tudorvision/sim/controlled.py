@@ -353,6 +353,11 @@ class SimCore:
     collision_thresholds : array_like, shape (2,), optional
         Residual thresholds of the link-2 and link-3 root strains, m/m
         (required with ``collision_model``).
+    collision_coupling : ResidualCoupling, optional
+        Share of the link-2 residual in the link-3 residual (fitted on the
+        same collision-free data as the thresholds); isolation then runs on
+        the decoupled residual ``r3 - c(m) r2`` with a 20 ms window
+        (:class:`tudorvision.joint.collision.CollisionMonitor`).
     damping_model : StrainDynamicsModel, optional
         Identified strain-referred dynamics for the model-assisted static
         strain cancellation of the installed damper (``StrainDamper(...,
@@ -371,9 +376,12 @@ class SimCore:
 
     def __init__(self, theta0=None, *, payload: Payload | None = None, params: RobotParams | None = None,
                  config: PlantConfig = PlantConfig(), obstacles=(), settle_band: float = 15e-6,
-                 collision_model=None, collision_thresholds=None, damping_model=None):
+                 collision_model=None, collision_thresholds=None, collision_coupling=None, damping_model=None):
         th = np.array([0.0, np.pi / 2, 0.0]) if theta0 is None else check_vector(theta0, "theta0", 3)
         self.damping_model = damping_model
+        if collision_coupling is not None and collision_model is None:
+            raise ValueError("collision_coupling: needs collision_model and collision_thresholds")
+        self.collision_coupling = collision_coupling
         if (collision_model is None) != (collision_thresholds is None):
             raise ValueError("collision_model, collision_thresholds: give both or neither")
         self.collision_model = collision_model
@@ -443,7 +451,9 @@ class SimCore:
             ca.reaction = CollisionMonitor(self.collision_model, self.collision_thresholds, arm.payload.mass_kg,
                                            arm.config.dt, reaction_config(
                                                strategy, torque_per_strain=root_torque_per_strain(arm.params)),
-                                           armed_after_s=0.1 if arm.t < 0.1 else 0.0)   # start-up sag
+                                           armed_after_s=0.1 if arm.t < 0.1 else 0.0,   # start-up sag
+                                           isolation_coupling=self.collision_coupling,
+                                           isolation_window_s=0.015 if self.collision_coupling is None else 0.02)
         self.damping, self.collision = damping, collision
 
     def step(self, dt: float) -> None:
