@@ -43,8 +43,10 @@ from tudorvision.joint.collision import (CollisionMonitor, ResidualCoupling, Str
                                          fit_report, fit_residual_coupling, fit_strain_dynamics, reaction_config,
                                          root_torque_per_strain, thresholds_from_residuals)
 from tudorvision.joint.damping import DampingConfig, StrainDamper
+from tudorvision.joint.identification import fit_with_validation
 from tudorvision.robot import load_robot_params
-from tudorvision.sim.arm import ControlledArm, ElasticArm, Payload, PlantConfig, SpringDamperObstacle
+from tudorvision.sim.arm import ElasticArm, Payload, PlantConfig, SpringDamperObstacle
+from tudorvision.sim.controlled import ControlledArm
 
 DEG = np.pi / 180
 PLATES = (0, 1, 2, 3, 4)
@@ -322,16 +324,7 @@ def main(argv=None):
 def _fit(ex, a, report):
     """Step 1: identification on APRBS data; saves ``chi.npy``."""
     data = list(ex.map(_id_job, [(pl, a.id_seconds, a.noise, 100 + pl) for pl in PLATES]))
-    cat = {k: np.concatenate([d[k] for d in data]) for k in ("theta", "d", "dd", "eps", "m")}
-    blk = np.concatenate([(d["t"] // 5.0).astype(int) % 2 for d in data]).astype(bool)
-    model = fit_strain_dynamics(cat["theta"][~blk], cat["d"][~blk], cat["dd"][~blk], cat["eps"][~blk],
-                                cat["m"][~blk])
-    fits = {}
-    for d in data:
-        b = ((d["t"] // 5.0).astype(int) % 2).astype(bool)
-        rep = fit_report(model, d["theta"][b], d["d"][b], d["dd"][b], d["eps"][b], d["m"][b])
-        fits[f"{100 * d['plates']} g"] = {"fit_pct": np.round(rep.fit_pct, 1).tolist(),
-                                          "rmse_um_m": np.round(np.array(rep.rmse) * 1e6, 2).tolist()}
+    model, fits = fit_with_validation(data)
     report["identification"] = {"seconds_per_payload": a.id_seconds, "validation": fits}
     print("fit (validation, link-2 / link-3 root):", fits, flush=True)
     np.save(os.path.join(a.out, "chi.npy"), model.chi)
