@@ -24,7 +24,7 @@ strain noise on the gauges; joint 1 held at 0):
    direction, contact force peak and force at the end.
 
 Run:  .venv/bin/python benchmarks/bench_collision.py [--id-seconds 60] [--thr-seconds 60]
-      [--fp-minutes 10] [--noise 2e-6] [--k-i 100] [--reuse | --reuse-model] [--jobs 2] [--out out/collision]
+      [--fp-minutes 10] [--noise 2e-6] [--k-i 200] [--reuse | --reuse-model] [--jobs 2] [--out out/collision]
       [--k-eps 800 3200] [--n-window 1000] [--no-decouple] [--tune-damping K2,K3 ...]
 """
 from __future__ import annotations
@@ -39,8 +39,8 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from tudorvision.joint.collision import (CollisionMonitor, ResidualCoupling, StrainDynamicsModel, aprbs, derivatives,
-                                         fit_report, fit_residual_coupling, fit_strain_dynamics, reaction_config,
+from tudorvision.joint.collision import (DEFAULT_K_I, CollisionMonitor, ResidualCoupling, StrainDynamicsModel, aprbs,
+                                         derivatives, fit_report, fit_residual_coupling, fit_strain_dynamics, reaction_config,
                                          root_torque_per_strain, thresholds_from_residuals)
 from tudorvision.joint.damping import DampingConfig, StrainDamper
 from tudorvision.joint.identification import fit_with_validation
@@ -93,7 +93,8 @@ def _make_arm(plates, theta0, *, noise, seed, obstacles=(), two_way=True):
     return arm, ca
 
 
-def random_motion(plates, seconds, *, noise, seed, monitor_args=None, record=True, armed_after_s=0.0, k_i=100.0):
+def random_motion(plates, seconds, *, noise, seed, monitor_args=None, record=True, armed_after_s=0.0,
+                  k_i=DEFAULT_K_I):
     """APRBS motion of joints 2, 3; returns 2 kHz records and (optionally) online residuals.
 
     Detections before ``armed_after_s`` are not counted: at start the cascade's PI
@@ -165,7 +166,7 @@ def _res_job(args):
 CONTACT_PLATES = 3
 
 
-def contact_scenario(kind, strategy, model, thr, *, noise, seed=7, seconds=2.5, plates=CONTACT_PLATES, k_i=100.0,
+def contact_scenario(kind, strategy, model, thr, *, noise, seed=7, seconds=2.5, plates=CONTACT_PLATES, k_i=DEFAULT_K_I,
                      coupling=None):
     """An obstacle sphere in the path; returns timing, isolation and force figures."""
     start, goal = np.array([0.0, 45.0, -45.0]) * DEG, np.array([0.0, 150.0, 60.0]) * DEG
@@ -221,7 +222,7 @@ def main(argv=None):
     ap.add_argument("--noise", type=float, default=2e-6)
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--out", default="out/collision")
-    ap.add_argument("--k-i", type=float, default=100.0, help="observer gain K_I of the residual, 1/s")
+    ap.add_argument("--k-i", type=float, default=DEFAULT_K_I, help="observer gain K_I of the residual, 1/s")
     ap.add_argument("--reuse-model", action="store_true",
                     help="load the identified model from --out and recompute the thresholds (e.g. for another K_I)")
     ap.add_argument("--reuse", action="store_true",

@@ -123,7 +123,7 @@ def identified():
     half = n // 2
     sl = slice(200, half, 10)
     model = fit_strain_dynamics(th[sl], d[sl], dd[sl], eps[sl], arm.payload.mass_kg)
-    obs = MomentumObserver(model, arm.payload.mass_kg, k_i=100.0, dt=arm.config.dt)
+    obs = MomentumObserver(model, arm.payload.mass_kg, dt=arm.config.dt)    # DEFAULT_K_I, as SimCore's monitor
     res = np.array([obs.step(th[k], dth[k], eps[k]) for k in range(half, n)])[400:]   # held-out half
     return model, thresholds_from_residuals(res), arm.payload.mass_kg
 
