@@ -71,6 +71,31 @@ def test_move_out_of_range_is_refused(served_port, capsys):
     assert len(err.splitlines()) == 1
 
 
+def test_payload_is_accepted_by_the_sim_core_and_range_checked(capsys):
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "tudorvision.cli", "joint", "serve", "--port", "0", "--core", "sim",
+         "--duration", "15"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        ready, _, _ = select.select([proc.stdout], [], [], 15.0)
+        line = proc.stdout.readline() if ready else ""
+        assert "listening on udp 127.0.0.1:" in line, line
+        port = line.rsplit(":", 1)[1].strip()
+        assert main(["joint", "payload", "--port", port, "--kg", "0.2", "--timeout", "3"]) == 0
+        assert "payload 0.2 kg accepted" in capsys.readouterr().out
+        assert main(["joint", "payload", "--port", port, "--kg", "9", "--timeout", "3"]) == 1
+        err = capsys.readouterr().err.strip()
+        assert err.startswith("tudorvision joint payload: refused: OUT_OF_RANGE") and len(err.splitlines()) == 1
+    finally:
+        proc.terminate()
+        proc.wait(timeout=5)
+
+
+def test_payload_on_dead_port_fails_with_one_line(capsys):
+    assert main(["joint", "payload", "--port", str(_dead_port()), "--kg", "0.1", "--timeout", "0.3"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "no answer" in err and len(err.splitlines()) == 1
+
+
 def test_status_on_dead_port_fails_with_one_line(capsys):
     port = _dead_port()
     assert main(["joint", "status", "--port", str(port), "--timeout", "0.3"]) == 1
@@ -95,6 +120,8 @@ def test_status_on_dead_port_subprocess_exit_code():
     (["joint", "status", "--port", "70000"], "argument --port"),
     (["joint", "status", "--port", "5", "--timeout", "-1"], "argument --timeout"),
     (["joint", "serve", "--port", "x"], "argument --port"),
+    (["joint", "payload", "--port", "5", "--kg", "-1"], "argument --kg"),
+    (["joint", "payload", "--port", "5", "--kg", "nan"], "argument --kg"),
 ])
 def test_parse_errors_name_the_argument(argv, named, capsys):
     with pytest.raises(SystemExit) as exc:

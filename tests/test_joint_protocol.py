@@ -9,7 +9,7 @@ import pytest
 from tudorvision.joint import protocol as P
 from tudorvision.joint.protocol import (Ack, CollisionStrategy, Counters, Damping,
                                         JointSetpoint, JointVelocityCommand, Mode, ModeSwitch,
-                                        Reason, Refusal, State, StateFlags, StateRequest,
+                                        PayloadUpdate, Reason, Refusal, State, StateFlags, StateRequest,
                                         decode, encode)
 
 
@@ -24,6 +24,8 @@ def _random_message(rng, kind):
     if kind is ModeSwitch:
         pick = lambda cls: None if rng.random() < 0.25 else cls(int(rng.integers(len(cls))))  # noqa: E731
         return ModeSwitch(mode=pick(Mode), damping=pick(Damping), collision=pick(CollisionStrategy))
+    if kind is PayloadUpdate:
+        return PayloadUpdate(payload_kg=float(rng.uniform(0, 5)))
     if kind is StateRequest:
         return StateRequest()
     if kind is State:
@@ -44,7 +46,7 @@ def _random_message(rng, kind):
                    code=codes_ref[int(rng.integers(len(codes_ref)))], text=text)
 
 
-KINDS = [JointVelocityCommand, JointSetpoint, ModeSwitch, StateRequest, State, Ack, Refusal]
+KINDS = [JointVelocityCommand, JointSetpoint, ModeSwitch, PayloadUpdate, StateRequest, State, Ack, Refusal]
 
 
 @pytest.mark.parametrize("kind", KINDS, ids=lambda k: k.__name__)
@@ -157,6 +159,9 @@ def test_non_finite_values_refused(bad):
     setp = encode(JointSetpoint(theta=(0, 1, 0), max_speed=bad), seq=4, t=0.0, strict=False)
     with pytest.raises(P.NonFinite):
         decode(setp)
+    mass = encode(PayloadUpdate(payload_kg=bad), seq=6, t=0.0, strict=False)
+    with pytest.raises(P.NonFinite, match="payload_kg"):
+        decode(mass)
     stamp = encode(StateRequest(), seq=5, t=bad, strict=False)
     with pytest.raises(P.NonFinite, match="timestamp"):
         decode(stamp)

@@ -570,11 +570,13 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
             emptied += 1
             payload_true = Payload.from_parts(params, balls=0)
             sim.arm.set_payload(payload_true)
+            adapter.set_payload(mount)       # the operator tells the layer (damping gains follow)
             t_now, strains = _pause(core, t_now, o.empty_pause_s, rate, on_frame=recover)
         if strains:     # at rest only; the mean over 0.6 s averages the residual swing; clipped to the trained range
             st = core.state()
             m = km.strain.payload(np.asarray(st.theta)[None, 1:], np.mean(strains, axis=0)[None])[0]
             payload_est = float(np.clip(m, 0.0, 0.5))
+            adapter.set_payload(mount + payload_est)     # the layer schedules its damping on it
     core.close()
 
     # ---- outputs

@@ -9,16 +9,17 @@ from .collision import (N_PARAMS, STRATEGIES, STRATEGY_OF_CODE, Admittance, Coll
                         MomentumObserver, ReactionConfig, StrainDynamicsModel, aprbs, derivatives, fit_report,
                         fit_strain_dynamics, isolate, reaction_config, regressor, regressor_payload,
                         root_torque_per_strain, thresholds_from_residuals)
-from .damping import (DEFAULT_GAINS, GAUGE_OF_JOINT, LAWS, ONE_WAY_GAINS, TWO_WAY_GAINS, DampingConfig, SosFilter,
-                      StaticStrainFilter, StrainDamper, default_damping_config, half_integrator_sos, highpass_response,
-                      moving_average_fir, pade_p55, proportional_feedback, static_strain_fir)
+from .damping import (DEFAULT_GAINS, GAUGE_OF_JOINT, LAWS, ONE_WAY_GAINS, PAYLOAD_SCHEDULE, TWO_WAY_GAINS,
+                      DampingConfig, SosFilter, StaticStrainFilter, StrainDamper, default_damping_config,
+                      half_integrator_sos, highpass_response, moving_average_fir, pade_p55, payload_gain_factor,
+                      proportional_feedback, static_strain_fir)
 from .metrics import (ANGLE_BAND_RAD, METRIC_NAMES, STRAIN_BAND, damping_metrics, goodness_of_fit, iate, iats,
                       max_abs, normalise_metrics, nrmse, settling_time, spectral_amplitude)
 from .cascade import (CascadeGains, JointCascade, design_cascade, friction_torque, motor_gain,
                       reflected_inertia, reflected_viscous)
 from .planner import JointMotion, OnlinePlanner, plan_motion, sinusoidal_transition
 from .protocol import (Ack, CollisionStrategy, Damping, JointSetpoint, JointVelocityCommand, Mode, ModeSwitch,
-                       ProtocolError, Reason, Refusal, State, StateFlags, StateRequest, decode, encode)
+                       PayloadUpdate, ProtocolError, Reason, Refusal, State, StateFlags, StateRequest, decode, encode)
 from .proxy import FaultModel, GilbertElliott, LossyUdpProxy
 from .safety import (SafetyLimits, SafetyPolicy, brake_velocity, check_setpoint, check_velocity_command,
                      ramp_velocity, stopping_time, within_range)
@@ -31,16 +32,16 @@ __all__ = [
     "N_PARAMS", "STRATEGIES", "STRATEGY_OF_CODE", "Admittance", "CollisionMonitor", "FitReport", "MomentumObserver",
     "ReactionConfig", "StrainDynamicsModel", "aprbs", "derivatives", "fit_report", "fit_strain_dynamics", "isolate",
     "reaction_config", "regressor", "regressor_payload", "root_torque_per_strain", "thresholds_from_residuals",
-    "DEFAULT_GAINS", "GAUGE_OF_JOINT", "LAWS", "ONE_WAY_GAINS", "TWO_WAY_GAINS", "DampingConfig", "SosFilter",
+    "DEFAULT_GAINS", "GAUGE_OF_JOINT", "LAWS", "ONE_WAY_GAINS", "PAYLOAD_SCHEDULE", "TWO_WAY_GAINS", "DampingConfig", "SosFilter",
     "StaticStrainFilter", "StrainDamper", "default_damping_config", "half_integrator_sos", "highpass_response",
-    "moving_average_fir", "pade_p55", "proportional_feedback", "static_strain_fir",
+    "moving_average_fir", "pade_p55", "payload_gain_factor", "proportional_feedback", "static_strain_fir",
     "ANGLE_BAND_RAD", "METRIC_NAMES", "STRAIN_BAND", "damping_metrics", "goodness_of_fit", "iate", "iats", "max_abs",
     "normalise_metrics", "nrmse", "settling_time", "spectral_amplitude",
     "CascadeGains", "JointCascade", "design_cascade", "friction_torque", "motor_gain", "reflected_inertia",
     "reflected_viscous",
     "JointMotion", "OnlinePlanner", "plan_motion", "sinusoidal_transition",
     "Ack", "CollisionStrategy", "Damping", "JointSetpoint", "JointVelocityCommand", "Mode", "ModeSwitch",
-    "ProtocolError", "Reason", "Refusal", "State", "StateFlags", "StateRequest", "decode", "encode",
+    "PayloadUpdate", "ProtocolError", "Reason", "Refusal", "State", "StateFlags", "StateRequest", "decode", "encode",
     "FaultModel", "GilbertElliott", "LossyUdpProxy",
     "SafetyLimits", "SafetyPolicy", "brake_velocity", "check_setpoint", "check_velocity_command",
     "ramp_velocity", "stopping_time", "within_range",

@@ -216,6 +216,18 @@ class JointAdapter:
         msg = P.ModeSwitch(mode=mode, damping=damping, collision=collision)
         return self._request(msg, timeout, self._is_reply)
 
+    def set_payload(self, payload_kg: float, *, timeout: float = 1.0) -> Ack | Refusal | None:
+        """Tell the layer the end-effector payload (kg: mount, plates, caught balls).
+
+        The layer schedules its damping gains and collision model on it. Returns
+        the answer (a :class:`Refusal` with ``UNSUPPORTED`` from a core without a
+        payload model), or ``None`` on timeout.
+        """
+        m = float(payload_kg)
+        if not (np.isfinite(m) and m >= 0):
+            raise ValueError(f"payload_kg: expected a finite mass >= 0, got {payload_kg}")
+        return self._request(P.PayloadUpdate(payload_kg=m), timeout, self._is_reply)
+
     def request_state(self, timeout: float = 0.5) -> State | None:
         """Ask for the layer's state; ``None`` if no answer within ``timeout`` s."""
         return self._request(P.StateRequest(), timeout,

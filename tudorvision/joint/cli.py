@@ -5,7 +5,9 @@
 * ``joint status --port P [--timeout S]`` prints the layer's state (exit 0),
   or one line and exit 1 when nothing answers;
 * ``joint move --port P --to DEG,DEG,DEG`` sends a setpoint and waits until
-  the arm has settled (exit 0), exit 1 on refusal, silence or timeout.
+  the arm has settled (exit 0), exit 1 on refusal, silence or timeout;
+* ``joint payload --port P --kg M`` tells the layer the end-effector payload
+  (its damping gains and collision model follow it); exit 1 on refusal or silence.
 
 Angles on the command line are in degrees; everything inside is SI.
 """
@@ -42,6 +44,16 @@ def _positive(text: str) -> float:
     return value
 
 
+def _mass(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a mass in kg, got {text!r}") from None
+    if not (np.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"expected a finite mass >= 0 kg, got {text!r}")
+    return value
+
+
 def _degrees3(text: str) -> np.ndarray:
     parts = text.split(",")
     try:
@@ -61,7 +73,7 @@ def _damping_names():
 
 def register(subparsers) -> None:
     """Add the ``joint`` command and its actions to the top-level parser."""
-    p = subparsers.add_parser("joint", help="joint-control layer over UDP: serve, status, move",
+    p = subparsers.add_parser("joint", help="joint-control layer over UDP: serve, status, move, payload",
                               description=__doc__.split("\n\n")[0])
     actions = p.add_subparsers(dest="joint_action", metavar="ACTION")
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
@@ -99,6 +111,13 @@ def register(subparsers) -> None:
     m.add_argument("--damping", choices=[d.name.lower() for d in _damping_names()],
                    default=None, help="also switch the damping law (default: keep)")
     m.set_defaults(func=_move)
+
+    pl = actions.add_parser("payload", help="tell the layer the end-effector payload")
+    pl.add_argument("--port", type=_port(False), required=True, help="UDP port of the layer")
+    pl.add_argument("--kg", type=_mass, required=True, metavar="KG",
+                    help="payload at the end effector in kg (mount, plates, caught balls)")
+    pl.add_argument("--timeout", type=_positive, default=1.0, help="seconds to wait (default 1)")
+    pl.set_defaults(func=_payload)
 
 
 def _serve(args) -> int:
@@ -155,6 +174,19 @@ def _status(args) -> int:
     if st is None:
         return _fail("status", f"no answer from 127.0.0.1:{args.port} within {args.timeout:g} s")
     print(_format_state(st))
+    return 0
+
+
+def _payload(args) -> int:
+    from .protocol import Ack
+
+    with _client(args.port) as joints:
+        reply = joints.set_payload(args.kg, timeout=args.timeout)
+    if reply is None:
+        return _fail("payload", f"no answer from 127.0.0.1:{args.port} within {args.timeout:g} s")
+    if not isinstance(reply, Ack):
+        return _fail("payload", f"refused: {reply.code.name} {reply.text}")
+    print(f"payload {args.kg:g} kg accepted")
     return 0
 
 

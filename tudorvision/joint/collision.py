@@ -578,6 +578,19 @@ class CollisionMonitor:
         self.residual = [0.0, 0.0, 0.0]
         self.reset()
 
+    def set_payload(self, payload_kg: float, *, quiet_s: float = 0.05) -> None:
+        """Use a new payload mass (kg) in the observer and the isolation coupling.
+
+        The model's inertia and gravity terms change at once, which steps the
+        residual while the arm moves; detection pauses for ``quiet_s`` seconds
+        (ten observer time constants at ``K_I = 200 /s``) while it settles.
+        """
+        m = float(payload_kg)
+        if not (np.isfinite(m) and m >= 0):
+            raise ValueError(f"payload_kg: expected a finite mass >= 0, got {payload_kg}")
+        self.observer.set_payload(m)
+        self._armed_k = max(self._armed_k, self._k + int(round(float(quiet_s) / self.dt)))
+
     def reset(self) -> None:
         """Clear the latched collision (the observer keeps running)."""
         self.collision = False

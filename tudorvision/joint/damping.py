@@ -43,7 +43,7 @@ from .._checks import check_array
 __all__ = ["LAWS", "moving_average_fir", "static_strain_fir", "highpass_response", "StaticStrainFilter",
            "proportional_feedback", "pade_p55", "half_integrator_sos", "SosFilter", "DampingConfig",
            "StrainDamper", "default_damping_config", "GAUGE_OF_JOINT", "ONE_WAY_GAINS", "TWO_WAY_GAINS",
-           "DEFAULT_GAINS", "ASSISTED_GAINS"]
+           "DEFAULT_GAINS", "ASSISTED_GAINS", "PAYLOAD_SCHEDULE", "payload_gain_factor"]
 
 LAWS = ("off", "proportional", "integral", "half_integrator")
 
@@ -384,12 +384,50 @@ DEFAULT_GAINS = ONE_WAY_GAINS
 ASSISTED_GAINS = {"one-way": (0.0, 1600.0, 100.0), "two-way": (0.0, 800.0, 1600.0)}
 
 
+#: Payload schedule of the link-3 gain for the one-way plant's tuned gains (``ONE_WAY_GAINS``,
+#: tuned at 300 g of plates + the 50 g mount = 0.35 kg): ``(masses_kg, factors)``, the factor on
+#: ``k_eps[2]`` piecewise linear in the known payload mass and constant beyond the ends. Fixed
+#: gains, as in section 8.3 of the seed, are not robust on the simulated arm: the tuned link-3
+#: gain starts a growing joint-3 oscillation at the mount alone (0.05 kg, link-3 mode ~13.6 Hz)
+#: and from ~0.45 kg (proportional) / ~0.5 kg (integral) once a large motion excites it (e.g. a
+#: payload dropped while the links swing). Breakpoints from a stability sweep (three operating
+#: points, large steps, payloads 0.05-0.65 kg, factors 1/4-1): every scheduled gain decays
+#: there. The half-integrator needs no schedule (stable over the whole range).
+PAYLOAD_SCHEDULE = {
+    "proportional": ((0.05, 0.08, 0.36, 0.45, 0.55), (2.0 / 3.0, 1.0, 1.0, 0.5, 1.0 / 3.0)),
+    "integral": ((0.08, 0.12, 0.45, 0.5, 0.65), (0.5, 1.0, 1.0, 0.5, 0.25)),
+}
+
+
+def payload_gain_factor(law: str, payload_kg: float) -> float:
+    """Factor on the tuned link-3 gain of ``law`` at this payload (``PAYLOAD_SCHEDULE``; 1 if none).
+
+    Examples
+    --------
+    >>> payload_gain_factor("proportional", 0.35), round(payload_gain_factor("proportional", 0.5), 4)
+    (1.0, 0.4167)
+    >>> payload_gain_factor("half_integrator", 0.05)
+    1.0
+    """
+    if law not in LAWS:
+        raise ValueError(f"law: expected one of {LAWS}, got {law!r}")
+    m = float(payload_kg)
+    if not (np.isfinite(m) and m >= 0):
+        raise ValueError(f"payload_kg: expected a finite mass >= 0, got {payload_kg}")
+    if law not in PAYLOAD_SCHEDULE:
+        return 1.0
+    masses, factors = PAYLOAD_SCHEDULE[law]
+    return float(np.interp(m, masses, factors))
+
+
 def default_damping_config(law: str, *, two_way: bool = False, assisted: bool = False,
-                           **overrides) -> DampingConfig:
+                           payload_kg: float | None = None, **overrides) -> DampingConfig:
     """:class:`DampingConfig` with the tuned gains of ``law`` for the one-way or two-way plant.
 
     ``assisted=True`` selects ``ASSISTED_GAINS`` for the proportional law (the gains for a
-    damper with a ``strain_model``); the other laws keep their gains.
+    damper with a ``strain_model``); the other laws keep their gains. With ``payload_kg``
+    (the known payload mass) the one-way plant's tuned link-3 gain follows
+    ``PAYLOAD_SCHEDULE`` (not for the two-way plant, the assisted gains or given ``k_eps``).
 
     Examples
     --------
@@ -397,13 +435,20 @@ def default_damping_config(law: str, *, two_way: bool = False, assisted: bool = 
     (0.0, 1600.0, 300.0)
     >>> default_damping_config("proportional", assisted=True).k_eps
     (0.0, 1600.0, 100.0)
+    >>> default_damping_config("proportional", payload_kg=0.05).k_eps
+    (0.0, 1600.0, 200.0)
     """
     if law not in LAWS:
         raise ValueError(f"law: expected one of {LAWS}, got {law!r}")
     table = dict(TWO_WAY_GAINS if two_way else ONE_WAY_GAINS)
     if assisted:
         table["proportional"] = ASSISTED_GAINS["two-way" if two_way else "one-way"]
-    k = overrides.pop("k_eps", table.get(law, (0.0, 0.0, 0.0)))
+    if "k_eps" in overrides:
+        k = overrides.pop("k_eps")
+    else:
+        k = tuple(table.get(law, (0.0, 0.0, 0.0)))
+        if payload_kg is not None and not two_way and not (assisted and law == "proportional"):
+            k = (k[0], k[1], k[2] * payload_gain_factor(law, payload_kg))
     return DampingConfig(law=law, k_eps=k, **overrides)
 
 
@@ -477,6 +522,35 @@ class StrainDamper:
     def pd_scale(self) -> float:
         """Factor on the PD position gain while this law acts."""
         return self.config.pd_scale
+
+    @property
+    def k_eps(self) -> tuple:
+        """Gains in use, one per joint (``config.k_eps`` until :meth:`set_gains`)."""
+        return tuple(self._k)
+
+    def set_gains(self, k_eps) -> None:
+        """Change the gains while running (e.g. scheduled on a new payload).
+
+        The integral law's state is rescaled so that its output ``-k * integral``
+        does not jump (bumpless); the filter state is kept.
+
+        Parameters
+        ----------
+        k_eps : array_like, shape (3,)
+        """
+        k = [float(x) for x in check_array(k_eps, "k_eps", (3,))]
+        if self.config.law == "integral":
+            self._integ = [i * (ko / kn) if kn != 0.0 else 0.0 for i, ko, kn in zip(self._integ, self._k, k)]
+        self._k = k
+
+    def set_payload(self, payload_kg: float) -> None:
+        """Payload mass given to the ``strain_model`` from now on (kg)."""
+        if not (np.isfinite(payload_kg) and payload_kg >= 0):
+            raise ValueError(f"payload_kg: expected a finite value >= 0, got {payload_kg}")
+        # the layer learns of a payload change after it happened: re-anchor the model at the next
+        # referenced step instead of stepping its prediction by the payload's static strain now
+        self._model0 = None
+        self.payload_kg = float(payload_kg)
 
     def step(self, strain, reference=None):
         """One control sample.

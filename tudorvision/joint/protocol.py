@@ -40,7 +40,7 @@ from .._checks import TudorVisionError
 __all__ = [
     "MAGIC", "VERSION", "HEADER_SIZE", "MAX_DATAGRAM", "MsgType", "Mode", "Damping",
     "CollisionStrategy", "Reason", "StateFlags", "Header", "JointVelocityCommand",
-    "JointSetpoint", "ModeSwitch", "StateRequest", "Counters", "State", "Ack", "Refusal",
+    "JointSetpoint", "ModeSwitch", "PayloadUpdate", "StateRequest", "Counters", "State", "Ack", "Refusal",
     "Message", "COMMAND_TYPES", "ProtocolError", "BadMagic", "BadVersion", "BadLength",
     "BadChecksum", "UnknownType", "NonFinite", "BadValue", "encode", "decode",
     "seq_newer", "seq_add",
@@ -65,6 +65,7 @@ class MsgType(enum.IntEnum):
     STATE = 5
     ACK = 6
     REFUSAL = 7
+    PAYLOAD = 8            # added after version 1 shipped; older layers refuse it as unknown
 
 
 class Mode(enum.IntEnum):
@@ -108,6 +109,7 @@ class Reason(enum.IntEnum):
     WRONG_MODE = 15
     STALE = 16
     FAULT = 17             # the layer is in a fault stop
+    UNSUPPORTED = 18       # the layer's core cannot do this (e.g. no payload model)
 
 
 class StateFlags(enum.IntFlag):
@@ -191,6 +193,19 @@ class ModeSwitch:
             v = getattr(self, name)
             if v is not None:
                 object.__setattr__(self, name, cls(v))
+
+
+@dataclass(frozen=True, kw_only=True)
+class PayloadUpdate:
+    """Tell the layer the payload at the end effector (mount, plates, caught balls), kg.
+
+    The layer schedules its damping gains and its collision model on it.
+    """
+
+    payload_kg: float
+
+    def __post_init__(self):
+        object.__setattr__(self, "payload_kg", float(self.payload_kg))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -291,9 +306,9 @@ class Refusal:
         object.__setattr__(self, "code", Reason(self.code))
 
 
-Message = (JointVelocityCommand | JointSetpoint | ModeSwitch | StateRequest | State
+Message = (JointVelocityCommand | JointSetpoint | ModeSwitch | PayloadUpdate | StateRequest | State
            | Ack | Refusal)
-COMMAND_TYPES = (JointVelocityCommand, JointSetpoint, ModeSwitch)
+COMMAND_TYPES = (JointVelocityCommand, JointSetpoint, ModeSwitch, PayloadUpdate)
 
 
 class ProtocolError(TudorVisionError):
@@ -344,6 +359,7 @@ class BadValue(ProtocolError):
 _VEL = struct.Struct("!3d")
 _SETP = struct.Struct("!3d2dB")
 _MODE = struct.Struct("!3B")
+_PAYLOAD = struct.Struct("!d")
 _STATE = struct.Struct(f"!14dI3B2I{_N_COUNTERS}I")
 _REPLY = struct.Struct("!IHB")
 _U32 = 0xFFFFFFFF
@@ -373,6 +389,9 @@ def _pack_payload(msg, strict: bool) -> tuple[MsgType, bytes]:
     if isinstance(msg, ModeSwitch):
         vals = [_KEEP if v is None else int(v) for v in (msg.mode, msg.damping, msg.collision)]
         return MsgType.MODE, _MODE.pack(*vals)
+    if isinstance(msg, PayloadUpdate):
+        _check_finite((msg.payload_kg,), "payload_kg", strict)
+        return MsgType.PAYLOAD, _PAYLOAD.pack(msg.payload_kg)
     if isinstance(msg, StateRequest):
         return MsgType.STATE_REQUEST, b""
     if isinstance(msg, State):
@@ -441,7 +460,7 @@ def _enum(cls, value: int, what: str, header: Header, keep: bool = False):
 def _unpack_payload(header: Header, payload: bytes):
     mtype = header.msg_type
     want = {MsgType.VELOCITY: _VEL.size, MsgType.SETPOINT: _SETP.size, MsgType.MODE: _MODE.size,
-            MsgType.STATE_REQUEST: 0, MsgType.STATE: _STATE.size}.get(mtype)
+            MsgType.STATE_REQUEST: 0, MsgType.STATE: _STATE.size, MsgType.PAYLOAD: _PAYLOAD.size}.get(mtype)
     if want is not None and len(payload) != want:
         raise BadLength(f"{mtype.name} payload: expected {want} bytes, got {len(payload)}", header)
 
@@ -465,6 +484,10 @@ def _unpack_payload(header: Header, payload: bytes):
         return ModeSwitch(mode=_enum(Mode, m, "mode", header, keep=True),
                           damping=_enum(Damping, d, "damping", header, keep=True),
                           collision=_enum(CollisionStrategy, c, "collision", header, keep=True))
+    if mtype == MsgType.PAYLOAD:
+        (mass,) = _PAYLOAD.unpack(payload)
+        finite((mass,), "payload_kg")
+        return PayloadUpdate(payload_kg=mass)
     if mtype == MsgType.STATE_REQUEST:
         return StateRequest()
     if mtype == MsgType.STATE:

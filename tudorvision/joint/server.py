@@ -50,7 +50,7 @@ from .safety import (SafetyLimits, SafetyPolicy, brake_velocity, check_setpoint,
                      check_velocity_command, ramp_velocity)
 
 __all__ = ["CoreState", "JointCore", "KinematicCore", "ServerConfig", "CommandRecord",
-           "JointLayerServer", "register_core", "make_core", "core_names"]
+           "JointLayerServer", "MAX_PAYLOAD_KG", "register_core", "make_core", "core_names"]
 
 
 # ----------------------------------------------------------------- core interface
@@ -178,6 +178,10 @@ class KinematicCore:
     def set_modes(self, *, damping, collision):
         self.damping, self.collision = P.Damping(damping), P.CollisionStrategy(collision)
 
+    def set_payload(self, payload_kg: float) -> None:
+        """Record the payload (a rigid integrator has no use for it)."""
+        self.payload_kg = float(payload_kg)
+
     def step(self, dt):
         n = max(1, int(round(dt / self._h)))
         h = dt / n
@@ -202,6 +206,9 @@ class KinematicCore:
         return CoreState(t=self._t, theta=self._theta.copy(), theta_dot=self._v.copy(),
                          settled=at_rest and reached and self._mode != "velocity")
 
+
+#: Largest payload a :class:`tudorvision.joint.protocol.PayloadUpdate` may announce, kg.
+MAX_PAYLOAD_KG = 5.0
 
 _CORES: dict[str, Callable[..., JointCore]] = {}
 
@@ -634,7 +641,7 @@ class JointLayerServer:
                 self._count(malformed=1)
                 h = err.header
                 if h is not None and h.msg_type in (P.MsgType.VELOCITY, P.MsgType.SETPOINT,
-                                                    P.MsgType.MODE):
+                                                    P.MsgType.MODE, P.MsgType.PAYLOAD):
                     self._flags |= _F.REFUSED
                     self._send(P.Refusal(command_seq=h.seq, code=err.reason, text=str(err)), addr)
                 return
@@ -693,6 +700,17 @@ class JointLayerServer:
             if msg.mode is not None:
                 self._enter_mode(msg.mode)
             self._flags &= ~(_F.FAULT | _F.WATCHDOG_STOP)
+            return self._accept(seq, P.Reason.OK, "")
+        if isinstance(msg, P.PayloadUpdate):
+            m = msg.payload_kg
+            if not 0.0 <= m <= MAX_PAYLOAD_KG:
+                return self._refuse(seq, P.Reason.OUT_OF_RANGE,
+                                    f"payload_kg {m:g} outside [0, {MAX_PAYLOAD_KG:g}] kg")
+            set_payload = getattr(self.core, "set_payload", None)
+            if set_payload is None:
+                return self._refuse(seq, P.Reason.UNSUPPORTED,
+                                    f"core {type(self.core).__name__} has no payload model")
+            set_payload(m)
             return self._accept(seq, P.Reason.OK, "")
         if self._flags & _F.FAULT:
             return self._refuse(seq, P.Reason.FAULT, "fault stop; send a mode switch to clear")

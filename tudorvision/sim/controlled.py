@@ -391,6 +391,9 @@ class SimCore:
         p = arm.params
         self.controlled = ControlledArm(arm, v_max=p.max_speed_rad_s, a_max=p.max_accel_rad_s2)
         self.damping, self.collision = 0, 0
+        #: payload mass the layer knows (kg): the lab's payload at start, then what
+        #: :meth:`set_payload` says (the layer never reads the plant's payload afterwards)
+        self.payload_kg = float(arm.payload.mass_kg)
         self._band = float(settle_band)
         self._mean = list(arm.strain)              # static strain estimate (two cascaded EMAs)
         self._mean1 = list(arm.strain)
@@ -437,10 +440,9 @@ class SimCore:
             raise ValueError(f"damping, collision: unknown codes {damping!r}, {collision!r}")
         ca, arm = self.controlled, self.arm
         if ca.damper is None or ca.damper.config.law != LAWS[d]:
-            m = self.damping_model
             ca.set_damper(None if d == 0 else StrainDamper(
-                default_damping_config(LAWS[d], two_way=arm._two_way, assisted=m is not None),
-                arm.measured_strain(), arm.config.dt, strain_model=m, payload_kg=arm.payload.mass_kg))
+                self._damping_config(LAWS[d]), arm.measured_strain(), arm.config.dt,
+                strain_model=self.damping_model, payload_kg=self.payload_kg))
         strategy = STRATEGY_OF_CODE[c]
         if self.collision_model is None:
             ca.reaction = None
@@ -448,13 +450,42 @@ class SimCore:
                 warnings.warn(f"SimCore: collision strategy {strategy!r} selected without a collision_model; "
                               "nothing is detected", RuntimeWarning, stacklevel=2)
         else:                   # a fresh monitor: the latch is cleared, the observer restarts at rest state
-            ca.reaction = CollisionMonitor(self.collision_model, self.collision_thresholds, arm.payload.mass_kg,
+            ca.reaction = CollisionMonitor(self.collision_model, self.collision_thresholds, self.payload_kg,
                                            arm.config.dt, reaction_config(
                                                strategy, torque_per_strain=root_torque_per_strain(arm.params)),
                                            armed_after_s=0.1 if arm.t < 0.1 else 0.0,   # start-up sag
                                            isolation_coupling=self.collision_coupling,
                                            isolation_window_s=0.015 if self.collision_coupling is None else 0.02)
         self.damping, self.collision = damping, collision
+
+    def _damping_config(self, law: str):
+        from ..joint.damping import default_damping_config
+        return default_damping_config(law, two_way=self.arm._two_way, assisted=self.damping_model is not None,
+                                      payload_kg=self.payload_kg)
+
+    def set_payload(self, payload_kg: float) -> None:
+        """Tell the layer the payload mass (kg, end effector total: mount, plates, balls).
+
+        The installed damper's gains follow the payload schedule
+        (:data:`tudorvision.joint.damping.PAYLOAD_SCHEDULE`), its strain model and
+        the collision monitor's momentum observer use the new mass. The plant's
+        payload is not touched (that is the lab's :meth:`ElasticArm.set_payload`).
+
+        Raises
+        ------
+        ValueError
+            If ``payload_kg`` is not a finite mass in [0, 5] kg.
+        """
+        m = float(payload_kg)
+        if not (math.isfinite(m) and 0.0 <= m <= 5.0):
+            raise ValueError(f"payload_kg: expected a finite mass in [0, 5] kg, got {payload_kg}")
+        self.payload_kg = m
+        ca = self.controlled
+        if ca.damper is not None:
+            ca.damper.set_gains(self._damping_config(ca.damper.config.law).k_eps)
+            ca.damper.set_payload(m)
+        if ca.reaction is not None and hasattr(ca.reaction, "set_payload"):
+            ca.reaction.set_payload(m)
 
     def step(self, dt: float) -> None:
         arm = self.arm
