@@ -134,3 +134,51 @@ def test_unknown_core_is_one_line_error(capsys):
     assert main(["joint", "serve", "--port", "0", "--duration", "0.1", "--core", "nope"]) == 2
     err = capsys.readouterr().err
     assert "unknown core 'nope'" in err and "kinematic" in err
+
+
+def _model_folder(tmp_path, chi_shape=(2, 32)):
+    import numpy as np
+    d = tmp_path / "model"
+    d.mkdir()
+    np.save(d / "chi.npy", np.zeros(chi_shape))
+    np.save(d / "thr.npy", np.array([6e-4, 2e-4]))
+    np.save(d / "coupling.npy", np.array([0.2, 0.3, 1e-5]))
+    return d
+
+
+def test_serve_loads_collision_and_damping_models(tmp_path, capsys, monkeypatch):
+    from tudorvision.joint import server as server_mod
+    d = _model_folder(tmp_path)
+    built = {}
+    real = server_mod.make_core
+
+    def spy(name, **options):
+        built.update(options)
+        return real(name, **options)
+
+    monkeypatch.setattr(server_mod, "make_core", spy)
+    assert main(["joint", "serve", "--port", "0", "--core", "sim", "--duration", "0.2",
+                 "--collision-model", str(d), "--damping-model", str(d / "chi.npy")]) == 0
+    assert "listening on udp 127.0.0.1:" in capsys.readouterr().out
+    assert built["collision_model"].chi.shape == (2, 32) and list(built["collision_thresholds"]) == [6e-4, 2e-4]
+    assert built["collision_coupling"].c1 == 0.3 and built["damping_model"].chi.shape == (2, 32)
+
+
+@pytest.mark.parametrize("case", ["wrong_shape", "not_npy", "missing", "kinematic"])
+def test_serve_model_errors_are_one_line_and_name_the_file(tmp_path, capsys, case):
+    d = _model_folder(tmp_path, chi_shape=(2, 31) if case == "wrong_shape" else (2, 32))
+    argv = ["joint", "serve", "--port", "0", "--duration", "0.1", "--core", "sim"]
+    if case == "wrong_shape":
+        argv += ["--collision-model", str(d)]
+    elif case == "not_npy":
+        (d / "x.npy").write_text("hello")
+        argv += ["--damping-model", str(d / "x.npy")]
+    elif case == "missing":
+        argv += ["--damping-model", str(d / "absent.npy")]
+    else:
+        argv = ["joint", "serve", "--port", "0", "--duration", "0.1", "--collision-model", str(d)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    named = {"wrong_shape": "chi.npy", "not_npy": "x.npy", "missing": "absent.npy", "kinematic": "--core sim"}[case]
+    assert named in err

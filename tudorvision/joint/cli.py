@@ -87,6 +87,12 @@ def register(subparsers) -> None:
     s.add_argument("--rate", type=_positive, default=500.0, help="control rate in Hz")
     s.add_argument("--watchdog", type=_positive, default=0.1,
                    help="velocity command lifetime in s (default 0.1)")
+    s.add_argument("--collision-model", default=None, metavar="DIR",
+                   help="core sim: identified strain dynamics for collision handling, a folder with chi.npy, "
+                        "thr.npy and optionally coupling.npy (as written by benchmarks/bench_collision.py)")
+    s.add_argument("--damping-model", default=None, metavar="CHI_NPY",
+                   help="core sim: identified strain dynamics (chi.npy) for the model-assisted static "
+                        "strain cancellation of the damper")
     s.set_defaults(func=_serve)
 
     st = actions.add_parser("status", help="print the layer's state")
@@ -120,11 +126,54 @@ def register(subparsers) -> None:
     pl.set_defaults(func=_payload)
 
 
+def _load_npy(path: str, what: str, shape=None) -> np.ndarray:
+    from .._checks import TudorVisionError
+    try:
+        with open(path, "rb") as fh:
+            magic = fh.read(6)
+        a = np.load(path, allow_pickle=False) if magic == b"\x93NUMPY" else None
+    except (OSError, ValueError) as err:
+        raise TudorVisionError(f"{what}: cannot read {path}: {err}") from None
+    if a is None:
+        raise TudorVisionError(f"{what}: {path} is not a NumPy .npy file")
+    if shape is not None and a.shape != shape:
+        raise TudorVisionError(f"{what}: {path} holds an array of shape {a.shape}, expected {shape}")
+    if not np.all(np.isfinite(a)):
+        raise TudorVisionError(f"{what}: {path} holds NaN or infinite values")
+    return a
+
+
+def _core_options(args) -> dict:
+    """Model files of ``joint serve`` as :class:`SimCore` options (one-line errors naming the file)."""
+    import os
+
+    from .._checks import TudorVisionError
+    from .collision import N_PARAMS, ResidualCoupling, StrainDynamicsModel
+    opts = {}
+    if (args.collision_model or args.damping_model) and args.core != "sim":
+        raise TudorVisionError(f"--collision-model/--damping-model: only for --core sim, not {args.core!r}")
+    chi_shape = (2, 2 * N_PARAMS)
+    if args.collision_model:
+        d = args.collision_model
+        if not os.path.isdir(d):
+            raise TudorVisionError(f"--collision-model: {d} is not a folder (expected chi.npy, thr.npy)")
+        opts["collision_model"] = StrainDynamicsModel(
+            chi=_load_npy(os.path.join(d, "chi.npy"), "--collision-model", chi_shape))
+        opts["collision_thresholds"] = _load_npy(os.path.join(d, "thr.npy"), "--collision-model", (2,))
+        cp = os.path.join(d, "coupling.npy")
+        if os.path.exists(cp):
+            opts["collision_coupling"] = ResidualCoupling(*_load_npy(cp, "--collision-model", (3,)))
+    if args.damping_model:
+        opts["damping_model"] = StrainDynamicsModel(
+            chi=_load_npy(args.damping_model, "--damping-model", chi_shape))
+    return opts
+
+
 def _serve(args) -> int:
     from .server import JointLayerServer, ServerConfig, make_core
     from .transport import UdpTransport
 
-    core = make_core(args.core)
+    core = make_core(args.core, **_core_options(args))
     with UdpTransport.server(port=args.port) as transport:
         server = JointLayerServer(transport, core,
                                   config=ServerConfig(rate_hz=args.rate,

@@ -434,7 +434,7 @@ class SimCore:
             On an unknown code.
         """
         from ..joint.collision import STRATEGY_OF_CODE, CollisionMonitor, reaction_config, root_torque_per_strain
-        from ..joint.damping import LAWS, StrainDamper, default_damping_config
+        from ..joint.damping import LAWS, StrainDamper
         d, c = int(damping), int(collision)
         if not 0 <= d < len(LAWS) or c not in STRATEGY_OF_CODE:
             raise ValueError(f"damping, collision: unknown codes {damping!r}, {collision!r}")
