@@ -36,6 +36,7 @@ from tudorvision.robot import load_robot_params
 from tudorvision.sim.arm import Payload
 
 LABELS = ("off", "fixed", "scheduled")
+COLORS = {"off": "0.5", "fixed": "C0", "scheduled": "C1"}
 
 
 def _gains(label: str, law: str, mass_kg: float):
@@ -204,13 +205,14 @@ def _figure(table, tails, exps, a, meta):
         for lab, mk in (("fixed", "o-"), ("scheduled", "s--")):
             y = [table[("online", e, lab)][k + "_pct"] for e in exps]
             s = [table[("online", e, lab)][k + "_pct_std"] for e in exps]
-            ax.errorbar(m, y, yerr=s, fmt=mk, capsize=3, label=lab)
+            ax.errorbar(m, y, yerr=s, fmt=mk, capsize=3, label=lab, color=COLORS[lab])
         ax.axhline(100.0, color="k", lw=0.6, ls="--")
         ax.set_title(title, fontsize=9)
         ax.set_xlabel("payload incl. 50 g mount (g)")
     ax = axes[1, 1]
     for lab, mk in (("off", "^:"), ("fixed", "o-"), ("scheduled", "s--")):
-        ax.semilogy(m, [1e6 * max(tails[(e, lab)]) for e in exps], mk, label=lab)
+        ax.semilogy(m, [1e6 * max(tails[(e, lab)]) for e in exps], mk, label=lab, color=COLORS[lab])
+    ax.legend(fontsize=8)
     ax.set_title("largest link-3 root oscillation, last 2 s (um/m)", fontsize=9)
     ax.set_xlabel("payload incl. 50 g mount (g)")
     axes[0, 0].legend(fontsize=8)
