@@ -563,9 +563,10 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
             refused += 1
         t_now, strains = _pause(core, t_now, o.gap_s, rate, on_frame=recover)
         if balls >= o.net_capacity_balls:
-            # the operator empties the net once the arm rests at the ready pose (removing a full net
-            # from a still-swinging arm excites a sustained oscillation in the damped plant), then the
-            # payload is weighed again after a short settling pause
+            # the operator empties the net once the arm rests at the ready pose and tells the layer
+            # (with the 300 g gains kept, the bare mount's link-3 mode would turn a large swing into a
+            # limit cycle: docs/joint_layer.md, "Payload"), then the payload is weighed again after a
+            # short settling pause
             balls = 0
             emptied += 1
             payload_true = Payload.from_parts(params, balls=0)
