@@ -33,7 +33,8 @@ from bench_damping_ch8 import HORIZON_S, evaluate, run_experiment
 from tudorvision.joint.damping import ONE_WAY_GAINS, default_damping_config
 from tudorvision.joint.metrics import METRIC_NAMES
 from tudorvision.robot import load_robot_params
-from tudorvision.sim.arm import Payload
+from tudorvision.sim.arm import Payload, PlantConfig
+from tudorvision.sim.controlled import SimCore
 
 LABELS = ("off", "fixed", "scheduled")
 COLORS = {"off": "0.5", "fixed": "C0", "scheduled": "C1"}
@@ -64,8 +65,6 @@ DROP_POSE_DEG, DROP_MOVE_DEG = (0.0, 60.4, 61.5), (0.0, 14.0, -45.0)
 
 def _drop_job(args):
     label, law, noise, seed = args
-    from tudorvision.sim.arm import PlantConfig
-    from tudorvision.sim.controlled import SimCore
     p = load_robot_params()
     pose = np.deg2rad(DROP_POSE_DEG)
     core = SimCore(pose, payload=Payload.from_parts(p, camera=True), params=p,

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["TudorVisionError", "check_array", "check_points", "check_vector", "check_transform"]
+__all__ = ["TudorVisionError", "check_array", "check_points", "check_vector", "check_transform", "check_mass"]
 
 
 class TudorVisionError(ValueError):
@@ -70,6 +70,23 @@ def check_points(value, name: str, dim: int = 3, *, finite: bool = True) -> np.n
 def check_vector(value, name: str, n: int) -> np.ndarray:
     """Check a length-``n`` vector."""
     return check_array(value, name, (n,))
+
+
+def check_mass(value, name: str = "payload_kg", *, max_kg: float = float("inf")) -> float:
+    """Check a mass in kg: finite, in ``[0, max_kg]``; returns it as a float.
+
+    Examples
+    --------
+    >>> check_mass(0.35)
+    0.35
+    """
+    try:
+        m = float(value)
+    except (TypeError, ValueError):
+        m = float("nan")
+    if not (np.isfinite(m) and 0.0 <= m <= max_kg):
+        raise ValueError(f"{name}: expected a finite mass in [0, {max_kg:g}] kg, got {value!r}")
+    return m
 
 
 def check_transform(value, name: str) -> np.ndarray:

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import check_array
+from .._checks import check_array, check_mass
 from . import protocol as P
 from .protocol import Ack, CollisionStrategy, Damping, Mode, Refusal, State
 
@@ -223,10 +223,7 @@ class JointAdapter:
         the answer (a :class:`Refusal` with ``UNSUPPORTED`` from a core without a
         payload model), or ``None`` on timeout.
         """
-        m = float(payload_kg)
-        if not (np.isfinite(m) and m >= 0):
-            raise ValueError(f"payload_kg: expected a finite mass >= 0, got {payload_kg}")
-        return self._request(P.PayloadUpdate(payload_kg=m), timeout, self._is_reply)
+        return self._request(P.PayloadUpdate(payload_kg=check_mass(payload_kg)), timeout, self._is_reply)
 
     def request_state(self, timeout: float = 0.5) -> State | None:
         """Ask for the layer's state; ``None`` if no answer within ``timeout`` s."""

@@ -45,13 +45,11 @@ def _positive(text: str) -> float:
 
 
 def _mass(text: str) -> float:
+    from .._checks import check_mass
     try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a mass in kg, got {text!r}") from None
-    if not (np.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"expected a finite mass >= 0 kg, got {text!r}")
-    return value
+        return check_mass(text, "mass")
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def _degrees3(text: str) -> np.ndarray:

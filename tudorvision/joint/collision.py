@@ -82,7 +82,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._checks import check_array
+from .._checks import check_array, check_mass
 
 __all__ = ["N_PARAMS", "STRATEGIES", "regressor", "regressor_payload", "StrainDynamicsModel", "fit_strain_dynamics",
            "FitReport", "fit_report", "derivatives", "MomentumObserver", "thresholds_from_residuals", "isolate",
@@ -559,8 +559,9 @@ class CollisionMonitor:
         if not isolation_window_s >= 0 or not armed_after_s >= 0 or not detect_highpass_hz >= 0:
             raise ValueError(f"isolation_window_s, armed_after_s, detect_highpass_hz: expected >= 0, got "
                              f"{isolation_window_s}, {armed_after_s}, {detect_highpass_hz}")
-        self.isolation_coupling = None if isolation_coupling is None else ResidualCoupling(*isolation_coupling) \
-            if not isinstance(isolation_coupling, ResidualCoupling) else isolation_coupling
+        if isolation_coupling is not None and not isinstance(isolation_coupling, ResidualCoupling):
+            isolation_coupling = ResidualCoupling(*isolation_coupling)
+        self.isolation_coupling = isolation_coupling
         if detect_decoupled and self.isolation_coupling is None:
             raise ValueError("detect_decoupled: needs isolation_coupling")
         self.detect_decoupled = bool(detect_decoupled)
@@ -585,10 +586,7 @@ class CollisionMonitor:
         residual while the arm moves; detection pauses for ``quiet_s`` seconds
         (ten observer time constants at ``K_I = 200 /s``) while it settles.
         """
-        m = float(payload_kg)
-        if not (np.isfinite(m) and m >= 0):
-            raise ValueError(f"payload_kg: expected a finite mass >= 0, got {payload_kg}")
-        self.observer.set_payload(m)
+        self.observer.set_payload(check_mass(payload_kg))
         self._armed_k = max(self._armed_k, self._k + int(round(float(quiet_s) / self.dt)))
 
     def reset(self) -> None:

@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import signal
 
-from .._checks import check_array
+from .._checks import check_array, check_mass
 
 __all__ = ["LAWS", "moving_average_fir", "static_strain_fir", "highpass_response", "StaticStrainFilter",
            "proportional_feedback", "pade_p55", "half_integrator_sos", "SosFilter", "DampingConfig",
@@ -411,9 +411,7 @@ def payload_gain_factor(law: str, payload_kg: float) -> float:
     """
     if law not in LAWS:
         raise ValueError(f"law: expected one of {LAWS}, got {law!r}")
-    m = float(payload_kg)
-    if not (np.isfinite(m) and m >= 0):
-        raise ValueError(f"payload_kg: expected a finite mass >= 0, got {payload_kg}")
+    m = check_mass(payload_kg)
     if law not in PAYLOAD_SCHEDULE:
         return 1.0
     masses, factors = PAYLOAD_SCHEDULE[law]
@@ -501,11 +499,9 @@ class StrainDamper:
         if strain_model is not None and not callable(getattr(strain_model, "predict", None)):
             raise TypeError("strain_model: expected an object with predict(theta, dtheta, ddtheta, payload_kg), "
                             f"got {type(strain_model).__name__}")
-        if not np.isfinite(payload_kg) or payload_kg < 0:
-            raise ValueError(f"payload_kg: expected a finite value >= 0, got {payload_kg}")
         self.strain_model = strain_model
-        self.payload_kg = float(payload_kg)
-        self._model_ch = [c for c in config.gauge_of_joint[1:3]]
+        self.payload_kg = check_mass(payload_kg)
+        self._model_ch = list(config.gauge_of_joint[1:3])
         self._model0 = None         # model strains at the first referenced step
         self.config = config
         self.dt = float(dt)
@@ -545,12 +541,11 @@ class StrainDamper:
 
     def set_payload(self, payload_kg: float) -> None:
         """Payload mass given to the ``strain_model`` from now on (kg)."""
-        if not (np.isfinite(payload_kg) and payload_kg >= 0):
-            raise ValueError(f"payload_kg: expected a finite value >= 0, got {payload_kg}")
+        m = check_mass(payload_kg)
         # the layer learns of a payload change after it happened: re-anchor the model at the next
         # referenced step instead of stepping its prediction by the payload's static strain now
         self._model0 = None
-        self.payload_kg = float(payload_kg)
+        self.payload_kg = m
 
     def step(self, strain, reference=None):
         """One control sample.

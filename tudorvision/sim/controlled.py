@@ -17,7 +17,7 @@ import warnings
 
 import numpy as np
 
-from .._checks import check_vector
+from .._checks import check_mass, check_vector
 from ..joint.cascade import JointCascade, design_cascade
 from ..joint.planner import plan_motion
 from ..robot.params import RobotParams, load_robot_params
@@ -476,15 +476,13 @@ class SimCore:
         ValueError
             If ``payload_kg`` is not a finite mass in [0, 5] kg.
         """
-        m = float(payload_kg)
-        if not (math.isfinite(m) and 0.0 <= m <= 5.0):
-            raise ValueError(f"payload_kg: expected a finite mass in [0, 5] kg, got {payload_kg}")
-        self.payload_kg = m
+        from ..joint.server import MAX_PAYLOAD_KG
+        self.payload_kg = m = check_mass(payload_kg, max_kg=MAX_PAYLOAD_KG)
         ca = self.controlled
         if ca.damper is not None:
             ca.damper.set_gains(self._damping_config(ca.damper.config.law).k_eps)
             ca.damper.set_payload(m)
-        if ca.reaction is not None and hasattr(ca.reaction, "set_payload"):
+        if ca.reaction is not None:
             ca.reaction.set_payload(m)
 
     def step(self, dt: float) -> None:
