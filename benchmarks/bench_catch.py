@@ -50,7 +50,7 @@ import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from _machine import cpu_model  # noqa: E402
-from tudorvision.catch.demo import DemoOptions, run_demo  # noqa: E402
+from tudorvision.lab.catch_demo import DemoOptions, run_demo  # noqa: E402
 
 
 
@@ -62,7 +62,7 @@ def _throw_scene(rng):
     camera and its intrinsics.
     """
     from tudorvision.rgbd.frames import Intrinsics
-    from tudorvision.sim.record import T_WORLD_BASE
+    from tudorvision.lab.record import T_WORLD_BASE
     from tudorvision.sim.scenes import ball_throw
 
     cur = {"f": None}
@@ -81,7 +81,7 @@ def _throw_scene(rng):
 def fit_noise_scale(n_throws: int, seed: int) -> dict:
     """Render throws, detect, and compare with the truth under the detector's covariance."""
     from tudorvision.rgbd.ball import BallDetector, BallDetectorOptions
-    from tudorvision.sim.record import random_throw, throw_trajectory
+    from tudorvision.lab.record import random_throw, throw_trajectory
     from tudorvision.sim.render import render_rgbd
 
     rng = np.random.default_rng(seed)
@@ -176,10 +176,10 @@ def prediction_error_vs_lead(rows, preds, leads=(0.6, 0.5, 0.4, 0.3, 0.2)):
 
 def latency_only(n_throws: int, seed: int, repeats: int = 5) -> None:
     """Per-frame latency of the catching perception on pre-rendered wall-camera frames."""
-    from tudorvision.catch.demo import CatchPerception, detection_to_base
+    from tudorvision.catch.perception import CatchPerception, detection_to_base
     from tudorvision.rgbd.ball import BallDetector, BallDetectorOptions
     from tudorvision.robot import load_robot_params
-    from tudorvision.sim.record import T_WORLD_BASE, random_throw, throw_trajectory
+    from tudorvision.lab.record import T_WORLD_BASE, random_throw, throw_trajectory
     from tudorvision.sim.render import render_rgbd
 
     rng = np.random.default_rng(seed)
@@ -222,7 +222,7 @@ def latency_only(n_throws: int, seed: int, repeats: int = 5) -> None:
 
 
 def kinematics_report(cache_dir: str) -> None:
-    from tudorvision.catch.data_collection import DEMO_COLLECTION, CollectionOptions, load_or_collect, remap_errors
+    from tudorvision.lab.data_collection import DEMO_COLLECTION, CollectionOptions, load_or_collect, remap_errors
     from tudorvision.catch.kinematics import InverseKinematics, fit_kinematics
     from tudorvision.robot import load_robot_params
 

@@ -46,7 +46,7 @@ from tudorvision.joint.damping import DampingConfig, StrainDamper
 from tudorvision.joint.identification import fit_with_validation
 from tudorvision.robot import load_robot_params
 from tudorvision.sim.arm import ElasticArm, Payload, PlantConfig, SpringDamperObstacle
-from tudorvision.sim.controlled import ControlledArm
+from tudorvision.joint.controlled import ControlledArm
 
 DEG = np.pi / 180
 PLATES = (0, 1, 2, 3, 4)

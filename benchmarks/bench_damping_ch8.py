@@ -58,7 +58,7 @@ from tudorvision.joint.damping import (ASSISTED_GAINS, ONE_WAY_GAINS, TWO_WAY_GA
 from tudorvision.joint.metrics import METRIC_NAMES, damping_metrics, iats, normalise_metrics
 from tudorvision.robot import load_robot_params
 from tudorvision.sim.arm import ElasticArm, Payload, PlantConfig, link_static_loads
-from tudorvision.sim.controlled import ControlledArm
+from tudorvision.joint.controlled import ControlledArm
 
 OPS_DEG = {1: (0.0, 0.0, 0.0), 2: (0.0, 45.0, -45.0), 3: (0.0, 90.0, 0.0), 4: (0.0, 135.0, 45.0),
            5: (0.0, 180.0, 0.0)}

@@ -34,7 +34,7 @@ from tudorvision.joint.damping import ONE_WAY_GAINS, default_damping_config
 from tudorvision.joint.metrics import METRIC_NAMES
 from tudorvision.robot import load_robot_params
 from tudorvision.sim.arm import Payload, PlantConfig
-from tudorvision.sim.controlled import SimCore
+from tudorvision.lab.simulation import SimCore
 
 LABELS = ("off", "fixed", "scheduled")
 COLORS = {"off": "0.5", "fixed": "C0", "scheduled": "C1"}

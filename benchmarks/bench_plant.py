@@ -29,7 +29,7 @@ from tudorvision.joint.planner import plan_motion
 from tudorvision.robot import load_robot_params
 from tudorvision.sim.arm import (ElasticArm, Payload, PlantConfig, bias_torques, mass_matrix,
                                  zero_config_inertia)
-from tudorvision.sim.controlled import simulate_ptp
+from tudorvision.lab.simulation import simulate_ptp
 
 DEG = np.pi / 180
 

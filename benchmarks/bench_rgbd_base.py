@@ -47,8 +47,8 @@ import numpy as np
 from tudorvision.geometry import invert_transform, rotation_angle
 from tudorvision.io import open_sequence
 from tudorvision.rgbd.base_calib import base_frame_from_sweep
-from tudorvision.rgbd.calib_cli import _camera, observe_sweep
-from tudorvision.rgbd.cli import noise_model_from_calibration
+from tudorvision.cli.calib_rgbd import camera_for_sweep, observe_sweep
+from tudorvision.cli.rgbd import noise_model_from_calibration
 from tudorvision.rgbd.disc import DiscOptions
 from tudorvision.rgbd.frames import Intrinsics
 
@@ -63,7 +63,7 @@ ESTIMATORS = {
 
 def record_if_missing(path: Path, seed: int) -> Path:
     if not (path / "sequence.yaml").is_file():
-        from tudorvision.sim.record import RecordOptions, record
+        from tudorvision.lab.record import RecordOptions, record
 
         t0 = time.perf_counter()
         record("rgbd-disc", path, RecordOptions(seed=seed, show_progress=False))
@@ -73,7 +73,7 @@ def record_if_missing(path: Path, seed: int) -> Path:
 
 def evaluate(path: Path) -> dict:
     seq = open_sequence(path)
-    cam, cal = _camera(seq, None)
+    cam, cal = camera_for_sweep(seq, None)
     K = Intrinsics.from_matrix(cam.K, cam.width, cam.height)
     gt = seq.groundtruth("disc")
     truth = np.column_stack([gt["disc_x_cam_m"], gt["disc_y_cam_m"], gt["disc_z_cam_m"]])

@@ -34,8 +34,9 @@ import cv2
 import numpy as np
 
 from tudorvision.robot import T_base_ee, jacobian_ee
-from tudorvision.servo import LabConfig, ServoLab, VisualServo, teach_goal
-from tudorvision.servo.experiments import start_poses
+from tudorvision.lab.servo_lab import LabConfig, ServoLab, teach_goal
+from tudorvision.servo import VisualServo
+from tudorvision.lab.servo_experiments import start_poses
 
 
 def _frames(n: int):
@@ -144,7 +145,7 @@ def main() -> int:
     if args.summary:
         summary = json.loads(open(args.summary).read())
     elif args.repetitions:
-        from tudorvision.servo.experiments import repeatability
+        from tudorvision.lab.servo_experiments import repeatability
         with tempfile.TemporaryDirectory() as d:
             summary = repeatability(d, repetitions=args.repetitions, workers=args.workers)
     if summary is not None:
@@ -157,7 +158,7 @@ def main() -> int:
                   f"({r['n_runs']} runs)")
         print("  seed: mean 4, p90 8, radius 14 mm; goal: <= 2, <= 4, <= 7 mm, 100 % convergence")
     if not args.no_track:
-        from tudorvision.servo.experiments import track_moving_square
+        from tudorvision.lab.servo_experiments import track_moving_square
         t0 = time.perf_counter()
         r = track_moving_square(speed_m_s=args.track_speed)
         print(f"tracking a square sliding at {args.track_speed * 1e3:.0f} mm/s: steady error (square in the "

@@ -1,7 +1,7 @@
 """Stereo end-effector tracking accuracy against the virtual lab's ground truth.
 
 For each seed (the seed varies lighting, clutter and look-alike decoys) this
-renders, with ``tudorvision.sim.record``:
+renders, with ``tudorvision.lab.record``:
 
 - ``stereo-static``: settled poses over the workspace, no motion blur;
 - ``stereo-step``: the step [0,45,-45] -> [0,135,45] deg at the joints'
@@ -58,7 +58,7 @@ sys.path.insert(0, os.path.join(HERE, ".."))
 from peer_hsv import detect_peer  # noqa: E402
 from test_stereo_pipeline import good_picks, gt_ee, gt_picks, gt_transform, gt_uv  # noqa: E402
 from tudorvision.io import open_sequence  # noqa: E402
-from tudorvision.sim import RecordOptions, record  # noqa: E402
+from tudorvision.lab import RecordOptions, record  # noqa: E402
 from tudorvision._checks import TudorVisionError  # noqa: E402
 from tudorvision.stereo import (ColorModelSet, PipelineOptions, SegmentParams, TrackerParams,  # noqa: E402
                                 fit_color_model, fit_color_model_set, parse_pick, track_stereo,

@@ -45,7 +45,7 @@ from peer_hsv import detect_peer  # noqa: E402
 from test_stereo_pipeline import good_picks, gt_ee, gt_transform  # noqa: E402
 from tudorvision.io import open_sequence  # noqa: E402
 from tudorvision.io.frames import StereoFrame  # noqa: E402
-from tudorvision.sim import RecordOptions, record  # noqa: E402
+from tudorvision.lab import RecordOptions, record  # noqa: E402
 from tudorvision.stereo import (PipelineOptions, SegmentParams, TrackerParams, fit_color_model_set,  # noqa: E402
                                 track_stereo, triangulate_spheres)
 

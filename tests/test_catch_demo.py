@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tudorvision.catch.demo import DemoOptions, run_demo, simulated_detection
+from tudorvision.lab.catch_demo import DemoOptions, run_demo, simulated_detection
 from tudorvision.cli import main
 from tudorvision.rgbd.frames import Intrinsics
 
@@ -107,7 +107,7 @@ class _FakeLayer:
 
 
 def test_payload_is_weighed_only_with_the_arm_at_rest():
-    from tudorvision.catch.demo import WEIGH_REST_SPEED_RAD_S, _pause
+    from tudorvision.lab.catch_demo import WEIGH_REST_SPEED_RAD_S, _pause
     t, strains = _pause(_FakeLayer(lambda t: 0.0), 0.0, 1.0, 30.0)
     assert t == pytest.approx(1.0) and len(strains) == 18                 # the last 0.6 s at 30 Hz
     np.testing.assert_allclose(np.mean(strains, axis=0), [1e-4, 2e-4, 3e-4, 4e-4])

@@ -7,7 +7,7 @@ from tudorvision.catch import (BallEKF, BallModel, BallisticPredictor, EKFOption
                                reachable_solutions, update, working_plane_normal)
 from tudorvision.catch.intercept import InterceptOptions, InterceptPlanner
 from tudorvision.robot import fk_ee
-from tudorvision.sim.record import random_throw, throw_trajectory
+from tudorvision.lab.record import random_throw, throw_trajectory
 
 CAM = np.array([0.0, -6.8, 2.0])
 

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from tudorvision.catch.data_collection import CollectionOptions, collect_settled_poses, load_or_collect
+from tudorvision.lab.data_collection import CollectionOptions, collect_settled_poses, load_or_collect
 from tudorvision.catch.kinematics import (DeflectionModel, ForwardModel, InverseKinematics, StrainModel,
                                           fit_kinematics, rigid_regressors)
 from tudorvision.robot import fk_ee, ik, load_robot_params, planar_from_joints

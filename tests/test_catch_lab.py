@@ -2,12 +2,12 @@
 import numpy as np
 import pytest
 
-from tudorvision.catch.data_collection import CollectionOptions, collect_settled_poses
-from tudorvision.catch.lab import LockstepLayer
+from tudorvision.lab.data_collection import CollectionOptions, collect_settled_poses
+from tudorvision.lab.lockstep import LockstepLayer
 from tudorvision.joint import Ack, Damping, Mode
 from tudorvision.robot import load_robot_params
 from tudorvision.sim.arm import Payload
-from tudorvision.sim.controlled import SimCore
+from tudorvision.lab.simulation import SimCore
 
 
 def _layer(params):
@@ -43,7 +43,7 @@ def test_lockstep_layer_rejects_a_bad_rate():
 
 
 def test_stereo_measured_poses_come_from_the_tracker_and_the_lab_calibration():
-    from tudorvision.sim.record import T_WORLD_BASE
+    from tudorvision.lab.record import T_WORLD_BASE
     from tudorvision.sim.scenes import stereo_lab
 
     opts = CollectionOptions(theta2_deg=(40.0, 100.0, 60.0), theta3_deg=(-30.0, 30.0, 60.0), payloads_kg=(0.2,),

@@ -212,7 +212,7 @@ def test_controlled_arm_passes_its_reference_to_the_damper():
     """ControlledArm hands the planned (theta, dtheta, ddtheta) to a damper with a strain model."""
     from tudorvision.robot import load_robot_params
     from tudorvision.sim.arm import ElasticArm, PlantConfig
-    from tudorvision.sim.controlled import ControlledArm
+    from tudorvision.joint.controlled import ControlledArm
     p = load_robot_params()
     arm = ElasticArm([0.0, 0.3, 0.0], params=p, config=PlantConfig())
     ca = ControlledArm(arm)

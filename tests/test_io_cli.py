@@ -10,7 +10,7 @@ from tudorvision.io import SequenceWriter
 @pytest.fixture(autouse=True)
 def _only_seq_commands(monkeypatch):
     """Build the real CLI with only this module's commands (others may be mid-development)."""
-    monkeypatch.setattr(tudorvision.cli, "COMMAND_MODULES", ("tudorvision.io.cli",))
+    monkeypatch.setattr(tudorvision.cli, "COMMAND_MODULES", ("tudorvision.cli.seq",))
 
 
 def _seq(root, n=4):

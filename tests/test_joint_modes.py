@@ -11,7 +11,8 @@ from tudorvision.joint import (Ack, CollisionMonitor, CollisionStrategy, Damping
 from tudorvision.joint.server import ServerConfig
 from tudorvision.robot import load_robot_params
 from tudorvision.sim.arm import ElasticArm, Payload, PlantConfig, SpringDamperObstacle
-from tudorvision.sim.controlled import ControlledArm, SimCore
+from tudorvision.joint.controlled import ControlledArm
+from tudorvision.lab.simulation import SimCore
 
 DT = 1.0 / 500.0
 DEG = np.pi / 180.0

@@ -10,7 +10,7 @@ from tudorvision.joint.damping import (LAWS, ONE_WAY_GAINS, PAYLOAD_SCHEDULE, TW
                                        StrainDamper, default_damping_config, payload_gain_factor)
 from tudorvision.robot.params import load_robot_params
 from tudorvision.sim.arm import Payload
-from tudorvision.sim.controlled import SimCore
+from tudorvision.lab.simulation import SimCore
 
 P = load_robot_params()
 DT = 5e-4

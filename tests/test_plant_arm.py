@@ -7,7 +7,7 @@ import pytest
 from tudorvision.robot import fk_ee, load_robot_params
 from tudorvision.sim.arm import (ElasticArm, Payload, PlantConfig, SpringDamperObstacle, arm_bodies, bias_torques,
                                  mass_matrix, rigid_energy, zero_config_inertia)
-from tudorvision.sim.controlled import simulate, simulate_ptp
+from tudorvision.lab.simulation import simulate, simulate_ptp
 from tudorvision.sim.beam import link_rho, link_rigidity
 from tudorvision.joint.cascade import JointCascade, design_cascade
 from tudorvision.joint.planner import plan_motion
@@ -236,7 +236,7 @@ def test_bad_inputs_raise():
 
 
 def test_controlled_arm_velocity_command_stop_and_replanned_setpoint():
-    from tudorvision.sim.controlled import ControlledArm
+    from tudorvision.joint.controlled import ControlledArm
     ca = ControlledArm(ElasticArm(D([0, 60, -30]), payload=Payload.from_parts(P, plates=2)))
     cmd = np.array([0.3, -0.4, 0.5])
     refs = []
@@ -268,7 +268,7 @@ def test_controlled_arm_velocity_command_stop_and_replanned_setpoint():
 
 def test_sim_core_follows_the_joint_layer_interface():
     from tudorvision.joint.server import JointCore
-    from tudorvision.sim.controlled import SimCore
+    from tudorvision.lab.simulation import SimCore
     core = SimCore(payload=Payload.from_parts(P, plates=1),
                    config=PlantConfig(modal_damping_ratio=(0.2, 0.2)))
     assert isinstance(core, JointCore)
@@ -346,11 +346,12 @@ def test_measured_strain_noise_is_seeded_and_has_the_requested_spread():
 
 
 def test_controlled_arm_records_a_log_matching_simulate():
-    from tudorvision.sim.controlled import ControlledArm
+    from tudorvision.joint.controlled import ControlledArm
+    from tudorvision.lab.simulation import run_recorded
     start, goal = D([0, 40, -30]), D([10, 60, -10])
     a = ControlledArm(ElasticArm(start))
     a.set_goal(goal)
-    log_a = a.run(1.0, record=True)
+    log_a = run_recorded(a, 1.0)
     log_b = simulate_ptp(start, goal, 1.0)
     assert log_a.theta.shape == log_b.theta.shape == (2000, 3)
     assert np.allclose(log_a.theta, log_b.theta, atol=1e-9)

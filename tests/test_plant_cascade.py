@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from tudorvision.joint.cascade import (JointCascade, design_cascade, friction_torque, motor_gain,
-                                       reflected_inertia, reflected_viscous)
+from tudorvision.joint.cascade import JointCascade, design_cascade
+from tudorvision.robot.actuators import friction_torque, motor_gain, reflected_inertia, reflected_viscous
 from tudorvision.robot import load_robot_params
 
 P = load_robot_params()
@@ -159,7 +159,7 @@ def test_velocity_reference_saturates_at_the_rated_speed_only_when_asked():
 
 def test_simulated_joint_stays_near_its_rated_speed_under_a_huge_damping_input():
     from tudorvision.sim.arm import ElasticArm
-    from tudorvision.sim.controlled import ControlledArm
+    from tudorvision.joint.controlled import ControlledArm
     p = load_robot_params()
     for saturate, bound in ((True, 1.05), (False, None)):
         ca = ControlledArm(ElasticArm([0.0, 0.8, 0.0]), damping=lambda arm: (0.0, 5.0, 0.0),

@@ -6,7 +6,7 @@ import pytest
 
 from tudorvision.io import open_sequence
 from tudorvision.robot import load_robot_params
-from tudorvision.sim.record import KINDS, RecordOptions, elastic_arm_geometry, record, static_arm_state, \
+from tudorvision.lab.record import KINDS, RecordOptions, elastic_arm_geometry, record, static_arm_state, \
     throw_trajectory
 from tudorvision.sim.arm import Payload, fk_elastic
 

@@ -241,7 +241,7 @@ def test_virtual_lab_disc_scene_has_no_tracking_spheres():
 
     from tudorvision.sim.scenes import wall_disc
 
-    record = importlib.import_module("tudorvision.sim.record")
+    record = importlib.import_module("tudorvision.lab.record")
     th = np.radians([0.0, 40.0, 0.0])
     state = record.static_arm_state(th, record.Payload.from_parts(PARAMS), PARAMS)
     geom = record.elastic_arm_geometry(th, *state, PARAMS)

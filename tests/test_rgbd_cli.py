@@ -56,7 +56,7 @@ def test_detect_ball_on_real_video(tmp_path):
 
 @pytest.fixture(scope="module")
 def lab_recordings(tmp_path_factory):
-    from tudorvision.sim.record import RecordOptions, record
+    from tudorvision.lab.record import RecordOptions, record
 
     root = tmp_path_factory.mktemp("lab")
     opts = RecordOptions(small=True, show_progress=False, seed=3)

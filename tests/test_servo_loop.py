@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from tudorvision.cli import main
-from tudorvision.servo import LabConfig, ServoLab, VisualServo, run_closed_loop, teach_goal
+from tudorvision.lab.servo_lab import LabConfig, ServoLab, run_closed_loop, teach_goal
+from tudorvision.servo import VisualServo
 from tudorvision.servo.loop import DEFAULT_SMOOTHING_FRAMES
 
 

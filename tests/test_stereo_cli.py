@@ -10,7 +10,7 @@ import pytest
 from test_stereo_pipeline import gt_ee, good_picks, gt_transform
 from tudorvision.cli import main
 from tudorvision.io import load_calibration, open_sequence, save_calibration
-from tudorvision.sim import RecordOptions, record
+from tudorvision.lab import RecordOptions, record
 from tudorvision.stereo import load_color_models, read_mono_track_csv, read_trajectory_csv
 
 BALL_VIDEO = Path(__file__).resolve().parents[2] / "shared" / "realdata" / "ball_videos" / "ball2.mp4"

@@ -13,7 +13,7 @@ import pytest
 from tudorvision._checks import TudorVisionError
 from tudorvision.io import open_sequence
 from tudorvision.io.frames import StereoFrame
-from tudorvision.sim import RecordOptions, record
+from tudorvision.lab import RecordOptions, record
 from tudorvision.stereo import (ColorModelSet, PipelineOptions, StereoPipeline, fit_color_model_set,
                                 iter_stereo, track_mono, track_stereo)
 

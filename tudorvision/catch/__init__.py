@@ -2,14 +2,16 @@
 
 EKF prediction of the thrown ball (:mod:`.ekf`), the intercept with the
 robot's working plane (:mod:`.intercept`), a drag-free ballistic peer
-(:mod:`.ballistic`), data-based kinematics under load (:mod:`.kinematics`) and
-the simulated catching demo (:mod:`.demo`, imported on use).
+(:mod:`.ballistic`), the perception stream that combines them
+(:mod:`.perception`) and data-based kinematics under load (:mod:`.kinematics`).
+The simulated catching demo lives in :mod:`tudorvision.lab.catch_demo`.
 """
 from .ballistic import BallisticPredictor, ballistic_crossing, fit_ballistic
 from .ekf import (DEFAULT_DRAG_K_PER_M, BallEKF, BallModel, EKFOptions, ball_dynamics, dynamics_jacobian,
                   init_from_detections, predict, process_noise, propagate, update)
 from .intercept import (Intercept, InterceptOptions, InterceptPlanner, PlaneCrossing, net_target, plane_crossing,
                         planar_coordinates, reachable_solutions, working_plane_normal)
+from .perception import CatchPerception, detection_to_base
 
 __all__ = [
     "BallisticPredictor", "ballistic_crossing", "fit_ballistic",
@@ -17,4 +19,5 @@ __all__ = [
     "init_from_detections", "predict", "process_noise", "propagate", "update",
     "Intercept", "InterceptOptions", "InterceptPlanner", "PlaneCrossing", "net_target", "plane_crossing",
     "planar_coordinates", "reachable_solutions", "working_plane_normal",
+    "CatchPerception", "detection_to_base",
 ]

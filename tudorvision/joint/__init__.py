@@ -15,8 +15,7 @@ from .damping import (DEFAULT_GAINS, GAUGE_OF_JOINT, LAWS, ONE_WAY_GAINS, PAYLOA
                       proportional_feedback, static_strain_fir)
 from .metrics import (ANGLE_BAND_RAD, METRIC_NAMES, STRAIN_BAND, damping_metrics, goodness_of_fit, iate, iats,
                       max_abs, normalise_metrics, nrmse, settling_time, spectral_amplitude)
-from .cascade import (CascadeGains, JointCascade, design_cascade, friction_torque, motor_gain,
-                      reflected_inertia, reflected_viscous)
+from .cascade import CascadeGains, JointCascade, design_cascade
 from .planner import JointMotion, OnlinePlanner, plan_motion, sinusoidal_transition
 from .protocol import (Ack, CollisionStrategy, Damping, JointSetpoint, JointVelocityCommand, Mode, ModeSwitch,
                        PayloadUpdate, ProtocolError, Reason, Refusal, State, StateFlags, StateRequest, decode, encode)
@@ -37,8 +36,7 @@ __all__ = [
     "moving_average_fir", "pade_p55", "payload_gain_factor", "proportional_feedback", "static_strain_fir",
     "ANGLE_BAND_RAD", "METRIC_NAMES", "STRAIN_BAND", "damping_metrics", "goodness_of_fit", "iate", "iats", "max_abs",
     "normalise_metrics", "nrmse", "settling_time", "spectral_amplitude",
-    "CascadeGains", "JointCascade", "design_cascade", "friction_torque", "motor_gain", "reflected_inertia",
-    "reflected_viscous",
+    "CascadeGains", "JointCascade", "design_cascade",
     "JointMotion", "OnlinePlanner", "plan_motion", "sinusoidal_transition",
     "Ack", "CollisionStrategy", "Damping", "JointSetpoint", "JointVelocityCommand", "Mode", "ModeSwitch",
     "PayloadUpdate", "ProtocolError", "Reason", "Refusal", "State", "StateFlags", "StateRequest", "decode", "encode",

@@ -57,65 +57,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._checks import check_array
+from ..robot.actuators import friction_torque, motor_gain, reflected_inertia, reflected_viscous
 from ..robot.params import RobotParams
 
-__all__ = ["motor_gain", "reflected_inertia", "reflected_viscous", "friction_torque",
-           "CascadeGains", "design_cascade", "FrictionCompensation", "friction_compensation",
+__all__ = ["CascadeGains", "design_cascade", "FrictionCompensation", "friction_compensation",
            "JointCascade"]
-
-
-def motor_gain(params: RobotParams) -> np.ndarray:
-    """``k_M = n_M k_tau k_amp`` per joint (N m per volt at the gear output), eq. 3.1.2.
-
-    Examples
-    --------
-    >>> from tudorvision.robot import load_robot_params
-    >>> np.round(motor_gain(load_robot_params()), 2)
-    array([ 9.71, 14.32,  4.41])
-    """
-    return (np.asarray(params.gear_ratio, float) * np.asarray(params.torque_constant_Nm_A, float)
-            * np.asarray(params.amplifier_gain_A_V, float))
-
-
-def reflected_inertia(params: RobotParams) -> np.ndarray:
-    """Rotor and gear inertia at the gear output ``n_M^2 I_M``, kg m^2, shape (3,)."""
-    return np.asarray(params.gear_ratio, float) ** 2 * np.asarray(params.rotor_inertia_kg_m2, float)
-
-
-def reflected_viscous(params: RobotParams) -> np.ndarray:
-    """Symmetric viscous friction at the output (mean of k_v+ and k_v-, 3.1.6), N m s/rad."""
-    n2 = np.asarray(params.gear_ratio, float) ** 2
-    return n2 * 0.5 * (np.asarray(params.viscous_pos_Nms_rad, float)
-                       + np.asarray(params.viscous_neg_Nms_rad, float))
-
-
-def friction_torque(dtheta, params: RobotParams) -> np.ndarray:
-    """Joint friction torque at the gear output, model (3.1.3) with opposing Coulomb terms.
-
-    Parameters
-    ----------
-    dtheta : array_like, shape (3,) or (N, 3)
-        Joint velocities, rad/s.
-
-    Returns
-    -------
-    tau_F : ndarray, same shape
-        N m; positive values oppose positive motion. Zero velocity gives zero
-        (the plant treats sticking separately).
-
-    Examples
-    --------
-    >>> from tudorvision.robot import load_robot_params
-    >>> p = load_robot_params()
-    >>> t = friction_torque([0.1, -0.1, 0.0], p)
-    >>> bool(t[0] > 0 and t[1] < 0 and t[2] == 0)
-    True
-    """
-    v = np.asarray(dtheta, dtype=np.float64)
-    n = np.asarray(params.gear_ratio, float)
-    kvp, kvn = n**2 * params.viscous_pos_Nms_rad, n**2 * params.viscous_neg_Nms_rad
-    kcp, kcn = n * params.coulomb_pos_Nm, n * params.coulomb_neg_Nm
-    return np.where(v > 0, kvp * v + kcp, np.where(v < 0, kvn * v - kcn, 0.0))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -330,6 +276,24 @@ class JointCascade:
             [float(friction.coulomb_neg[j] / friction.motor_gain[j]) for j in range(3)],
             1.0 / float(friction.w_band), FRICTION_SOURCES.index(friction.source))
         self.reset(th)
+
+    def set_pd_scale(self, scale: float) -> None:
+        """Multiply the designed PD position gains by ``scale`` (e.g. 0.5 for the integral law, 6.5).
+
+        Parameters
+        ----------
+        scale : float
+            Positive factor on ``gains.k_pd``; 1 restores the design.
+
+        Raises
+        ------
+        ValueError
+            If ``scale`` is not a positive finite number.
+        """
+        s = float(scale)
+        if not (math.isfinite(s) and s > 0):
+            raise ValueError(f"scale: expected a positive finite factor, got {scale!r}")
+        self._kpd = [float(self.gains.k_pd[j]) * s for j in range(3)]
 
     def reset(self, theta) -> None:
         """Zero the controller state at encoder reading ``theta``."""

@@ -239,14 +239,7 @@ def make_core(name: str, **options) -> JointCore:
     return factory(**options)
 
 
-def _sim_core(**options) -> JointCore:
-    """The simulated elastic TUDOR with its cascade (imported on first use)."""
-    from ..sim.controlled import SimCore
-    return SimCore(**options)
-
-
 register_core("kinematic", KinematicCore)
-register_core("sim", _sim_core)
 
 # StateFlags bits as plain ints: IntFlag arithmetic costs microseconds per operation.
 _F = types.SimpleNamespace(**{f.name: int(f) for f in P.StateFlags})

@@ -141,11 +141,11 @@ def joint_velocity(v_cam, theta, T_ee_cam, *, params: RobotParams | None = None,
     (True, [0.0, 0.0, 0.0])
     """
     p = params or load_robot_params()
-    return _joint_velocity(check_array(v_cam, "v_cam", (3,)), check_array(theta, "theta", (3,)),
+    return joint_velocity_checked(check_array(v_cam, "v_cam", (3,)), check_array(theta, "theta", (3,)),
                            check_transform(T_ee_cam, "T_ee_cam"), p, config)
 
 
-def _joint_velocity(v_cam, th, T, p, config) -> JointCommand:
+def joint_velocity_checked(v_cam, th, T, p, config) -> JointCommand:
     """:func:`joint_velocity` for checked inputs (the servo checks its hand-eye transform once)."""
     T_be = T_base_ee(th, p)
     v_base = T_be[:3, :3] @ (T[:3, :3] @ v_cam)

@@ -42,7 +42,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from .._checks import check_array, check_vector
-from ..joint.cascade import motor_gain, reflected_inertia
+from ..robot.actuators import motor_gain, reflected_inertia
 from ..robot.params import RobotParams, load_robot_params
 from .beam import ModalBasis, cantilever_static, link_rho, modal_basis
 
@@ -51,16 +51,6 @@ __all__ = [
     "bias_torques", "rigid_energy", "link_static_loads", "SpringDamperObstacle", "ElasticArm",
     "SimLog", "fk_elastic", "spheres_from_T", "zero_config_inertia",
 ]
-
-#: Names that moved to :mod:`tudorvision.sim.controlled` (still importable from here).
-_MOVED = ("simulate", "simulate_ptp", "ControlledArm", "SimCore", "_Recorder")
-
-
-def __getattr__(name):
-    if name in _MOVED:
-        from . import controlled
-        return getattr(controlled, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 ASSUMPTIONS = """\
 Simulated TUDOR: assumptions
@@ -619,6 +609,44 @@ class ElasticArm:
             for r in range(lm.n):
                 eta[r] = f[r] / lm.om2[r]
                 deta[r] = 0.0
+
+    @property
+    def dt(self) -> float:
+        """Plant step, seconds (``config.dt``, 0.5 ms: the joint layer's 2 kHz)."""
+        return self.config.dt
+
+    @property
+    def two_way(self) -> bool:
+        """Whether joints and link modes are coupled both ways (contacts or ``config.two_way``)."""
+        return self._two_way
+
+    @property
+    def payload_kg(self) -> float:
+        """Current payload mass at the end effector, kg."""
+        return float(self.payload.mass_kg)
+
+    def design_inertia_kg_m2(self) -> np.ndarray:
+        """Joint inertias at the zero configuration, kg m^2, shape (3,): the cascade's design point."""
+        return zero_config_inertia(self)
+
+    def reset_at_rest(self, theta) -> None:
+        """Put the arm at rest in static equilibrium at ``theta`` (rad, shape (3,)), as the constructor does.
+
+        Time, payload and obstacles are kept; joint velocities and modal rates are zeroed and the
+        link shapes set to the static deflection of the new configuration.
+
+        Raises
+        ------
+        ValueError
+            If ``theta`` is not three finite angles.
+        """
+        th = check_vector(theta, "theta", 3)
+        self.theta = [float(x) for x in th]
+        self.dtheta = [0.0, 0.0, 0.0]
+        for lst in (self.deta2, self.deta3):
+            lst[:] = [0.0] * len(lst)
+        self._settle()
+        self._outputs()
 
     def set_payload(self, payload: Payload) -> None:
         """Change the payload (e.g. a caught ball) keeping the current link shapes.

@@ -1,7 +1,6 @@
 """The ``tudorvision calib`` command group.
 
-Calibration subcommands live beside the code they calibrate; each module in
-``CALIB_MODULES`` has ``register(calib_subparsers)``.
+Each module in ``CALIB_MODULES`` has ``register(calib_subparsers)``.
 """
 from __future__ import annotations
 
@@ -10,8 +9,8 @@ import importlib
 __all__ = ["register"]
 
 CALIB_MODULES = (
-    "tudorvision.stereo.calib_cli",
-    "tudorvision.rgbd.calib_cli",
+    "tudorvision.cli.calib_stereo",
+    "tudorvision.cli.calib_rgbd",
 )
 
 

@@ -101,9 +101,9 @@ def luma_edge_params(choice: str, source):
     >>> luma_edge_params("auto", "ball.mp4")[1]
     'luma edge: on (ball.mp4 is JPEG frames or a video)'
     """
-    from .rim_edge import chroma_subsampled_source
-    from .segment import SegmentParams
-    from .tracker2d import TrackerParams
+    from ..stereo.rim_edge import chroma_subsampled_source
+    from ..stereo.segment import SegmentParams
+    from ..stereo.tracker2d import TrackerParams
 
     if choice == "auto":
         on = chroma_subsampled_source(source)
@@ -129,7 +129,7 @@ def _report_problems(seq, limit: int = 5) -> None:
 
 
 def _load_models(path):
-    from .colormodel import load_color_models
+    from ..stereo.colormodel import load_color_models
 
     if not Path(path).is_file():
         raise TudorVisionError(f"{path}: colour model file not found")
@@ -140,7 +140,7 @@ def _load_models(path):
 def run_colormodel(args) -> int:
     import cv2
 
-    from .colormodel import fit_color_model_set, save_color_models
+    from ..stereo.colormodel import fit_color_model_set, save_color_models
 
     if not args.pick and not args.save_frame:
         raise TudorVisionError("give at least one --pick CAMERA:SPHERE:CU,CV:EU,EV (or --save-frame PNG)")
@@ -238,8 +238,8 @@ def _sphere_separation(models):
 
 
 def run_track_stereo(args) -> int:
-    from .pipeline import PipelineOptions, track_stereo
-    from .trajectory import plot_trajectory, write_trajectory_csv
+    from ..stereo.pipeline import PipelineOptions, track_stereo
+    from ..stereo.trajectory import plot_trajectory, write_trajectory_csv
 
     if not args.speed > 0:
         raise TudorVisionError(f"--speed: must be positive, got {args.speed}")
@@ -257,7 +257,7 @@ def run_track_stereo(args) -> int:
                               rolling_shutter=not args.no_rolling_shutter, sphere_separation_m=sep or None)
     log = None
     if args.rerun:
-        from .rerun_log import RerunStereoLog
+        from ..stereo.rerun_log import RerunStereoLog
         log = RerunStereoLog(args.rerun, image_every=args.rerun_image_every)
     try:
         res = track_stereo(seq, cal, models, T_base_left=T_base_left, options=options, live=args.live,
@@ -302,7 +302,7 @@ def run_track_stereo(args) -> int:
 
 # ----------------------------------------------------------------------------- track mono
 def run_track_mono(args) -> int:
-    from .pipeline import track_mono, write_mono_track_csv
+    from ..stereo.pipeline import track_mono, write_mono_track_csv
 
     seq = _open(args.video, strict=args.strict)
     models = _load_models(args.colormodel)

@@ -1,6 +1,6 @@
 """The ``tudorvision`` command.
 
-Each subpackage that offers commands has a ``cli`` module with a function
+Each module of this package that offers commands has a function
 ``register(subparsers)`` that adds its subcommands; every subcommand sets
 ``func`` to a callable taking the parsed ``argparse.Namespace`` and returning
 an exit code. User mistakes raise :class:`TudorVisionError` (or ``ValueError``
@@ -12,23 +12,33 @@ import argparse
 import importlib
 import sys
 
-from . import __version__
-from ._checks import TudorVisionError
+from .. import __version__
+from .._checks import TudorVisionError
+from ..joint.server import register_core
 
 __all__ = ["main", "build_parser"]
 
 # Modules providing subcommands, in --help order.
 COMMAND_MODULES = (
-    "tudorvision.sim.cli",
-    "tudorvision.io.cli",
-    "tudorvision.calib_cli",
-    "tudorvision.stereo.cli",
-    "tudorvision.rgbd.cli",
-    "tudorvision.servo.cli",
-    "tudorvision.catch.cli",
+    "tudorvision.cli.sim",
+    "tudorvision.cli.seq",
+    "tudorvision.cli.calib",
+    "tudorvision.cli.stereo",
+    "tudorvision.cli.rgbd",
+    "tudorvision.cli.servo",
+    "tudorvision.cli.catch",
     "tudorvision.joint.cli",
-    "tudorvision.demo",
+    "tudorvision.cli.demo",
 )
+
+
+def _sim_core(**options):
+    """The virtual lab's simulated elastic TUDOR as a joint-layer core (imported on first use)."""
+    from ..lab.simulation import SimCore
+    return SimCore(**options)
+
+
+register_core("sim", _sim_core)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,14 +1,17 @@
-"""The simulated arm under its joint controller: simulation runs, the controlled arm, the layer's core.
+"""The joint controller around any arm: cascade, planner, damping, collision handling, settling.
 
-* :func:`simulate`, :func:`simulate_ptp`: the plant (:class:`tudorvision.sim.arm.ElasticArm`)
-  and the joint cascade run together, recorded as a :class:`tudorvision.sim.arm.SimLog`;
-* :class:`ControlledArm`: the plant, the cascade and the online planner stepped at 2 kHz,
-  with the joint layer's hooks (damper, collision reaction);
-* :class:`SimCore`: the controlled arm as the core of the joint-layer server
-  (:class:`tudorvision.joint.server.JointCore`), where mode switches install the damping
-  and collision handling.
+* :class:`ControlledArm`: a :class:`~tudorvision.joint.plant.Plant` with its
+  joint cascade and online planner stepped at the plant's sample time, driven
+  by setpoints or velocity commands, with the layer's hooks (strain damper,
+  collision monitor);
+* :class:`CascadeCore`: the controlled arm as the core of the joint-layer
+  server (:class:`tudorvision.joint.server.JointCore`): mode switches install
+  the damping law and the collision monitor, the payload the layer is told
+  schedules their gains, and the state reports whether the arm has settled.
 
-Split from :mod:`tudorvision.sim.arm` (the plant); the names stay importable from there.
+Nothing here knows whether the plant is simulated: the virtual lab wraps
+:class:`CascadeCore` around :class:`tudorvision.sim.arm.ElasticArm`
+(``tudorvision.lab.SimCore``).
 """
 from __future__ import annotations
 
@@ -18,136 +21,14 @@ import warnings
 import numpy as np
 
 from .._checks import check_mass, check_vector
-from ..joint.cascade import JointCascade, design_cascade
-from ..joint.planner import plan_motion
-from ..robot.params import RobotParams, load_robot_params
-from .arm import ElasticArm, Payload, PlantConfig, SimLog, zero_config_inertia
+from .cascade import JointCascade, design_cascade
+from .collision import STRATEGY_OF_CODE, CollisionMonitor, reaction_config, root_torque_per_strain
+from .damping import LAWS, StrainDamper, default_damping_config
+from .plant import Plant
+from .planner import OnlinePlanner, plan_motion
+from .server import MAX_PAYLOAD_KG, CoreState
 
-__all__ = ["simulate", "simulate_ptp", "ControlledArm", "SimCore"]
-
-
-def simulate(arm: ElasticArm, controller: JointCascade, reference, duration_s: float, *,
-             dtheta_extra=None) -> SimLog:
-    """Run the plant and the joint cascade together for ``duration_s``.
-
-    Parameters
-    ----------
-    arm : ElasticArm
-        Plant, advanced in place.
-    controller : JointCascade
-        Joint controller, advanced in place (same ``dt`` as the plant).
-    reference : object with ``sample(t) -> (theta, dtheta, ddtheta)``
-        E.g. a :class:`tudorvision.joint.planner.JointMotion`; sampled at all
-        step times up front.
-    duration_s : float
-        Simulated time, seconds.
-    dtheta_extra : callable, optional
-        ``f(arm) -> 3 floats`` added at the velocity-loop input each step (damping hook).
-
-    Returns
-    -------
-    SimLog
-    """
-    dt = arm.config.dt
-    if abs(controller.dt - dt) > 1e-12:
-        raise ValueError(f"controller.dt: expected the plant step {dt}, got {controller.dt}")
-    n = int(round(duration_s / dt))
-    if n < 1:
-        raise ValueError(f"duration_s: expected at least one step of {dt} s, got {duration_s}")
-    times = arm.t + dt * np.arange(n)          # reference at the sample instant
-    ref_th, ref_dth, _ = reference.sample(times)
-    ref_th, ref_dth = ref_th.tolist(), ref_dth.tolist()
-    rec = _Recorder()
-    zero = (0.0, 0.0, 0.0)
-    for k in range(n):
-        extra = dtheta_extra(arm) if dtheta_extra is not None else zero
-        v = controller.step(arm.measured_theta(), ref_th[k], ref_dth[k], extra)
-        arm.step(v)
-        rec.add(arm, ref_th[k], ref_dth[k])
-    return rec.log(arm.params)
-
-
-class _Recorder:
-    """Collects the per-step state of an :class:`ElasticArm` into a :class:`SimLog`."""
-
-    _KEYS = ("t", "theta", "dtheta", "ddtheta", "ref", "dref", "tau", "strain", "tip2", "tip3", "fc")
-
-    def __init__(self):
-        self.cols = {k: [] for k in self._KEYS}
-
-    def add(self, arm: "ElasticArm", theta_ref, dtheta_ref) -> None:
-        c = self.cols
-        c["t"].append(arm.t)
-        c["theta"].append(list(arm.theta))
-        c["dtheta"].append(list(arm.dtheta))
-        c["ddtheta"].append(list(arm.ddtheta))
-        c["ref"].append(theta_ref)
-        c["dref"].append(dtheta_ref)
-        c["tau"].append(arm.tau)
-        c["strain"].append(arm.strain)
-        c["tip2"].append(arm.tip2)
-        c["tip3"].append(arm.tip3)
-        c["fc"].append(arm.contact_force)
-
-    def log(self, params: RobotParams) -> SimLog:
-        c = {k: np.asarray(v, dtype=np.float64) for k, v in self.cols.items()}
-        return SimLog(t=c["t"], theta=c["theta"], dtheta=c["dtheta"], ddtheta=c["ddtheta"],
-                      theta_ref=c["ref"], dtheta_ref=c["dref"], tau=c["tau"], strain=c["strain"],
-                      tip2=c["tip2"], tip3=c["tip3"], contact_force=c["fc"], params=params)
-
-
-def simulate_ptp(theta_start, theta_goal, duration_s: float, *, payload: Payload | None = None,
-                 v_max=None, a_max=None, t_move: float = 0.0, params: RobotParams | None = None,
-                 config: PlantConfig = PlantConfig(), obstacles=()) -> SimLog:
-    """Simulate a point-to-point motion with the planner, cascade and elastic plant.
-
-    Parameters
-    ----------
-    theta_start, theta_goal : array_like, shape (3,)
-        Radians. The arm starts at rest in static equilibrium at ``theta_start``.
-    duration_s : float
-        Total simulated time, seconds.
-    payload : Payload, optional
-    v_max, a_max : float or array_like, optional
-        Planner limits; default the experiment values of chapter 8 (60 deg/s,
-        200 deg/s^2) capped by each joint's maximum speed and acceleration.
-    t_move : float
-        When the motion starts, seconds.
-
-    Returns
-    -------
-    SimLog
-
-    Raises
-    ------
-    ValueError
-        If a goal lies outside the joint ranges or a limit exceeds the hardware limits.
-
-    Examples
-    --------
-    >>> log = simulate_ptp([0, 0.5, 0], [0, 0.6, 0], 0.05)
-    >>> log.strain.shape
-    (100, 4)
-    """
-    p = params or load_robot_params()
-    goal = check_vector(theta_goal, "theta_goal", 3)
-    start = check_vector(theta_start, "theta_start", 3)
-    lo, hi = p.joint_limits_rad[:, 0], p.joint_limits_rad[:, 1]
-    for name, th in (("theta_start", start), ("theta_goal", goal)):
-        if np.any(th < lo - 1e-9) or np.any(th > hi + 1e-9):
-            raise ValueError(f"{name}: {np.round(np.rad2deg(th), 2).tolist()} deg "
-                             "is outside the joint ranges")
-    vmax = np.minimum(p.experiment_speed_rad_s, p.max_speed_rad_s) if v_max is None \
-        else np.broadcast_to(np.asarray(v_max, float), (3,))
-    amax = np.minimum(p.experiment_accel_rad_s2, p.max_accel_rad_s2) if a_max is None \
-        else np.broadcast_to(np.asarray(a_max, float), (3,))
-    if np.any(vmax > p.max_speed_rad_s + 1e-9) or np.any(amax > p.max_accel_rad_s2 + 1e-9):
-        raise ValueError("v_max, a_max: exceed the joint speed or acceleration limits of the parameter file")
-    arm = ElasticArm(start, payload=payload, params=p, config=config, obstacles=obstacles)
-    gains = design_cascade(p, zero_config_inertia(arm))
-    ctrl = JointCascade(gains, config.dt, arm.measured_theta())
-    motion = plan_motion(start, goal, v_max=vmax, a_max=amax, t0=t_move)
-    return simulate(arm, ctrl, motion, duration_s)
+__all__ = ["ControlledArm", "CascadeCore"]
 
 
 class ControlledArm:
@@ -161,8 +42,8 @@ class ControlledArm:
 
     Parameters
     ----------
-    arm : ElasticArm
-        The plant (advanced in place).
+    arm : Plant
+        The arm (advanced in place), e.g. :class:`tudorvision.sim.arm.ElasticArm`.
     gains : CascadeGains, optional
         Default: designed from the zero-configuration inertia (section 3.2).
     v_max, a_max : array_like, shape (3,), optional
@@ -180,6 +61,7 @@ class ControlledArm:
 
     Examples
     --------
+    >>> from tudorvision.sim.arm import ElasticArm
     >>> ca = ControlledArm(ElasticArm([0.0, 0.5, 0.0]))
     >>> ca.set_velocity([0.0, 0.2, 0.0])
     >>> ca.run(0.5)
@@ -187,23 +69,21 @@ class ControlledArm:
     0.2
     """
 
-    def __init__(self, arm: ElasticArm, *, gains=None, v_max=None, a_max=None, damping=None, friction=None,
+    def __init__(self, arm: Plant, *, gains=None, v_max=None, a_max=None, damping=None, friction=None,
                  saturate_speed: bool = True):
-        from ..joint.planner import OnlinePlanner
         self.arm = arm
         p = arm.params
         self.v_max = np.minimum(p.experiment_speed_rad_s, p.max_speed_rad_s) if v_max is None \
             else check_vector(np.broadcast_to(np.asarray(v_max, float), (3,)), "v_max", 3)
         self.a_max = np.minimum(p.experiment_accel_rad_s2, p.max_accel_rad_s2) if a_max is None \
             else check_vector(np.broadcast_to(np.asarray(a_max, float), (3,)), "a_max", 3)
-        self.controller = JointCascade(gains or design_cascade(p, zero_config_inertia(arm)),
-                                       arm.config.dt, arm.measured_theta(), friction=friction,
+        self.controller = JointCascade(gains or design_cascade(p, arm.design_inertia_kg_m2()),
+                                       arm.dt, arm.measured_theta(), friction=friction,
                                        max_speed_rad_s=p.max_speed_rad_s if saturate_speed else None)
         self.damping = damping
         # -- joint-layer hooks (tudorvision.joint.damping / .collision) --------------------
         self.damper = None          # StrainDamper: strain feedback (velocity and position level)
         self.reaction = None        # CollisionMonitor: residual observer and reaction admittance
-        self._kpd0 = list(self.controller._kpd)
         # ----------------------------------------------------------------------------------
         self._planner = OnlinePlanner(arm.theta, v_max=self.v_max, a_max=self.a_max, t0=arm.t)
         self.mode = "setpoint"
@@ -222,7 +102,6 @@ class ControlledArm:
         ValueError
             If the goal lies outside the joint ranges or a limit exceeds the hardware limits.
         """
-        from ..joint.planner import plan_motion as _plan
         goal = check_vector(theta_goal, "theta_goal", 3)
         p = self.arm.params
         if np.any(goal < p.joint_limits_rad[:, 0]) or np.any(goal > p.joint_limits_rad[:, 1]):
@@ -232,7 +111,7 @@ class ControlledArm:
         amax = self.a_max if a_max is None else np.broadcast_to(np.asarray(a_max, float), (3,))
         if np.any(vmax > p.max_speed_rad_s + 1e-9) or np.any(amax > p.max_accel_rad_s2 + 1e-9):
             raise ValueError("v_max, a_max: exceed the joint speed or acceleration limits")
-        self._planner.motion = _plan(self.theta_ref, goal, v_max=vmax, a_max=amax,
+        self._planner.motion = plan_motion(self.theta_ref, goal, v_max=vmax, a_max=amax,
                                      dtheta_start=self.dtheta_ref, t0=self.arm.t)
         self.mode = "setpoint"
 
@@ -250,7 +129,7 @@ class ControlledArm:
         """Reference ``(theta, dtheta, ddtheta)`` of the cascade at time ``t``."""
         if self.mode == "setpoint":
             return self._planner.sample_scalar(t)
-        dt = self.arm.config.dt
+        dt = self.arm.dt
         th, dth = self.theta_ref, self.dtheta_ref
         out_th, out_dth = [0.0] * 3, [0.0] * 3
         for j in range(3):
@@ -268,7 +147,7 @@ class ControlledArm:
         return out_th, out_dth, [(out_dth[j] - dth[j]) / dt for j in range(3)]
 
     def step(self) -> None:
-        """Advance one control sample (``arm.config.dt``)."""
+        """Advance one control sample (``arm.dt``)."""
         arm = self.arm
         th_ref, dth_ref, self.ddtheta_ref = self._reference(arm.t)
         self.theta_ref, self.dtheta_ref = th_ref, dth_ref
@@ -287,7 +166,7 @@ class ControlledArm:
         """
         self.damper = damper
         scale = 1.0 if damper is None else float(damper.pd_scale)
-        self.controller._kpd = [k * scale for k in self._kpd0]
+        self.controller.set_pd_scale(scale)
 
     def _joint_layer(self, th_meas, th_ref, dth_ref, extra):
         """Apply the damping law and the collision reaction to the cascade inputs."""
@@ -305,25 +184,32 @@ class ControlledArm:
                 self.mode, self._v_cmd = "velocity", [0.0, 0.0, 0.0]   # hold after the release
         return th_ref, dth_ref, extra
 
-    def run(self, duration_s: float, *, record: bool = False):
+    @property
+    def velocity_command(self) -> list:
+        """The joint velocity command being followed in velocity mode, rad/s (zeros after :meth:`stop`)."""
+        return list(self._v_cmd)
+
+    def run(self, duration_s: float, *, on_step=None) -> None:
         """Advance ``duration_s`` seconds (rounded to whole samples).
 
-        With ``record=True`` the states after every sample are returned as a
-        :class:`SimLog` (e.g. to change goals between calls and concatenate).
+        Parameters
+        ----------
+        duration_s : float
+            Seconds.
+        on_step : callable, optional
+            ``f(controlled_arm)`` called after every sample (e.g. a recorder).
         """
-        rec = _Recorder() if record else None
-        for _ in range(int(round(duration_s / self.arm.config.dt))):
+        for _ in range(int(round(duration_s / self.arm.dt))):
             self.step()
-            if rec is not None:
-                rec.add(self.arm, self.theta_ref, self.dtheta_ref)
-        return rec.log(self.arm.params) if rec is not None else None
+            if on_step is not None:
+                on_step(self)
+class CascadeCore:
+    """An arm under its cascade as a core of the joint-layer server (:class:`tudorvision.joint.server.JointCore`).
 
-
-class SimCore:
-    """The simulated arm as a core of the joint-layer server (:class:`tudorvision.joint.server.JointCore`).
-
-    Wraps :class:`ControlledArm`; :meth:`step` sub-steps at the plant's 2 kHz.
-    Register it with ``register_core("sim", SimCore)``.
+    Wraps :class:`ControlledArm` around any :class:`~tudorvision.joint.plant.Plant`;
+    :meth:`step` sub-steps at the plant's sample time. The virtual lab's
+    ``SimCore`` (:mod:`tudorvision.lab.sim_core`) is this core around the
+    simulated elastic arm.
 
     :meth:`set_modes` (called by the server on a mode switch) installs the
     joint layer's damping and collision handling on the cascade: a
@@ -338,12 +224,8 @@ class SimCore:
 
     Parameters
     ----------
-    theta0 : array_like, shape (3,), optional
-        Initial angles (rad); default the vertical posture [0, 90 deg, 0].
-    payload : Payload, optional
-    params : RobotParams, optional
-    config : PlantConfig, optional
-    obstacles : sequence of SpringDamperObstacle, optional
+    arm : Plant
+        The arm, at rest where the core takes over.
     settle_band : float
         Strain settling band, m/m (15 um/m in the seed).
     collision_model : StrainDynamicsModel, optional
@@ -366,7 +248,8 @@ class SimCore:
 
     Examples
     --------
-    >>> core = SimCore()
+    >>> from tudorvision.sim.arm import ElasticArm
+    >>> core = CascadeCore(ElasticArm(np.deg2rad([0.0, 90.0, 0.0])))
     >>> core.apply_setpoint(np.deg2rad([0.0, 80.0, 0.0]), max_speed_rad_s=np.full(3, 1.0),
     ...                     max_accel_rad_s2=np.full(3, 3.0))
     >>> core.step(1.5)
@@ -374,10 +257,8 @@ class SimCore:
     80.0
     """
 
-    def __init__(self, theta0=None, *, payload: Payload | None = None, params: RobotParams | None = None,
-                 config: PlantConfig = PlantConfig(), obstacles=(), settle_band: float = 15e-6,
+    def __init__(self, arm: Plant, *, settle_band: float = 15e-6,
                  collision_model=None, collision_thresholds=None, collision_coupling=None, damping_model=None):
-        th = np.array([0.0, np.pi / 2, 0.0]) if theta0 is None else check_vector(theta0, "theta0", 3)
         self.damping_model = damping_model
         if collision_coupling is not None and collision_model is None:
             raise ValueError("collision_coupling: needs collision_model and collision_thresholds")
@@ -387,13 +268,12 @@ class SimCore:
         self.collision_model = collision_model
         self.collision_thresholds = None if collision_thresholds is None else \
             [float(x) for x in check_vector(collision_thresholds, "collision_thresholds", 2)]
-        arm = ElasticArm(th, payload=payload, params=params, config=config, obstacles=obstacles)
         p = arm.params
         self.controlled = ControlledArm(arm, v_max=p.max_speed_rad_s, a_max=p.max_accel_rad_s2)
         self.damping, self.collision = 0, 0
         #: payload mass the layer knows (kg): the lab's payload at start, then what
         #: :meth:`set_payload` says (the layer never reads the plant's payload afterwards)
-        self.payload_kg = float(arm.payload.mass_kg)
+        self.payload_kg = float(arm.payload_kg)
         self._band = float(settle_band)
         self._mean = list(arm.strain)              # static strain estimate (two cascaded EMAs)
         self._mean1 = list(arm.strain)
@@ -401,7 +281,7 @@ class SimCore:
         self._goal = None
 
     @property
-    def arm(self) -> ElasticArm:
+    def arm(self) -> Plant:
         return self.controlled.arm
 
     def apply_velocity(self, theta_dot) -> None:
@@ -433,25 +313,23 @@ class SimCore:
         ValueError
             On an unknown code.
         """
-        from ..joint.collision import STRATEGY_OF_CODE, CollisionMonitor, reaction_config, root_torque_per_strain
-        from ..joint.damping import LAWS, StrainDamper
         d, c = int(damping), int(collision)
         if not 0 <= d < len(LAWS) or c not in STRATEGY_OF_CODE:
             raise ValueError(f"damping, collision: unknown codes {damping!r}, {collision!r}")
         ca, arm = self.controlled, self.arm
         if ca.damper is None or ca.damper.config.law != LAWS[d]:
             ca.set_damper(None if d == 0 else StrainDamper(
-                self._damping_config(LAWS[d]), arm.measured_strain(), arm.config.dt,
+                self._damping_config(LAWS[d]), arm.measured_strain(), arm.dt,
                 strain_model=self.damping_model, payload_kg=self.payload_kg))
         strategy = STRATEGY_OF_CODE[c]
         if self.collision_model is None:
             ca.reaction = None
             if strategy != "none":
-                warnings.warn(f"SimCore: collision strategy {strategy!r} selected without a collision_model; "
+                warnings.warn(f"CascadeCore: collision strategy {strategy!r} selected without a collision_model; "
                               "nothing is detected", RuntimeWarning, stacklevel=2)
         else:                   # a fresh monitor: the latch is cleared, the observer restarts at rest state
             ca.reaction = CollisionMonitor(self.collision_model, self.collision_thresholds, self.payload_kg,
-                                           arm.config.dt, reaction_config(
+                                           arm.dt, reaction_config(
                                                strategy, torque_per_strain=root_torque_per_strain(arm.params)),
                                            armed_after_s=0.1 if arm.t < 0.1 else 0.0,   # start-up sag
                                            isolation_coupling=self.collision_coupling,
@@ -459,8 +337,7 @@ class SimCore:
         self.damping, self.collision = damping, collision
 
     def _damping_config(self, law: str):
-        from ..joint.damping import default_damping_config
-        return default_damping_config(law, two_way=self.arm._two_way, assisted=self.damping_model is not None,
+        return default_damping_config(law, two_way=self.arm.two_way, assisted=self.damping_model is not None,
                                       payload_kg=self.payload_kg)
 
     def set_payload(self, payload_kg: float) -> None:
@@ -476,7 +353,6 @@ class SimCore:
         ValueError
             If ``payload_kg`` is not a finite mass in [0, 5] kg.
         """
-        from ..joint.server import MAX_PAYLOAD_KG
         self.payload_kg = m = check_mass(payload_kg, max_kg=MAX_PAYLOAD_KG)
         ca = self.controlled
         if ca.damper is not None:
@@ -487,9 +363,9 @@ class SimCore:
 
     def step(self, dt: float) -> None:
         arm = self.arm
-        n = max(1, int(round(float(dt) / arm.config.dt)))
-        a = arm.config.dt / 0.5                    # second-order smoothing (section 2.2), 0.5 s
-        decay = math.exp(-arm.config.dt / 0.5)     # peak envelope forgets within ~0.5 s
+        n = max(1, int(round(float(dt) / arm.dt)))
+        a = arm.dt / 0.5                    # second-order smoothing (section 2.2), 0.5 s
+        decay = math.exp(-arm.dt / 0.5)     # peak envelope forgets within ~0.5 s
         for _ in range(n):
             self.controlled.step()
             s = arm.strain
@@ -499,7 +375,6 @@ class SimCore:
                 self._env[k] = max(abs(s[k] - self._mean[k]), self._env[k] * decay)
 
     def state(self):
-        from ..joint.server import CoreState
         arm = self.arm
         strain = np.asarray(arm.measured_strain())
         calm = max(self._env) < self._band
@@ -507,7 +382,7 @@ class SimCore:
         reached = self._goal is None or bool(np.all(np.abs(np.asarray(arm.theta) - self._goal) < 1e-3))
         settled = calm and at_rest and reached and self.controlled.mode == "setpoint" \
             or (calm and at_rest and self.controlled.mode == "velocity"
-                and not any(self.controlled._v_cmd))
+                and not any(self.controlled.velocity_command))
         mon = self.controlled.reaction
         residuals = np.zeros(3) if mon is None else np.asarray(mon.residual, float)
         return CoreState(t=arm.t, theta=np.asarray(arm.theta, float), theta_dot=np.asarray(arm.dtheta, float),

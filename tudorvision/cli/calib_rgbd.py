@@ -36,14 +36,14 @@ def _save(out, base_cal, camera, **updates):
     return save_calibration(cal.with_updates(**updates), out)
 
 
-def _camera(seq, calib):
-    from .cli import _camera_from_file, _pick_camera
+def camera_for_sweep(seq, calib):
+    from .rgbd import camera_from_file, pick_camera
     if calib is not None:
-        return _camera_from_file(calib)
+        return camera_from_file(calib)
     cal = seq.calibration
     if cal is None or not cal.cameras:
         raise TudorVisionError(f"{seq.path}: the sequence has no camera intrinsics; pass --calib FILE")
-    return _pick_camera(cal, seq.path), cal
+    return pick_camera(cal, seq.path), cal
 
 
 def _nominal_distance(seq):
@@ -61,8 +61,8 @@ def _nominal_distance(seq):
 def _cmd_depth(args) -> int:
     from .._progress import progress
     from ..io import DepthModel, open_sequence
-    from .depth_model import calibrate_depth_model, plot_depth_model, write_depth_table_csv
-    from .frames import Intrinsics
+    from ..rgbd.depth_model import calibrate_depth_model, plot_depth_model, write_depth_table_csv
+    from ..rgbd.frames import Intrinsics
 
     distances = None if args.distances is None else _parse_floats(args.distances, "--distances", len(args.seq))
     roi = None if args.roi is None else tuple(int(v) for v in _parse_floats(args.roi, "--roi", 4))
@@ -72,7 +72,7 @@ def _cmd_depth(args) -> int:
         if seq.kind != "rgbd":
             raise TudorVisionError(f"{path}: expected an RGB-D sequence, got kind {seq.kind!r}")
         if cam is None:
-            cam, cal0 = _camera(seq, args.calib)
+            cam, cal0 = camera_for_sweep(seq, args.calib)
         stacks.append(np.stack([f.depth_m for f in progress(seq, total=len(seq), desc=Path(path).name)]))
         nominal.append(distances[i] if distances is not None else _nominal_distance(seq))
     K = Intrinsics.from_matrix(cam.K, cam.width, cam.height)
@@ -151,7 +151,7 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
         No way to find the vertical posture, or the disc lost in all its frames.
     """
     from .._progress import progress
-    from .disc import DiscTracker
+    from ..rgbd.disc import DiscTracker
 
     tol = np.radians(joint_tol_deg)
     thetas = None
@@ -205,16 +205,16 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
 
 def _cmd_base(args) -> int:
     from ..io import open_sequence
-    from .base_calib import base_frame_from_sweep
-    from .cli import noise_model_from_calibration
-    from .disc import DiscOptions
-    from .frames import Intrinsics
+    from ..rgbd.base_calib import base_frame_from_sweep
+    from .rgbd import noise_model_from_calibration
+    from ..rgbd.disc import DiscOptions
+    from ..rgbd.frames import Intrinsics
 
     seed = _parse_floats(args.seed, "--seed", 2)
     seq = open_sequence(args.seq)
     if seq.kind != "rgbd":
         raise TudorVisionError(f"{args.seq}: expected an RGB-D sequence, got kind {seq.kind!r}")
-    cam, cal0 = _camera(seq, args.calib)
+    cam, cal0 = camera_for_sweep(seq, args.calib)
     K = Intrinsics.from_matrix(cam.K, cam.width, cam.height)
     annulus = tuple(_parse_floats(args.depth_annulus, "--depth-annulus", 2))
     opts = DiscOptions(disc_radius_m=args.disc_radius, depth_model=noise_model_from_calibration(cal0),

@@ -38,9 +38,10 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
     from .._progress import progress
     from ..io import load_calibration, open_sequence
     from ..rgbd.ball import BallDetector, BallDetectorOptions
-    from ..rgbd.cli import intrinsics_for, noise_model_from_calibration
+    from .rgbd import intrinsics_for, noise_model_from_calibration
     from ..robot import load_robot_params
-    from .demo import CatchPerception, _kinematics, DemoOptions, detection_to_base
+    from ..catch.perception import CatchPerception, detection_to_base
+    from ..lab.catch_demo import DemoOptions, demo_kinematics
 
     seq = open_sequence(seq_path)
     if seq.kind != "rgbd":
@@ -49,7 +50,7 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
     cal_T = load_calibration(calib) if calib is not None else seq.calibration
     T_base_cam = _base_transform(cal_T, calib or seq_path)
     params = load_robot_params()
-    km, ikm = _kinematics(DemoOptions(), params)
+    km, ikm = demo_kinematics(DemoOptions(), params)
     perception = CatchPerception(params=params)
     det = BallDetector(K, BallDetectorOptions(depth_model=noise_model_from_calibration(cal)), n_background=background)
     theta = ikm(np.asarray(ready_point_base, float), 0.0, 0.0, elbow="up")
@@ -101,7 +102,7 @@ def _write(path, cols, rows):
 
 def _cmd_catch(args) -> int:
     if args.target == "demo":
-        from .demo import DemoOptions, run_demo
+        from ..lab.catch_demo import DemoOptions, run_demo
 
         opts = DemoOptions(throws=args.throws, seed=args.seed, render=not args.no_render, damping=args.damping,
                            compensate=not args.rigid, rerun=not args.no_rerun)

@@ -20,7 +20,7 @@ _IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".ppm", ".p
 
 def register(calib_sub) -> None:
     """Add the stereo calibration subcommands to the ``calib`` group."""
-    from .cli import add_luma_edge_argument
+    from .stereo import add_luma_edge_argument
 
     p = calib_sub.add_parser(
         "stereo", help="stereo intrinsics/extrinsics from checkerboard image pairs",
@@ -109,7 +109,7 @@ def _image_lists(args) -> tuple[list[Path], list[Path]]:
 def run_stereo(args) -> int:
     from ..io.calibration import save_calibration
     from ..io.formats import save_opencv_stereo, save_ros_camera_info
-    from .calibrate import calibrate_stereo_from_images, parse_board, plot_view_errors
+    from ..stereo.calibrate import calibrate_stereo_from_images, parse_board, plot_view_errors
 
     board = parse_board(args.board)
     if not args.square > 0:
@@ -170,9 +170,9 @@ def _track_sweep(args):
     """Track SEQ in the left camera frame: (Trajectory, Calibration used)."""
     from ..io import load_calibration
     from ..io.sequence import open_sequence
-    from .cli import luma_edge_params
-    from .colormodel import load_color_models
-    from .pipeline import PipelineOptions, track_stereo
+    from .stereo import luma_edge_params
+    from ..stereo.colormodel import load_color_models
+    from ..stereo.pipeline import PipelineOptions, track_stereo
 
     if not args.seq:
         raise TudorVisionError("give SEQ (tracked with --calib and --colormodel) or --traj CSV")
@@ -203,8 +203,8 @@ def _track_sweep(args):
 def run_base_stereo(args) -> int:
     from ..io.calibration import Calibration, load_calibration, save_calibration
     from ..robot import load_robot_params
-    from .base_frame import base_frame_from_sweep
-    from .trajectory import read_trajectory_csv
+    from ..stereo.base_frame import base_frame_from_sweep
+    from ..stereo.trajectory import read_trajectory_csv
 
     tracked_cal = None
     if args.traj:

@@ -10,7 +10,7 @@ Loop per wall-camera frame (30 Hz)::
 
 Simulation time: the joint-control layer (:class:`~tudorvision.joint.server.JointLayerServer`
 with its safety checks and faults) runs in lockstep with the demo
-(:class:`~tudorvision.catch.lab.LockstepLayer`, ``tick`` at ``layer_rate_hz``);
+(:class:`~tudorvision.lab.lockstep.LockstepLayer`, ``tick`` at ``layer_rate_hz``);
 commands still travel through the adapter, and runs are deterministic for a
 seed whatever the machine's load.
 
@@ -35,14 +35,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .ballistic import BallisticPredictor
+from ..catch.ekf import BallModel, EKFOptions
+from ..catch.intercept import InterceptOptions, net_target
+from ..catch.perception import CatchPerception, detection_to_base
 from .data_collection import DEMO_COLLECTION, CollectionOptions
-from .ekf import BallEKF, BallModel, EKFOptions
-from .intercept import InterceptOptions, InterceptPlanner, net_target, working_plane_normal
-from .lab import LockstepLayer
+from .lockstep import LockstepLayer
+from .simulation import SimCore
 
-__all__ = ["DemoOptions", "CatchPerception", "simulated_detection", "run_demo",
-           "detection_to_base", "PER_THROW_COLUMNS"]
+__all__ = ["DemoOptions", "simulated_detection", "run_demo", "demo_kinematics", "PER_THROW_COLUMNS"]
 
 PER_THROW_COLUMNS = ["throw", "t_release_s", "crosses_plane", "crossing_workspace", "t_cross_true_s",
                      "x_cross_true_m", "z_cross_true_m", "detections", "released", "t_first_setpoint_s",
@@ -146,25 +146,7 @@ class DemoOptions:
             raise ValueError("net_radius_m, gap_s: expected > 0 and >= 0")
 
 
-# ------------------------------------------------------------------------------ perception
-def detection_to_base(p_cam, cov_cam, T_base_cam):
-    """Ball centre and covariance from the camera optical frame to the base frame.
-
-    Returns
-    -------
-    p_base : ndarray, shape (3,)
-    cov_base : ndarray, shape (3, 3)
-
-    Examples
-    --------
-    >>> T = np.eye(4); T[:3, 3] = [1.0, 2.0, 3.0]
-    >>> detection_to_base([0.0, 0.0, 1.0], np.eye(3), T)[0].tolist()
-    [1.0, 2.0, 4.0]
-    """
-    R = np.asarray(T_base_cam, float)[:3, :3]
-    return R @ np.asarray(p_cam, float) + np.asarray(T_base_cam, float)[:3, 3], R @ np.asarray(cov_cam, float) @ R.T
-
-
+# ------------------------------------------------------------------------------ simulated sensing
 def simulated_detection(p_cam, intrinsics, rng, *, options=None, scale: float = 1.0, area_ratio: float = 0.8):
     """The RGB-D detector's output without rendering: noisy centre and its covariance.
 
@@ -198,62 +180,10 @@ def simulated_detection(p_cam, intrinsics, rng, *, options=None, scale: float = 
     return rng.multivariate_normal(p, scale ** 2 * C), C
 
 
-class CatchPerception:
-    """Filter, intercept and peer predictor for a stream of base-frame ball detections.
-
-    Parameters
-    ----------
-    ekf : EKFOptions
-    intercept : InterceptOptions
-    params : RobotParams, optional
-    peer : bool
-        Also run the drag-free ballistic peer (for comparison only).
-    min_sigma_m : float
-        Isotropic floor added to the detector's covariance (near the sensor it
-        claims sub-millimetre depth accuracy that partial silhouettes at the
-        image border do not have).
-    """
-
-    def __init__(self, ekf: EKFOptions = EKFOptions(), intercept: InterceptOptions = InterceptOptions(),
-                 params=None, *, min_sigma_m: float = 0.003, peer: bool = True):
-        self.min_sigma_m = float(min_sigma_m)
-        self.peer = bool(peer)
-        self.ekf = BallEKF(ekf)
-        self.planner = InterceptPlanner(intercept, model=ekf.model, q_m2_s3=ekf.q_m2_s3, params=params)
-        self.ballistic = BallisticPredictor(working_plane_normal(intercept.theta1_rad))
-        self._throw = -1
-
-    def step(self, t: float, p_base, cov_base) -> dict:
-        """Fuse one detection; returns a record (status, state, intercept, peer prediction).
-
-        ``rec["peer_s"]`` is the time spent on the peer (not part of the catching pipeline).
-        """
-        cov = np.asarray(cov_base, float) + self.min_sigma_m ** 2 * np.eye(3)
-        status = self.ekf.step(t, p_base, cov)
-        if self.ekf.throw_id != self._throw or status == "restarted":
-            if self.ekf.throw_id != self._throw:
-                self._throw = self.ekf.throw_id
-            self.planner.reset()
-            self.ballistic.reset()
-        rec = {"t": float(t), "status": status, "throw": self.ekf.throw_id, "intercept": None,
-               "ballistic": (None, None), "peer_s": 0.0}
-        if self.ekf.initialised:
-            rec["x"] = self.ekf.x
-            rec["intercept"] = self.planner.update(t, self.ekf.x, self.ekf.P)
-        if self.peer:
-            t0 = time.perf_counter()
-            if status != "rejected":
-                self.ballistic.add(t, p_base)
-            if self.ekf.initialised:
-                rec["ballistic"] = self.ballistic.predict()
-            rec["peer_s"] = time.perf_counter() - t0
-        return rec
-
-
 # ------------------------------------------------------------------------------ the demo
-def _kinematics(options: DemoOptions, params):
+def demo_kinematics(options: DemoOptions, params):
     from .data_collection import load_or_collect
-    from .kinematics import InverseKinematics, fit_kinematics
+    from ..catch.kinematics import InverseKinematics, fit_kinematics
 
     data = load_or_collect(options.cache_dir, options.collection, params)
     km = fit_kinematics(data, test_payloads_kg=[0.1], params=params)
@@ -321,8 +251,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
     from ..rgbd.frames import Intrinsics
     from ..robot import load_robot_params
     from ..sim.arm import Payload
-    from ..sim.controlled import SimCore
-    from ..sim.record import T_WORLD_BASE, elastic_arm_geometry, random_throw, throw_trajectory
+    from .record import T_WORLD_BASE, elastic_arm_geometry, random_throw, throw_trajectory
     from ..sim.scenes import ball_throw
 
     out = Path(out)
@@ -330,7 +259,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
     o = options
     params = load_robot_params()
     wall0 = time.perf_counter()
-    km, ikm = _kinematics(o, params)
+    km, ikm = demo_kinematics(o, params)
     rng_throw = np.random.default_rng([o.seed, 1])
     rng_render = np.random.default_rng([o.seed, 2])
     rng_noise = np.random.default_rng([o.seed, 3])
@@ -444,7 +373,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
         current["flight"] = (tt[:end + 1], pp[:end + 1])
         current["t0"] = t_rel
         crosses = tc_rel is not None
-        from .intercept import reachable_solutions
+        from ..catch.intercept import reachable_solutions
         sols_cross = reachable_solutions(p_cross, theta1, params) if crosses else np.zeros((0, 3))
         in_ws = len(sols_cross) > 0
         # secondary, stricter count: could the arm get there at all, leaving the ready pose when the

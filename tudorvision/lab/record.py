@@ -32,11 +32,11 @@ from .._checks import TudorVisionError
 from .._progress import progress
 from ..robot import load_robot_params
 from ..robot.params import RobotParams
-from .arm import Payload, fk_elastic, spheres_from_T, ElasticArm
-from .controlled import simulate_ptp
-from .camera import PinholeCamera, look_at
-from .render import render_bgr, render_rgbd
-from .scenes import (ArmGeometry, StereoRigConfig, ball_throw, checkerboard_lab, eye_in_hand, planar_target,
+from ..sim.arm import Payload, fk_elastic, spheres_from_T, ElasticArm
+from .simulation import simulate_ptp
+from ..sim.camera import PinholeCamera, look_at
+from ..sim.render import render_bgr, render_rgbd
+from ..sim.scenes import (ArmGeometry, StereoRigConfig, ball_throw, checkerboard_lab, eye_in_hand, planar_target,
                      sphere_image_truth, stereo_lab, wall_disc, KINECT_RATE_HZ, STEREO_RATE_HZ)
 
 __all__ = ["RecordOptions", "KINDS", "record", "elastic_arm_geometry", "T_WORLD_BASE",
@@ -549,7 +549,7 @@ def record_servo_views(out, opts: RecordOptions):
     setup = eye_in_hand(look_at(goal_eye, square, K=np.eye(3), up_world=(1.0, 0.0, 0.0)).T_world_cam, rng,
                         square_center_world=square)
     base_cam = setup.cameras["rgbd"]
-    from .camera import with_pose
+    from ..sim.camera import with_pose
     rows = []
     with _writer(out, "rgbd", KINECT_RATE_HZ, opts, calibration=_kinect_calibration(base_cam),
                  description="eye-in-hand views of a black square; frame 0 is the goal view") as w:

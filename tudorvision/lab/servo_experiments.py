@@ -27,8 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from ..robot import T_base_ee, load_robot_params
-from .laws import LawConfig
-from .loop import (DEFAULT_SMOOTHING_FRAMES, LabConfig, ServoLab, VisualServo, run_closed_loop, teach_goal)
+from ..servo.laws import LawConfig
+from ..servo.loop import DEFAULT_SMOOTHING_FRAMES, VisualServo
+from .servo_lab import LabConfig, ServoLab, run_closed_loop, teach_goal
 
 __all__ = ["start_poses", "RunSpec", "run_one", "repeatability", "summarize", "track_moving_square",
            "PAYLOADS_G"]

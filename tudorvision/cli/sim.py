@@ -21,7 +21,7 @@ def _deg3(text: str, name: str) -> np.ndarray:
 
 
 def _cmd_record(args) -> int:
-    from .record import KINDS, RecordOptions, record
+    from ..lab.record import KINDS, RecordOptions, record
     if args.kind not in KINDS:
         raise TudorVisionError(f"KIND: unknown recording kind {args.kind!r}; choose from {', '.join(KINDS)}")
     if args.frames is not None and args.frames < 1:
@@ -35,8 +35,8 @@ def _cmd_record(args) -> int:
 
 def _cmd_ptp(args) -> int:
     from ..robot import load_robot_params
-    from .arm import Payload
-    from .controlled import simulate_ptp
+    from ..sim.arm import Payload
+    from ..lab.simulation import simulate_ptp
     p = load_robot_params()
     start, goal = _deg3(args.start, "--from"), _deg3(args.to, "--to")
     if args.plates < 0:

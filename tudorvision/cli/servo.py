@@ -84,7 +84,7 @@ def _main(args) -> int:
 def _lab_config(args):
     from dataclasses import replace
 
-    from .loop import LabConfig
+    from ..lab.servo_lab import LabConfig
     cfg = LabConfig()
     if args.no_damping:
         cfg = replace(cfg, damping=False)
@@ -103,9 +103,10 @@ def _check_payload(g: int) -> int:
 
 def run_sim(args) -> int:
     """One closed-loop run with outputs (see the module notes)."""
-    from .experiments import start_poses
-    from .laws import LawConfig
-    from .loop import DEFAULT_SMOOTHING_FRAMES, ServoLab, VisualServo, run_closed_loop, teach_goal
+    from ..lab.servo_experiments import start_poses
+    from ..servo.laws import LawConfig
+    from ..lab.servo_lab import ServoLab, run_closed_loop, teach_goal
+    from ..servo.loop import DEFAULT_SMOOTHING_FRAMES, VisualServo
     g = _check_payload(args.payload_g)
     if not 0 <= args.start_pose <= 7:
         raise TudorVisionError(f"--start-pose: expected 0..7, got {args.start_pose}")
@@ -228,7 +229,7 @@ class _RerunServoLog:
 
 
 def _repeatability(args) -> int:
-    from .experiments import repeatability
+    from ..lab.servo_experiments import repeatability
     if args.repetitions < 1:
         raise TudorVisionError(f"--repetitions: expected >= 1, got {args.repetitions}")
     if args.compare_repetitions is not None and args.compare_repetitions < 1:
@@ -254,7 +255,7 @@ def _repeatability(args) -> int:
 
 
 def _tracking(args) -> int:
-    from .experiments import track_moving_square
+    from ..lab.servo_experiments import track_moving_square
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     r = track_moving_square(seed=args.seed, cfg=_lab_config(args), law=args.law)
@@ -269,7 +270,7 @@ def _tracking(args) -> int:
 def _read_depth_image(path: Path, depth_scale: float):
     import cv2
 
-    from .features import depth_m_from_raw
+    from ..servo.features import depth_m_from_raw
     if not path.is_file():
         raise FileNotFoundError(2, "no such file", str(path))
     d = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
@@ -283,8 +284,8 @@ def run_sequence(args) -> int:
     import cv2
 
     from ..io import load_calibration, open_sequence
-    from .laws import LawConfig
-    from .loop import VisualServo, default_T_ee_cam
+    from ..servo.laws import LawConfig
+    from ..servo.loop import VisualServo, default_T_ee_cam
     goal_path = Path(args.goal)
     if not goal_path.is_file():
         raise FileNotFoundError(2, "no such file", str(goal_path))

@@ -11,15 +11,15 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import TudorVisionError
-from .depth_model import SEED_DEPTH_MODEL, DepthNoiseModel
-from .frames import Intrinsics
+from ..rgbd.depth_model import SEED_DEPTH_MODEL, DepthNoiseModel
+from ..rgbd.frames import Intrinsics
 
 __all__ = ["register", "intrinsics_for", "noise_model_from_calibration", "BALL_CSV_COLUMNS"]
 
 BALL_CSV_COLUMNS = ("frame", "t", "u", "v", "x", "y", "z", "valid")
 
 
-def _camera_from_file(path):
+def camera_from_file(path):
     """A CameraModel from a project calibration file or a ROS camera_info YAML."""
     import yaml
 
@@ -35,10 +35,10 @@ def _camera_from_file(path):
     if isinstance(doc, dict) and "camera_matrix" in doc:
         return load_ros_camera_info(path).camera, None
     cal = load_calibration(path)
-    return _pick_camera(cal, path), cal
+    return pick_camera(cal, path), cal
 
 
-def _pick_camera(cal, where):
+def pick_camera(cal, where):
     cams = dict(cal.cameras)
     if "rgbd" in cams:
         return cams["rgbd"]
@@ -62,13 +62,13 @@ def intrinsics_for(seq, calib=None) -> tuple[Intrinsics, object]:
         No intrinsics anywhere (the message suggests ``--calib``).
     """
     if calib is not None:
-        cam, cal = _camera_from_file(calib)
+        cam, cal = camera_from_file(calib)
     else:
         cal = seq.calibration
         if cal is None or not cal.cameras:
             raise TudorVisionError(f"{seq.path}: the sequence has no camera intrinsics; pass --calib FILE "
                                    "(project calibration or ROS camera_info YAML)")
-        cam = _pick_camera(cal, seq.path)
+        cam = pick_camera(cal, seq.path)
     return Intrinsics.from_matrix(cam.K, cam.width, cam.height), cal
 
 
@@ -94,7 +94,7 @@ def _open(path):
 def _cmd_cloud(args) -> int:
     import cv2
 
-    from .cloud import cloud_from_rgbd, points_colors_from_cloud, write_ply
+    from ..rgbd.cloud import cloud_from_rgbd, points_colors_from_cloud, write_ply
 
     seq = _open(args.seq)
     if seq.kind != "rgbd":
@@ -117,7 +117,7 @@ def _cmd_cloud(args) -> int:
 
 def _cmd_detect_ball(args) -> int:
     from .._progress import progress
-    from .ball import BallDetector, BallDetectorOptions, ColorBallDetector, ColorBallOptions
+    from ..rgbd.ball import BallDetector, BallDetectorOptions, ColorBallDetector, ColorBallOptions
 
     seq = _open(args.seq)
     rows = []

@@ -1,4 +1,4 @@
-"""``tudorvision demo``: the main job on an embedded default.
+"""The main job on an embedded default (``tudorvision demo``).
 
 Runs the virtual lab end to end in well under a minute and writes what a
 person wants to look at into ``--out``:
@@ -20,12 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["register", "run_demo"]
+__all__ = ["run_demo"]
 
 
 def _physics_summary(params):
-    from .robot import fk_ee
-    from .sim.arm import ElasticArm, Payload
+    from ..robot import fk_ee
+    from ..sim.arm import ElasticArm, Payload
     rows = []
     for plates in (0, 3, 6):
         payload = Payload.from_parts(params, plates=plates)
@@ -51,7 +51,7 @@ def _plot_step(log, path):
     ax[0, 1].plot(log.t, log.strain * 1e6); ax[0, 1].set_ylabel("strain [µm/m]"); ax[0, 1].set_xlabel("t [s]")
     ax[0, 1].legend(["link 2 near", "link 2 far", "link 3 near", "link 3 far"], fontsize=8)
     ax[1, 0].plot(ee[:, 0], ee[:, 2], label="elastic (simulated)")
-    from .robot import fk_ee
+    from ..robot import fk_ee
     rig = fk_ee(log.theta)
     ax[1, 0].plot(rig[:, 0], rig[:, 2], "--", label="rigid-equivalent")
     ax[1, 0].set_xlabel("x [m]"); ax[1, 0].set_ylabel("z [m]"); ax[1, 0].axis("equal"); ax[1, 0].legend()
@@ -65,7 +65,7 @@ def _plot_step(log, path):
 
 def _contact_sheet(stereo_dir: Path, rgbd_dirs, path):
     import cv2
-    from .io import open_sequence
+    from ..io import open_sequence
     seq = open_sequence(stereo_dir)
     f = seq[len(seq) // 2]
     top = np.hstack([f.left, f.right])
@@ -91,8 +91,8 @@ def _track_step(stereo_dir: Path, out: Path, log) -> dict:
     user's eye) with the edge one sphere radius to the right. The tracker
     itself never reads ground truth.
     """
-    from .io import open_sequence
-    from .stereo import fit_color_model_set, plot_trajectory, track_stereo, write_trajectory_csv
+    from ..io import open_sequence
+    from ..stereo import fit_color_model_set, plot_trajectory, track_stereo, write_trajectory_csv
     seq = open_sequence(stereo_dir)
     gt = seq.groundtruth("ee")
     f0 = seq[0]
@@ -120,9 +120,10 @@ def _track_step(stereo_dir: Path, out: Path, log) -> dict:
 
 def run_demo(out, *, seed: int = 0, log=print) -> dict:
     """Run the embedded demo into directory ``out``; returns the summary dict."""
-    from .robot import load_robot_params
-    from .sim.arm import Payload, simulate_ptp
-    from .sim.record import RecordOptions, record
+    from ..robot import load_robot_params
+    from ..sim.arm import Payload
+    from .simulation import simulate_ptp
+    from .record import RecordOptions, record
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.monotonic()
@@ -146,7 +147,7 @@ def run_demo(out, *, seed: int = 0, log=print) -> dict:
             for k, n in (("rgbd-disc", 4), ("servo-views", 2))]
     log(f"rendered recordings with ground truth -> {out / 'recordings'}")
     summary["stereo_tracking"] = _track_step(stereo_dir, out, log)
-    from .catch.demo import DemoOptions, run_demo as run_catch_demo
+    from .catch_demo import DemoOptions, run_demo as run_catch_demo
     catch = run_catch_demo(out / "catch", DemoOptions(seed=seed))
     summary["catch"] = {k: catch[k] for k in ("throws", "crossing_workspace", "caught", "success_rate") if k in catch}
     log(f"ball catching: {summary['catch']} -> {out / 'catch'}")
@@ -156,17 +157,3 @@ def run_demo(out, *, seed: int = 0, log=print) -> dict:
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     log(f"summary -> {out / 'summary.json'} ({summary['wall_time_s']} s)")
     return summary
-
-
-def _cmd_demo(args) -> int:
-    run_demo(args.out, seed=args.seed)
-    return 0
-
-
-def register(sub) -> None:
-    p = sub.add_parser("demo", help="run the embedded demo (virtual lab end to end)",
-                       description="Run the virtual lab end to end on an embedded default and write plots, "
-                                   "recordings and a summary.")
-    p.add_argument("--out", default="out/demo", help="output directory (default out/demo)")
-    p.add_argument("--seed", type=int, default=0, help="scene seed (default 0)")
-    p.set_defaults(func=_cmd_demo)

@@ -5,7 +5,7 @@ import sys
 
 from .._checks import TudorVisionError
 from .._progress import progress
-from .sequence import Sequence, open_sequence
+from ..io.sequence import Sequence, open_sequence
 
 __all__ = ["register", "scan_sequence"]
 
@@ -58,7 +58,7 @@ def scan_sequence(seq: Sequence, *, decode: bool = True, show_progress: bool | N
         except TudorVisionError as exc:
             if seq.strict:
                 raise
-            from ._index import Problem
+            from ..io._index import Problem
             seq._record(Problem(str(exc).split(": ", 1)[0], str(exc).split(": ", 1)[-1]))
     return ok
 
