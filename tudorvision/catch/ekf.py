@@ -187,7 +187,7 @@ def propagate(x, dt: float, model: BallModel = BallModel(), *, jacobian: bool = 
     if jacobian:
         n, h = _substeps(float(dt), model)
         return _propagate_floats_jac(x, n, h, model.drag_k_per_m, model.gravity_m_s2)
-    return _propagate_state(x, float(dt), model)
+    return propagate_state(x, float(dt), model)
 
 
 def _substeps(dt: float, model: BallModel):
@@ -196,8 +196,22 @@ def _substeps(dt: float, model: BallModel):
     return n, dt / n
 
 
-def _propagate_state(x, dt: float, model: BallModel) -> np.ndarray:
-    """:func:`propagate` without Jacobian and without the argument check (inner loops)."""
+def propagate_state(x, dt: float, model: BallModel) -> np.ndarray:
+    """:func:`propagate` without Jacobian and without the argument check (for inner loops).
+
+    Parameters
+    ----------
+    x : ndarray, shape (6,)
+        State ``[x, y, z, vx, vy, vz]`` (m, m/s), already checked.
+    dt : float
+        Prediction horizon, s.
+    model : BallModel
+
+    Returns
+    -------
+    ndarray, shape (6,)
+        The state after ``dt``.
+    """
     n, h = _substeps(dt, model)
     return _propagate_floats(x, n, h, model.drag_k_per_m, model.gravity_m_s2)
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._checks import check_array
-from .ekf import BallModel, _propagate_state, predict
+from .ekf import BallModel, propagate_state, predict
 
 __all__ = ["working_plane_normal", "PlaneCrossing", "plane_crossing", "planar_coordinates", "reachable_solutions",
            "net_target",
@@ -116,7 +116,7 @@ def plane_crossing(x, P, normal, *, point=(0.0, 0.0, 0.0), model: BallModel = Ba
         t_new = t if xi is x else t + h
         if t_new > max_time_s or t_new < 0:
             return None
-        xi = _propagate_state(xi, h, model)
+        xi = propagate_state(xi, h, model)
         t = t_new
         di = float(n @ (xi[:3] - c))
         vn = float(n @ xi[3:])

@@ -57,7 +57,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._checks import check_array
-from ..robot.actuators import friction_torque, motor_gain, reflected_inertia, reflected_viscous
+from ..robot.actuators import motor_gain, reflected_viscous
 from ..robot.params import RobotParams
 
 __all__ = ["CascadeGains", "design_cascade", "FrictionCompensation", "friction_compensation",

@@ -30,13 +30,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._checks import check_array, check_transform
-from ..joint.adapter import JointAdapter
 from ..joint.protocol import Damping, Mode
-from ..joint.server import JointLayerServer, ServerConfig
-from ..joint.transport import InProcessTransport, LockstepClientTransport
 from ..robot import load_robot_params
 from ..servo.loop import VisualServo, default_T_ee_cam
+from .lockstep import LockstepLayer
 from .simulation import SimCore
 
 __all__ = ["LabConfig", "ServoLab", "teach_goal", "RunResult", "run_closed_loop", "DEFAULT_THETA_GOAL"]
@@ -149,10 +146,9 @@ class ServoLab:
         #: payload the user mounted (camera and plates), kg: told to the joint layer
         self.payload_kg = float(payload.mass_kg)
         self.core = SimCore(theta_start, payload=payload, params=self.params)
-        client, end = InProcessTransport.pair()
-        self.server = JointLayerServer(end, self.core, config=ServerConfig(rate_hz=cfg.server_rate_hz,
-                                                                          max_command_age_s=None))
-        self.adapter = JointAdapter(LockstepClientTransport(client, self.server))
+        #: the real joint-layer server and adapter, advanced in simulated time
+        self.layer = LockstepLayer(self.core, rate_hz=cfg.server_rate_hz)
+        self.server, self.adapter = self.layer.server, self.layer.adapter
         self.square_center_world = (np.asarray(cfg.square_center_world, float) if cfg.square_center_world
                                     is not None else _goal_square_center(cfg, self.params))
         w, h = cfg.image_size

@@ -9,7 +9,7 @@ that closes the loop through the joint layer is :mod:`tudorvision.lab.servo_lab`
 from __future__ import annotations
 
 import collections
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 

@@ -260,7 +260,7 @@ class ModalBasis:
 
     @functools.cached_property
     def _int_phi(self) -> np.ndarray:
-        xg, wg = _gauss(self.length_m)
+        xg, wg = gauss_points(self.length_m)
         return self.shape(xg) @ wg
 
 
@@ -294,7 +294,7 @@ def _shape(k: np.ndarray, coef: np.ndarray, x: np.ndarray, derivative: int) -> n
     return (k[:, None] ** derivative) * (coef[:, :1] * f1 + coef[:, 1:] * f2)
 
 
-def _gauss(length: float, n: int = 64):
+def gauss_points(length: float, n: int = 64):
     xg, wg = np.polynomial.legendre.leggauss(n)
     return 0.5 * length * (xg + 1.0), 0.5 * length * wg
 
@@ -360,7 +360,7 @@ def _modal_basis_cached(L, rho, EI, h, mL, IL, n_modes) -> ModalBasis:
         coef[r] = (a, b)
     if not np.all(np.isfinite(coef)):
         raise TudorVisionError("modal_basis: mode shape computation failed (non-finite coefficients)")
-    xg, wg = _gauss(L)
+    xg, wg = gauss_points(L)
     phi = _shape(k, coef, xg, 0)
     phiL = _shape(k, coef, np.array([L]), 0)[:, 0]
     dphiL = _shape(k, coef, np.array([L]), 1)[:, 0]
