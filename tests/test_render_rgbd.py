@@ -3,9 +3,10 @@ import cv2
 import numpy as np
 import pytest
 
+from tudorvision.sensors import KINECT_DEPTH_NOISE
 from tudorvision.sim.camera import look_at, project_points
-from tudorvision.sim.render import (DepthModel, Rectangle, depth_mm_from_gbuffer, depth_sigma_m, render_gbuffer,
-                                    render_rgbd)
+from tudorvision.sim.depth_sensor import DepthSensorModel, depth_mm_from_gbuffer
+from tudorvision.sim.render import Rectangle, render_gbuffer, render_rgbd
 from tudorvision.sim.scenes import (ArmGeometry, arm_geometry_from_joints, ball_throw, ballistic, checkerboard_lab,
                                     eye_in_hand, planar_target, stereo_lab, wall_disc)
 
@@ -18,7 +19,7 @@ def _sigma_cm(z):
 
 def test_depth_sigma_is_the_seed_polynomial_in_cm():
     z = np.linspace(0.6, 6.0, 7)
-    np.testing.assert_allclose(depth_sigma_m(z) * 100, _sigma_cm(z), rtol=1e-12)
+    np.testing.assert_allclose(KINECT_DEPTH_NOISE.sigma_m(z) * 100, _sigma_cm(z), rtol=1e-12)
 
 
 @pytest.mark.parametrize("distance", [0.8, 1.5, 3.0, 4.5, 5.5])
@@ -28,7 +29,7 @@ def test_depth_noise_std_matches_sigma_z(distance):
     setup = planar_target(distance, rng, width=W, height=H)
     cam = setup.cameras["rgbd"]
     g = render_gbuffer(cam, setup.scene, 0.0)
-    frames = np.stack([depth_mm_from_gbuffer(g, DepthModel(), rng) for _ in range(100)]).astype(float)
+    frames = np.stack([depth_mm_from_gbuffer(g, DepthSensorModel(), rng) for _ in range(100)]).astype(float)
     region = (g.object_id == setup.meta["target_id"]) & np.all(frames > 0, axis=0)
     assert region.sum() > 30
     std_m = frames[:, region].std(axis=0, ddof=1).mean() / 1000.0
@@ -54,15 +55,15 @@ def test_invalid_pixels_out_of_range_edges_and_dark():
     for d in (0.5, 6.5):
         setup = planar_target(d, rng, width=W, height=H)
         g = render_gbuffer(setup.cameras["rgbd"], setup.scene)
-        depth = depth_mm_from_gbuffer(g, DepthModel(), rng)
+        depth = depth_mm_from_gbuffer(g, DepthSensorModel(), rng)
         assert np.all(depth[g.object_id == setup.meta["target_id"]] == 0)
     # the limits are parameters
-    depth = depth_mm_from_gbuffer(g, DepthModel(max_depth_m=7.0), rng)
+    depth = depth_mm_from_gbuffer(g, DepthSensorModel(max_depth_m=7.0), rng)
     assert np.mean(depth[g.object_id == setup.meta["target_id"]] > 0) > 0.5
     # edges: with an unlimited range the background is valid, but the target's border is not
     setup = planar_target(2.0, rng, width=W, height=H, textured=False)
     g = render_gbuffer(setup.cameras["rgbd"], setup.scene)
-    depth = depth_mm_from_gbuffer(g, DepthModel(max_depth_m=60.0), None)
+    depth = depth_mm_from_gbuffer(g, DepthSensorModel(max_depth_m=60.0), None)
     target = g.object_id == setup.meta["target_id"]
     border = target & ~cv2.erode(target.astype(np.uint8), np.ones((3, 3), np.uint8)).astype(bool)
     interior = cv2.erode(target.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
@@ -74,7 +75,7 @@ def test_invalid_pixels_out_of_range_edges_and_dark():
     from tudorvision.sim.render import Scene
     scene = Scene(static=[dark] + list(setup.scene.static[1:]), lights=setup.scene.lights)
     g = render_gbuffer(setup.cameras["rgbd"], scene)
-    depth = depth_mm_from_gbuffer(g, DepthModel(), rng)
+    depth = depth_mm_from_gbuffer(g, DepthSensorModel(), rng)
     assert np.all(depth[g.object_id == 1] == 0)
 
 
@@ -134,9 +135,9 @@ def test_eye_in_hand_square_and_checkerboard_corners():
 
 
 @pytest.mark.parametrize("make, name", [
-    (lambda: DepthModel(min_depth_m=3.0, max_depth_m=2.0), "max_depth_m"),
-    (lambda: DepthModel(edge_width_px=-1), "edge_width_px"),
-    (lambda: DepthModel(units_per_m=1e5), "units_per_m"),
+    (lambda: DepthSensorModel(min_depth_m=3.0, max_depth_m=2.0), "max_depth_m"),
+    (lambda: DepthSensorModel(edge_width_px=-1), "edge_width_px"),
+    (lambda: DepthSensorModel(units_per_m=1e5), "units_per_m"),
     (lambda: planar_target(0.0, np.random.default_rng(0)), "distance_m"),
     (lambda: stereo_lab(np.random.default_rng(0), T_world_base=np.ones((4, 4))), "T_world_base"),
     (lambda: stereo_lab(np.random.default_rng(0), arm=3), "arm"),

@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 
 from tudorvision._checks import TudorVisionError
-from tudorvision.rgbd.depth_model import (SEED_DEPTH_MODEL, DepthNoiseModel, calibrate_depth_model,
-                                          depth_step_stats, fit_depth_model, plot_depth_model,
-                                          read_depth_table_csv, write_depth_table_csv)
+from tudorvision.rgbd.depth_model import (calibrate_depth_model, depth_step_stats, fit_depth_model,
+                                          plot_depth_model, read_depth_table_csv, write_depth_table_csv)
 from tudorvision.rgbd.frames import Intrinsics
+from tudorvision.sensors import KINECT_DEPTH_NOISE, DepthNoiseModel
 
 K = Intrinsics(131.25, 131.25, 39.5, 29.5, 80, 60)     # Kinect optics at 1/8 resolution
 
@@ -41,7 +41,7 @@ def test_sigma_model_recovered_within_10_percent(tmp_path):
     stacks = [target_stack(rng, z)[0] for z in distances]
     model, table = calibrate_depth_model(stacks, K, nominal_distances_m=distances)
     zz = np.linspace(0.6, 6.0, 100)
-    rel = np.abs(model.sigma(zz) / seed_sigma_m(zz) - 1.0)
+    rel = np.abs(model.sigma_m(zz) / seed_sigma_m(zz) - 1.0)
     assert rel.max() < 0.10
     assert [r.distance_m for r in table] == sorted(distances.tolist())
     for row in table:
@@ -77,8 +77,8 @@ def test_roi_and_auto_region_agree_and_tilted_plane_has_no_bias():
 
 def test_seed_model_values_and_fit():
     z = np.linspace(0.6, 6.0, 12)
-    np.testing.assert_allclose(SEED_DEPTH_MODEL.sigma(z), seed_sigma_m(z), rtol=1e-12)
-    assert SEED_DEPTH_MODEL.sigma(0.3) == SEED_DEPTH_MODEL.floor_m      # cubic negative there
+    np.testing.assert_allclose(KINECT_DEPTH_NOISE.sigma_m(z), seed_sigma_m(z), rtol=1e-12)
+    assert KINECT_DEPTH_NOISE.sigma_m(0.3) == KINECT_DEPTH_NOISE.floor_m      # cubic negative there
     m = fit_depth_model(z, seed_sigma_m(z))
     np.testing.assert_allclose(m.coeffs, [0.0051, -0.021, 0.0512, -0.0218], atol=1e-10)
 

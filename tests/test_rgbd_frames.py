@@ -9,9 +9,9 @@ from tudorvision._checks import TudorVisionError
 from tudorvision.geometry import fit_plane
 from tudorvision.rgbd.cloud import (cloud_from_rgbd, colored_points_cam_from_rgbd, points_colors_from_cloud,
                                     read_ply, write_ply)
-from tudorvision.rgbd.frames import (Intrinsics, depth_m_from_raw, organized_points_cam_from_depth,
-                                     points_cam_from_depth, raw_from_depth_m, rays_cam_from_uv,
-                                     uv_from_points_cam)
+from tudorvision.rgbd.frames import (Intrinsics, organized_points_cam_from_depth, points_cam_from_depth,
+                                     rays_cam_from_uv, uv_from_points_cam)
+from tudorvision.sensors import depth_m_from_raw, raw_from_depth_m
 
 REALDATA = Path(__file__).resolve().parents[2] / "shared" / "realdata"
 K_KINECT = Intrinsics(525.0, 523.0, 319.5, 241.0, 640, 480)
@@ -75,31 +75,32 @@ def test_depth_raw_round_trip_and_scale_check():
     rng = np.random.default_rng(3)
     d = rng.uniform(0.6, 6.0, (48, 64))
     d[0, :5] = np.nan
-    raw = raw_from_depth_m(d, 1000.0)
+    raw = raw_from_depth_m(d, 1000.0, out_of_range="raise")
     assert raw.dtype == np.uint16 and np.all(raw[0, :5] == 0)
-    back = depth_m_from_raw(raw, 1000.0)
+    back = depth_m_from_raw(raw, 1000.0, dtype=np.float64, check_range=True)
     np.testing.assert_allclose(back[1:], d[1:], atol=0.5e-3)
     assert np.all(np.isnan(back[0, :5]))
-    tum = raw_from_depth_m(d, 5000.0)
-    np.testing.assert_allclose(depth_m_from_raw(tum, 5000.0)[1:], d[1:], atol=0.1e-3)
+    tum = raw_from_depth_m(d, 5000.0, out_of_range="raise")
+    back_tum = depth_m_from_raw(tum, 5000.0, dtype=np.float64, check_range=True)
+    np.testing.assert_allclose(back_tum[1:], d[1:], atol=0.1e-3)
     # wrong scale: millimetre data read as metres -> implausible, with a hint
     with pytest.raises(TudorVisionError, match=r"implausible median depth.*depth_scale=1000"):
-        depth_m_from_raw(raw, 1.0)
+        depth_m_from_raw(raw, 1.0, dtype=np.float64, check_range=True)
     with pytest.raises(TudorVisionError, match="implausible"):
-        depth_m_from_raw(tum, 1.0e6)
-    assert np.isfinite(depth_m_from_raw(raw, 1.0, check_range=False)).any()
+        depth_m_from_raw(tum, 1.0e6, dtype=np.float64, check_range=True)
+    assert np.isfinite(depth_m_from_raw(raw, 1.0, dtype=np.float64)).any()
 
 
 def test_bad_depth_input():
     zeros = np.zeros((48, 64), np.uint16)
     with pytest.raises(TudorVisionError, match="no valid pixel"):
-        depth_m_from_raw(zeros, 1000.0)
+        depth_m_from_raw(zeros, 1000.0, dtype=np.float64, check_range=True)
     with pytest.raises(TudorVisionError, match="no valid pixel"):
         points_cam_from_depth(np.full((480, 640), np.nan), K_KINECT)
     with pytest.raises(ValueError, match="does not match the intrinsics"):
         points_cam_from_depth(np.ones((10, 10)), K_KINECT)
     with pytest.raises(ValueError, match="depth_scale"):
-        depth_m_from_raw(zeros + 1000, 0.0)
+        depth_m_from_raw(zeros + 1000, 0.0, dtype=np.float64, check_range=True)
     with pytest.raises(ValueError, match="positive focal length"):
         Intrinsics(0.0, 1.0, 0.0, 0.0, 10, 10)
 
@@ -120,7 +121,8 @@ def test_open3d_cloud_equals_numpy_back_projection():
     color, raw = _synthetic_rgbd(rng, K)
     pcd = cloud_from_rgbd(color, raw, K, depth_scale=1000.0, depth_trunc=2.8)
     pts_o3d, col_o3d = points_colors_from_cloud(pcd)
-    pts_np, col_np = colored_points_cam_from_rgbd(color, depth_m_from_raw(raw, 1000.0), K, depth_trunc=2.8)
+    depth = depth_m_from_raw(raw, 1000.0, dtype=np.float64, check_range=True)
+    pts_np, col_np = colored_points_cam_from_rgbd(color, depth, K, depth_trunc=2.8)
     assert len(pts_o3d) == len(pts_np) > 1000
     np.testing.assert_allclose(pts_o3d, pts_np, atol=1e-5)
     np.testing.assert_allclose(col_o3d, col_np, atol=1e-6)
@@ -160,7 +162,7 @@ def test_real_tum_desk_plane_residual():
     folder = _need(REALDATA / "rgbd_tum_desk")
     raw = cv2.imread(str(folder / "1_depth.png"), cv2.IMREAD_UNCHANGED)
     K = Intrinsics(520.9, 521.0, 325.1, 249.7, 640, 480)
-    depth = depth_m_from_raw(raw, 5000.0)
+    depth = depth_m_from_raw(raw, 5000.0, dtype=np.float64, check_range=True)
     mask = np.zeros(K.shape, bool)
     mask[330:381, 90:201] = True
     pts = points_cam_from_depth(depth, K, mask=mask)
@@ -176,11 +178,11 @@ def test_real_kinect_room_cloud_span():
     raw = cv2.imread(str(folder / "depth" / "1.pgm"), cv2.IMREAD_UNCHANGED)
     color = cv2.cvtColor(cv2.imread(str(folder / "color" / "1.png")), cv2.COLOR_BGR2RGB)
     K = Intrinsics(518.0, 519.0, 325.5, 253.5, 640, 480)
-    depth = depth_m_from_raw(raw, 1000.0)
+    depth = depth_m_from_raw(raw, 1000.0, dtype=np.float64, check_range=True)
     pts, cols = colored_points_cam_from_rgbd(color, depth, K)
     assert 0.6 < len(pts) / (640 * 480) < 0.8
     assert abs(pts[:, 2].min() - 0.95) < 0.02 and abs(pts[:, 2].max() - 9.8) < 0.1
     assert cols.shape == pts.shape
     # wrong scale is caught on real data too
     with pytest.raises(TudorVisionError, match="did you mean depth_scale=1000"):
-        depth_m_from_raw(raw, 1.0)
+        depth_m_from_raw(raw, 1.0, dtype=np.float64, check_range=True)

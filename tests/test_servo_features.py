@@ -4,7 +4,7 @@ import pytest
 
 from tudorvision.servo import (depth_at, diagonal_intersection, extract_square, order_corners,
                                polygon_centroid)
-from tudorvision.servo.features import depth_m_from_raw
+from tudorvision.sensors import depth_m_from_raw
 from tudorvision.sim import eye_in_hand, look_at, project_points, render_rgbd, with_pose
 
 SQUARE = np.array([0.6, 0.0, 0.0])
@@ -28,7 +28,7 @@ def frames():
         setup = eye_in_hand(T, rng, square_center_world=SQUARE, square_size_m=0.1, square_yaw_rad=yaw)
         cam = with_pose(setup.cameras["rgbd"], T)
         bgr, depth, gb = render_rgbd(cam, setup.scene, 0.0, rng=rng)
-        out.append((cam, setup.meta["square_corners_world"], bgr, depth_m_from_raw(depth), gb))
+        out.append((cam, setup.meta["square_corners_world"], bgr, depth_m_from_raw(depth, 1000.0), gb))
     return out
 
 

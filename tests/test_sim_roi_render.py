@@ -7,7 +7,8 @@ import pytest
 from tudorvision.sim.roi_render import RoiRenderer
 from tudorvision.sim import eye_in_hand, render_rgbd, with_pose
 from tudorvision.sim.lighting import PointLight
-from tudorvision.sim.render import DepthModel, Scene
+from tudorvision.sim.depth_sensor import DepthSensorModel
+from tudorvision.sim.render import Scene
 
 
 def _down_pose(x, y, h, yaw_deg=0.0, tilt_deg=0.0):
@@ -31,7 +32,7 @@ def test_noise_free_frames_equal_the_full_render(pose):
     setup = eye_in_hand(_down_pose(*pose), np.random.default_rng(3), square_center_world=(0, 0, 0),
                         width=320, height=240)
     cam = setup.cameras["rgbd"]
-    r = RoiRenderer(setup.scene, DepthModel())
+    r = RoiRenderer(setup.scene, DepthSensorModel())
     bgr, depth = r.render(cam, 0.0, rng=None)
     ref_bgr, ref_depth, _ = render_rgbd(cam, setup.scene, 0.0, rng=None)
     assert r.n_roi == 1 and r.n_full == 0
@@ -48,7 +49,7 @@ def test_moved_camera_and_dynamic_square():
     ground = [s for s in setup.scene.static if s.name == "ground"]
     scene = Scene(static=ground, lights=setup.scene.lights,
                   dynamic=lambda t: [replace(sq, center=np.asarray(sq.center) + [0.1 * t, 0, 0])])
-    r = RoiRenderer(scene, DepthModel())
+    r = RoiRenderer(scene, DepthSensorModel())
     for k, t in enumerate((0.0, 0.5, 1.0)):
         cam = with_pose(setup.cameras["rgbd"], _down_pose(0.02 * k, -0.01 * k, 0.75 - 0.03 * k, 10 * k))
         bgr, depth = r.render(cam, t, rng=None)
@@ -62,7 +63,7 @@ def test_noise_has_the_full_renders_distribution():
     setup = eye_in_hand(_down_pose(0.03, 0.02, 0.8, 15), np.random.default_rng(5), square_center_world=(0, 0, 0),
                         width=320, height=240)
     cam = setup.cameras["rgbd"]
-    r = RoiRenderer(setup.scene, DepthModel())
+    r = RoiRenderer(setup.scene, DepthSensorModel())
     clean_bgr, clean_depth, gb = render_rgbd(cam, setup.scene, 0.0, rng=None)
     a_bgr, a_depth = r.render(cam, 0.0, rng=np.random.default_rng(11))
     b_bgr, b_depth, _ = render_rgbd(cam, setup.scene, 0.0, rng=np.random.default_rng(12))
@@ -91,7 +92,7 @@ def test_falls_back_to_the_full_render_where_the_shortcut_does_not_hold():
     cam = setup.cameras["rgbd"]
     lit = Scene(static=setup.scene.static, lights=[*setup.scene.lights,
                                                    PointLight(position_world=(0.3, 0.0, 1.5), intensity=0.2)])
-    r = RoiRenderer(lit, DepthModel())
+    r = RoiRenderer(lit, DepthSensorModel())
     bgr, depth = r.render(cam, 0.0, rng=np.random.default_rng(4))
     ref_bgr, ref_depth, _ = render_rgbd(cam, lit, 0.0, rng=np.random.default_rng(4))
     assert not r.applicable and r.n_full == 1
@@ -99,7 +100,7 @@ def test_falls_back_to_the_full_render_where_the_shortcut_does_not_hold():
     np.testing.assert_array_equal(depth, ref_depth)
     # camera so close that the square fills the frame: full render, same noise stream
     near = with_pose(cam, _down_pose(0, 0, 0.08))
-    r2 = RoiRenderer(setup.scene, DepthModel())
+    r2 = RoiRenderer(setup.scene, DepthSensorModel())
     bgr, depth = r2.render(near, 0.0, rng=np.random.default_rng(4))
     ref_bgr, ref_depth, _ = render_rgbd(near, setup.scene, 0.0, rng=np.random.default_rng(4))
     assert r2.n_full == 1
@@ -111,8 +112,8 @@ def test_supersampling_gives_edge_pixels_their_covered_fraction():
     setup = eye_in_hand(_down_pose(0.0, 0.0, 0.75), np.random.default_rng(3), square_center_world=(0, 0, 0),
                         width=320, height=240)
     cam = setup.cameras["rgbd"]
-    point, _ = RoiRenderer(setup.scene, DepthModel()).render(cam, 0.0, rng=None)
-    fine, _ = RoiRenderer(setup.scene, DepthModel(), supersample=8).render(cam, 0.0, rng=None)
+    point, _ = RoiRenderer(setup.scene, DepthSensorModel()).render(cam, 0.0, rng=None)
+    fine, _ = RoiRenderer(setup.scene, DepthSensorModel(), supersample=8).render(cam, 0.0, rng=None)
     g, sq = float(point[0, 0, 1]), float(point[120, 160, 1])
     assert abs(float(fine[0, 0, 1]) - g) <= 1 and abs(float(fine[120, 160, 1]) - sq) <= 1   # interiors unchanged
     # the square's area in pixels, from the grey levels, matches its projected area (point sampling: whole pixels)
@@ -128,4 +129,4 @@ def test_supersampling_gives_edge_pixels_their_covered_fraction():
     assert cov_fine.sum() == pytest.approx(area, rel=0.01)
     assert np.count_nonzero((cov_fine > 0.05) & (cov_fine < 0.95)) > 50          # grey edge pixels exist
     with pytest.raises(ValueError, match="supersample"):
-        RoiRenderer(setup.scene, DepthModel(), supersample=0)
+        RoiRenderer(setup.scene, DepthSensorModel(), supersample=0)

@@ -13,14 +13,13 @@ from .calibration import (Calibration, CameraModel, DepthModel, StereoExtrinsics
 from .formats import (CameraInfo, calibration_from_ros, load_opencv_stereo, load_ros_camera_info,
                       save_opencv_stereo, save_ros_camera_info)
 from .playback import Playback, Played
-from .frames import (JointLog, MonoFrame, RGBDFrame, StereoFrame, depth_m_from_raw,
-                     raw_from_depth_m)
+from .frames import JointLog, MonoFrame, RGBDFrame, StereoFrame
 from .sequence import Sequence, load_joint_log, open_sequence
 from .writer import SequenceWriter
 
 __all__ = [
     "open_sequence", "Sequence", "load_joint_log", "StereoFrame", "RGBDFrame", "MonoFrame", "JointLog", "Problem",
-    "Playback", "Played", "SequenceWriter", "depth_m_from_raw", "raw_from_depth_m", "associate",
+    "Playback", "Played", "SequenceWriter", "associate",
     "Calibration", "CameraModel", "StereoExtrinsics", "DepthModel", "load_calibration",
     "save_calibration", "CameraInfo", "load_ros_camera_info", "save_ros_camera_info",
     "calibration_from_ros", "load_opencv_stereo", "save_opencv_stereo",

@@ -1,16 +1,19 @@
-"""Frames of recorded sequences and depth unit conversions.
+"""Frames of recorded sequences.
 
 Small frozen dataclasses, one per sequence kind; images are numpy arrays in
-OpenCV conventions (u right, v down, BGR channel order).
+OpenCV conventions (u right, v down, BGR channel order). Depth unit
+conversions live in :mod:`tudorvision.sensors`.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["StereoFrame", "RGBDFrame", "MonoFrame", "JointLog", "depth_m_from_raw", "raw_from_depth_m"]
+# Not part of this module: re-exported only while io/sequence.py and io/writer.py import them from here.
+from ..sensors import depth_m_from_raw, raw_from_depth_m  # noqa: F401
+
+__all__ = ["StereoFrame", "RGBDFrame", "MonoFrame", "JointLog"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,55 +93,3 @@ class JointLog:
         tq = np.asarray(t, dtype=np.float64)
         out = np.stack([np.interp(tq, self.t, self.theta_rad[:, k]) for k in range(3)], axis=-1)
         return out
-
-
-# ----------------------------------------------------------------------------- depth units
-def depth_m_from_raw(depth_raw, depth_scale: float, *, dtype=np.float32) -> np.ndarray:
-    """Metres from raw 16-bit depth; 0 (invalid) becomes NaN.
-
-    The one conversion of the package: :func:`tudorvision.rgbd.depth_m_from_raw`
-    adds shape and plausibility checks on top of it.
-
-    Parameters
-    ----------
-    depth_raw : array_like, shape (H, W), integer
-        Raw depth values.
-    depth_scale : float
-        Raw units per metre (1000 for millimetres, 5000 for TUM).
-    dtype : numpy dtype, optional
-        Output type (float32 by default, half the memory of float64).
-
-    Returns
-    -------
-    ndarray, shape (H, W), ``dtype``
-
-    Examples
-    --------
-    >>> depth_m_from_raw(np.array([[0, 1500]], np.uint16), 1000.0)
-    array([[nan, 1.5]], dtype=float32)
-    """
-    if not (isinstance(depth_scale, (int, float)) and math.isfinite(depth_scale) and depth_scale > 0):
-        raise ValueError(f"depth_scale: expected a positive number of units per metre, got {depth_scale!r}")
-    raw = np.asarray(depth_raw)
-    dtype = np.dtype(dtype)
-    out = raw.astype(dtype) / dtype.type(depth_scale)
-    out[raw == 0] = np.nan
-    return out
-
-
-def raw_from_depth_m(depth_m, depth_scale: float) -> np.ndarray:
-    """Raw uint16 depth from metres; NaN, non-positive and out-of-range values become 0.
-
-    Examples
-    --------
-    >>> raw_from_depth_m(np.array([[np.nan, 1.5, 70.0]]), 1000.0)
-    array([[   0, 1500,    0]], dtype=uint16)
-    """
-    if not (isinstance(depth_scale, (int, float)) and math.isfinite(depth_scale) and depth_scale > 0):
-        raise ValueError(f"depth_scale: expected a positive number of units per metre, got {depth_scale!r}")
-    d = np.asarray(depth_m, dtype=np.float64) * depth_scale
-    with np.errstate(invalid="ignore"):
-        ok = np.isfinite(d) & (d >= 0.5) & (d < 65535.5)
-    out = np.zeros(d.shape, np.uint16)
-    out[ok] = np.rint(d[ok]).astype(np.uint16)
-    return out

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._checks import TudorVisionError
-from .depth_model import SEED_DEPTH_MODEL, DepthNoiseModel
+from ..sensors import KINECT_DEPTH_NOISE, DepthNoiseModel
 from .frames import Intrinsics
 
 __all__ = ["BallDetectorOptions", "BallDetection", "DepthBackground", "detect_balls", "BallDetector",
@@ -72,8 +72,8 @@ class BallDetectorOptions:
         Pixels per independent depth sample (1: independent pixel noise).
     max_candidates : int
         Coarse blobs refined per frame (largest first).
-    depth_model : DepthNoiseModel
-        ``sigma_z(z)``.
+    depth_model : tudorvision.sensors.DepthNoiseModel
+        ``sigma_z(z)`` in metres.
     """
 
     ball_radius_m: float = 0.045
@@ -86,7 +86,7 @@ class BallDetectorOptions:
     pixel_sigma_px: float = 1.0
     noise_correlation_px: float = 1.0
     max_candidates: int = 5
-    depth_model: DepthNoiseModel = field(default=SEED_DEPTH_MODEL)
+    depth_model: DepthNoiseModel = field(default=KINECT_DEPTH_NOISE)
 
     def __post_init__(self):
         if not self.ball_radius_m > 0:
@@ -180,14 +180,14 @@ class DepthBackground:
         # noise of a frame minus the background median (median of N: ~1.25 sigma / sqrt(N))
         k = float(np.sqrt(1.0 + 1.57 / self.n_frames))
         with np.errstate(invalid="ignore"):
-            sig = o.depth_model.sigma(np.nan_to_num(bg, nan=o.max_range_m)).astype(np.float32) * k
+            sig = o.depth_model.sigma_m(np.nan_to_num(bg, nan=o.max_range_m)).astype(np.float32) * k
             thr = np.maximum(o.min_depth_diff_m, o.n_sigma * sig)
             # full-resolution limit: a foreground pixel is nearer than this
             lim = np.where(np.isfinite(bg), bg - np.maximum(o.min_depth_diff_m, sig), np.inf)
             self.limit_full = np.minimum(lim, o.max_range_m).astype(np.float32)
             n = int(o.downsample)
             bg_c = _block_mean(bg, n)
-            sig_c = o.depth_model.sigma(np.nan_to_num(bg_c, nan=o.max_range_m)) * k / n
+            sig_c = o.depth_model.sigma_m(np.nan_to_num(bg_c, nan=o.max_range_m)) * k / n
             thr_c = np.maximum(o.min_depth_diff_m, o.n_sigma * sig_c)
             lim_c = np.where(np.isfinite(bg_c), bg_c - thr_c, np.inf)
             self.limit_coarse = np.minimum(lim_c, o.max_range_m).astype(np.float32)
@@ -243,7 +243,7 @@ def _covariance(p: np.ndarray, n: int, intrinsics: Intrinsics, o: BallDetectorOp
     r = p / np.linalg.norm(p)
     z = p[2]
     n_eff = max(1.0, n / o.noise_correlation_px)
-    s_along = float(o.depth_model.sigma(z)) / np.sqrt(n_eff) / max(r[2], 1e-6)
+    s_along = float(o.depth_model.sigma_m(z)) / np.sqrt(n_eff) / max(r[2], 1e-6)
     s_lat = o.pixel_sigma_px * z / np.sqrt(intrinsics.fx * intrinsics.fy)
     P = np.outer(r, r)
     return s_along ** 2 * P + s_lat ** 2 * (np.eye(3) - P)
@@ -309,7 +309,7 @@ def _refine(d: np.ndarray, bg: DepthBackground, uc: float, vc: float, z0: float,
         if u1 <= u0 or v1 <= v0:
             return None
         win = d[v0:v1, u0:u1]
-        band = max(3.0 * float(o.depth_model.sigma(z0)), 2.0 * R)
+        band = max(3.0 * float(o.depth_model.sigma_m(z0)), 2.0 * R)
         vv, uu = np.mgrid[v0:v1, u0:u1]
         rad = 1.3 * r_px + 1.0 if it else 1.6 * r_px + 2.0
         with np.errstate(invalid="ignore"):
@@ -345,7 +345,7 @@ def _refine(d: np.ndarray, bg: DepthBackground, uc: float, vc: float, z0: float,
     if ok.sum() < 3:
         return None
     diff = np.where(np.isfinite(bb[ok]), bb[ok], o.max_range_m + 2.0) - dd[ok]
-    sig = float(o.depth_model.sigma(min(float(np.nanmedian(np.where(np.isfinite(bb[ok]), bb[ok], np.nan)))
+    sig = float(o.depth_model.sigma_m(min(float(np.nanmedian(np.where(np.isfinite(bb[ok]), bb[ok], np.nan)))
                                         if np.isfinite(bb[ok]).any() else p[2], o.max_range_m + 2.0)))
     if float(diff.mean()) < max(o.min_depth_diff_m, 1.5 * o.n_sigma * sig / np.sqrt(ok.sum())):
         return None

@@ -4,97 +4,30 @@ A planar target perpendicular to the optical axis is recorded at stepped
 distances, about 100 frames per distance. Per distance, sigma is the mean over
 the planar region of the per-pixel temporal standard deviation; the bias is the
 depth of a plane fitted to the per-pixel mean depths minus the nominal target
-distance. ``sigma_z(z)`` is fitted as the seed's cubic polynomial.
-
-The seed's fit (figure 2.5) is
-``sigma_z(z) = 0.51 z^3 - 2.1 z^2 + 5.12 z - 2.18`` with z in metres and
-sigma in centimetres; :data:`SEED_DEPTH_MODEL` holds it in SI units
-(sigma in metres). The cubic turns negative below about 0.52 m, so
-evaluations are floored at ``floor_m``.
+distance. ``sigma_z(z)`` is fitted as the seed's cubic polynomial and
+returned as a :class:`tudorvision.sensors.DepthNoiseModel` (SI units); the
+seed's own fit is :data:`tudorvision.sensors.KINECT_DEPTH_NOISE`.
 """
 from __future__ import annotations
 
 import csv
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .._checks import TudorVisionError, check_array
+from ..sensors import KINECT_DEPTH_NOISE, KINECT_SIGMA_UNIT, KINECT_SIGMA_Z_COEFFS, DepthNoiseModel
 from .frames import Intrinsics, check_depth
 
 __all__ = [
-    "DepthNoiseModel", "SEED_DEPTH_MODEL", "DepthStepStats", "planar_region_mask",
+    "DepthStepStats", "planar_region_mask",
     "depth_step_stats", "fit_depth_model", "calibrate_depth_model",
     "write_depth_table_csv", "read_depth_table_csv", "plot_depth_model",
 ]
 
 TABLE_COLUMNS = ("distance_m", "sigma_m", "bias_m", "n_pixels")
-
-
-@dataclass(frozen=True, kw_only=True)
-class DepthNoiseModel:
-    """Polynomial depth noise model ``sigma_z(z)``.
-
-    Parameters
-    ----------
-    coeffs : tuple of float
-        Polynomial coefficients, highest power first (``np.polyval``);
-        z in metres, sigma in metres.
-    z_range_m : tuple of float
-        Range the model was fitted on (informative; evaluation is not clipped).
-    floor_m : float
-        Lower bound of the returned sigma (the cubic goes negative near 0.5 m).
-
-    Examples
-    --------
-    >>> round(float(SEED_DEPTH_MODEL.sigma(1.0)), 4)
-    0.0135
-    """
-
-    coeffs: tuple = (0.0051, -0.021, 0.0512, -0.0218)
-    z_range_m: tuple = (0.6, 6.0)
-    floor_m: float = 1e-3
-    extra: dict = field(default_factory=dict, compare=False)
-
-    def __post_init__(self):
-        c = tuple(float(x) for x in self.coeffs)
-        if not c or not all(np.isfinite(c)):
-            raise ValueError(f"coeffs: expected finite polynomial coefficients, got {self.coeffs}")
-        object.__setattr__(self, "coeffs", c)
-        object.__setattr__(self, "z_range_m", tuple(float(x) for x in self.z_range_m))
-        if not self.floor_m > 0:
-            raise ValueError(f"floor_m: expected a positive value, got {self.floor_m}")
-
-    def sigma(self, z_m):
-        """Depth standard deviation in metres at depth ``z_m`` (metres), floored."""
-        return np.maximum(np.polyval(self.coeffs, np.asarray(z_m, dtype=np.float64)), self.floor_m)
-
-    def as_dict(self) -> dict:
-        """Plain dict for calibration files (``sigma_z_coeffs_m``: highest power first)."""
-        return {"sigma_z_coeffs_m": list(self.coeffs), "z_range_m": list(self.z_range_m),
-                "floor_m": self.floor_m, "units": "z in m, sigma in m, highest power first"}
-
-    @classmethod
-    def from_dict(cls, doc: dict) -> "DepthNoiseModel":
-        """Inverse of :meth:`as_dict`.
-
-        Examples
-        --------
-        >>> DepthNoiseModel.from_dict(SEED_DEPTH_MODEL.as_dict()) == SEED_DEPTH_MODEL
-        True
-        """
-        try:
-            return cls(coeffs=tuple(doc["sigma_z_coeffs_m"]),
-                       z_range_m=tuple(doc.get("z_range_m", (0.6, 6.0))),
-                       floor_m=float(doc.get("floor_m", 1e-3)))
-        except (KeyError, TypeError) as exc:
-            raise TudorVisionError(f"depth model: missing or invalid entry {exc}") from None
-
-
-#: The seed's fit, converted to metres.
-SEED_DEPTH_MODEL = DepthNoiseModel()
 
 
 @dataclass(frozen=True)
@@ -260,21 +193,28 @@ def fit_depth_model(distances_m, sigmas_m, *, degree: int = 3) -> DepthNoiseMode
     ----------
     distances_m, sigmas_m : array_like, shape (N,)
         N >= degree + 1 distinct distances, positive sigmas; metres.
+    degree : int
+        Polynomial degree.
 
     Returns
     -------
     DepthNoiseModel
+        Coefficients in metres, ``z_range_m`` the span of the distances,
+        the default ``floor_m``.
 
     Raises
     ------
     TudorVisionError
         Too few distances for the degree.
+    ValueError
+        Non-positive sigmas, mismatched lengths.
 
     Examples
     --------
     >>> z = np.linspace(0.6, 6.0, 10)
-    >>> m = fit_depth_model(z, SEED_DEPTH_MODEL.sigma(z))
-    >>> np.allclose(m.coeffs, SEED_DEPTH_MODEL.coeffs)
+    >>> from tudorvision.sensors import KINECT_DEPTH_NOISE
+    >>> m = fit_depth_model(z, KINECT_DEPTH_NOISE.sigma_m(z))
+    >>> np.allclose(m.coeffs, KINECT_DEPTH_NOISE.coeffs)
     True
     """
     z = check_array(distances_m, "distances_m", (None,))
@@ -348,7 +288,8 @@ def read_depth_table_csv(path) -> list[DepthStepStats]:
         raise TudorVisionError(f"{path}: invalid depth table ({exc})") from None
 
 
-def plot_depth_model(path, table, model: DepthNoiseModel, *, reference: DepthNoiseModel | None = SEED_DEPTH_MODEL) -> Path:
+def plot_depth_model(path, table, model: DepthNoiseModel, *,
+                     reference: DepthNoiseModel | None = KINECT_DEPTH_NOISE) -> Path:
     """PNG plot of measured sigma per distance and the fitted ``sigma_z(z)`` (centimetres)."""
     import matplotlib
     matplotlib.use("Agg")
@@ -362,9 +303,11 @@ def plot_depth_model(path, table, model: DepthNoiseModel, *, reference: DepthNoi
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.plot(d, s * 100, "o", label="measured (mean per-pixel std)")
     c = model.coeffs
-    ax.plot(z, model.sigma(z) * 100, "-", label="fit: " + " ".join(f"{100 * a:+.3g}" for a in c) + " (cm, z in m)")
+    ax.plot(z, model.sigma_m(z) * 100, "-", label="fit: " + " ".join(f"{100 * a:+.3g}" for a in c) + " (cm, z in m)")
     if reference is not None:
-        ax.plot(z, reference.sigma(z) * 100, "--", label="seed: 0.51z³−2.1z²+5.12z−2.18")
+        seed = "".join(f"{c:+g}{'z' if k else ''}{'²³'[k - 2] if k > 1 else ''}"
+                       for c, k in zip(KINECT_SIGMA_Z_COEFFS, range(len(KINECT_SIGMA_Z_COEFFS) - 1, -1, -1)))
+        ax.plot(z, reference.sigma_m(z) * 100, "--", label=f"seed: {seed.lstrip('+')} ({KINECT_SIGMA_UNIT})")
     ax.set_xlabel("distance z [m]")
     ax.set_ylabel("σz [cm]")
     ax.grid(True, alpha=0.3)

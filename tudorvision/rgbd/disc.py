@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._checks import TudorVisionError, check_array
-from .depth_model import SEED_DEPTH_MODEL, DepthNoiseModel
+from ..sensors import KINECT_DEPTH_NOISE, DepthNoiseModel
 from .frames import Intrinsics, check_depth
 
 __all__ = ["DiscOptions", "DiscObservation", "segment_uniform_depth", "observe_disc",
@@ -83,8 +83,8 @@ class DiscOptions:
     rim_margin_px : float
         Pixels taken off the disc's image radius (``"disc"`` window); keep it
         below one pixel so that the window's edge stays on the disc rim.
-    depth_model : DepthNoiseModel
-        ``sigma_z(z)`` used for the tolerance.
+    depth_model : tudorvision.sensors.DepthNoiseModel
+        ``sigma_z(z)`` in metres, used for the tolerance.
     """
 
     neighbourhood_px: int = 5
@@ -100,7 +100,7 @@ class DiscOptions:
     depth_annulus: tuple = (0.0, 1.0)
     depth_window: str = "disc"
     rim_margin_px: float = 0.0
-    depth_model: DepthNoiseModel = field(default=SEED_DEPTH_MODEL)
+    depth_model: DepthNoiseModel = field(default=KINECT_DEPTH_NOISE)
 
     def __post_init__(self):
         if self.neighbourhood_px < 1 or self.neighbourhood_px % 2 == 0:
@@ -203,7 +203,7 @@ def segment_uniform_depth(depth_m, seed_uv, options: DiscOptions = DiscOptions()
                                f"{options.neighbourhood_px}x{options.neighbourhood_px} neighbourhood")
     z_ref = float(np.nanmedian(patch))
     # median of k*k samples has about 1.25 sigma / k noise
-    noise = float(options.depth_model.sigma(z_ref)) * (1.0 if options.smooth_px == 1 else 1.25 / options.smooth_px)
+    noise = float(options.depth_model.sigma_m(z_ref)) * (1.0 if options.smooth_px == 1 else 1.25 / options.smooth_px)
     tol = float(np.clip(options.n_sigma * noise, options.min_tol_m, options.max_tol_m))
     with np.errstate(invalid="ignore"):
         # pixels without a raw depth stay barriers (sensors drop depth at object edges)
@@ -321,7 +321,7 @@ def observe_disc(depth_m, intrinsics: Intrinsics, seed_uv, options: DiscOptions 
             raise TudorVisionError(reason)
         return _lost((u, v), z_ref, n, reason)
     med = float(np.median(z))
-    clip = 3.0 * float(options.depth_model.sigma(med))
+    clip = 3.0 * float(options.depth_model.sigma_m(med))
     zk = z[np.abs(z - med) <= clip]
     z_mean = float(zk.mean()) if len(zk) >= 3 else med
     c = np.array([(uv[0] - intrinsics.cx) * z_mean / intrinsics.fx,
@@ -420,7 +420,7 @@ class DiscTracker:
             if not o.valid:
                 continue
             if self._last_z is not None:
-                gate = max(0.3, 3.0 * float(self.options.depth_model.sigma(self._last_z)) / 4.0)
+                gate = max(0.3, 3.0 * float(self.options.depth_model.sigma_m(self._last_z)) / 4.0)
                 if abs(o.centroid_cam[2] - self._last_z) > gate:
                     continue
             obs = o

@@ -1,4 +1,4 @@
-"""RGB-D frames: pinhole intrinsics, depth conversions and back-projection.
+"""RGB-D frames: pinhole intrinsics, depth checks and back-projection.
 
 Conventions
 -----------
@@ -6,7 +6,9 @@ Camera optical frame ``cam``: x right, y down, z forward (metres). Image
 coordinates: ``u`` to the right (column), ``v`` down (row), pixel centres at
 integer coordinates. Depth images hold the z coordinate (not the range along
 the ray), as Kinect-type sensors and the TUM benchmark do. Invalid depth is
-``NaN`` in metric depth images and ``0`` in raw 16-bit images.
+``NaN`` in metric depth images and ``0`` in raw 16-bit images; the
+conversions between the two are :func:`tudorvision.sensors.depth_m_from_raw`
+and :func:`tudorvision.sensors.raw_from_depth_m`.
 """
 from __future__ import annotations
 
@@ -15,17 +17,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._checks import TudorVisionError, check_points
-from ..io.frames import depth_m_from_raw as io_depth_m_from_raw
 
 __all__ = [
-    "Intrinsics", "check_depth", "depth_m_from_raw", "raw_from_depth_m",
+    "Intrinsics", "check_depth",
     "points_cam_from_depth", "organized_points_cam_from_depth",
     "uv_from_points_cam", "rays_cam_from_uv",
 ]
-
-#: Plausible median scene depth of an RGB-D frame, metres.
-PLAUSIBLE_DEPTH_RANGE_M = (0.1, 20.0)
-
 
 @dataclass(frozen=True)
 class Intrinsics:
@@ -141,78 +138,6 @@ def check_depth(depth_m, name: str = "depth_m", *, intrinsics: Intrinsics | None
     if require_valid and not np.any(np.isfinite(d)):
         raise TudorVisionError(f"{name}: depth image has no valid pixel (all zero or invalid)")
     return d
-
-
-def depth_m_from_raw(depth_raw, depth_scale: float, *, check_range: bool = True) -> np.ndarray:
-    """Convert a raw depth image (e.g. 16-bit) to metres.
-
-    Parameters
-    ----------
-    depth_raw : array_like, shape (H, W)
-        Raw depth values; 0 marks invalid pixels.
-    depth_scale : float
-        Raw units per metre (1000 for millimetres, 5000 for TUM).
-    check_range : bool
-        Check that the median valid depth is plausible
-        (``PLAUSIBLE_DEPTH_RANGE_M``); catches a wrong ``depth_scale``.
-
-    Returns
-    -------
-    depth_m : ndarray, shape (H, W), float64
-        Depth (z) in metres, NaN where invalid.
-
-    Raises
-    ------
-    TudorVisionError
-        All pixels invalid, or implausible median depth (the message suggests
-        the scale that would give a plausible depth).
-
-    Examples
-    --------
-    >>> depth_m_from_raw(np.array([[0, 1000], [2000, 1500]], np.uint16), 1000.0).tolist()
-    [[nan, 1.0], [2.0, 1.5]]
-    """
-    scale = float(depth_scale)
-    if not np.isfinite(scale) or scale <= 0:
-        raise ValueError(f"depth_scale: expected a positive number of raw units per metre, got {depth_scale}")
-    raw = np.asarray(depth_raw)
-    if raw.ndim != 2:
-        raise ValueError(f"depth_raw: expected a 2-D depth image (H, W), got shape {raw.shape}")
-    d = check_depth(io_depth_m_from_raw(raw, scale, dtype=np.float64), "depth_raw")
-    if check_range:
-        med = float(np.nanmedian(d))
-        lo, hi = PLAUSIBLE_DEPTH_RANGE_M
-        if not lo <= med <= hi:
-            raw_med = med * scale
-            hint = ""
-            for cand in (1000.0, 5000.0, 1.0, 10000.0, 100.0):
-                if lo <= raw_med / cand <= hi and cand != scale:
-                    hint = f"; did you mean depth_scale={cand:g} (median {raw_med / cand:.2f} m)?"
-                    break
-            raise TudorVisionError(
-                f"depth_scale={scale:g} gives an implausible median depth of {med:.4g} m "
-                f"(expected {lo:g}-{hi:g} m){hint}")
-    return d
-
-
-def raw_from_depth_m(depth_m, depth_scale: float) -> np.ndarray:
-    """Convert metric depth to raw uint16 (NaN -> 0), rounding to the nearest unit.
-
-    Raises
-    ------
-    ValueError
-        If a depth does not fit in 16 bits at this scale.
-
-    Examples
-    --------
-    >>> raw_from_depth_m(np.array([[np.nan, 1.2345]]), 1000.0).tolist()
-    [[0, 1234]]
-    """
-    d = check_depth(depth_m, require_valid=False)
-    raw = np.where(np.isfinite(d), np.rint(d * float(depth_scale)), 0.0)
-    if raw.max(initial=0.0) > 65535:
-        raise ValueError(f"depth_m: {np.nanmax(d):.3f} m exceeds 16 bits at depth_scale={depth_scale:g}")
-    return raw.astype(np.uint16)
 
 
 def _pixel_grid(intrinsics: Intrinsics):

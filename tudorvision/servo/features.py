@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["FeatureConfig", "SquareFeatures", "extract_square", "depth_at", "depth_at_many", "order_corners",
-           "polygon_centroid", "diagonal_intersection", "depth_m_from_raw"]
+           "polygon_centroid", "diagonal_intersection"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -106,19 +106,6 @@ class SquareFeatures:
         nan2 = np.full(2, np.nan)
         return cls(found=False, centroid_uv=nan2, center_uv=nan2.copy(), corners_uv=np.full((4, 2), np.nan),
                    depth_m=np.full(5, np.nan), reason=reason)
-
-
-def depth_m_from_raw(depth_raw, units_per_m: float = 1000.0) -> np.ndarray:
-    """Metric depth with NaN for invalid pixels from a raw uint16 depth image.
-
-    Examples
-    --------
-    >>> depth_m_from_raw(np.array([[0, 1500]], np.uint16)).tolist()
-    [[nan, 1.5]]
-    """
-    d = np.asarray(depth_raw).astype(np.float32) / np.float32(units_per_m)
-    d[np.asarray(depth_raw) == 0] = np.nan
-    return d
 
 
 def polygon_centroid(poly_uv) -> np.ndarray:

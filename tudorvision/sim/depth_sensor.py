@@ -1,4 +1,8 @@
-"""Kinect-like depth sensor model: range limits, sigma_z(z) noise, invalid edges and dark surfaces."""
+"""Kinect-like depth sensor model: range limits, sigma_z(z) noise, invalid edges and dark surfaces.
+
+The noise is a :class:`tudorvision.sensors.DepthNoiseModel` (SI units); by
+default the seed's Kinect fit :data:`tudorvision.sensors.KINECT_DEPTH_NOISE`.
+"""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -6,37 +10,22 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from ..sensors import KINECT_DEPTH_NOISE, KINECT_RANGE_M, DepthNoiseModel
 from .raycast import GBuffer
 
-__all__ = ["DepthModel", "depth_sigma_m", "depth_mm_from_gbuffer"]
-
-
-_SEED_SIGMA_CM = (0.51, -2.1, 5.12, -2.18)
-
-
-def depth_sigma_m(z_m, coeffs_cm=_SEED_SIGMA_CM) -> np.ndarray:
-    """Depth noise of the seed's Kinect fit, sigma_z(z) = 0.51 z^3 - 2.1 z^2 + 5.12 z - 2.18 (cm, z in m).
-
-    Returns metres, clipped at zero.
-
-    Examples
-    --------
-    >>> round(float(depth_sigma_m(1.0)) * 100, 2)
-    1.35
-    """
-    return np.maximum(np.polyval(coeffs_cm, np.asarray(z_m, dtype=np.float64)), 0.0) / 100.0
+__all__ = ["DepthSensorModel", "depth_mm_from_gbuffer"]
 
 
 @dataclass(frozen=True, kw_only=True)
-class DepthModel:
+class DepthSensorModel:
     """Kinect-like depth sensor model.
 
     Parameters
     ----------
     min_depth_m, max_depth_m : float
-        Usable range; pixels whose true z is outside give 0.
-    sigma_coeffs_cm : tuple of 4 floats
-        Cubic for sigma_z in cm with z in m (highest power first).
+        Usable range, metres; pixels whose true z is outside give 0.
+    noise : tudorvision.sensors.DepthNoiseModel
+        Depth noise sigma_z(z) in metres (default: the seed's Kinect fit).
     edge_jump_rel : float
         A pixel is invalid when a 4-neighbour's depth differs by more than
         this fraction of its own depth (depth discontinuity).
@@ -46,11 +35,24 @@ class DepthModel:
         Surfaces darker than this (mean linear RGB albedo) return no depth.
     units_per_m : float
         Scale of the 16-bit output (1000: millimetres).
+
+    Raises
+    ------
+    ValueError
+        An empty range, a ``noise`` that is not a ``DepthNoiseModel``, a
+        non-positive ``edge_jump_rel``, a bad ``edge_width_px`` or a scale
+        that does not fit ``max_depth_m`` in 16 bits.
+
+    Examples
+    --------
+    >>> m = DepthSensorModel()
+    >>> (m.min_depth_m, m.max_depth_m, round(float(m.noise.sigma_m(1.0)), 4))
+    (0.6, 6.0, 0.0135)
     """
 
-    min_depth_m: float = 0.6
-    max_depth_m: float = 6.0
-    sigma_coeffs_cm: tuple = _SEED_SIGMA_CM
+    min_depth_m: float = KINECT_RANGE_M[0]
+    max_depth_m: float = KINECT_RANGE_M[1]
+    noise: DepthNoiseModel = KINECT_DEPTH_NOISE
     edge_jump_rel: float = 0.03
     edge_width_px: int = 1
     min_albedo: float = 0.03
@@ -60,8 +62,8 @@ class DepthModel:
         if not 0 <= self.min_depth_m < self.max_depth_m:
             raise ValueError(f"max_depth_m: expected 0 <= min_depth_m < max_depth_m, got "
                              f"{self.min_depth_m}, {self.max_depth_m}")
-        if len(self.sigma_coeffs_cm) != 4:
-            raise ValueError(f"sigma_coeffs_cm: expected 4 coefficients, got {len(self.sigma_coeffs_cm)}")
+        if not isinstance(self.noise, DepthNoiseModel):
+            raise ValueError(f"noise: expected a tudorvision.sensors.DepthNoiseModel, got {type(self.noise).__name__}")
         if not self.edge_jump_rel > 0:
             raise ValueError(f"edge_jump_rel: expected > 0, got {self.edge_jump_rel}")
         if int(self.edge_width_px) != self.edge_width_px or self.edge_width_px < 0:
@@ -69,6 +71,20 @@ class DepthModel:
         if not self.units_per_m > 0 or self.max_depth_m * self.units_per_m > 65535:
             raise ValueError(f"units_per_m: expected > 0 with max_depth_m * units_per_m <= 65535, "
                              f"got {self.units_per_m}")
+
+    @property
+    def sigma_coeffs_cm(self) -> DepthNoiseModel:
+        """Deprecated stand-in for ``sim/roi_render.py`` until it calls ``model.noise.sigma_m``; remove then."""
+        return self.noise
+
+
+#: Old name, kept only while ``sim/render.py`` imports it; use :class:`DepthSensorModel`.
+DepthModel = DepthSensorModel
+
+
+def depth_sigma_m(z_m, noise: DepthNoiseModel = KINECT_DEPTH_NOISE) -> np.ndarray:
+    """Deprecated: ``noise.sigma_m(z_m)``; kept only while ``sim/render.py`` and ``sim/roi_render.py`` import it."""
+    return noise.sigma_m(z_m)
 
 
 def _edge_mask(z: np.ndarray, rel: float, width: int) -> np.ndarray:
@@ -83,16 +99,27 @@ def _edge_mask(z: np.ndarray, rel: float, width: int) -> np.ndarray:
     return edge if width > 0 else np.zeros_like(edge)
 
 
-def depth_mm_from_gbuffer(gbuffer: GBuffer, model: DepthModel, rng: np.random.Generator | None) -> np.ndarray:
+def depth_mm_from_gbuffer(gbuffer: GBuffer, model: DepthSensorModel,
+                          rng: np.random.Generator | None) -> np.ndarray:
     """Registered 16-bit depth image from a ray-cast G-buffer.
 
     Depth is z along the optical axis plus Gaussian noise of std
-    sigma_z(z), rounded to ``1 / model.units_per_m`` metres; 0 marks invalid
-    pixels (out of range, no hit, depth edges, dark surfaces).
+    ``model.noise.sigma_m(z)``, rounded to ``1 / model.units_per_m`` metres;
+    0 marks invalid pixels (out of range, no hit, depth edges, dark surfaces).
+
+    Parameters
+    ----------
+    gbuffer : GBuffer
+        Ray-cast buffers; ``depth_m`` (H, W) in metres, ``albedo_rgb`` (H, W, 3).
+    model : DepthSensorModel
+        Range, noise, edge and albedo rules, output scale.
+    rng : numpy.random.Generator or None
+        Noise source (one ``standard_normal((H, W))`` draw); None: no noise.
 
     Returns
     -------
     ndarray, shape (H, W), uint16
+        Raw depth in ``1 / model.units_per_m`` metres, 0 = invalid.
     """
     z = gbuffer.depth_m
     valid = np.isfinite(z) & (z >= model.min_depth_m) & (z <= model.max_depth_m)
@@ -100,6 +127,6 @@ def depth_mm_from_gbuffer(gbuffer: GBuffer, model: DepthModel, rng: np.random.Ge
     valid &= gbuffer.albedo_rgb.mean(axis=2) >= model.min_albedo
     zv = np.where(valid, z, 0.0)
     if rng is not None:
-        zv = zv + depth_sigma_m(zv, model.sigma_coeffs_cm) * rng.standard_normal(z.shape)
+        zv = model.noise.noisy_depth_m(zv, rng)
     out = np.clip(np.rint(zv * model.units_per_m), 1, 65535)
     return np.where(valid, out, 0).astype(np.uint16)
