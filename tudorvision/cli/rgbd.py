@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import TudorVisionError
-from ..rgbd.depth_model import SEED_DEPTH_MODEL, DepthNoiseModel
+from ..sensors import KINECT_DEPTH_NOISE, DepthNoiseModel
 from ..rgbd.frames import Intrinsics
 
 __all__ = ["register", "intrinsics_for", "noise_model_from_calibration", "BALL_CSV_COLUMNS"]
@@ -76,7 +76,7 @@ def noise_model_from_calibration(cal) -> DepthNoiseModel:
     """:class:`DepthNoiseModel` from a calibration's ``depth_model`` (any units); the seed's fit if absent."""
     dm = getattr(cal, "depth_model", None) if cal is not None else None
     if dm is None:
-        return SEED_DEPTH_MODEL
+        return KINECT_DEPTH_NOISE
     units = {"m": 1.0, "cm": 0.01, "mm": 0.001}
     zu, su = units[dm.z_unit], units[dm.sigma_unit]
     poly = np.asarray(dm.sigma_z_poly, dtype=np.float64)

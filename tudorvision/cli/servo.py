@@ -270,7 +270,7 @@ def _tracking(args) -> int:
 def _read_depth_image(path: Path, depth_scale: float):
     import cv2
 
-    from ..servo.features import depth_m_from_raw
+    from ..sensors import depth_m_from_raw
     if not path.is_file():
         raise FileNotFoundError(2, "no such file", str(path))
     d = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)

@@ -173,7 +173,7 @@ def simulated_detection(p_cam, intrinsics, rng, *, options=None, scale: float = 
     f = float(np.sqrt(K.fx * K.fy))
     n = max(1.0, area_ratio * np.pi * (f * o.ball_radius_m / z) ** 2 / o.noise_correlation_px)
     r = p / np.linalg.norm(p)
-    s_along = float(o.depth_model.sigma(z)) / np.sqrt(n) / max(r[2], 1e-6)
+    s_along = float(o.depth_model.sigma_m(z)) / np.sqrt(n) / max(r[2], 1e-6)
     s_lat = o.pixel_sigma_px * z / f
     P = np.outer(r, r)
     C = s_along ** 2 * P + s_lat ** 2 * (np.eye(3) - P)

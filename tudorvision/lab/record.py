@@ -371,7 +371,9 @@ def record_stereo_checkerboard(out, opts: RecordOptions):
 
 def _kinect_calibration(cam, note=""):
     from ..io import DepthModel
-    dm = DepthModel(sigma_z_poly=[0.51, -2.1, 5.12, -2.18], z_unit="m", sigma_unit="cm", valid_range_m=(0.6, 6.0))
+    from ..sensors import KINECT_RANGE_M, KINECT_SIGMA_UNIT, KINECT_SIGMA_Z_COEFFS
+    dm = DepthModel(sigma_z_poly=list(KINECT_SIGMA_Z_COEFFS), z_unit="m", sigma_unit=KINECT_SIGMA_UNIT,
+                    valid_range_m=KINECT_RANGE_M)
     return calibration_from_cameras({"rgbd": cam}, depth_model=dm, note=note)
 
 

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..joint.protocol import Damping, Mode
+from ..sensors import depth_m_from_raw
 from ..robot import load_robot_params
 from ..servo.loop import VisualServo, default_T_ee_cam
 from .lockstep import LockstepLayer
@@ -136,7 +137,8 @@ class ServoLab:
 
     def __init__(self, config: LabConfig, theta_start, *, plates: int = 0, rng: np.random.Generator,
                  noise: bool = True, scene_seed: int = 0):
-        from ..sim import DepthNoiseModel, Payload, eye_in_hand
+        from ..sensors import DepthNoiseModel
+        from ..sim import DepthSensorModel, Payload, eye_in_hand
         from ..sim.render import pixel_bboxes
         self.config = cfg = config
         self.params = load_robot_params()
@@ -158,7 +160,8 @@ class ServoLab:
         self.camera = self.setup.cameras["rgbd"]
         # fill the camera's ray and field-of-view caches once; with_pose() hands them to every moved copy
         pixel_bboxes(self.camera, [self.setup.meta["square_corners_world"]])
-        self.depth_model = DepthNoiseModel() if noise else DepthNoiseModel(sigma_coeffs_cm=(0.0, 0.0, 0.0, 0.0))
+        self.depth_model = DepthSensorModel() if noise else \
+            DepthSensorModel(noise=DepthNoiseModel(coeffs=(0.0,), floor_m=0.0))
         self.t = 0.0
         self._renderer = None
 
@@ -179,7 +182,6 @@ class ServoLab:
     def capture(self):
         """Render the eye-in-hand RGB-D frame now: ``(bgr, depth_m)`` with NaN invalid depth."""
         from ..sim import render_rgbd, with_pose
-        from ..servo.features import depth_m_from_raw
         from ..sim.roi_render import RoiRenderer
         cam = with_pose(self.camera, self.T_world_cam())
         rng = self.rng if self.noise else None
@@ -190,7 +192,7 @@ class ServoLab:
             bgr, depth = self._renderer.render(cam, self.t, rng=rng)
         else:
             bgr, depth, _ = render_rgbd(cam, self.setup.scene, self.t, rng=rng, depth_model=self.depth_model)
-        return bgr, depth_m_from_raw(depth)
+        return bgr, depth_m_from_raw(depth, self.depth_model.units_per_m)
 
     @property
     def K(self) -> np.ndarray:
