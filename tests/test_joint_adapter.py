@@ -32,8 +32,8 @@ class Link:
         self.adapter = JointAdapter(self.client_end, retry_interval_s=0.05)
 
     def raw(self, msg, seq, *, strict=True, t=None):
-        data = P.encode(msg, seq, time.monotonic() if t is None else t, strict=strict)
-        self.client_end.send(data)
+        """Send ``msg`` with this sequence number in the adapter's session."""
+        self.client_end.send(self.adapter.encode(msg, seq, t=t, strict=strict))
 
     def reply_to(self, seq, timeout=3.0):
         """Wait for the Ack/Refusal of command ``seq`` (bounded)."""
@@ -76,7 +76,8 @@ def test_state_request_answers_with_core_state(request, kind):
 @KINDS
 def test_setpoint_moves_within_limits_and_settles(request, kind):
     link = _make(request)
-    assert link.adapter.set_mode(Mode.SETPOINT, timeout=3.0) == Ack(command_seq=1)
+    r = link.adapter.set_mode(Mode.SETPOINT, timeout=3.0)       # opens the session first
+    assert isinstance(r, Ack) and r.code == Reason.OK and link.adapter.session is not None
     target = np.array([0.3, 1.3, 0.4])
     reply = link.adapter.send_setpoint(target, max_speed=1.0, timeout=3.0)
     assert isinstance(reply, Ack) and reply.code == Reason.OK
@@ -128,7 +129,7 @@ def test_refusals_and_clamping(request, kind):
     assert isinstance(a.set_mode(Mode.SETPOINT, timeout=3.0), Ack)
     r = a.send_setpoint([0.0, np.deg2rad(200.0), 0.0], timeout=3.0)
     assert isinstance(r, Refusal) and r.code == Reason.OUT_OF_RANGE
-    r = a.send_setpoint([0.0, 1.5, 0.0], max_speed=50.0, timeout=3.0)
+    r = a.send_setpoint([0.0, 1.5, 0.0], max_speed=15.0, timeout=3.0)
     assert isinstance(r, Ack) and r.code == Reason.CLAMPED_SPEED
     assert np.allclose(link.core.setpoint_calls[-1][1], VMAX)
     assert isinstance(a.set_mode(Mode.VELOCITY, timeout=3.0), Ack)
@@ -153,7 +154,7 @@ def test_nan_and_malformed_never_execute(request, kind):
     link.raw(P.JointVelocityCommand(theta_dot=(0.0, np.nan, 0.0)), seq=100, strict=False)
     r = link.reply_to(100)
     assert isinstance(r, Refusal) and r.code == Reason.NON_FINITE
-    good = P.encode(P.JointVelocityCommand(theta_dot=(0.5, 0.0, 0.0)), 101, time.monotonic())
+    good = link.adapter.encode(P.JointVelocityCommand(theta_dot=(0.5, 0.0, 0.0)), 101)
     link.client_end.send(good[:-3])                                 # truncated
     link.client_end.send(good[:20] + bytes([good[20] ^ 0x40]) + good[21:])   # flipped bit
     link.client_end.send(b"\x00" * 64)                              # garbage
@@ -195,6 +196,7 @@ def test_duplicates_and_stale_are_ignored(request, kind):
 @KINDS
 def test_sequence_numbers_wrap(request, kind):
     link = _make(request)
+    assert link.adapter.open_session(timeout=3.0) is not None
     link.adapter._seq = 2**32 - 3
     assert isinstance(link.adapter.set_mode(Mode.VELOCITY, timeout=3.0), Ack)
     seqs = [link.adapter.send_velocity([0.01 * i, 0.0, 0.0]) for i in range(1, 6)]
@@ -233,7 +235,7 @@ def test_velocity_toward_a_joint_limit_brakes_before_it(request, kind):
 
 
 @KINDS
-def test_core_fault_stops_and_refuses_until_mode_switch(request, kind):
+def test_core_fault_stops_and_refuses_until_reset(request, kind):
     link = _make(request)
     assert isinstance(link.adapter.set_mode(Mode.SETPOINT, timeout=3.0), Ack)
     with link.core._cond:
@@ -243,8 +245,13 @@ def test_core_fault_stops_and_refuses_until_mode_switch(request, kind):
     assert isinstance(r, Refusal) and r.code in (Reason.FAULT, Reason.WRONG_MODE)
     st = link.adapter.request_state(timeout=3.0)
     assert st.flags & StateFlags.FAULT and st.mode == Mode.IDLE
-    # outside its range but at rest, a cleared fault sticks and a setpoint brings the arm back
+    # a mode switch no longer clears the fault; only the owner's explicit reset does
     assert isinstance(link.adapter.set_mode(Mode.SETPOINT, timeout=3.0), Ack)
+    r = link.adapter.send_setpoint([0.0, 1.1, 0.0], timeout=3.0)
+    assert isinstance(r, Refusal) and r.code == Reason.FAULT
+    assert link.adapter.request_state(timeout=3.0).flags & StateFlags.FAULT
+    # outside its range but at rest, a reset fault sticks and a setpoint brings the arm back
+    assert isinstance(link.adapter.reset_fault(timeout=3.0), Ack)
     assert isinstance(link.adapter.send_setpoint([0.0, 1.1, 0.0], timeout=3.0), Ack)
     assert link.core.wait_until(lambda c: abs(c.theta[1] - 1.1) < 1e-4, timeout=10.0)
     st = link.adapter.request_state(timeout=3.0)
@@ -261,7 +268,8 @@ def test_core_moving_further_out_of_range_faults_again(request, kind):
     with link.core._cond:
         link.core.theta = np.array([0.0, LIMITS[1, 0] - 0.1, 0.0])   # a broken core
     assert link.core.wait_until(lambda c: c.stop_calls >= 2, timeout=5.0)
-    assert isinstance(link.adapter.set_mode(Mode.SETPOINT, timeout=3.0), Ack)   # clears; at rest it sticks
+    assert isinstance(link.adapter.reset_fault(timeout=3.0), Ack)               # clears; at rest it sticks
+    assert isinstance(link.adapter.set_mode(Mode.SETPOINT, timeout=3.0), Ack)
     st = link.adapter.request_state(timeout=3.0)
     assert not st.flags & StateFlags.FAULT and st.mode == Mode.SETPOINT
     with link.core._cond:

@@ -31,7 +31,9 @@ def _random_message(rng, kind):
     if kind is State:
         u32 = lambda: int(rng.integers(0, 2**32))  # noqa: E731
         return State(t=float(rng.uniform(0, 1e6)), theta=f(3), theta_dot=f(3),
-                     strains=f(4, 4e-4), residuals=f(3), flags=StateFlags(int(rng.integers(256))),
+                     strains=f(4, 4e-4), residuals=f(3), flags=StateFlags(int(rng.integers(512))),
+                     tick_p50_s=float(rng.uniform(0, 0.01)), tick_p99_s=float(rng.uniform(0, 0.02)),
+                     tick_max_s=float(rng.uniform(0, 0.1)),
                      mode=Mode(int(rng.integers(3))), damping=Damping(int(rng.integers(4))),
                      collision=CollisionStrategy(int(rng.integers(4))),
                      last_command_seq=u32(), request_seq=u32(),
@@ -47,6 +49,7 @@ def _random_message(rng, kind):
 
 
 KINDS = [JointVelocityCommand, JointSetpoint, ModeSwitch, PayloadUpdate, StateRequest, State, Ack, Refusal]
+
 
 
 @pytest.mark.parametrize("kind", KINDS, ids=lambda k: k.__name__)
@@ -89,10 +92,10 @@ def _reseal(data: bytes) -> bytes:
 
 def _with_header(**fields) -> bytes:
     data = _valid()
-    names = ["magic", "version", "mtype", "reserved", "seq", "t", "plen", "crc"]
-    vals = dict(zip(names, struct.unpack_from("!4sBBHIdII", data)))
+    names = ["magic", "version", "mtype", "flags", "reserved", "session", "seq", "t", "plen", "crc"]
+    vals = dict(zip(names, struct.unpack_from("!4sBBBBIIdII", data)))
     vals.update(fields)
-    head = struct.pack("!4sBBHIdII", *[vals[n] for n in names])
+    head = struct.pack("!4sBBBBIIdII", *[vals[n] for n in names])
     return head + data[P.HEADER_SIZE:]
 
 
@@ -104,13 +107,13 @@ def test_bad_magic():
 
 def test_bad_version():
     data = _reseal(_with_header(version=P.VERSION + 1))
-    with pytest.raises(P.BadVersion, match="version 2"):
+    with pytest.raises(P.BadVersion, match=f"version {P.VERSION + 1}"):
         decode(data)
 
 
 def test_short_datagram():
     data = _valid()[:10]
-    with pytest.raises(P.BadLength, match="shorter than the 28-byte header"):
+    with pytest.raises(P.BadLength, match="shorter than the 32-byte header"):
         decode(data)
 
 
@@ -193,6 +196,93 @@ def test_bad_values():
     reserved = _reseal(_with_header(reserved=1))
     with pytest.raises(P.BadValue, match="reserved"):
         decode(reserved)
+    flags = _reseal(_with_header(flags=0x80))
+    with pytest.raises(P.BadValue, match="reserved"):
+        decode(flags)
+
+
+def test_version_1_datagrams_are_refused():
+    old = struct.pack("!4sBBHIdII", b"TDJL", 1, 4, 0, 1, 0.0, 0, 0) + bytes(8)
+    with pytest.raises(P.BadVersion, match="version 1, expected 2"):
+        decode(old)
+
+
+KEY = bytes(range(32))
+
+
+@pytest.mark.parametrize("kind", KINDS, ids=lambda k: k.__name__)
+def test_authenticated_round_trip_and_every_byte_flip_is_caught(kind):
+    rng = np.random.default_rng(7)
+    msg = _random_message(rng, kind)
+    data = encode(msg, seq=5, t=1.0, session=77, key=KEY)
+    header, back = decode(data, key=KEY)
+    assert back == msg and header.session == 77 and header.authenticated
+    for i in range(len(data)):
+        bad = bytearray(data)
+        bad[i] ^= 0x01
+        with pytest.raises(P.ProtocolError):
+            decode(bytes(bad), key=KEY)
+
+
+def test_wrong_missing_or_unexpected_tag_is_unauthenticated():
+    plain = encode(StateRequest(), seq=1, t=0.0)
+    tagged = encode(StateRequest(), seq=1, t=0.0, key=KEY)
+    other = encode(StateRequest(), seq=1, t=0.0, key=bytes(32))
+    with pytest.raises(P.Unauthenticated, match="without an authentication tag"):
+        decode(plain, key=KEY)
+    with pytest.raises(P.Unauthenticated, match="tag mismatch"):
+        decode(other, key=KEY)
+    with pytest.raises(P.Unauthenticated, match="no key"):
+        decode(tagged)
+    # a tag forged by recomputing the CRC after tampering still fails the HMAC
+    forged = bytearray(tagged)
+    forged[12:16] = (2**31).to_bytes(4, "big")            # a large sequence number
+    body = bytes(forged[:-P.TAG_SIZE])
+    body = _reseal(body)
+    with pytest.raises(P.Unauthenticated, match="tag mismatch"):
+        decode(body + bytes(forged[-P.TAG_SIZE:]), key=KEY)
+    with pytest.raises(ValueError, match="key: expected at least 16 bytes"):
+        encode(StateRequest(), seq=1, t=0.0, key=b"short")
+
+
+def test_session_messages_round_trip_and_session_keys_differ():
+    c, n = bytes(range(16)), bytes(range(16, 32))
+    for msg in (P.Hello(client_nonce=c), P.Challenge(client_nonce=c, server_nonce=n),
+                P.OpenSession(client_nonce=c, server_nonce=n, takeover=True),
+                P.Welcome(client_nonce=c, session=9, lease_s=1.0), P.Release(), P.FaultReset()):
+        assert decode(encode(msg, seq=3, t=0.0, key=KEY), key=KEY)[1] == msg
+    k1 = P.session_key(KEY, c, n, 1)
+    assert len({k1, P.session_key(KEY, c, n, 2), P.session_key(KEY, n, c, 1),
+                P.session_key(bytes(32), c, n, 1)}) == 4
+    assert P.session_key(None, c, n, 1) is None
+    with pytest.raises(ValueError, match="client_nonce: expected 16 bytes"):
+        P.Hello(client_nonce=b"x")
+    welcome = bytearray(encode(P.Welcome(client_nonce=c, session=9, lease_s=1.0), seq=1, t=0.0))
+    welcome[P.HEADER_SIZE + 16:P.HEADER_SIZE + 20] = bytes(4)     # session 0 is not a session
+    with pytest.raises(P.BadValue, match="welcome"):
+        decode(_reseal(bytes(welcome)))
+
+
+def test_key_file_is_0600_refuses_overwrite_and_loose_permissions(tmp_path):
+    import os
+    path = tmp_path / "joint.key"
+    key = P.write_key_file(path)
+    assert os.stat(path).st_mode & 0o777 == 0o600 and len(key) == P.KEY_SIZE
+    assert P.read_key_file(path) == key
+    with pytest.raises(P.TudorVisionError, match="exists"):
+        P.write_key_file(path)
+    assert P.write_key_file(path, overwrite=True) != key
+    assert os.stat(path).st_mode & 0o777 == 0o600
+    os.chmod(path, 0o644)
+    with pytest.raises(P.TudorVisionError, match="chmod 600"):
+        P.read_key_file(path)
+    bad = tmp_path / "bad.key"
+    bad.write_text("not hex\n")
+    os.chmod(bad, 0o600)
+    with pytest.raises(P.TudorVisionError, match="not a key file"):
+        P.read_key_file(bad)
+    with pytest.raises(P.TudorVisionError, match="cannot read"):
+        P.read_key_file(tmp_path / "missing.key")
 
 
 def test_reply_text_length_mismatch():

@@ -64,7 +64,7 @@ def test_setpoint_range_refused_or_clamped():
 
 def test_setpoint_profile_limits_clamped_per_joint_or_refused():
     fast = 5.0   # rad/s: above every joint's speed limit
-    out = check_setpoint([0, 1, 0], LIM, max_speed=fast, max_accel=100.0, policy=CLAMP)
+    out = check_setpoint([0, 1, 0], LIM, max_speed=fast, max_accel=50.0, policy=CLAMP)
     assert out.code == Reason.CLAMPED_SPEED
     assert np.allclose(out.max_speed_rad_s, LIM.max_speed_rad_s)
     assert np.allclose(out.max_accel_rad_s2, LIM.max_accel_rad_s2)

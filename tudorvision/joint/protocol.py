@@ -1,7 +1,7 @@
 """Binary UDP protocol between perception and the joint-control layer.
 
-Every datagram is a fixed 28-byte header followed by a message payload, all
-big-endian (network order):
+Every datagram is a fixed 32-byte header, a message payload and, when the
+layer has a key, a 32-byte HMAC-SHA256 tag; all big-endian (network order):
 
 ========  =======  ==========================================================
 offset    format   field
@@ -9,16 +9,35 @@ offset    format   field
 0         4s       magic ``b"TDJL"``
 4         B        protocol version (:data:`VERSION`)
 5         B        message type (:class:`MsgType`)
-6         H        reserved, must be 0
-8         I        sequence number (uint32, wraps; per sender)
-12        d        sender timestamp in seconds (``time.monotonic`` of the sender)
-20        I        payload length in bytes
-24        I        CRC32 (``zlib.crc32``) over the header with this field zeroed,
+6         B        flags: bit 0 set = an HMAC-SHA256 tag follows the payload
+7         B        reserved, must be 0
+8         I        session id (0: no session - handshake and state requests)
+12        I        sequence number (uint32, wraps; per sender and session)
+16        d        sender timestamp in seconds (``time.monotonic`` of the sender)
+24        I        payload length in bytes (without the tag)
+28        I        CRC32 (``zlib.crc32``) over the header with this field zeroed,
                    followed by the payload
+32        ...      payload
+32 + n    32s      optional tag: ``HMAC-SHA256(key, header + payload)``
 ========  =======  ==========================================================
+
+Datagrams outside a session (session id 0) are tagged with the long-term key
+of the key file; datagrams in a session with the session key derived from it
+and the two nonces of the handshake (:func:`session_key`), so a datagram of
+one session is never valid in another. The session handshake::
+
+    client                               layer
+    Hello(client_nonce)          ->
+                                 <-      Challenge(client_nonce, server_nonce)
+    OpenSession(both nonces)     ->      (a fresh server nonce: replays fail)
+                                 <-      Welcome(client_nonce, session, lease_s)
 
 Units are SI: radians, rad/s, rad/s², seconds, strain in m/m. All floats are
 float64 and must be finite; :func:`decode` refuses NaN and infinities.
+
+Version 2 added the session id, the tag, the session messages, the fault
+reset and the tick statistics of :class:`State`; version 1 datagrams are
+refused (:class:`BadVersion`).
 
 Examples
 --------
@@ -26,11 +45,17 @@ Examples
 >>> header, msg = decode(data)
 >>> header.seq, header.msg_type.name, msg.theta_dot
 (7, 'VELOCITY', (0.1, 0.0, -0.2))
+>>> key = bytes(32)
+>>> header, msg = decode(encode(StateRequest(), seq=1, t=0.0, key=key), key=key)
+>>> header.authenticated
+True
 """
 from __future__ import annotations
 
 import enum
+import hmac
 import math
+import os
 import struct
 import zlib
 from dataclasses import dataclass, field
@@ -38,18 +63,23 @@ from dataclasses import dataclass, field
 from .._checks import TudorVisionError
 
 __all__ = [
-    "MAGIC", "VERSION", "HEADER_SIZE", "MAX_DATAGRAM", "MsgType", "Mode", "Damping",
-    "CollisionStrategy", "Reason", "StateFlags", "Header", "JointVelocityCommand",
-    "JointSetpoint", "ModeSwitch", "PayloadUpdate", "StateRequest", "Counters", "State", "Ack", "Refusal",
-    "Message", "COMMAND_TYPES", "ProtocolError", "BadMagic", "BadVersion", "BadLength",
-    "BadChecksum", "UnknownType", "NonFinite", "BadValue", "encode", "decode",
-    "seq_newer", "seq_add",
+    "MAGIC", "VERSION", "HEADER_SIZE", "TAG_SIZE", "NONCE_SIZE", "KEY_SIZE", "MAX_DATAGRAM", "MsgType",
+    "Mode", "Damping", "CollisionStrategy", "Reason", "StateFlags", "Header", "JointVelocityCommand",
+    "JointSetpoint", "ModeSwitch", "PayloadUpdate", "FaultReset", "StateRequest", "Counters", "State",
+    "Ack", "Refusal", "Hello", "Challenge", "OpenSession", "Welcome", "Release",
+    "Message", "COMMAND_TYPES", "SESSION_TYPES", "ProtocolError", "BadMagic", "BadVersion", "BadLength",
+    "BadChecksum", "Unauthenticated", "UnknownType", "NonFinite", "BadValue", "encode", "decode", "peek",
+    "session_key", "new_nonce", "write_key_file", "read_key_file", "seq_newer", "seq_add",
 ]
 
 MAGIC = b"TDJL"
-VERSION = 1
-_HEADER = struct.Struct("!4sBBHIdII")
-HEADER_SIZE = _HEADER.size          # 28 bytes
+VERSION = 2
+_HEADER = struct.Struct("!4sBBBBIIdII")
+HEADER_SIZE = _HEADER.size          # 32 bytes
+TAG_SIZE = 32                       # HMAC-SHA256
+NONCE_SIZE = 16
+KEY_SIZE = 32                       # bytes of a key file's key
+_AUTH = 0x01                        # header flags bit: tag present
 MAX_DATAGRAM = 1400                 # stays below a typical Ethernet MTU
 MAX_TEXT = 255                      # bytes of UTF-8 in Ack/Refusal texts
 _KEEP = 0xFF                        # "keep current" in ModeSwitch fields
@@ -66,6 +96,12 @@ class MsgType(enum.IntEnum):
     ACK = 6
     REFUSAL = 7
     PAYLOAD = 8            # added after version 1 shipped; older layers refuse it as unknown
+    RESET = 9              # version 2: clear a FAULT (session owner only)
+    HELLO = 10             # version 2: session handshake
+    CHALLENGE = 11
+    OPEN = 12
+    WELCOME = 13
+    RELEASE = 14
 
 
 class Mode(enum.IntEnum):
@@ -110,6 +146,9 @@ class Reason(enum.IntEnum):
     STALE = 16
     FAULT = 17             # the layer is in a fault stop
     UNSUPPORTED = 18       # the layer's core cannot do this (e.g. no payload model)
+    NOT_OWNER = 19         # another client holds the lease (version 2)
+    NO_SESSION = 20        # no session, or it ended (lease expired, released, taken over): open one
+    INTERNAL = 21          # an exception inside the layer; it stopped the core (FAULT)
 
 
 class StateFlags(enum.IntFlag):
@@ -123,7 +162,8 @@ class StateFlags(enum.IntFlag):
     SETTLED = 1 << 4         # the core reports the arm at rest (joints and strains)
     MOVING = 1 << 5          # some joint speed above the rest threshold
     LIMIT_BRAKE = 1 << 6     # velocity reduced to stop before a joint range limit
-    FAULT = 1 << 7           # the core left its limits; the layer stopped it
+    FAULT = 1 << 7           # the core left its limits or raised; the layer stopped it
+    OWNED = 1 << 8           # a client holds the lease (version 2)
 
 
 @dataclass(frozen=True)
@@ -135,6 +175,8 @@ class Header:
     seq: int
     t_sent: float
     payload_len: int
+    session: int = 0
+    authenticated: bool = False
 
 
 def _floats(value, name: str, n: int) -> tuple:
@@ -209,8 +251,82 @@ class PayloadUpdate:
 
 
 @dataclass(frozen=True, kw_only=True)
+class FaultReset:
+    """Clear the layer's ``FAULT`` flag (the session owner only; empty payload).
+
+    A mode switch does not clear a fault: the owner must say so explicitly.
+    """
+
+
+@dataclass(frozen=True, kw_only=True)
+class Release:
+    """End the session and give the lease back (empty payload)."""
+
+
+@dataclass(frozen=True, kw_only=True)
 class StateRequest:
     """Ask the layer for a :class:`State` (empty payload)."""
+
+
+def _nonce(value, name: str) -> bytes:
+    value = bytes(value)
+    if len(value) != NONCE_SIZE:
+        raise ValueError(f"{name}: expected {NONCE_SIZE} bytes, got {len(value)}")
+    return value
+
+
+@dataclass(frozen=True, kw_only=True)
+class Hello:
+    """First message of the session handshake: a fresh random client nonce (16 bytes)."""
+
+    client_nonce: bytes
+
+    def __post_init__(self):
+        object.__setattr__(self, "client_nonce", _nonce(self.client_nonce, "client_nonce"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Challenge:
+    """The layer's answer to :class:`Hello`: the client nonce and a fresh server nonce."""
+
+    client_nonce: bytes
+    server_nonce: bytes
+
+    def __post_init__(self):
+        for name in ("client_nonce", "server_nonce"):
+            object.__setattr__(self, name, _nonce(getattr(self, name), name))
+
+
+@dataclass(frozen=True, kw_only=True)
+class OpenSession:
+    """Open the session: both nonces back, and whether to take the lease over from its holder."""
+
+    client_nonce: bytes
+    server_nonce: bytes
+    takeover: bool = False
+
+    def __post_init__(self):
+        for name in ("client_nonce", "server_nonce"):
+            object.__setattr__(self, name, _nonce(getattr(self, name), name))
+        object.__setattr__(self, "takeover", bool(self.takeover))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Welcome:
+    """The session is open: its id (uint32, never 0) and the lease time in s of control time.
+
+    The lease is renewed by every valid datagram of the session; it ends after
+    ``lease_s`` without one, on :class:`Release` or on a takeover.
+    """
+
+    client_nonce: bytes
+    session: int
+    lease_s: float
+
+    def __post_init__(self):
+        object.__setattr__(self, "client_nonce", _nonce(self.client_nonce, "client_nonce"))
+        object.__setattr__(self, "session", int(self.session))
+        object.__setattr__(self, "lease_s", float(self.lease_s))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -224,9 +340,16 @@ class Counters:
     watchdog_stops: int = 0  # velocity watchdog expiries
     accepted: int = 0        # commands accepted (possibly clamped)
     overruns: int = 0        # control ticks skipped because the loop fell behind
+    unauthenticated: int = 0  # datagrams without a valid tag (or no session known for them)
+    replayed: int = 0        # authenticated datagrams outside the session's sequence window
+    rate_limited: int = 0    # datagrams dropped by the per-source rate limit, before decoding
+    not_owner: int = 0       # commands refused because the sender does not hold the lease
+    faults: int = 0          # fault stops (limits left, non-finite state, exceptions)
 
 
-_N_COUNTERS = 7
+_COUNTER_NAMES = ("malformed", "refused", "duplicates", "stale", "watchdog_stops", "accepted",
+                  "overruns", "unauthenticated", "replayed", "rate_limited", "not_owner", "faults")
+_N_COUNTERS = len(_COUNTER_NAMES)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -250,6 +373,9 @@ class State:
     request_seq : int
         Sequence number of the :class:`StateRequest` this answers (0 if unsolicited).
     counters : Counters
+    tick_p50_s, tick_p99_s, tick_max_s : float
+        Median, 99th percentile and largest interval in s between control
+        ticks of the wall-clock loop over the last second (0 without ticks).
     """
 
     t: float
@@ -264,10 +390,14 @@ class State:
     last_command_seq: int = 0
     request_seq: int = 0
     counters: Counters = field(default_factory=Counters)
+    tick_p50_s: float = 0.0
+    tick_p99_s: float = 0.0
+    tick_max_s: float = 0.0
 
     def __post_init__(self):
         put = object.__setattr__
-        put(self, "t", float(self.t))
+        for name in ("t", "tick_p50_s", "tick_p99_s", "tick_max_s"):
+            put(self, name, float(getattr(self, name)))
         for name, n in (("theta", 3), ("theta_dot", 3), ("strains", 4), ("residuals", 3)):
             put(self, name, _floats(getattr(self, name), name, n))
         if type(self.flags) is not StateFlags:
@@ -306,9 +436,12 @@ class Refusal:
         object.__setattr__(self, "code", Reason(self.code))
 
 
-Message = (JointVelocityCommand | JointSetpoint | ModeSwitch | PayloadUpdate | StateRequest | State
-           | Ack | Refusal)
-COMMAND_TYPES = (JointVelocityCommand, JointSetpoint, ModeSwitch, PayloadUpdate)
+Message = (JointVelocityCommand | JointSetpoint | ModeSwitch | PayloadUpdate | FaultReset | Release
+           | StateRequest | State | Ack | Refusal | Hello | Challenge | OpenSession | Welcome)
+#: Messages that change the layer: only the session owner's are executed.
+COMMAND_TYPES = (JointVelocityCommand, JointSetpoint, ModeSwitch, PayloadUpdate, FaultReset, Release)
+#: Messages of the session handshake (sent with session id 0).
+SESSION_TYPES = (Hello, Challenge, OpenSession, Welcome)
 
 
 class ProtocolError(TudorVisionError):
@@ -341,6 +474,10 @@ class BadChecksum(ProtocolError):
     """CRC32 mismatch (corrupted bytes)."""
 
 
+class Unauthenticated(ProtocolError):
+    """The HMAC-SHA256 tag is missing, wrong, or present where no key is known."""
+
+
 class UnknownType(ProtocolError):
     """Unknown message type byte."""
 
@@ -360,10 +497,19 @@ _VEL = struct.Struct("!3d")
 _SETP = struct.Struct("!3d2dB")
 _MODE = struct.Struct("!3B")
 _PAYLOAD = struct.Struct("!d")
-_STATE = struct.Struct(f"!14dI3B2I{_N_COUNTERS}I")
+_STATE = struct.Struct(f"!17dI3B2I{_N_COUNTERS}I")
 _REPLY = struct.Struct("!IHB")
+_HELLO = struct.Struct(f"!{NONCE_SIZE}s")
+_CHALLENGE = struct.Struct(f"!{NONCE_SIZE}s{NONCE_SIZE}s")
+_OPEN = struct.Struct(f"!{NONCE_SIZE}s{NONCE_SIZE}sB")
+_WELCOME = struct.Struct(f"!{NONCE_SIZE}sId")
 _U32 = 0xFFFFFFFF
 _ALL_FLAGS = int(sum(f.value for f in StateFlags))
+_SIZES = {MsgType.VELOCITY: _VEL.size, MsgType.SETPOINT: _SETP.size, MsgType.MODE: _MODE.size,
+          MsgType.STATE_REQUEST: 0, MsgType.STATE: _STATE.size, MsgType.PAYLOAD: _PAYLOAD.size,
+          MsgType.RESET: 0, MsgType.RELEASE: 0, MsgType.HELLO: _HELLO.size,
+          MsgType.CHALLENGE: _CHALLENGE.size, MsgType.OPEN: _OPEN.size, MsgType.WELCOME: _WELCOME.size}
+_EMPTY = {FaultReset: MsgType.RESET, Release: MsgType.RELEASE, StateRequest: MsgType.STATE_REQUEST}
 
 
 def _check_finite(values, what: str, strict: bool) -> None:
@@ -377,40 +523,59 @@ def _text_bytes(text: str) -> bytes:
 
 
 def _pack_payload(msg, strict: bool) -> tuple[MsgType, bytes]:
-    if isinstance(msg, JointVelocityCommand):
+    kind = type(msg)
+    if kind in _EMPTY:
+        return _EMPTY[kind], b""
+    if kind is JointVelocityCommand:
         _check_finite(msg.theta_dot, "theta_dot", strict)
         return MsgType.VELOCITY, _VEL.pack(*msg.theta_dot)
-    if isinstance(msg, JointSetpoint):
+    if kind is JointSetpoint:
         bits = (msg.max_speed is not None) | ((msg.max_accel is not None) << 1)
         speed = 0.0 if msg.max_speed is None else msg.max_speed
         accel = 0.0 if msg.max_accel is None else msg.max_accel
         _check_finite((*msg.theta, speed, accel), "setpoint", strict)
         return MsgType.SETPOINT, _SETP.pack(*msg.theta, speed, accel, bits)
-    if isinstance(msg, ModeSwitch):
+    if kind is ModeSwitch:
         vals = [_KEEP if v is None else int(v) for v in (msg.mode, msg.damping, msg.collision)]
         return MsgType.MODE, _MODE.pack(*vals)
-    if isinstance(msg, PayloadUpdate):
+    if kind is PayloadUpdate:
         _check_finite((msg.payload_kg,), "payload_kg", strict)
         return MsgType.PAYLOAD, _PAYLOAD.pack(msg.payload_kg)
-    if isinstance(msg, StateRequest):
-        return MsgType.STATE_REQUEST, b""
-    if isinstance(msg, State):
-        floats = (msg.t, *msg.theta, *msg.theta_dot, *msg.strains, *msg.residuals)
+    if kind is State:
+        floats = (msg.t, *msg.theta, *msg.theta_dot, *msg.strains, *msg.residuals,
+                  msg.tick_p50_s, msg.tick_p99_s, msg.tick_max_s)
         _check_finite(floats, "state", strict)
         c = msg.counters
-        counts = (c.malformed, c.refused, c.duplicates, c.stale, c.watchdog_stops,
-                  c.accepted, c.overruns)
+        counts = [getattr(c, name) for name in _COUNTER_NAMES]
         return MsgType.STATE, _STATE.pack(
             *floats, int(msg.flags), int(msg.mode), int(msg.damping), int(msg.collision),
             msg.last_command_seq & _U32, msg.request_seq & _U32, *(n & _U32 for n in counts))
-    if isinstance(msg, (Ack, Refusal)):
+    if kind is Ack or kind is Refusal:
         text = _text_bytes(msg.text)
-        mtype = MsgType.ACK if isinstance(msg, Ack) else MsgType.REFUSAL
+        mtype = MsgType.ACK if kind is Ack else MsgType.REFUSAL
         return mtype, _REPLY.pack(msg.command_seq & _U32, int(msg.code), len(text)) + text
-    raise TypeError(f"msg: not a protocol message: {type(msg).__name__}")
+    if kind is Hello:
+        return MsgType.HELLO, _HELLO.pack(msg.client_nonce)
+    if kind is Challenge:
+        return MsgType.CHALLENGE, _CHALLENGE.pack(msg.client_nonce, msg.server_nonce)
+    if kind is OpenSession:
+        return MsgType.OPEN, _OPEN.pack(msg.client_nonce, msg.server_nonce, int(msg.takeover))
+    if kind is Welcome:
+        _check_finite((msg.lease_s,), "lease_s", strict)
+        return MsgType.WELCOME, _WELCOME.pack(msg.client_nonce, msg.session & _U32, msg.lease_s)
+    raise TypeError(f"msg: not a protocol message: {kind.__name__}")
 
 
-def encode(msg: Message, seq: int, t: float, *, strict: bool = True) -> bytes:
+def _check_key(key, name: str = "key") -> bytes | None:
+    if key is None:
+        return None
+    if not isinstance(key, (bytes, bytearray)) or len(key) < 16:
+        raise ValueError(f"{name}: expected at least 16 bytes, got {key!r:.40}")
+    return bytes(key)
+
+
+def encode(msg: Message, seq: int, t: float, *, strict: bool = True, session: int = 0,
+           key: bytes | None = None) -> bytes:
     """Encode a message into one datagram.
 
     Parameters
@@ -424,6 +589,11 @@ def encode(msg: Message, seq: int, t: float, *, strict: bool = True) -> bytes:
     strict : bool
         Refuse NaN/inf values (default). ``False`` lets fault-injection tests
         build datagrams that the receiver must refuse.
+    session : int
+        Session id (uint32) the datagram belongs to; 0 outside a session.
+    key : bytes or None
+        Append an HMAC-SHA256 tag with this key (the long-term key outside a
+        session, the :func:`session_key` inside one); ``None``: no tag.
 
     Returns
     -------
@@ -435,17 +605,26 @@ def encode(msg: Message, seq: int, t: float, *, strict: bool = True) -> bytes:
         If ``strict`` and a float field is not finite.
     TypeError
         If ``msg`` is not a protocol message.
+    ValueError
+        If ``key`` is shorter than 16 bytes.
 
     Examples
     --------
     >>> len(encode(StateRequest(), seq=1, t=0.0)) == HEADER_SIZE
     True
+    >>> len(encode(StateRequest(), seq=1, t=0.0, key=bytes(32))) == HEADER_SIZE + TAG_SIZE
+    True
     """
+    key = _check_key(key)
     mtype, payload = _pack_payload(msg, strict)
     _check_finite((t,), "t", strict)
-    head = _HEADER.pack(MAGIC, VERSION, int(mtype), 0, seq & _U32, float(t), len(payload), 0)
+    head = _HEADER.pack(MAGIC, VERSION, int(mtype), 0 if key is None else _AUTH, 0,
+                        session & _U32, seq & _U32, float(t), len(payload), 0)
     crc = zlib.crc32(payload, zlib.crc32(head))
-    return head[:-4] + crc.to_bytes(4, "big") + payload
+    body = head[:-4] + crc.to_bytes(4, "big") + payload
+    if key is None:
+        return body
+    return body + hmac.digest(key, body, "sha256")
 
 
 def _enum(cls, value: int, what: str, header: Header, keep: bool = False):
@@ -459,8 +638,7 @@ def _enum(cls, value: int, what: str, header: Header, keep: bool = False):
 
 def _unpack_payload(header: Header, payload: bytes):
     mtype = header.msg_type
-    want = {MsgType.VELOCITY: _VEL.size, MsgType.SETPOINT: _SETP.size, MsgType.MODE: _MODE.size,
-            MsgType.STATE_REQUEST: 0, MsgType.STATE: _STATE.size, MsgType.PAYLOAD: _PAYLOAD.size}.get(mtype)
+    want = _SIZES.get(mtype)
     if want is not None and len(payload) != want:
         raise BadLength(f"{mtype.name} payload: expected {want} bytes, got {len(payload)}", header)
 
@@ -490,22 +668,41 @@ def _unpack_payload(header: Header, payload: bytes):
         return PayloadUpdate(payload_kg=mass)
     if mtype == MsgType.STATE_REQUEST:
         return StateRequest()
+    if mtype == MsgType.RESET:
+        return FaultReset()
+    if mtype == MsgType.RELEASE:
+        return Release()
+    if mtype == MsgType.HELLO:
+        return Hello(client_nonce=_HELLO.unpack(payload)[0])
+    if mtype == MsgType.CHALLENGE:
+        c, n = _CHALLENGE.unpack(payload)
+        return Challenge(client_nonce=c, server_nonce=n)
+    if mtype == MsgType.OPEN:
+        c, n, take = _OPEN.unpack(payload)
+        if take > 1:
+            raise BadValue(f"open: takeover byte {take}, expected 0 or 1", header)
+        return OpenSession(client_nonce=c, server_nonce=n, takeover=bool(take))
+    if mtype == MsgType.WELCOME:
+        c, sid, lease = _WELCOME.unpack(payload)
+        finite((lease,), "lease_s")
+        if sid == 0 or not lease > 0:
+            raise BadValue(f"welcome: session {sid}, lease {lease:g} s", header)
+        return Welcome(client_nonce=c, session=sid, lease_s=lease)
     if mtype == MsgType.STATE:
         vals = _STATE.unpack(payload)
-        floats, rest = vals[:14], vals[14:]
+        floats, rest = vals[:17], vals[17:]
         finite(floats, "state")
         flags, m, d, c, last_seq, req_seq, *counts = rest
         if flags & ~_ALL_FLAGS:
             raise BadValue(f"state flags: unknown bits {flags:#x}", header)
         return State(t=floats[0], theta=floats[1:4], theta_dot=floats[4:7],
-                     strains=floats[7:11], residuals=floats[11:14], flags=StateFlags(flags),
+                     strains=floats[7:11], residuals=floats[11:14], tick_p50_s=floats[14],
+                     tick_p99_s=floats[15], tick_max_s=floats[16], flags=StateFlags(flags),
                      mode=_enum(Mode, m, "mode", header),
                      damping=_enum(Damping, d, "damping", header),
                      collision=_enum(CollisionStrategy, c, "collision", header),
                      last_command_seq=last_seq, request_seq=req_seq,
-                     counters=Counters(**dict(zip(
-                         ("malformed", "refused", "duplicates", "stale", "watchdog_stops",
-                          "accepted", "overruns"), counts))))
+                     counters=Counters(**dict(zip(_COUNTER_NAMES, counts))))
     # ACK / REFUSAL
     if len(payload) < _REPLY.size:
         raise BadLength(f"{mtype.name} payload: expected at least {_REPLY.size} bytes, "
@@ -525,13 +722,41 @@ def _unpack_payload(header: Header, payload: bytes):
     return cls(command_seq=cseq, code=reason, text=text)
 
 
-def decode(data: bytes) -> tuple[Header, Message]:
+def peek(data: bytes) -> tuple[int, int, int]:
+    """Session id, sequence number and type byte of a datagram, without any check but the header's size and magic.
+
+    Cheap enough to run on every datagram before choosing the key to check it
+    with; nothing it returns can be trusted before :func:`decode` succeeds.
+
+    Raises
+    ------
+    BadLength, BadMagic, BadVersion
+
+    Examples
+    --------
+    >>> peek(encode(StateRequest(), seq=9, t=0.0, session=5))
+    (5, 9, 4)
+    """
+    if len(data) < HEADER_SIZE:
+        raise BadLength(f"datagram of {len(data)} bytes is shorter than the "
+                        f"{HEADER_SIZE}-byte header")
+    if data[:4] != MAGIC:
+        raise BadMagic(f"bad magic {bytes(data[:4])!r}, expected {MAGIC!r}")
+    if data[4] != VERSION:
+        raise BadVersion(f"unsupported protocol version {data[4]}, expected {VERSION}")
+    return int.from_bytes(data[8:12], "big"), int.from_bytes(data[12:16], "big"), data[5]
+
+
+def decode(data: bytes, *, key: bytes | None = None) -> tuple[Header, Message]:
     """Decode one datagram.
 
     Parameters
     ----------
     data : bytes
         The datagram.
+    key : bytes or None
+        With a key the datagram must carry a valid HMAC-SHA256 tag made with
+        it; without one it must carry no tag.
 
     Returns
     -------
@@ -542,8 +767,9 @@ def decode(data: bytes) -> tuple[Header, Message]:
     ------
     BadLength
         Shorter than a header, payload length mismatch, or payload size wrong for the type.
-    BadMagic, BadVersion, BadChecksum, UnknownType
-        As named (checked in that order, after the length of the header).
+    BadMagic, BadVersion, BadChecksum, Unauthenticated, UnknownType
+        As named (checked in that order, after the length of the header). No
+        header is attached to these: nothing in the datagram can be trusted.
     NonFinite
         A float field is NaN or infinite (``err.header`` is set).
     BadValue
@@ -554,33 +780,135 @@ def decode(data: bytes) -> tuple[Header, Message]:
     >>> decode(b"junk")
     Traceback (most recent call last):
     ...
-    tudorvision.joint.protocol.BadLength: datagram of 4 bytes is shorter than the 28-byte header
+    tudorvision.joint.protocol.BadLength: datagram of 4 bytes is shorter than the 32-byte header
     """
     data = bytes(data)
+    key = _check_key(key)
     if len(data) < HEADER_SIZE:
         raise BadLength(f"datagram of {len(data)} bytes is shorter than the "
                         f"{HEADER_SIZE}-byte header")
-    magic, version, mtype, reserved, seq, t_sent, plen, crc = _HEADER.unpack_from(data)
+    magic, version, mtype, flags, reserved, session, seq, t_sent, plen, crc = _HEADER.unpack_from(data)
     if magic != MAGIC:
         raise BadMagic(f"bad magic {magic!r}, expected {MAGIC!r}")
     if version != VERSION:
         raise BadVersion(f"unsupported protocol version {version}, expected {VERSION}")
-    if plen != len(data) - HEADER_SIZE:
+    tagged = bool(flags & _AUTH)
+    body_len = len(data) - (TAG_SIZE if tagged else 0)
+    if plen != body_len - HEADER_SIZE:
         raise BadLength(f"payload length field {plen} does not match "
-                        f"{len(data) - HEADER_SIZE} bytes received")
+                        f"{body_len - HEADER_SIZE} bytes received")
     head0 = data[:HEADER_SIZE - 4] + b"\0\0\0\0"
-    if zlib.crc32(data[HEADER_SIZE:], zlib.crc32(head0)) != crc:
+    if zlib.crc32(data[HEADER_SIZE:body_len], zlib.crc32(head0)) != crc:
         raise BadChecksum("checksum mismatch (corrupted datagram)")
+    if key is not None:
+        if not tagged:
+            raise Unauthenticated("datagram without an authentication tag")
+        if not hmac.compare_digest(hmac.digest(key, data[:body_len], "sha256"), data[body_len:]):
+            raise Unauthenticated("authentication tag mismatch")
+    elif tagged:
+        raise Unauthenticated("authenticated datagram, but no key to check it")
     try:
         msg_type = MsgType(mtype)
     except ValueError:
         raise UnknownType(f"unknown message type {mtype}") from None
-    header = Header(version=version, msg_type=msg_type, seq=seq, t_sent=t_sent, payload_len=plen)
-    if reserved != 0:
-        raise BadValue(f"reserved header field is {reserved}, expected 0", header)
+    header = Header(version=version, msg_type=msg_type, seq=seq, t_sent=t_sent, payload_len=plen,
+                    session=session, authenticated=tagged)
+    if reserved != 0 or flags & ~_AUTH:
+        raise BadValue(f"reserved header fields are {flags:#x}/{reserved}, expected 0", header)
     if not math.isfinite(t_sent):
         raise NonFinite("sender timestamp: NaN or infinite value", header)
-    return header, _unpack_payload(header, data[HEADER_SIZE:])
+    return header, _unpack_payload(header, data[HEADER_SIZE:body_len])
+
+
+def new_nonce() -> bytes:
+    """A fresh random nonce (``os.urandom``, 16 bytes)."""
+    return os.urandom(NONCE_SIZE)
+
+
+def session_key(key: bytes | None, client_nonce: bytes, server_nonce: bytes, session: int) -> bytes | None:
+    """The key of one session: ``HMAC-SHA256(key, b"TDJL session" + nonces + session id)``.
+
+    ``None`` without a long-term key (unauthenticated layer).
+
+    Examples
+    --------
+    >>> k = session_key(bytes(32), bytes(16), bytes(range(16)), 7)
+    >>> len(k), k == session_key(bytes(32), bytes(16), bytes(range(16)), 8)
+    (32, False)
+    """
+    key = _check_key(key)
+    if key is None:
+        return None
+    info = b"TDJL session" + _nonce(client_nonce, "client_nonce") + _nonce(server_nonce, "server_nonce")
+    return hmac.digest(key, info + (session & _U32).to_bytes(4, "big"), "sha256")
+
+
+def write_key_file(path, *, overwrite: bool = False) -> bytes:
+    """Write a fresh random key (:data:`KEY_SIZE` bytes from ``os.urandom``) as one hex line.
+
+    The file is created with permissions 0600 (owner read/write only); an
+    existing file is refused unless ``overwrite`` (then it is replaced
+    atomically by a new 0600 file).
+
+    Returns
+    -------
+    bytes
+        The key.
+
+    Raises
+    ------
+    TudorVisionError
+        If the file exists (without ``overwrite``) or cannot be written.
+    """
+    path = os.fspath(path)
+    key = os.urandom(KEY_SIZE)
+    target = path + ".tmp" if overwrite else path
+    try:
+        fd = os.open(target, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except FileExistsError:
+        raise TudorVisionError(f"{target}: exists; refusing to overwrite a key file") from None
+    except OSError as err:
+        raise TudorVisionError(f"{target}: cannot create the key file: {err.strerror}") from None
+    try:
+        os.fchmod(fd, 0o600)
+        os.write(fd, key.hex().encode("ascii") + b"\n")
+        os.fsync(fd)
+    except OSError as err:
+        os.close(fd)
+        os.unlink(target)
+        raise TudorVisionError(f"{target}: cannot write the key file: {err.strerror}") from None
+    os.close(fd)
+    if overwrite:
+        os.replace(target, path)
+    return key
+
+
+def read_key_file(path) -> bytes:
+    """Read a key written by :func:`write_key_file` (hex, at least 16 bytes).
+
+    Raises
+    ------
+    TudorVisionError
+        If the file is missing, readable by group or others (like ssh, the
+        key is refused: ``chmod 600`` it), or does not hold a hex key.
+    """
+    path = os.fspath(path)
+    try:
+        st = os.stat(path)
+        with open(path, "rb") as fh:
+            raw = fh.read(4096)
+    except OSError as err:
+        raise TudorVisionError(f"{path}: cannot read the key file: {err.strerror}") from None
+    if st.st_mode & 0o077:
+        raise TudorVisionError(f"{path}: key file permissions {st.st_mode & 0o777:03o} let others "
+                               f"read it; chmod 600 it")
+    try:
+        key = bytes.fromhex(raw.decode("ascii").strip())
+    except (UnicodeDecodeError, ValueError):
+        key = b""
+    if len(key) < 16:
+        raise TudorVisionError(f"{path}: not a key file (expected one line of at least 32 hex digits)")
+    return key
 
 
 def seq_add(seq: int, n: int = 1) -> int:

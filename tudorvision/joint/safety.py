@@ -2,9 +2,12 @@
 
 The server applies these to every command before it reaches the core:
 
-* :func:`check_velocity_command` - refuse NaN, scale or refuse over-speed;
+* :func:`check_velocity_command` - refuse NaN, scale or refuse over-speed,
+  always refuse absurd speeds (beyond ``clamp_factor`` x the limit);
 * :func:`check_setpoint` - clamp or refuse setpoints outside the joint ranges,
-  clamp or refuse profile speed/acceleration above the limits;
+  clamp or refuse profile speed/acceleration above the limits, always refuse
+  profile limits below the sane minima or beyond ``clamp_factor`` x the
+  limits, and profiles whose planned duration is not finite or too long;
 * :func:`brake_velocity` - reduce a velocity reference so every joint can still
   stop before its range limit at its acceleration limit;
 * :func:`ramp_velocity` - rate-limit the velocity reference to the
@@ -24,7 +27,7 @@ from .protocol import Reason
 
 __all__ = ["SafetyLimits", "SafetyPolicy", "Verdict", "SetpointVerdict",
            "check_velocity_command", "check_setpoint", "brake_velocity", "ramp_velocity",
-           "stopping_time", "within_range"]
+           "stopping_time", "within_range", "profile_duration"]
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -42,6 +45,12 @@ class SafetyLimits:
         absorb tracking lag of the real joint controller.
     default_speed_rad_s, default_accel_rad_s2 : float
         Profile limits used for setpoints that give none (chapter 8: 60 °/s, 200 °/s²).
+    min_speed_rad_s, min_accel_rad_s2 : float
+        Smallest profile speed and acceleration a setpoint may request
+        (0.5 °/s, 1 °/s²): below them planners lose precision (5e-324 once
+        crashed one), so smaller requests are refused.
+    max_duration_s : float
+        Longest planned point-to-point motion accepted (over a whole joint range).
     """
 
     joint_limits_rad: np.ndarray
@@ -50,6 +59,9 @@ class SafetyLimits:
     margin_rad: float = np.deg2rad(0.5)
     default_speed_rad_s: float = np.deg2rad(60.0)
     default_accel_rad_s2: float = np.deg2rad(200.0)
+    min_speed_rad_s: float = np.deg2rad(0.5)
+    min_accel_rad_s2: float = np.deg2rad(1.0)
+    max_duration_s: float = 3600.0
 
     def __post_init__(self):
         lim = check_array(self.joint_limits_rad, "joint_limits_rad", (3, 2))
@@ -66,9 +78,14 @@ class SafetyLimits:
         object.__setattr__(self, "joint_limits_rad", lim)
         if not self.margin_rad >= 0:
             raise ValueError(f"margin_rad: must be >= 0, got {self.margin_rad}")
-        for name in ("default_speed_rad_s", "default_accel_rad_s2"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name}: must be positive, got {getattr(self, name)}")
+        for name in ("default_speed_rad_s", "default_accel_rad_s2", "min_speed_rad_s",
+                     "min_accel_rad_s2", "max_duration_s"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise ValueError(f"{name}: must be positive and finite, got {v}")
+        if not (self.min_speed_rad_s <= self.default_speed_rad_s
+                and self.min_accel_rad_s2 <= self.default_accel_rad_s2):
+            raise ValueError("min_speed_rad_s/min_accel_rad_s2: must not exceed the defaults")
 
     @classmethod
     def from_params(cls, params=None, **options) -> "SafetyLimits":
@@ -100,14 +117,20 @@ class SafetyPolicy:
     """What to do with commands beyond the limits: ``"clamp"`` or ``"refuse"``.
 
     ``velocity_over_speed="clamp"`` scales the whole velocity vector down so the
-    direction of motion in joint space is kept.
+    direction of motion in joint space is kept. A clamp is never silent: the
+    answer carries a ``CLAMPED_*`` code and text. Requests beyond
+    ``clamp_factor`` times a limit are not a slightly eager command but
+    nonsense (1e300 rad/s), and are refused whatever the policy.
     """
 
     velocity_over_speed: str = "clamp"
     setpoint_out_of_range: str = "refuse"
     setpoint_over_limits: str = "clamp"
+    clamp_factor: float = 10.0
 
     def __post_init__(self):
+        if not (np.isfinite(self.clamp_factor) and self.clamp_factor >= 1.0):
+            raise ValueError(f"clamp_factor: expected a finite number >= 1, got {self.clamp_factor}")
         for name in ("velocity_over_speed", "setpoint_out_of_range", "setpoint_over_limits"):
             if getattr(self, name) not in ("clamp", "refuse"):
                 raise ValueError(f"{name}: expected 'clamp' or 'refuse', "
@@ -180,7 +203,7 @@ def check_velocity_command(theta_dot, limits: SafetyLimits, *,
     j = int(ratio.argmax())
     text = (f"joint {j + 1} speed {abs(v[j]):.4g} rad/s exceeds the limit "
             f"{limits.max_speed_rad_s[j]:.4g} rad/s")
-    if policy.velocity_over_speed == "refuse":
+    if policy.velocity_over_speed == "refuse" or worst > policy.clamp_factor:
         return Verdict(value=None, code=Reason.OVER_SPEED, text=text)
     scaled = v / worst
     scaled = np.clip(scaled, -limits.max_speed_rad_s, limits.max_speed_rad_s)  # rounding
@@ -210,7 +233,9 @@ def check_setpoint(theta, limits: SafetyLimits, *, max_speed: float | None = Non
         policy says so); ``max_speed_rad_s`` / ``max_accel_rad_s2`` are per-joint
         profile limits, each ``min(requested, joint limit)``. Refusal codes:
         ``NON_FINITE``, ``OUT_OF_RANGE``, ``OVER_SPEED``, ``OVER_ACCEL`` (the last
-        two also for non-positive requests).
+        two also for requests below ``limits.min_*``, beyond ``policy.clamp_factor``
+        times the joint limits, or giving a planned duration over
+        ``limits.max_duration_s``).
 
     Examples
     --------
@@ -238,26 +263,55 @@ def check_setpoint(theta, limits: SafetyLimits, *, max_speed: float | None = Non
         code, notes, th = Reason.CLAMPED_RANGE, [text + "; clamped"], inside
 
     profile = []
-    for req, default, lim, over, clamped, what in (
-            (max_speed, limits.default_speed_rad_s, limits.max_speed_rad_s,
+    for req, default, lim, low, over, clamped, what in (
+            (max_speed, limits.default_speed_rad_s, limits.max_speed_rad_s, limits.min_speed_rad_s,
              Reason.OVER_SPEED, Reason.CLAMPED_SPEED, "speed"),
-            (max_accel, limits.default_accel_rad_s2, limits.max_accel_rad_s2,
+            (max_accel, limits.default_accel_rad_s2, limits.max_accel_rad_s2, limits.min_accel_rad_s2,
              Reason.OVER_ACCEL, Reason.CLAMPED_ACCEL, "acceleration")):
-        if req is not None and not req > 0:
+        if req is not None and not req >= low:
             return SetpointVerdict(value=None, code=over,
-                                   text=f"profile {what} {req:.4g} must be positive")
+                                   text=f"profile {what} {req:.4g} below the minimum {low:.4g}")
         want = float(default if req is None else req)
         per_joint = np.minimum(want, lim)
         if req is not None and np.any(want > lim):
             text = f"profile {what} {want:.4g} exceeds the joint limits {_fmt(lim)}"
-            if policy.setpoint_over_limits == "refuse":
+            if policy.setpoint_over_limits == "refuse" or np.any(want > policy.clamp_factor * lim):
                 return SetpointVerdict(value=None, code=over, text=text)
             if code == Reason.OK:
                 code = clamped
             notes.append(text + "; clamped per joint")
         profile.append(per_joint)
+    span = limits.soft_limits_rad[:, 1] - limits.soft_limits_rad[:, 0]
+    worst = float(np.max(profile_duration(span, profile[0], profile[1])))
+    if not (np.isfinite(worst) and worst <= limits.max_duration_s):
+        return SetpointVerdict(value=None, code=Reason.OVER_SPEED,
+                               text=f"profile would take up to {worst:.4g} s over a joint range "
+                                    f"(limit {limits.max_duration_s:g} s)")
     return SetpointVerdict(value=th, code=code, text="; ".join(notes),
                            max_speed_rad_s=profile[0], max_accel_rad_s2=profile[1])
+
+
+def profile_duration(distance, max_speed, max_accel) -> np.ndarray:
+    """Duration in s of a rest-to-rest trapezoidal (or triangular) profile per joint.
+
+    Parameters
+    ----------
+    distance : array_like, shape (3,)
+        Travel per joint in rad (sign ignored).
+    max_speed, max_accel : array_like, shape (3,)
+        Positive profile limits in rad/s and rad/s².
+
+    Examples
+    --------
+    >>> profile_duration([1.0, 4.0, 0.0], [1.0, 1.0, 1.0], [1.0, 1.0, 1.0]).tolist()
+    [2.0, 5.0, 0.0]
+    """
+    d = np.abs(np.asarray(distance, dtype=np.float64))
+    v = np.asarray(max_speed, dtype=np.float64)
+    a = np.asarray(max_accel, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        cruise = d > v * v / a
+        return np.where(cruise, d / v + v / a, 2.0 * np.sqrt(d / a))
 
 
 def brake_velocity(theta, theta_dot, limits: SafetyLimits, dt: float, *,

@@ -36,9 +36,12 @@ Examples
 from __future__ import annotations
 
 import collections
+import ipaddress
+import math
+import os
 import threading
-import types
 import time
+import types
 from dataclasses import dataclass, field
 from typing import Callable, Hashable, Protocol, runtime_checkable
 
@@ -49,7 +52,7 @@ from . import protocol as P
 from .safety import (SafetyLimits, SafetyPolicy, brake_velocity, check_setpoint,
                      check_velocity_command, ramp_velocity)
 
-__all__ = ["CoreState", "JointCore", "KinematicCore", "ServerConfig", "CommandRecord",
+__all__ = ["CoreState", "JointCore", "KinematicCore", "ServerConfig", "CommandRecord", "ServerEvent",
            "JointLayerServer", "MAX_PAYLOAD_KG", "register_core", "make_core", "core_names"]
 
 
@@ -268,11 +271,36 @@ class ServerConfig:
         A core state faster than factor x speed limit is a fault; so is a
         joint that goes further than the tolerance outside its range, or is
         outside and moving further out (outside and at rest or moving back,
-        it may be brought back after the fault is cleared).
+        it may be brought back after the fault is reset).
+    fault_accel_factor : float or None
+        With a number, a joint speed change faster than this times the
+        acceleration limit (over ``accel_window_s``) is a fault too; off by
+        default because an elastic arm's measured joint speed may ring above
+        the commanded acceleration.
+    accel_window_s : float
+        Window of that acceleration estimate.
     max_clients, seq_window, log_size, max_backlog_ticks : int
         Bounds of the per-client tables, the duplicate window, the command log
         and of catch-up ticks after a stall (beyond it ticks are skipped and
         counted as overruns).
+    lease_s : float
+        The owner's lease in control time: it ends after this long without a
+        valid datagram of its session.
+    allow_takeover : bool
+        Let a client open a session with ``takeover`` while another holds the
+        lease (the layer stops the arm and goes IDLE first).
+    seq_ahead : int
+        Largest jump of the sequence number within a session; a datagram
+        further ahead is dropped as forged and never moves the window.
+    source_rate_hz, source_burst : float
+        Token bucket per source address other than the owner's, applied
+        before decoding (wall-clock loop only).
+    max_sources : int
+        Bound of the rate limiter's table of sources.
+    handshake_timeout_s : float
+        A challenge not answered within this wall time is forgotten.
+    max_batch : int
+        Datagrams read per burst before the owner's are handled first.
     """
 
     rate_hz: float = 500.0
@@ -283,21 +311,37 @@ class ServerConfig:
     rest_speed_rad_s: float = 1e-3
     fault_speed_factor: float = 1.05
     fault_range_tol_rad: float = np.deg2rad(1.0)
+    fault_accel_factor: float | None = None
+    accel_window_s: float = 0.02
     max_clients: int = 64
     seq_window: int = 256
     log_size: int = 4096
     max_backlog_ticks: int = 10
+    lease_s: float = 1.0
+    allow_takeover: bool = True
+    seq_ahead: int = 4096
+    source_rate_hz: float = 1000.0
+    source_burst: float = 200.0
+    max_sources: int = 1024
+    handshake_timeout_s: float = 2.0
+    max_batch: int = 64
 
     def __post_init__(self):
-        if not self.rate_hz > 0:
-            raise ValueError(f"rate_hz: must be positive, got {self.rate_hz}")
-        if not self.watchdog_s > 0:
-            raise ValueError(f"watchdog_s: must be positive, got {self.watchdog_s}")
+        for name in ("rate_hz", "watchdog_s", "lease_s", "source_rate_hz", "source_burst",
+                     "handshake_timeout_s", "accel_window_s"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ValueError(f"{name}: must be positive and finite, got {v}")
+        if self.fault_accel_factor is not None and not self.fault_accel_factor >= 1.0:
+            raise ValueError(f"fault_accel_factor: expected None or >= 1, got {self.fault_accel_factor}")
+        for name in ("max_clients", "seq_window", "log_size", "seq_ahead", "max_sources", "max_batch"):
+            if not int(getattr(self, name)) >= 1:
+                raise ValueError(f"{name}: must be >= 1, got {getattr(self, name)}")
 
 
 @dataclass(frozen=True)
 class CommandRecord:
-    """One handled command: times, sender, sequence number, message and outcome code."""
+    """One handled command: times, sender, sequence number, message, outcome code and session."""
 
     t_wall: float
     t_core: float
@@ -305,13 +349,25 @@ class CommandRecord:
     seq: int
     msg: object
     code: P.Reason
+    session: int = 0
+
+
+@dataclass(frozen=True)
+class ServerEvent:
+    """Something the layer did on its own: ``kind`` is one of ``session_open``,
+    ``session_end``, ``takeover``, ``fault``, ``fault_reset``, ``watchdog_stop``."""
+
+    t_wall: float
+    t_core: float
+    kind: str
+    text: str = ""
 
 
 _DRIFT = 1e-3   # tolerated clock drift between sender and layer, s/s (1000 ppm)
 
 
 class _Client:
-    """Sequence-number bookkeeping for one sender address."""
+    """Sequence-number bookkeeping for one session."""
 
     __slots__ = ("newest", "window", "seen", "last_reply", "floor", "floor_t")
 
@@ -335,18 +391,70 @@ class _Client:
             self.floor, self.floor_t = delay, t_recv
         return delay - self.floor - _DRIFT * (t_recv - self.floor_t)
 
-    def classify(self, seq: int, window: int) -> str:
-        """Return "new", "duplicate" or "stale" and record ``seq`` if new."""
+    def classify(self, seq: int, window: int, ahead: int = 2**31 - 1) -> str:
+        """Return "new", "duplicate", "stale" (older, inside the window), or
+        "replayed" (older than the window, or more than ``ahead`` newer); record ``seq`` if new."""
         if seq in self.seen:
             return "duplicate"
-        if self.newest is not None and not P.seq_newer(seq, self.newest):
-            return "stale"
+        if self.newest is not None:
+            d = (seq - self.newest) & 0xFFFFFFFF
+            if d == 0 or d >= 0x80000000:
+                return "stale" if (self.newest - seq) & 0xFFFFFFFF < window else "replayed"
+            if d > ahead:
+                return "replayed"
         self.newest = seq
         self.window.append(seq)
         self.seen.add(seq)
         while len(self.window) > window:
             self.seen.discard(self.window.popleft())
         return "new"
+
+
+class _Session:
+    """The owner's session: id, address, key, sequence window and lease."""
+
+    __slots__ = ("sid", "addr", "key", "client", "last_seen", "server_nonce", "welcome", "end_reason")
+
+    def __init__(self, sid, addr, key, server_nonce, welcome, t_ctrl):
+        self.sid, self.addr, self.key = sid, addr, key
+        self.client = _Client()
+        self.last_seen = t_ctrl
+        self.server_nonce = server_nonce
+        self.welcome = welcome            # the Welcome datagram, resent for a retransmitted Open
+        self.end_reason = ""
+
+
+class _RateLimiter:
+    """Token bucket per source address, bounded table (oldest sources forgotten)."""
+
+    def __init__(self, rate_hz: float, burst: float, max_sources: int):
+        self.rate, self.burst, self.max = float(rate_hz), float(burst), int(max_sources)
+        self._buckets: collections.OrderedDict = collections.OrderedDict()
+
+    def allow(self, addr, now: float) -> bool:
+        b = self._buckets.get(addr)
+        if b is None:
+            if len(self._buckets) >= self.max:
+                self._buckets.popitem(last=False)
+            self._buckets[addr] = [self.burst - 1.0, now]
+            return True
+        tokens = min(self.burst, b[0] + (now - b[1]) * self.rate)
+        b[1] = now
+        if tokens < 1.0:
+            b[0] = tokens
+            return False
+        b[0] = tokens - 1.0
+        return True
+
+
+def _is_loopback(addr) -> bool:
+    """True for in-process addresses and IP addresses on loopback."""
+    if not isinstance(addr, tuple):
+        return True
+    try:
+        return ipaddress.ip_address(addr[0]).is_loopback
+    except ValueError:
+        return addr[0] == "localhost"
 
 
 class JointLayerServer:
@@ -362,29 +470,45 @@ class JointLayerServer:
     limits : SafetyLimits, optional
         Default: from the robot parameters.
     config : ServerConfig, optional
+    key : bytes, optional
+        Long-term key (:func:`~tudorvision.joint.protocol.read_key_file`).
+        With it every datagram must carry a valid HMAC-SHA256 tag; without it
+        the transport must be bound on loopback (or in-process).
+
+    Raises
+    ------
+    TudorVisionError
+        If the transport is bound to a non-loopback address without a key.
 
     Notes
     -----
     Run it with :meth:`serve_forever` (blocking, until :meth:`shutdown`),
     :meth:`run_for` (blocking, bounded) or :meth:`start` / as a context manager
     (background thread, stopped and joined on exit). Only the loop thread
-    touches the core; :meth:`state`, :attr:`counters` and :meth:`command_log`
-    are safe to call from other threads.
+    touches the core; :meth:`state`, :attr:`counters`, :meth:`command_log`
+    and :meth:`events` are safe to call from other threads.
     """
 
     def __init__(self, transport, core: JointCore, *, limits: SafetyLimits | None = None,
-                 config: ServerConfig = ServerConfig()):
+                 config: ServerConfig = ServerConfig(), key: bytes | None = None):
         if not isinstance(core, JointCore):
             raise TypeError(f"core: {type(core).__name__} does not implement JointCore")
+        bound = getattr(transport, "address", None)
+        if key is None and not _is_loopback(bound):
+            raise TudorVisionError(f"transport: bound on {bound[0]}, not loopback; a key is required "
+                                   f"to serve beyond this machine (tudorvision joint keygen)")
         self.transport = transport
         self.core = core
         self.limits = limits or SafetyLimits.from_params()
         self.config = config
+        self._key = None if key is None else bytes(key)
+        if self._key is not None and len(self._key) < 16:
+            raise ValueError(f"key: expected at least 16 bytes, got {len(self._key)}")
         self._lock = threading.RLock()
         self._stop = threading.Event()
         self._thread = None
-        self._clients: collections.OrderedDict = collections.OrderedDict()
         self._log = collections.deque(maxlen=config.log_size)
+        self._events = collections.deque(maxlen=config.log_size)
         self._counts = dict.fromkeys(P.Counters.__dataclass_fields__, 0)
         self._seq = 0
         self._mode = P.Mode(config.initial_mode)
@@ -399,6 +523,13 @@ class JointLayerServer:
         self._holding = False       # velocity mode at rest: the core holds position via stop()
         self._outside = np.zeros(3, dtype=bool)   # joints beyond range + tolerance at the last tick
         self._period = 1.0 / config.rate_hz
+        self._owner: _Session | None = None
+        self._ended: collections.OrderedDict = collections.OrderedDict()   # sid -> ended _Session
+        self._challenges: collections.OrderedDict = collections.OrderedDict()  # server nonce -> ...
+        self._limiter = _RateLimiter(config.source_rate_hz, config.source_burst, config.max_sources)
+        self._ticks = collections.deque()           # (t_wall, interval) over the last second
+        self._last_tick_wall = None
+        self._speeds = collections.deque()          # (t_core, theta_dot) for the acceleration check
         core.set_modes(damping=self._damping, collision=self._collision)
         core.stop()
         self._core_state = core.state()
@@ -410,6 +541,11 @@ class JointLayerServer:
         return self.transport.address
 
     @property
+    def authenticated(self) -> bool:
+        """True when the layer has a key (every datagram must carry a valid tag)."""
+        return self._key is not None
+
+    @property
     def counters(self) -> P.Counters:
         """Snapshot of the event counters."""
         with self._lock:
@@ -419,27 +555,52 @@ class JointLayerServer:
     def mode(self) -> P.Mode:
         return self._mode
 
+    @property
+    def owner(self):
+        """``(session id, address)`` of the lease holder, or ``None``."""
+        with self._lock:
+            o = self._owner
+            return None if o is None else (o.sid, o.addr)
+
     def command_log(self) -> list[CommandRecord]:
         """The most recent handled commands (bounded by ``config.log_size``)."""
         with self._lock:
             return list(self._log)
 
+    def events(self) -> list[ServerEvent]:
+        """The most recent events (sessions, faults, watchdog stops; bounded by ``config.log_size``)."""
+        with self._lock:
+            return list(self._events)
+
+    def tick_stats(self) -> tuple[float, float, float]:
+        """Tick-interval p50, p99 and maximum in s over the last second of the wall-clock loop."""
+        with self._lock:
+            if not self._ticks:
+                return 0.0, 0.0, 0.0
+            iv = np.fromiter((x for _, x in self._ticks), dtype=float, count=len(self._ticks))
+        p50, p99 = np.percentile(iv, [50, 99])
+        return float(p50), float(p99), float(iv.max())
+
     def state(self, request_seq: int = 0) -> P.State:
         """The state feedback message for the current core state."""
+        p50, p99, worst = self.tick_stats()
         with self._lock:
             cs = self._core_state
-            flags = self._flags & ~(_F.SETTLED | _F.MOVING | _F.COLLISION)
+            flags = self._flags & ~(_F.SETTLED | _F.MOVING | _F.COLLISION | _F.OWNED)
             if cs.settled:
                 flags |= _F.SETTLED
             if np.any(np.abs(cs.theta_dot) > self.config.rest_speed_rad_s):
                 flags |= _F.MOVING
             if cs.collision:
                 flags |= _F.COLLISION
+            if self._owner is not None:
+                flags |= _F.OWNED
             return P.State(t=cs.t, theta=cs.theta, theta_dot=cs.theta_dot, strains=cs.strains,
                            residuals=cs.residuals, flags=flags, mode=self._mode,
                            damping=self._damping, collision=self._collision,
                            last_command_seq=self._last_command_seq, request_seq=request_seq,
-                           counters=P.Counters(**self._counts))
+                           counters=P.Counters(**self._counts),
+                           tick_p50_s=p50, tick_p99_s=p99, tick_max_s=worst)
 
     # ------------------------------------------------------- lockstep driving
     def poll(self) -> int:
@@ -447,11 +608,12 @@ class JointLayerServer:
 
         For simulations that drive the layer in simulated time instead of a
         wall-clock thread (see :meth:`tick`). Returns the number handled.
+        No rate limit applies here (the simulation owns the clock).
         """
         handled = 0
         item = self.transport.recv(0.0)
         while item is not None:
-            self._handle(*item)
+            self._handle_safe(*item)
             handled += 1
             item = self.transport.recv(0.0)
         return handled
@@ -514,6 +676,7 @@ class JointLayerServer:
         now = time.monotonic()
         end = None if duration is None else now + duration
         next_tick = now + period
+        self._last_tick_wall = None
         while not self._stop.is_set():
             now = time.monotonic()
             if end is not None and now >= end:
@@ -524,63 +687,148 @@ class JointLayerServer:
                     next_tick += behind * period
                     with self._lock:
                         self._count(overruns=behind)
+                self._record_tick(now)
                 self._tick(period)
                 next_tick += period
                 continue
             wait = next_tick - now
             if end is not None:
                 wait = min(wait, max(end - now, 0.0))
-            item = self.transport.recv(wait)
-            handled = 0
-            while item is not None:
-                self._handle(*item)
-                handled += 1
-                if handled >= 64 or time.monotonic() >= next_tick:
+            try:
+                item = self.transport.recv(wait)
+            except OSError:
+                if self._stop.is_set():
                     break
+                raise
+            if item is not None:
+                self._handle_batch(item, next_tick)
+
+    def _handle_batch(self, first, next_tick: float) -> None:
+        """Read up to ``max_batch`` datagrams, drop rate-limited strangers, handle the owner's first."""
+        owner_items, others = [], []
+        limiter, now = self._limiter, time.monotonic()
+        item = first
+        while item is not None:
+            owner = self._owner
+            if owner is not None and item[1] == owner.addr:
+                owner_items.append(item)
+            elif limiter.allow(item[1], now):
+                others.append(item)
+            else:
+                self._counts["rate_limited"] += 1
+            if len(owner_items) + len(others) >= self.config.max_batch or time.monotonic() >= next_tick:
+                break
+            try:
                 item = self.transport.recv(0.0)
+            except OSError:
+                break
+        for item in owner_items:
+            self._handle_safe(*item)
+        for item in others:
+            self._handle_safe(*item)
+
+    def _record_tick(self, now: float) -> None:
+        last, self._last_tick_wall = self._last_tick_wall, now
+        if last is None:
+            return
+        with self._lock:
+            self._ticks.append((now, now - last))
+            while self._ticks and self._ticks[0][0] < now - 1.0:
+                self._ticks.popleft()
 
     def _count(self, **inc):
         for k, v in inc.items():
             self._counts[k] += v
 
+    def _event(self, kind: str, text: str = "") -> None:
+        self._events.append(ServerEvent(time.monotonic(), float(self._core_state.t), kind, text))
+
+    def _fault(self, text: str) -> None:
+        """Stop the core (if it still can), go IDLE and flag FAULT; never raises."""
+        first = not self._flags & _F.FAULT
+        self._flags |= _F.FAULT
+        if first:
+            self._count(faults=1)
+            self._event("fault", text)
+        try:
+            self._enter_mode(P.Mode.IDLE)
+        except Exception:            # a core that cannot even stop: keep serving, stay in FAULT
+            self._mode = P.Mode.IDLE
+            self._v_ref = np.zeros(3)
+            self._v_target = np.zeros(3)
+            self._armed = False
+
     def _tick(self, dt: float) -> None:
         with self._lock:
-            cs = self._core_state
-            if self._mode == P.Mode.VELOCITY:
-                if self._armed and self._t_ctrl >= self._deadline:
-                    self._armed = False
-                    self._v_target = np.zeros(3)
-                    self._flags |= _F.WATCHDOG_STOP
-                    self._count(watchdog_stops=1)
-                braked = brake_velocity(cs.theta, self._v_target, self.limits, dt,
-                                        theta_dot_now=self._v_ref)
-                if np.array_equal(braked, self._v_target):
-                    self._flags &= ~_F.LIMIT_BRAKE
-                else:
-                    self._flags |= _F.LIMIT_BRAKE
-                self._v_ref = ramp_velocity(self._v_ref, braked, self.limits.max_accel_rad_s2, dt)
-                if not self._armed and not np.any(self._v_ref):
-                    if not self._holding:      # at rest without a live command: hold position
-                        self.core.stop()
-                        self._holding = True
-                else:
-                    self._holding = False
-                    self.core.apply_velocity(self._v_ref.copy())
-            self.core.step(dt)
-            self._t_ctrl += dt
-            self._core_state = cs = self.core.state()
-            over_speed = np.any(np.abs(cs.theta_dot)
-                                > self.config.fault_speed_factor * self.limits.max_speed_rad_s)
-            out = self._range_fault(cs)
-            if (over_speed or out) and not self._flags & _F.FAULT:
-                self._flags |= _F.FAULT
-                self._enter_mode(P.Mode.IDLE)
+            try:
+                self._tick_core(dt)
+            except Exception as exc:       # noqa: BLE001 - the shell faults, never crashes
+                self._fault(f"exception in the control tick: {type(exc).__name__}: {exc}")
+            owner = self._owner
+            if owner is not None and self._t_ctrl - owner.last_seen > self.config.lease_s:
+                self._end_session(f"lease expired ({self.config.lease_s:g} s without a datagram)")
+
+    def _tick_core(self, dt: float) -> None:
+        cs = self._core_state
+        if self._mode == P.Mode.VELOCITY:
+            if self._armed and self._t_ctrl >= self._deadline:
+                self._armed = False
+                self._v_target = np.zeros(3)
+                self._flags |= _F.WATCHDOG_STOP
+                self._count(watchdog_stops=1)
+                self._event("watchdog_stop", f"no velocity command for {self.config.watchdog_s:g} s")
+            braked = brake_velocity(cs.theta, self._v_target, self.limits, dt,
+                                    theta_dot_now=self._v_ref)
+            if np.array_equal(braked, self._v_target):
+                self._flags &= ~_F.LIMIT_BRAKE
+            else:
+                self._flags |= _F.LIMIT_BRAKE
+            v_ref = ramp_velocity(self._v_ref, braked, self.limits.max_accel_rad_s2, dt)
+            if not np.all(np.isfinite(v_ref)):
+                raise FloatingPointError(f"velocity reference {v_ref.tolist()} is not finite")
+            self._v_ref = v_ref
+            if not self._armed and not np.any(self._v_ref):
+                if not self._holding:      # at rest without a live command: hold position
+                    self.core.stop()
+                    self._holding = True
+            else:
+                self._holding = False
+                self.core.apply_velocity(self._v_ref.copy())
+        self.core.step(dt)
+        self._t_ctrl += dt
+        new = self.core.state()
+        if not all(np.all(np.isfinite(np.asarray(x, dtype=float)))
+                   for x in (new.t, new.theta, new.theta_dot, new.strains, new.residuals)):
+            self._fault("core state holds NaN or infinite values")   # keep the last finite state
+            return
+        self._core_state = cs = new
+        over_speed = np.any(np.abs(cs.theta_dot)
+                            > self.config.fault_speed_factor * self.limits.max_speed_rad_s)
+        out = self._range_fault(cs)
+        over_accel = self._accel_fault(cs)
+        if (over_speed or out or over_accel) and not self._flags & _F.FAULT:
+            what = "speed" if over_speed else "range" if out else "acceleration"
+            self._fault(f"core state outside the {what} limits")
+
+    def _accel_fault(self, cs) -> bool:
+        factor = self.config.fault_accel_factor
+        if factor is None:
+            return False
+        w = self._speeds
+        w.append((float(cs.t), np.asarray(cs.theta_dot, dtype=float)))
+        while len(w) > 2 and w[1][0] <= cs.t - self.config.accel_window_s:
+            w.popleft()
+        span = w[-1][0] - w[0][0]
+        if span < 0.5 * self.config.accel_window_s:
+            return False
+        accel = np.abs(w[-1][1] - w[0][1]) / span
+        return bool(np.any(accel > factor * self.limits.max_accel_rad_s2))
 
     def _range_fault(self, cs) -> bool:
         """A joint left its range (beyond the tolerance) on this tick, or is outside and moving further out.
 
         A joint that is already outside and at rest or moving back does not
-        fault again, so a cleared fault sticks and a setpoint can bring the
+        fault again, so a reset fault sticks and a setpoint can bring the
         arm back into its range.
         """
         lim, tol = self.limits.joint_limits_rad, self.config.fault_range_tol_rad
@@ -605,54 +853,171 @@ class JointLayerServer:
             self._armed = False
         self._mode = mode
 
-    # --------------------------------------------------------------- packets
-    def _client(self, addr) -> _Client:
-        c = self._clients.get(addr)
-        if c is None:
-            c = self._clients[addr] = _Client()
-            while len(self._clients) > self.config.max_clients:
-                self._clients.popitem(last=False)
-        else:
-            self._clients.move_to_end(addr)
-        return c
+    # --------------------------------------------------------------- sessions
+    def _end_session(self, reason: str) -> None:
+        o = self._owner
+        if o is None:
+            return
+        o.end_reason = reason
+        self._owner = None
+        self._ended[o.sid] = o
+        while len(self._ended) > 16:
+            self._ended.popitem(last=False)
+        self._event("session_end", f"session {o.sid:#010x}: {reason}")
 
-    def _send(self, msg, addr) -> bytes:
+    def _new_sid(self) -> int:
+        while True:
+            sid = int.from_bytes(os.urandom(4), "big")
+            if sid and sid not in self._ended:
+                return sid
+
+    def _handshake(self, header, msg, addr) -> None:
+        cfg, now = self.config, time.monotonic()
+        if self._key is None and not _is_loopback(addr):
+            self._count(unauthenticated=1)
+            return
+        while self._challenges and next(iter(self._challenges.values()))[2] < now - cfg.handshake_timeout_s:
+            self._challenges.popitem(last=False)
+        if isinstance(msg, P.Hello):
+            nonce = P.new_nonce()
+            self._challenges[nonce] = (addr, msg.client_nonce, now)
+            while len(self._challenges) > cfg.max_clients:
+                self._challenges.popitem(last=False)
+            self._send(P.Challenge(client_nonce=msg.client_nonce, server_nonce=nonce), addr, key=self._key)
+            return
+        if not isinstance(msg, P.OpenSession):
+            self._count(malformed=1)      # Challenge/Welcome sent to the layer: protocol misuse
+            return
+        o = self._owner
+        if o is not None and o.server_nonce == msg.server_nonce and o.addr == addr:
+            self._transmit(o.welcome, addr)     # the Welcome was lost: same answer again
+            return
+        pending = self._challenges.pop(msg.server_nonce, None)
+        if pending is None or pending[0] != addr or pending[1] != msg.client_nonce:
+            self._count(replayed=1)             # unknown, used or expired challenge: a replay
+            return
+        if o is not None and o.addr != addr:
+            if not (msg.takeover and cfg.allow_takeover):
+                self._count(not_owner=1)
+                left = max(cfg.lease_s - (self._t_ctrl - o.last_seen), 0.0)
+                self._send(P.Refusal(command_seq=header.seq, code=P.Reason.NOT_OWNER,
+                                     text=f"another client holds the lease (expires after {left:.2f} s "
+                                          f"of silence); open with takeover to take it"),
+                           addr, key=self._key)
+                return
+            self._end_session(f"taken over by {addr}")
+            self._event("takeover", f"by {addr}: arm stopped, mode IDLE")
+            self._enter_mode(P.Mode.IDLE)
+        elif o is not None:
+            self._end_session("reopened by the same client")
+        sid = self._new_sid()
+        skey = P.session_key(self._key, msg.client_nonce, msg.server_nonce, sid)
+        welcome = P.Welcome(client_nonce=msg.client_nonce, session=sid, lease_s=cfg.lease_s)
         self._seq = P.seq_add(self._seq)
-        data = P.encode(msg, self._seq, time.monotonic())
+        data = P.encode(welcome, self._seq, time.monotonic(), key=self._key)
+        self._owner = _Session(sid, addr, skey, msg.server_nonce, data, self._t_ctrl)
+        self._event("session_open", f"session {sid:#010x} for {addr}")
+        self._transmit(data, addr)
+
+    # --------------------------------------------------------------- packets
+    def _transmit(self, data: bytes, addr) -> None:
         try:
             self.transport.send(data, addr)
         except OSError:
             pass    # datagram semantics: a failed reply is a lost reply
+
+    def _send(self, msg, addr, *, key=None, session: int = 0) -> bytes:
+        self._seq = P.seq_add(self._seq)
+        data = P.encode(msg, self._seq, time.monotonic(), session=session, key=key)
+        self._transmit(data, addr)
         return data
+
+    def _handle_safe(self, data: bytes, addr) -> None:
+        try:
+            self._handle(data, addr)
+        except Exception as exc:     # noqa: BLE001 - the shell faults, never crashes
+            with self._lock:
+                self._fault(f"exception while handling a datagram: {type(exc).__name__}: {exc}")
 
     def _handle(self, data: bytes, addr) -> None:
         t_recv = time.monotonic()
         with self._lock:
             try:
-                header, msg = P.decode(data)
+                sid, _, _ = P.peek(data)
+            except P.ProtocolError:
+                self._count(malformed=1)
+                return
+            owner = self._owner
+            if sid == 0:
+                session, key = None, self._key
+            elif owner is not None and sid == owner.sid:
+                session, key = owner, owner.key
+            elif sid in self._ended:
+                session = self._ended[sid]
+                key = session.key
+            elif self._key is not None:
+                self._count(unauthenticated=1)    # no key known for it: cannot be checked
+                return
+            else:
+                session, key = None, None
+            try:
+                header, msg = P.decode(data, key=key)
+            except P.Unauthenticated:
+                self._count(unauthenticated=1)
+                return
             except P.ProtocolError as err:
                 self._count(malformed=1)
                 h = err.header
-                if h is not None and h.msg_type in (P.MsgType.VELOCITY, P.MsgType.SETPOINT,
-                                                    P.MsgType.MODE, P.MsgType.PAYLOAD):
+                if (h is not None and session is owner and owner is not None and addr == owner.addr
+                        and h.msg_type in (P.MsgType.VELOCITY, P.MsgType.SETPOINT,
+                                           P.MsgType.MODE, P.MsgType.PAYLOAD)
+                        and owner.client.classify(h.seq, self.config.seq_window,
+                                                  self.config.seq_ahead) == "new"):
+                    owner.last_seen = self._t_ctrl
                     self._flags |= _F.REFUSED
-                    self._send(P.Refusal(command_seq=h.seq, code=err.reason, text=str(err)), addr)
+                    self._send(P.Refusal(command_seq=h.seq, code=err.reason, text=str(err)), addr,
+                               key=owner.key, session=owner.sid)
                 return
+            if sid == 0:
+                if isinstance(msg, P.StateRequest):
+                    self._send(self.state(request_seq=header.seq), addr, key=self._key)
+                elif isinstance(msg, P.SESSION_TYPES):
+                    self._handshake(header, msg, addr)
+                elif isinstance(msg, P.COMMAND_TYPES):
+                    self._count(not_owner=1)
+                    self._send(P.Refusal(command_seq=header.seq, code=P.Reason.NO_SESSION,
+                                         text="no session: open one (Hello) before sending commands"),
+                               addr, key=self._key)
+                else:
+                    self._count(malformed=1)
+                return
+            if session is None or session.addr != addr or session is not owner:
+                self._count(not_owner=1)
+                if session is not None and session.addr == addr:      # an ended session of this client
+                    text = f"session ended: {session.end_reason}"
+                    code = P.Reason.NO_SESSION
+                else:
+                    text, code = "not the session owner", P.Reason.NOT_OWNER
+                if isinstance(msg, (P.StateRequest, *P.COMMAND_TYPES)):
+                    self._send(P.Refusal(command_seq=header.seq, code=code, text=text), addr,
+                               key=key, session=sid)
+                return
+            client = owner.client
+            verdict = client.classify(header.seq, self.config.seq_window, self.config.seq_ahead)
+            if verdict == "replayed":
+                self._count(replayed=1)
+                return
+            owner.last_seen = self._t_ctrl
             if isinstance(msg, P.StateRequest):
-                self._send(self.state(request_seq=header.seq), addr)
+                self._send(self.state(request_seq=header.seq), addr, key=key, session=sid)
                 return
             if not isinstance(msg, P.COMMAND_TYPES):
                 self._count(malformed=1)     # replies sent to the server: protocol misuse
                 return
-            client = self._client(addr)
-            verdict = client.classify(header.seq, self.config.seq_window)
             if verdict == "duplicate":
                 self._count(duplicates=1)
                 if client.last_reply is not None and client.last_reply[0] == header.seq:
-                    try:
-                        self.transport.send(client.last_reply[1], addr)
-                    except OSError:
-                        pass
+                    self._transmit(client.last_reply[1], addr)
                 return
             if verdict == "stale":
                 self._count(stale=1)
@@ -665,10 +1030,17 @@ class JointLayerServer:
                 reply = P.Refusal(command_seq=header.seq, code=P.Reason.STALE,
                                   text=f"command arrived {age * 1e3:.0f} ms late")
             else:
-                reply = self._execute(msg, header.seq)
+                try:
+                    reply = self._execute(msg, header.seq)
+                except Exception as exc:     # noqa: BLE001 - the shell faults, never crashes
+                    self._fault(f"exception executing {type(msg).__name__}: {type(exc).__name__}: {exc}")
+                    reply = self._refuse(header.seq, P.Reason.INTERNAL,
+                                         f"internal error ({type(exc).__name__}); core stopped, FAULT")
             self._log.append(CommandRecord(t_wall=t_recv, t_core=self._core_state.t, client=addr,
-                                           seq=header.seq, msg=msg, code=reply.code))
-            client.last_reply = (header.seq, self._send(reply, addr))
+                                           seq=header.seq, msg=msg, code=reply.code, session=sid))
+            client.last_reply = (header.seq, self._send(reply, addr, key=key, session=sid))
+            if isinstance(msg, P.Release) and isinstance(reply, P.Ack):
+                self._end_session("released by its owner")
 
     def _refuse(self, seq: int, code: P.Reason, text: str) -> P.Refusal:
         self._count(refused=1)
@@ -684,6 +1056,13 @@ class JointLayerServer:
         return P.Ack(command_seq=seq, code=code, text=text)
 
     def _execute(self, msg, seq: int):
+        if isinstance(msg, P.Release):
+            return self._accept(seq, P.Reason.OK, "session released")
+        if isinstance(msg, P.FaultReset):
+            if self._flags & _F.FAULT:
+                self._flags &= ~(_F.FAULT | _F.WATCHDOG_STOP)
+                self._event("fault_reset", "by the session owner")
+            return self._accept(seq, P.Reason.OK, "")
         if isinstance(msg, P.ModeSwitch):
             damping = self._damping if msg.damping is None else msg.damping
             collision = self._collision if msg.collision is None else msg.collision
@@ -692,8 +1071,9 @@ class JointLayerServer:
                 self._damping, self._collision = damping, collision
             if msg.mode is not None:
                 self._enter_mode(msg.mode)
-            self._flags &= ~(_F.FAULT | _F.WATCHDOG_STOP)
-            return self._accept(seq, P.Reason.OK, "")
+            self._flags &= ~_F.WATCHDOG_STOP        # a mode switch never clears FAULT
+            return self._accept(seq, P.Reason.OK, "fault stop still set: send a fault reset"
+                                if self._flags & _F.FAULT else "")
         if isinstance(msg, P.PayloadUpdate):
             m = msg.payload_kg
             if not 0.0 <= m <= MAX_PAYLOAD_KG:
@@ -706,7 +1086,7 @@ class JointLayerServer:
             set_payload(m)
             return self._accept(seq, P.Reason.OK, "")
         if self._flags & _F.FAULT:
-            return self._refuse(seq, P.Reason.FAULT, "fault stop; send a mode switch to clear")
+            return self._refuse(seq, P.Reason.FAULT, "fault stop; the owner must send a fault reset")
         want = P.Mode.VELOCITY if isinstance(msg, P.JointVelocityCommand) else P.Mode.SETPOINT
         if self._mode != want:
             return self._refuse(seq, P.Reason.WRONG_MODE,
