@@ -39,9 +39,10 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from tudorvision.joint.collision import (DEFAULT_K_I, CollisionMonitor, ResidualCoupling, StrainDynamicsModel, aprbs,
-                                         derivatives, fit_report, fit_residual_coupling, fit_strain_dynamics, reaction_config,
-                                         root_torque_per_strain, thresholds_from_residuals)
+from tudorvision.joint.collision import (DEFAULT_K_I, CollisionMonitor, ResidualCoupling, fit_residual_coupling,
+                                         reaction_config, root_torque_per_strain, thresholds_from_residuals)
+from tudorvision.joint.strain_dynamics import (StrainDynamicsModel, aprbs, derivatives, fit_report,
+                                               fit_strain_dynamics)
 from tudorvision.joint.damping import DampingConfig, StrainDamper
 from tudorvision.joint.identification import fit_with_validation
 from tudorvision.robot import load_robot_params

@@ -51,7 +51,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from tudorvision.joint.cascade import friction_compensation
-from tudorvision.joint.collision import StrainDynamicsModel, aprbs, derivatives
+from tudorvision.joint.strain_dynamics import StrainDynamicsModel, aprbs, derivatives
 from tudorvision.joint.identification import fit_with_validation
 from tudorvision.joint.damping import (ASSISTED_GAINS, ONE_WAY_GAINS, TWO_WAY_GAINS, DampingConfig,
                                        StrainDamper)

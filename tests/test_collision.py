@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from tudorvision.joint.collision import (N_PARAMS, Admittance, CollisionMonitor, MomentumObserver, ReactionConfig,
-                                         StrainDynamicsModel, aprbs, derivatives, fit_report, fit_strain_dynamics,
-                                         isolate, reaction_config, regressor, regressor_payload,
-                                         thresholds_from_residuals)
+from tudorvision.joint.collision import (Admittance, CollisionMonitor, MomentumObserver, ReactionConfig, isolate,
+                                         reaction_config, thresholds_from_residuals)
+from tudorvision.joint.strain_dynamics import (N_PARAMS, StrainDynamicsModel, aprbs, derivatives, fit_report,
+                                               fit_strain_dynamics, regressor, regressor_payload)
 
 
 def _true_model(rng):

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from tudorvision.joint.collision import (N_PARAMS, CollisionMonitor, ResidualCoupling, StrainDynamicsModel,
-                                         fit_residual_coupling, reaction_config)
+from tudorvision.joint.collision import CollisionMonitor, ResidualCoupling, fit_residual_coupling, reaction_config
+from tudorvision.joint.strain_dynamics import N_PARAMS, StrainDynamicsModel
 
 DT = 5e-4
 

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from tudorvision.joint.collision import StrainDynamicsModel
+from tudorvision.joint.strain_dynamics import StrainDynamicsModel
 from tudorvision.joint.identification import fit_with_validation
 
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .collision import StrainDynamicsModel, fit_report, fit_strain_dynamics
+from .strain_dynamics import StrainDynamicsModel, fit_report, fit_strain_dynamics
 
 __all__ = ["fit_with_validation"]
 
