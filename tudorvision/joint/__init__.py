@@ -5,45 +5,35 @@ the layer (:class:`JointLayerServer` around a core such as the simulated
 arm) owns safety, damping and collision handling.
 """
 from .adapter import AdapterStats, JointAdapter
-from .collision import (N_PARAMS, STRATEGIES, STRATEGY_OF_CODE, Admittance, CollisionMonitor, FitReport,
-                        MomentumObserver, ReactionConfig, StrainDynamicsModel, aprbs, derivatives, fit_report,
-                        fit_strain_dynamics, isolate, reaction_config, regressor, regressor_payload,
-                        root_torque_per_strain, thresholds_from_residuals)
-from .damping import (DEFAULT_GAINS, GAUGE_OF_JOINT, LAWS, ONE_WAY_GAINS, PAYLOAD_SCHEDULE, TWO_WAY_GAINS,
-                      DampingConfig, SosFilter, StaticStrainFilter, StrainDamper, default_damping_config,
-                      half_integrator_sos, highpass_response, moving_average_fir, pade_p55, payload_gain_factor,
-                      proportional_feedback, static_strain_fir)
-from .metrics import (ANGLE_BAND_RAD, METRIC_NAMES, STRAIN_BAND, damping_metrics, goodness_of_fit, iate, iats,
-                      max_abs, normalise_metrics, nrmse, settling_time, spectral_amplitude)
 from .cascade import CascadeGains, JointCascade, design_cascade
-from .planner import JointMotion, OnlinePlanner, plan_motion, sinusoidal_transition
+from .collision import CollisionMonitor, MomentumObserver, ReactionConfig, reaction_config
+from .strain_dynamics import StrainDynamicsModel, fit_strain_dynamics
+from .damping import DampingConfig, StrainDamper, default_damping_config
+from .metrics import damping_metrics, settling_time
+from .planner import JointMotion, OnlinePlanner, plan_motion
 from .protocol import (Ack, CollisionStrategy, Damping, JointSetpoint, JointVelocityCommand, Mode, ModeSwitch,
                        PayloadUpdate, ProtocolError, Reason, Refusal, State, StateFlags, StateRequest, decode, encode)
-from .proxy import FaultModel, GilbertElliott, LossyUdpProxy
-from .safety import (SafetyLimits, SafetyPolicy, brake_velocity, check_setpoint, check_velocity_command,
-                     ramp_velocity, stopping_time, within_range)
+from .proxy import FaultModel, LossyUdpProxy
+from .safety import SafetyLimits, SafetyPolicy
 from .server import (CoreState, JointCore, JointLayerServer, KinematicCore, ServerConfig, core_names,
                      make_core, register_core)
 from .transport import InProcessTransport, LockstepClientTransport, Transport, TransportClosed, UdpTransport
 
 __all__ = [
-    "AdapterStats", "JointAdapter",
-    "N_PARAMS", "STRATEGIES", "STRATEGY_OF_CODE", "Admittance", "CollisionMonitor", "FitReport", "MomentumObserver",
-    "ReactionConfig", "StrainDynamicsModel", "aprbs", "derivatives", "fit_report", "fit_strain_dynamics", "isolate",
-    "reaction_config", "regressor", "regressor_payload", "root_torque_per_strain", "thresholds_from_residuals",
-    "DEFAULT_GAINS", "GAUGE_OF_JOINT", "LAWS", "ONE_WAY_GAINS", "PAYLOAD_SCHEDULE", "TWO_WAY_GAINS", "DampingConfig", "SosFilter",
-    "StaticStrainFilter", "StrainDamper", "default_damping_config", "half_integrator_sos", "highpass_response",
-    "moving_average_fir", "pade_p55", "payload_gain_factor", "proportional_feedback", "static_strain_fir",
-    "ANGLE_BAND_RAD", "METRIC_NAMES", "STRAIN_BAND", "damping_metrics", "goodness_of_fit", "iate", "iats", "max_abs",
-    "normalise_metrics", "nrmse", "settling_time", "spectral_amplitude",
-    "CascadeGains", "JointCascade", "design_cascade",
-    "JointMotion", "OnlinePlanner", "plan_motion", "sinusoidal_transition",
-    "Ack", "CollisionStrategy", "Damping", "JointSetpoint", "JointVelocityCommand", "Mode", "ModeSwitch",
-    "PayloadUpdate", "ProtocolError", "Reason", "Refusal", "State", "StateFlags", "StateRequest", "decode", "encode",
-    "FaultModel", "GilbertElliott", "LossyUdpProxy",
-    "SafetyLimits", "SafetyPolicy", "brake_velocity", "check_setpoint", "check_velocity_command",
-    "ramp_velocity", "stopping_time", "within_range",
-    "CoreState", "JointCore", "JointLayerServer", "KinematicCore", "ServerConfig", "core_names", "make_core",
-    "register_core",
-    "InProcessTransport", "LockstepClientTransport", "Transport", "TransportClosed", "UdpTransport",
+    # what perception talks to
+    "JointAdapter", "AdapterStats",
+    # the wire protocol
+    "Mode", "CollisionStrategy", "Damping", "JointSetpoint", "JointVelocityCommand", "ModeSwitch", "PayloadUpdate",
+    "StateRequest", "State", "StateFlags", "Ack", "Refusal", "Reason", "ProtocolError", "encode", "decode",
+    # the layer and its cores
+    "JointLayerServer", "ServerConfig", "JointCore", "CoreState", "KinematicCore", "make_core", "register_core",
+    "core_names", "SafetyLimits", "SafetyPolicy",
+    # transports and the lossy test proxy
+    "Transport", "TransportClosed", "UdpTransport", "InProcessTransport", "LockstepClientTransport",
+    "LossyUdpProxy", "FaultModel",
+    # control: cascade, planning, damping, collision handling
+    "CascadeGains", "JointCascade", "design_cascade", "JointMotion", "OnlinePlanner", "plan_motion",
+    "DampingConfig", "StrainDamper", "default_damping_config",
+    "CollisionMonitor", "MomentumObserver", "ReactionConfig", "reaction_config", "StrainDynamicsModel",
+    "fit_strain_dynamics", "damping_metrics", "settling_time",
 ]
