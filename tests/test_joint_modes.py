@@ -6,8 +6,10 @@ import pytest
 
 from tudorvision.joint import (Ack, CollisionMonitor, CollisionStrategy, Damping, DampingConfig, InProcessTransport,
                                JointAdapter, JointLayerServer, LockstepClientTransport, Mode, MomentumObserver,
-                               ONE_WAY_GAINS, StateFlags, StrainDamper, aprbs, derivatives, fit_strain_dynamics,
-                               thresholds_from_residuals)
+                               StateFlags, StrainDamper, fit_strain_dynamics)
+from tudorvision.joint.collision import thresholds_from_residuals
+from tudorvision.joint.damping import ONE_WAY_GAINS
+from tudorvision.joint.strain_dynamics import aprbs, derivatives
 from tudorvision.joint.server import ServerConfig
 from tudorvision.robot import load_robot_params
 from tudorvision.sim.arm import ElasticArm, Payload, PlantConfig, SpringDamperObstacle
@@ -225,7 +227,8 @@ def test_model_assisted_damping_through_the_adapter_settles_sooner():
 
 
 def test_sim_core_passes_the_residual_coupling_to_the_monitor():
-    from tudorvision.joint.collision import ResidualCoupling, StrainDynamicsModel
+    from tudorvision.joint.collision import ResidualCoupling
+    from tudorvision.joint.strain_dynamics import StrainDynamicsModel
     model = StrainDynamicsModel(chi=np.zeros((2, 32)))
     coupling = ResidualCoupling(c0=0.24, c1=0.29, threshold=1.2e-5)
     core = SimCore(params=P, collision_model=model, collision_thresholds=[6e-4, 2e-4], collision_coupling=coupling)

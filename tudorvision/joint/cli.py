@@ -146,7 +146,8 @@ def _core_options(args) -> dict:
     import os
 
     from .._checks import TudorVisionError
-    from .collision import N_PARAMS, ResidualCoupling, StrainDynamicsModel
+    from .collision import ResidualCoupling
+    from .strain_dynamics import N_PARAMS, StrainDynamicsModel
     opts = {}
     if (args.collision_model or args.damping_model) and args.core != "sim":
         raise TudorVisionError(f"--collision-model/--damping-model: only for --core sim, not {args.core!r}")
