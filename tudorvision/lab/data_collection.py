@@ -45,7 +45,7 @@ import numpy as np
 from .._progress import progress
 
 __all__ = ["CollectionOptions", "DEMO_COLLECTION", "PACKAGED_DIR", "collect_settled_poses", "load_or_collect",
-           "remap_errors", "stereo_base_calibration"]
+           "remap_errors", "StereoLab"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -142,7 +142,7 @@ def collect_settled_poses(options: CollectionOptions = CollectionOptions(), para
         out["valid"] = np.ones(n, bool)
         return out
     # stereo: render each settled pose (the arm's shape: joint angles and tip deflections)
-    lab = _StereoLab(p, seed=options.seed)
+    lab = StereoLab(p, seed=options.seed)
     poses = [(a[i, 0:3], tips[i][0], tips[i][1]) for i in range(n)]
     meas = np.full((n, 3), np.nan)
     for i in progress(range(n), desc="stereo poses", enabled=show_progress):
@@ -153,8 +153,22 @@ def collect_settled_poses(options: CollectionOptions = CollectionOptions(), para
     return out
 
 
-class _StereoLab:
-    """The ceiling stereo rig of the virtual lab, the stereo tracker and the lab's base calibration."""
+class StereoLab:
+    """The ceiling stereo rig of the virtual lab, the stereo tracker and the lab's base calibration.
+
+    Renders the arm in a given (settled) shape and measures its end effector
+    with the project's stereo pipeline, as a lab would with real cameras:
+    colour models from one pick per camera and sphere, the base frame from a
+    theta1 sweep (:meth:`calibrate_base`), never from the scene's ground truth.
+
+    Parameters
+    ----------
+    params : RobotParams
+    seed : int
+        Lighting and clutter of the rendered lab.
+    sweep_deg : (float, float, float)
+        theta1 sweep ``(start, stop, step)`` in degrees for the base calibration.
+    """
 
     def __init__(self, params, *, seed: int = 0, sweep_deg=(-80.0, 80.0, 10.0)):
         from .record import T_WORLD_BASE, calibration_from_cameras, elastic_arm_geometry
@@ -177,8 +191,8 @@ class _StereoLab:
         models = fit_color_model_set({"left": pair[0], "right": pair[1]}, picks)
         self._opts = PipelineOptions(sphere_separation_m=float(np.linalg.norm(
             np.subtract(*params.sphere_offsets_ee_m.values()))))
-        self._left_pipe = StereoPipeline(self.calibration, models, options=self._opts)
-        self.T_base_left = stereo_base_calibration(self, sweep_deg)
+        self._camera_pipe = StereoPipeline(self.calibration, models, options=self._opts)
+        self.T_base_left = self.calibrate_base(sweep_deg)
         self.pipe = StereoPipeline(self.calibration, models, T_base_left=self.T_base_left, options=self._opts)
 
     def _set_shape(self, theta, tip2=None, tip3=None) -> None:
@@ -223,34 +237,42 @@ class _StereoLab:
         res = pipe.process(StereoFrame(t=0.0, index=0, left=left, right=right))
         return np.asarray(res.ee, float) if res.valid else np.full(3, np.nan)
 
+    def calibrate_base(self, sweep_deg=(-80.0, 80.0, 10.0)) -> np.ndarray:
+        """``T_base_left`` from a rendered theta1 sweep (theta2 = theta3 = 0) and the vertical posture.
+
+        The seed's base calibration (section B.5) with the project's tracker
+        and :func:`tudorvision.stereo.base_frame_from_sweep`.
+
+        Parameters
+        ----------
+        sweep_deg : (float, float, float)
+            ``(start, stop, step)`` of theta1, degrees.
+
+        Returns
+        -------
+        ndarray, shape (4, 4)
+            Left camera to robot base.
+        """
+        from ..stereo import base_frame_from_sweep
+
+        a, b, st = sweep_deg
+        n = int(round((b - a) / st)) + 1
+        th = np.column_stack([np.deg2rad(np.arange(a, b + 1e-9, st)), np.zeros(n), np.zeros(n)])
+        pts = []
+        for t in th:
+            self._set_shape(t)
+            pts.append(self._track(self._camera_pipe))
+        pts = np.array(pts)
+        ok = np.all(np.isfinite(pts), axis=1)
+        self._set_shape(np.deg2rad([0.0, 90.0, 0.0]))
+        vert = self._track(self._camera_pipe)
+        T, _ = base_frame_from_sweep(pts[ok], th[ok], vert if np.all(np.isfinite(vert)) else None, self.params)
+        return T
+
     def measure(self, theta, tip2, tip3) -> np.ndarray:
         """End effector of the settled pose in the base frame (calibrated), NaN if not tracked."""
         self._set_shape(theta, tip2, tip3)
         return self._track(self.pipe)
-
-
-def stereo_base_calibration(lab, sweep_deg=(-80.0, 80.0, 10.0)) -> np.ndarray:
-    """``T_base_left`` from a rendered theta1 sweep (theta2 = theta3 = 0) and the vertical posture.
-
-    The seed's base calibration (section B.5) with the project's tracker and
-    :func:`tudorvision.stereo.base_frame_from_sweep`; ``lab`` is the
-    collection's stereo lab (private).
-    """
-    from ..stereo import base_frame_from_sweep
-
-    a, b, st = sweep_deg
-    th = np.column_stack([np.deg2rad(np.arange(a, b + 1e-9, st)), np.zeros(int(round((b - a) / st)) + 1),
-                          np.zeros(int(round((b - a) / st)) + 1)])
-    pts = []
-    for t in th:
-        lab._set_shape(t)
-        pts.append(lab._track(lab._left_pipe))
-    pts = np.array(pts)
-    ok = np.all(np.isfinite(pts), axis=1)
-    lab._set_shape(np.deg2rad([0.0, 90.0, 0.0]))
-    vert = lab._track(lab._left_pipe)
-    T, _ = base_frame_from_sweep(pts[ok], th[ok], vert if np.all(np.isfinite(vert)) else None, lab.params)
-    return T
 
 
 def remap_errors(ikm, params=None, *, n: int = 50, seed: int = 0, payload_range_kg=(0.0, 0.4),
