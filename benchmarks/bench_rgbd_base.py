@@ -46,7 +46,7 @@ import numpy as np
 
 from tudorvision.geometry import invert_transform, rotation_angle
 from tudorvision.io import open_sequence
-from tudorvision.rgbd.base_calib import base_frame_from_sweep
+from tudorvision.rgbd.base_calib import base_frame_from_theta2_sweep
 from tudorvision.cli.calib_rgbd import camera_for_sweep, observe_sweep
 from tudorvision.cli.rgbd import noise_model_from_calibration
 from tudorvision.rgbd.disc import DiscOptions
@@ -85,7 +85,7 @@ def evaluate(path: Path) -> dict:
         opts = DiscOptions(disc_radius_m=DISC_RADIUS_M, depth_model=noise_model_from_calibration(cal), **disc_kw)
         t0 = time.perf_counter()
         obs = observe_sweep(seq, K, seed_uv, opts)
-        T, rep = base_frame_from_sweep(obs["points_cam"], obs["vertical_cam"], theta2_rad=obs["theta2_rad"],
+        T, rep = base_frame_from_theta2_sweep(obs["points_cam"], obs["vertical_cam"], theta2_rad=obs["theta2_rad"],
                                        **fit_kw)
         dt = time.perf_counter() - t0
         p = truth[obs["frames"]]

@@ -4,7 +4,7 @@ import pytest
 
 from tudorvision._checks import TudorVisionError
 from tudorvision.geometry import invert_transform, rotation_angle, transform_points
-from tudorvision.rgbd.base_calib import base_frame_from_sweep
+from tudorvision.rgbd.base_calib import base_frame_from_theta2_sweep
 from tudorvision.rgbd.disc import DiscOptions, DiscTracker, observe_disc, segment_uniform_depth, track_disc
 from tudorvision.rgbd.frames import Intrinsics
 from tudorvision.robot import fk_ee, load_robot_params
@@ -124,13 +124,13 @@ def test_track_disc_and_recover_base_frame_at_5m():
     p_vert = sweep([90.0])[0]
     vertical = track_disc([render_depth(rng, T_true, [p_vert]) for _ in range(20)], K, project(T_true, p_vert))
     vertical = [o.centroid_cam for o in vertical]
-    T_est, rep = base_frame_from_sweep(pts, vertical, theta2_rad=np.radians(theta2))
+    T_est, rep = base_frame_from_theta2_sweep(pts, vertical, theta2_rad=np.radians(theta2))
     d_origin, d_angle = frame_errors(T_est, T_true)
     assert d_origin <= 0.01 and d_angle <= 1.0          # issue 4 acceptance on the virtual lab
     assert abs(rep["circle_radius_m"] - (PARAMS.link2_length_m + PARAMS.link3_length_m)) < 0.02
     assert rep["circle_rmse_m"] < 0.06 and len(rep["points_used"]) >= 0.95 * len(theta2)
     # the joint-2 origin option is the circle centre, link1_height above the base plate
-    T_j2, _ = base_frame_from_sweep(pts, vertical, theta2_rad=np.radians(theta2), origin="joint2")
+    T_j2, _ = base_frame_from_theta2_sweep(pts, vertical, theta2_rad=np.radians(theta2), origin="joint2")
     o_j2 = transform_points(T_j2, transform_points(invert_transform(T_true), [0, 0, PARAMS.link1_height_m]))
     assert np.linalg.norm(o_j2) < 0.01
 
@@ -146,7 +146,7 @@ def test_base_frame_exact_construction_with_outliers(seed):
     p_cam[rng.choice(np.setdiff1d(np.arange(30), bad))] = np.nan           # a lost sample
     vertical = transform_points(invert_transform(T_true), sweep([90.0])[0])
     order = rng.permutation(30) if seed % 2 else np.arange(30)              # sweep direction from theta2
-    T_est, rep = base_frame_from_sweep(p_cam[order], vertical, theta2_rad=np.radians(theta2[order]))
+    T_est, rep = base_frame_from_theta2_sweep(p_cam[order], vertical, theta2_rad=np.radians(theta2[order]))
     d_origin, d_angle = frame_errors(T_est, T_true)
     assert d_origin < 0.01 and d_angle < 1.0
     rejected = {r["index"]: r["reason"] for r in rep["rejected"]}
@@ -156,9 +156,9 @@ def test_base_frame_exact_construction_with_outliers(seed):
     p0 = transform_points(T_est, transform_points(invert_transform(T_true), sweep([0.0])[0]))
     assert p0[0] > 0.8 and abs(p0[1]) < 0.01
     # without theta2 the sample order gives the direction
-    T_ord, _ = base_frame_from_sweep(p_cam, vertical)
+    T_ord, _ = base_frame_from_theta2_sweep(p_cam, vertical)
     assert frame_errors(T_ord, T_true)[1] < 1.0
-    T_rev, _ = base_frame_from_sweep(p_cam[::-1], vertical)
+    T_rev, _ = base_frame_from_theta2_sweep(p_cam[::-1], vertical)
     assert frame_errors(T_rev, T_true)[1] > 170.0          # reversed sweep: x and y flip
 
 
@@ -193,16 +193,16 @@ def test_lost_disc_and_bad_sweeps():
     # too few circle points
     pts = transform_points(invert_transform(T), sweep([0.0, 30.0, 60.0, 90.0]))
     with pytest.raises(TudorVisionError, match="at least 6 valid points"):
-        base_frame_from_sweep(pts, pts[3])
+        base_frame_from_theta2_sweep(pts, pts[3])
     pts8 = transform_points(invert_transform(T), sweep(np.arange(0.0, 160.0, 20.0)))
     pts8[:4] = np.nan
     with pytest.raises(TudorVisionError, match="at least 6 valid points, got 4"):
-        base_frame_from_sweep(pts8, pts8[-1])
+        base_frame_from_theta2_sweep(pts8, pts8[-1])
     # vertical point at the circle centre
     full = transform_points(invert_transform(T), sweep(np.arange(0.0, 160.0, 20.0)))
     centre = transform_points(invert_transform(T), [0.0, 0.0, PARAMS.link1_height_m])
     with pytest.raises(TudorVisionError, match="from the circle centre"):
-        base_frame_from_sweep(full, centre)
+        base_frame_from_theta2_sweep(full, centre)
 
 
 def test_disc_depth_window_has_no_selection_bias_at_5m():

@@ -6,7 +6,7 @@ from tudorvision.cli import main
 from tudorvision.geometry import invert_transform, make_frame, transform_difference, transform_points
 from tudorvision.io.calibration import load_calibration
 from tudorvision.robot import fk_ee, load_robot_params
-from tudorvision.stereo.base_frame import base_frame_from_sweep
+from tudorvision.stereo.base_frame import base_frame_from_theta1_sweep
 from tudorvision.stereo.trajectory import trajectory_from_points, write_trajectory_csv
 
 P = load_robot_params()
@@ -52,7 +52,7 @@ def _sweep(rng, *, sag=0.03, noise=3e-4, deg=(-160, 160), n=60, outliers=0):
 def test_recovers_base_frame_with_sag_noise_and_outliers(seed):
     rng = np.random.default_rng(seed)
     th, pts, vert = _sweep(rng, outliers=3)
-    T, rep = base_frame_from_sweep(pts, th, vert, P)
+    T, rep = base_frame_from_theta1_sweep(pts, th, vert, P)
     dt, da = _errors(T)
     assert dt < 1e-3 and da < 0.2
     ws = fk_ee(np.random.default_rng(seed).uniform([-3, 0, -1.5], [3, 2, 1.5], (200, 3)))
@@ -70,7 +70,7 @@ def test_recovers_base_frame_with_sag_noise_and_outliers(seed):
 def test_without_joint_angles_x_points_at_first_sample():
     rng = np.random.default_rng(3)
     th, pts, vert = _sweep(rng, deg=(0, 300), noise=1e-4)
-    T, rep = base_frame_from_sweep(pts, None, vert, P)
+    T, rep = base_frame_from_theta1_sweep(pts, None, vert, P)
     dt, da = _errors(T)
     assert dt < 1e-3 and da < 0.2
     assert np.isnan(rep.azimuth_rms_rad)
@@ -79,7 +79,7 @@ def test_without_joint_angles_x_points_at_first_sample():
 def test_without_vertical_point_sag_is_not_removed():
     rng = np.random.default_rng(4)
     th, pts, _ = _sweep(rng, noise=1e-4)
-    T, rep = base_frame_from_sweep(pts, th, None, P)
+    T, rep = base_frame_from_theta1_sweep(pts, th, None, P)
     dt, da = _errors(T)
     assert da < 0.2                        # z from the normal (oriented by theta1), x from theta1
     assert abs(dt - 0.03) < 1e-3           # origin off by the sag along z
@@ -89,7 +89,7 @@ def test_without_vertical_point_sag_is_not_removed():
 def test_partial_arc_and_reversed_sweep_direction():
     rng = np.random.default_rng(5)
     th, pts, vert = _sweep(rng, deg=(60, -60), noise=1e-4)   # theta1 decreasing, 120 deg arc
-    T, rep = base_frame_from_sweep(pts, th, vert, P)
+    T, rep = base_frame_from_theta1_sweep(pts, th, vert, P)
     dt, da = _errors(T)
     assert dt < 2e-3 and da < 0.3
 
@@ -99,7 +99,7 @@ def test_inconsistent_joint_sign_is_reported():
     th, pts, vert = _sweep(rng, noise=1e-4)
     th_bad = th.copy()
     th_bad[:, 0] *= -1
-    _, rep = base_frame_from_sweep(pts, th_bad, vert, P)
+    _, rep = base_frame_from_theta1_sweep(pts, th_bad, vert, P)
     assert any("clockwise" in w for w in rep.warnings)
 
 
@@ -109,13 +109,13 @@ def test_bad_input_names_argument():
     th2 = th.copy()
     th2[5, 1] = 0.2
     with pytest.raises(ValueError, match="theta: a theta1 sweep needs"):
-        base_frame_from_sweep(pts, th2, vert, P)
+        base_frame_from_theta1_sweep(pts, th2, vert, P)
     with pytest.raises(ValueError, match="theta: expected shape"):
-        base_frame_from_sweep(pts, th[:-1], vert, P)
+        base_frame_from_theta1_sweep(pts, th[:-1], vert, P)
     with pytest.raises(ValueError, match="points: need at least 3"):
-        base_frame_from_sweep(pts[:2], None, vert, P)
+        base_frame_from_theta1_sweep(pts[:2], None, vert, P)
     with pytest.raises(ValueError, match="vertical_point_left"):
-        base_frame_from_sweep(pts, th, [1.0, 2.0], P)
+        base_frame_from_theta1_sweep(pts, th, [1.0, 2.0], P)
 
 
 def _write_sequence_files(tmp_path, rng, *, with_vertical=True):

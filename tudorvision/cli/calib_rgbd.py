@@ -205,7 +205,7 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
 
 def _cmd_base(args) -> int:
     from ..io import open_sequence
-    from ..rgbd.base_calib import base_frame_from_sweep
+    from ..rgbd.base_calib import base_frame_from_theta2_sweep
     from .rgbd import noise_model_from_calibration
     from ..rgbd.disc import DiscOptions
     from ..rgbd.frames import Intrinsics
@@ -221,7 +221,7 @@ def _cmd_base(args) -> int:
                        depth_annulus=annulus, depth_window=args.depth_window)
     obs = observe_sweep(seq, K, seed, opts, vertical_frame=args.vertical_frame, joint_tol_deg=args.joint_tol_deg)
     circle_idx, vidx, lost = obs["frames"], obs["vertical_frames"], obs["lost"]
-    T_base_cam, rep = base_frame_from_sweep(obs["points_cam"], obs["vertical_cam"], theta2_rad=obs["theta2_rad"],
+    T_base_cam, rep = base_frame_from_theta2_sweep(obs["points_cam"], obs["vertical_cam"], theta2_rad=obs["theta2_rad"],
                                             origin=args.origin, vertical=args.vertical)
     # report indices as sequence frame numbers
     rep["points_used"] = [int(circle_idx[k]) for k in rep["points_used"]]
@@ -276,7 +276,7 @@ def register(calib_sub) -> None:
     b.add_argument("--origin", choices=("base", "joint2"), default="base",
                    help="'base': base plate (matches tudorvision.robot); 'joint2': the circle centre (default base)")
     b.add_argument("--vertical", choices=("combined", "seed", "plane"), default="combined",
-                   help="estimate of the vertical point (default combined; see base_frame_from_sweep)")
+                   help="estimate of the vertical point (default combined; see base_frame_from_theta2_sweep)")
     b.add_argument("--depth-window", choices=("disc", "ellipse", "segment"), default="disc",
                    help="pixels whose raw depths give the disc depth: 'disc' (default) the disc's whole image "
                         "circle of radius f R / z; 'ellipse' the grown region's moment ellipse; 'segment' the "

@@ -203,7 +203,7 @@ def _track_sweep(args):
 def run_base_stereo(args) -> int:
     from ..io.calibration import Calibration, load_calibration, save_calibration
     from ..robot import load_robot_params
-    from ..stereo.base_frame import base_frame_from_sweep
+    from ..stereo.base_frame import base_frame_from_theta1_sweep
     from ..stereo.trajectory import read_trajectory_csv
 
     tracked_cal = None
@@ -241,7 +241,7 @@ def run_base_stereo(args) -> int:
             raise TudorVisionError(f"{src}: no valid rows in the vertical posture [0, 90, 0] deg "
                                    f"(within {args.tol_deg} deg); record it or give --vertical-frame I")
         vertical = np.median(traj.p[vmask], axis=0)
-    T, rep = base_frame_from_sweep(traj.p[sweep], theta[sweep], vertical, params,
+    T, rep = base_frame_from_theta1_sweep(traj.p[sweep], theta[sweep], vertical, params,
                                    sweep_tol_rad=tol)
     print(f"vertical posture from {n_vert} trajectory row(s)")
     print(rep.summary())

@@ -15,7 +15,7 @@ ways (``CollectionOptions.measure``):
     colour models fitted from one pick per camera and sphere on the first pair,
     as ``tudorvision track stereo --pick`` does). The base frame comes from the
     lab's own base calibration, a theta1 sweep tracked the same way
-    (:func:`tudorvision.stereo.base_frame_from_sweep`); the camera models are
+    (:func:`tudorvision.stereo.base_frame_from_theta1_sweep`); the camera models are
     the lab's calibration. Poses where a sphere is hidden are left out
     (``valid`` False). Rendering and tracking take about 0.2 s per pose, so
     the demo's collection (:data:`DEMO_COLLECTION`, the seed's full grid) is
@@ -241,7 +241,7 @@ class StereoLab:
         """``T_base_left`` from a rendered theta1 sweep (theta2 = theta3 = 0) and the vertical posture.
 
         The seed's base calibration (section B.5) with the project's tracker
-        and :func:`tudorvision.stereo.base_frame_from_sweep`.
+        and :func:`tudorvision.stereo.base_frame_from_theta1_sweep`.
 
         Parameters
         ----------
@@ -253,7 +253,7 @@ class StereoLab:
         ndarray, shape (4, 4)
             Left camera to robot base.
         """
-        from ..stereo import base_frame_from_sweep
+        from ..stereo import base_frame_from_theta1_sweep
 
         a, b, st = sweep_deg
         n = int(round((b - a) / st)) + 1
@@ -266,7 +266,7 @@ class StereoLab:
         ok = np.all(np.isfinite(pts), axis=1)
         self._set_shape(np.deg2rad([0.0, 90.0, 0.0]))
         vert = self._track(self._camera_pipe)
-        T, _ = base_frame_from_sweep(pts[ok], th[ok], vert if np.all(np.isfinite(vert)) else None, self.params)
+        T, _ = base_frame_from_theta1_sweep(pts[ok], th[ok], vert if np.all(np.isfinite(vert)) else None, self.params)
         return T
 
     def measure(self, theta, tip2, tip3) -> np.ndarray:

@@ -27,7 +27,7 @@ import numpy as np
 from .._checks import TudorVisionError, check_array, check_points
 from ..geometry import fit_circle_3d, invert_transform
 
-__all__ = ["base_frame_from_sweep"]
+__all__ = ["base_frame_from_theta2_sweep"]
 
 
 def _rotation_axis(points: np.ndarray, centre: np.ndarray, normal: np.ndarray, theta2) -> np.ndarray:
@@ -78,7 +78,7 @@ def _measured_weight(pts: np.ndarray, centre: np.ndarray, normal: np.ndarray, pv
     return var_plane / (var_plane + var_meas)
 
 
-def base_frame_from_sweep(points_cam, vertical_cam, *, theta2_rad=None, link1_height_m: float | None = None,
+def base_frame_from_theta2_sweep(points_cam, vertical_cam, *, theta2_rad=None, link1_height_m: float | None = None,
                           origin: str = "base", vertical: str = "combined", min_points: int = 6,
                           loss: str = "soft_l1", inlier_sigma: float = 3.5, max_rejected_fraction: float = 0.3):
     """Robot base frame in the camera frame from disc centroids of a theta2 sweep.

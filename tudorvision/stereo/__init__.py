@@ -9,45 +9,35 @@ per-frame tracking loop (:mod:`.pipeline`), checkerboard stereo calibration
 (:mod:`.base_frame`). :class:`RerunStereoLog` writes rerun recordings (rerun itself is
 imported only when one is made).
 """
-from .base_frame import BaseFrameReport, base_frame_from_sweep
-from .calibrate import (BoardDetections, StereoCalibrationResult, board_object_points, calibrate_stereo,
-                        calibrate_stereo_from_images, detect_board_pairs, find_board_corners, parse_board,
+from .base_frame import BaseFrameReport, base_frame_from_theta1_sweep
+from .calibrate import (StereoCalibrationResult, calibrate_stereo, calibrate_stereo_from_images, parse_board,
                         plot_view_errors)
-from .colormodel import (CHANNELS, HUE_LEVELS, ColorModel, ColorModelSet, circular_hue_stats, fit_color_model,
-                         fit_color_model_set, load_color_models, parse_pick, save_color_models)
+from .colormodel import (ColorModel, ColorModelSet, fit_color_model, fit_color_model_set, load_color_models,
+                         parse_pick, save_color_models)
 from .rerun_log import RerunStereoLog
-from .rim_edge import LOSSY_SUFFIXES, chroma_subsampled_source, luma_rim_points, refine_circle_on_luma
 from .pipeline import (MonoTrackResult, PipelineOptions, StereoFrameResult, StereoPipeline, StereoTrackResult,
                        TrackStats, iter_stereo, read_mono_track_csv, track_mono, track_stereo,
                        write_mono_track_csv)
-from .segment import (SegmentParams, SphereDetection, detect_sphere, detect_spheres, hsv_from_bgr,
-                      log_odds_image, probability_image)
-from .tracker2d import FrameTracker, SphereTracker, TrackerParams
-from .trajectory import (FRAME_DESCRIPTIONS, Trajectory, finite_differences, plot_trajectory,
-                         read_trajectory_csv, trajectory_from_points, write_trajectory_csv)
-from .triangulate import (SphereTriangulation, compensate_rolling_shutter, projection_matrices,
-                          rolling_shutter_times, triangulate_dlt, triangulate_points, triangulate_spheres,
-                          triangulate_stereo, undistort_points)
+from .segment import SegmentParams, SphereDetection, detect_sphere, detect_spheres
+from .tracker2d import SphereTracker, TrackerParams
+from .trajectory import (Trajectory, plot_trajectory, read_trajectory_csv, trajectory_from_points,
+                         write_trajectory_csv)
+from .triangulate import SphereTriangulation, triangulate_points, triangulate_spheres, undistort_points
 
 __all__ = [
     # colour models
-    "CHANNELS", "HUE_LEVELS", "ColorModel", "ColorModelSet", "circular_hue_stats", "fit_color_model",
-    "fit_color_model_set", "load_color_models", "parse_pick", "save_color_models",
+    "ColorModel", "ColorModelSet", "fit_color_model", "fit_color_model_set", "load_color_models", "parse_pick",
+    "save_color_models",
     # segmentation and tracking mode
-    "SegmentParams", "SphereDetection", "detect_sphere", "detect_spheres", "hsv_from_bgr", "log_odds_image",
-    "probability_image", "luma_rim_points", "refine_circle_on_luma", "LOSSY_SUFFIXES", "chroma_subsampled_source",
-    "FrameTracker", "SphereTracker", "TrackerParams",
+    "SegmentParams", "SphereDetection", "detect_sphere", "detect_spheres", "SphereTracker", "TrackerParams",
     # triangulation and trajectories
-    "SphereTriangulation", "compensate_rolling_shutter", "projection_matrices", "rolling_shutter_times",
-    "triangulate_dlt", "triangulate_points", "triangulate_spheres", "triangulate_stereo", "undistort_points",
-    "FRAME_DESCRIPTIONS", "Trajectory", "finite_differences", "plot_trajectory", "read_trajectory_csv",
-    "trajectory_from_points", "write_trajectory_csv",
+    "SphereTriangulation", "triangulate_points", "triangulate_spheres", "undistort_points",
+    "Trajectory", "plot_trajectory", "read_trajectory_csv", "trajectory_from_points", "write_trajectory_csv",
     # the tracking loop
     "PipelineOptions", "StereoFrameResult", "StereoPipeline", "StereoTrackResult", "TrackStats", "iter_stereo",
     "track_stereo", "MonoTrackResult", "track_mono", "write_mono_track_csv", "read_mono_track_csv",
     "RerunStereoLog",
     # calibration
-    "BaseFrameReport", "base_frame_from_sweep", "BoardDetections", "StereoCalibrationResult",
-    "board_object_points", "calibrate_stereo", "calibrate_stereo_from_images", "detect_board_pairs",
-    "find_board_corners", "parse_board", "plot_view_errors",
+    "BaseFrameReport", "base_frame_from_theta1_sweep", "StereoCalibrationResult", "calibrate_stereo",
+    "calibrate_stereo_from_images", "parse_board", "plot_view_errors",
 ]

@@ -44,7 +44,7 @@ from .._checks import check_array, check_points
 from ..geometry import CircleFit, fit_circle_3d, invert_transform, make_frame
 from ..robot import fk_ee, load_robot_params
 
-__all__ = ["BaseFrameReport", "base_frame_from_sweep"]
+__all__ = ["BaseFrameReport", "base_frame_from_theta1_sweep"]
 
 _VERTICAL = np.array([0.0, np.pi / 2, 0.0])
 
@@ -112,7 +112,7 @@ def _wrap(a):
     return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
 
 
-def base_frame_from_sweep(points_left, theta=None, vertical_point_left=None, params=None, *,
+def base_frame_from_theta1_sweep(points_left, theta=None, vertical_point_left=None, params=None, *,
                           sweep_tol_rad: float = np.deg2rad(2.0),
                           loss: str = "soft_l1") -> tuple[np.ndarray, BaseFrameReport]:
     """Robot base pose in the left camera frame from a theta1 sweep.
@@ -153,7 +153,7 @@ def base_frame_from_sweep(points_left, theta=None, vertical_point_left=None, par
     >>> T_left_base = np.eye(4); T_left_base[:3, 3] = [0.1, 0.5, 3.0]
     >>> pts = fk_ee(th) + T_left_base[:3, 3]
     >>> vert = fk_ee([0.0, np.pi / 2, 0.0]) + T_left_base[:3, 3]
-    >>> T, rep = base_frame_from_sweep(pts, th, vert)
+    >>> T, rep = base_frame_from_theta1_sweep(pts, th, vert)
     >>> bool(np.allclose(T, invert_transform(T_left_base), atol=1e-9)), round(rep.sag_m, 9)
     (True, 0.0)
     """
