@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from tudorvision.catch import (BallEKF, BallModel, BallisticPredictor, EKFOptions, ball_dynamics,
-                               dynamics_jacobian, init_from_detections, plane_crossing, propagate,
-                               reachable_solutions, update, working_plane_normal)
+from tudorvision.catch import (BallEKF, BallModel, BallisticPredictor, EKFOptions, init_from_detections,
+                               plane_crossing, propagate, reachable_solutions, update, working_plane_normal)
+from tudorvision.catch.ekf import ball_dynamics, dynamics_jacobian
 from tudorvision.catch.intercept import InterceptOptions, InterceptPlanner
 from tudorvision.robot import fk_ee
 from tudorvision.lab.record import random_throw, throw_trajectory

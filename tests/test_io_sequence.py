@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from tudorvision._checks import TudorVisionError
-from tudorvision.io import Calibration, CameraModel, SequenceWriter, associate, open_sequence
+from tudorvision.io import Calibration, CameraModel, SequenceWriter, open_sequence
+from tudorvision.io._index import associate
 from tudorvision.sensors import depth_m_from_raw, raw_from_depth_m
 
 REAL = Path(__file__).resolve().parents[2] / "shared" / "realdata"

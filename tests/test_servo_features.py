@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from tudorvision.servo import (depth_at, diagonal_intersection, extract_square, order_corners,
-                               polygon_centroid)
+from tudorvision.servo import extract_square
+from tudorvision.servo.features import depth_at, diagonal_intersection, order_corners, polygon_centroid
 from tudorvision.sensors import depth_m_from_raw
 from tudorvision.sim import eye_in_hand, look_at, project_points, render_rgbd, with_pose
 

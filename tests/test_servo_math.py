@@ -3,10 +3,11 @@ import numpy as np
 import pytest
 
 from tudorvision.robot import T_base_ee, jacobian_ee, load_robot_params
-from tudorvision.servo import (AdaptiveGain, GoalFeatures, LawConfig, SquareFeatures, adaptive_gain,
-                               default_T_ee_cam, hybrid_law, hybrid_matrix, ibvs_law, joint_velocity,
-                               limit_velocity, point_interaction, point_jacobian, project_cam,
-                               seed_image_jacobian, servo_command)
+from tudorvision.servo import (AdaptiveGain, GoalFeatures, LawConfig, SquareFeatures, default_T_ee_cam, hybrid_law,
+                               hybrid_matrix, ibvs_law, joint_velocity, point_interaction, servo_command)
+from tudorvision.servo.interaction import project_cam, seed_image_jacobian
+from tudorvision.servo.joint_map import point_jacobian
+from tudorvision.servo.laws import adaptive_gain, limit_velocity
 from tudorvision.servo.joint_map import JointMapConfig
 
 F = 525.0

@@ -11,9 +11,10 @@ import cv2
 import numpy as np
 import pytest
 
-from tudorvision.stereo import SegmentParams, detect_sphere, log_odds_image
+from tudorvision.stereo import SegmentParams, detect_sphere
 from tudorvision.stereo.colormodel import fit_color_model
 from tudorvision.stereo.rim_edge import luma_rim_points, refine_circle_on_luma
+from tudorvision.stereo.segment import log_odds_image
 
 SS = 8
 COLOUR_RIM = SegmentParams()                      # the default: colour rim only
@@ -134,7 +135,7 @@ def test_jpeg_chroma_smear_is_undone_by_the_luma_edge():
 
 
 def test_chroma_subsampled_source(tmp_path):
-    from tudorvision.stereo import chroma_subsampled_source
+    from tudorvision.stereo.rim_edge import chroma_subsampled_source
     (tmp_path / "jpg" / "left").mkdir(parents=True)
     (tmp_path / "jpg" / "left" / "000000.jpg").write_bytes(b"x")
     (tmp_path / "png" / "left").mkdir(parents=True)

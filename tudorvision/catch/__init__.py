@@ -6,18 +6,16 @@ robot's working plane (:mod:`.intercept`), a drag-free ballistic peer
 (:mod:`.perception`) and data-based kinematics under load (:mod:`.kinematics`).
 The simulated catching demo lives in :mod:`tudorvision.lab.catch_demo`.
 """
-from .ballistic import BallisticPredictor, ballistic_crossing, fit_ballistic
-from .ekf import (DEFAULT_DRAG_K_PER_M, BallEKF, BallModel, EKFOptions, ball_dynamics, dynamics_jacobian,
-                  init_from_detections, predict, process_noise, propagate, update)
+from .ballistic import BallisticPredictor, fit_ballistic
+from .ekf import BallEKF, BallModel, EKFOptions, init_from_detections, predict, propagate, update
 from .intercept import (Intercept, InterceptOptions, InterceptPlanner, PlaneCrossing, net_target, plane_crossing,
-                        planar_coordinates, reachable_solutions, working_plane_normal)
+                        reachable_solutions, working_plane_normal)
 from .perception import CatchPerception, detection_to_base
 
 __all__ = [
-    "BallisticPredictor", "ballistic_crossing", "fit_ballistic",
-    "DEFAULT_DRAG_K_PER_M", "BallEKF", "BallModel", "EKFOptions", "ball_dynamics", "dynamics_jacobian",
-    "init_from_detections", "predict", "process_noise", "propagate", "update",
+    "BallisticPredictor", "fit_ballistic",
+    "BallEKF", "BallModel", "EKFOptions", "init_from_detections", "predict", "propagate", "update",
     "Intercept", "InterceptOptions", "InterceptPlanner", "PlaneCrossing", "net_target", "plane_crossing",
-    "planar_coordinates", "reachable_solutions", "working_plane_normal",
+    "reachable_solutions", "working_plane_normal",
     "CatchPerception", "detection_to_base",
 ]

@@ -7,7 +7,6 @@ playback. Writing: :class:`SequenceWriter`. Calibration: :class:`Calibration`
 with :func:`load_calibration` / :func:`save_calibration`, ROS camera_info and
 OpenCV stereo files in :mod:`tudorvision.io.formats`.
 """
-from ._index import Problem, associate
 from .calibration import (Calibration, CameraModel, DepthModel, StereoExtrinsics, load_calibration,
                           save_calibration)
 from .formats import (CameraInfo, calibration_from_ros, load_opencv_stereo, load_ros_camera_info,
@@ -18,8 +17,8 @@ from .sequence import Sequence, load_joint_log, open_sequence
 from .writer import SequenceWriter
 
 __all__ = [
-    "open_sequence", "Sequence", "load_joint_log", "StereoFrame", "RGBDFrame", "MonoFrame", "JointLog", "Problem",
-    "Playback", "Played", "SequenceWriter", "associate",
+    "open_sequence", "Sequence", "load_joint_log", "StereoFrame", "RGBDFrame", "MonoFrame", "JointLog",
+    "Playback", "Played", "SequenceWriter",
     "Calibration", "CameraModel", "StereoExtrinsics", "DepthModel", "load_calibration",
     "save_calibration", "CameraInfo", "load_ros_camera_info", "save_ros_camera_info",
     "calibration_from_ros", "load_opencv_stereo", "save_opencv_stereo",

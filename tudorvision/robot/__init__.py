@@ -1,6 +1,5 @@
 """TUDOR robot model: parameters and rigid-equivalent kinematics."""
 from .params import DEFAULT_PARAMS_PATH, LinkParams, RobotParams, load_robot_params
-from .actuators import friction_torque, motor_gain, reflected_inertia, reflected_viscous
 from .kinematics import (T_base_ee, clip_to_limits, fk_ee, fk_spheres, ik, ik_all,
                          jacobian_ee, planar_from_joints, within_limits)
 
@@ -8,5 +7,4 @@ __all__ = [
     "DEFAULT_PARAMS_PATH", "LinkParams", "RobotParams", "load_robot_params",
     "T_base_ee", "clip_to_limits", "fk_ee", "fk_spheres", "ik", "ik_all",
     "jacobian_ee", "planar_from_joints", "within_limits",
-    "motor_gain", "reflected_inertia", "reflected_viscous", "friction_torque",
 ]

@@ -7,22 +7,16 @@ perception-side controller that combines them (:mod:`.loop`). The closed loop
 in the virtual lab and the repeatability experiment are in
 :mod:`tudorvision.lab.servo_lab` and :mod:`tudorvision.lab.servo_experiments`.
 """
-from .features import (FeatureConfig, SquareFeatures, depth_at, depth_at_many, diagonal_intersection,
-                       extract_square, order_corners, polygon_centroid)
-from .interaction import (hybrid_error, hybrid_matrix, point_interaction, project_cam, seed_image_jacobian,
-                          stacked_interaction)
-from .joint_map import JointCommand, JointMapConfig, base_from_cam_velocity, joint_velocity, point_jacobian
-from .laws import (AdaptiveGain, GoalFeatures, LawConfig, ServoCommand, adaptive_gain, hybrid_law, ibvs_law,
-                   limit_velocity, servo_command)
-from .loop import DEFAULT_SMOOTHING_FRAMES, ServoStep, VisualServo, average_features, default_T_ee_cam, servo_step
+from .features import FeatureConfig, SquareFeatures, extract_square
+from .interaction import hybrid_matrix, point_interaction
+from .joint_map import JointCommand, JointMapConfig, joint_velocity
+from .laws import AdaptiveGain, GoalFeatures, LawConfig, ServoCommand, hybrid_law, ibvs_law, servo_command
+from .loop import ServoStep, VisualServo, default_T_ee_cam, servo_step
 
 __all__ = [
-    "FeatureConfig", "SquareFeatures", "depth_at", "depth_at_many", "diagonal_intersection", "extract_square",
-    "order_corners", "polygon_centroid",
-    "hybrid_error", "hybrid_matrix", "point_interaction", "project_cam", "seed_image_jacobian",
-    "stacked_interaction",
-    "JointCommand", "JointMapConfig", "base_from_cam_velocity", "joint_velocity", "point_jacobian",
-    "AdaptiveGain", "GoalFeatures", "LawConfig", "ServoCommand", "adaptive_gain", "hybrid_law", "ibvs_law",
-    "limit_velocity", "servo_command",
-    "DEFAULT_SMOOTHING_FRAMES", "ServoStep", "VisualServo", "average_features", "default_T_ee_cam", "servo_step",
+    "FeatureConfig", "SquareFeatures", "extract_square",
+    "hybrid_matrix", "point_interaction",
+    "JointCommand", "JointMapConfig", "joint_velocity",
+    "AdaptiveGain", "GoalFeatures", "LawConfig", "ServoCommand", "hybrid_law", "ibvs_law", "servo_command",
+    "ServoStep", "VisualServo", "default_T_ee_cam", "servo_step",
 ]
