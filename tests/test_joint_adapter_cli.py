@@ -101,7 +101,7 @@ def test_status_on_dead_port_fails_with_one_line(capsys):
     assert main(["joint", "status", "--port", str(port), "--timeout", "0.3"]) == 1
     captured = capsys.readouterr()
     lines = captured.err.strip().splitlines()
-    assert lines == [f"tudorvision joint status: no answer from 127.0.0.1:{port} within 0.3 s"]
+    assert len(lines) == 1 and lines[0].startswith(f"tudorvision joint status: no answer from 127.0.0.1:{port} within 0.3 s")
     assert captured.out == ""
 
 

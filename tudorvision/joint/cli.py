@@ -1,7 +1,9 @@
 """``tudorvision joint`` commands: serve the layer on loopback, query it, move it.
 
-* ``joint serve --port P [--duration S] [--core NAME]`` runs the joint-control
-  layer on 127.0.0.1 in real time and prints the port it listens on;
+* ``joint keygen --out KEY`` writes a random key file (permissions 0600);
+* ``joint serve --port P [--duration S] [--core NAME] [--key-file KEY] [--host H]``
+  runs the joint-control layer in real time (on 127.0.0.1 unless ``--host``;
+  any other address needs ``--key-file``) and prints the address it listens on;
 * ``joint status --port P [--timeout S]`` prints the layer's state (exit 0),
   or one line and exit 1 when nothing answers;
 * ``joint move --port P --to DEG,DEG,DEG`` sends a setpoint and waits until
@@ -9,7 +11,11 @@
 * ``joint payload --port P --kg M`` tells the layer the end-effector payload
   (its damping gains and collision model follow it); exit 1 on refusal or silence.
 
-Angles on the command line are in degrees; everything inside is SI.
+``status``, ``move`` and ``payload`` take ``--key-file`` (a layer served with a
+key answers nothing else) and ``--host``; ``move`` and ``payload`` open a
+session (the lease) for their command and release it, ``--takeover`` takes it
+from another client. Angles on the command line are in degrees; everything
+inside is SI.
 """
 from __future__ import annotations
 
@@ -69,6 +75,25 @@ def _damping_names():
     return list(Damping)
 
 
+def _key_arg(parser, what: str) -> None:
+    parser.add_argument("--key-file", default=None, metavar="KEY",
+                        help=f"key file written by 'tudorvision joint keygen': {what}")
+
+
+def _peer_args(parser, session: bool = False) -> None:
+    parser.add_argument("--port", type=_port(False), required=True, help="UDP port of the layer")
+    parser.add_argument("--host", default="127.0.0.1", help="address of the layer (default 127.0.0.1)")
+    _key_arg(parser, "the layer's key, if it was served with one")
+    if session:
+        parser.add_argument("--takeover", action="store_true",
+                            help="take the lease from the client holding it (the layer stops the arm first)")
+
+
+def _read_key(args):
+    from .protocol import read_key_file
+    return None if args.key_file is None else read_key_file(args.key_file)
+
+
 def register(subparsers) -> None:
     """Add the ``joint`` command and its actions to the top-level parser."""
     p = subparsers.add_parser("joint", help="joint-control layer over UDP: serve, status, move, payload",
@@ -76,9 +101,17 @@ def register(subparsers) -> None:
     actions = p.add_subparsers(dest="joint_action", metavar="ACTION")
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
-    s = actions.add_parser("serve", help="run the joint-control layer on 127.0.0.1")
+    k = actions.add_parser("keygen", help="write a random key file (0600) for authenticated serving")
+    k.add_argument("--out", required=True, metavar="KEY", help="key file to create")
+    k.add_argument("--force", action="store_true", help="replace an existing key file")
+    k.set_defaults(func=_keygen)
+
+    s = actions.add_parser("serve", help="run the joint-control layer (on 127.0.0.1 by default)")
     s.add_argument("--port", type=_port(True), required=True,
-                   help="UDP port on 127.0.0.1 (0 picks a free one; printed on start)")
+                   help="UDP port (0 picks a free one; printed on start)")
+    s.add_argument("--host", default="127.0.0.1",
+                   help="address to bind (default 127.0.0.1); anything but loopback needs --key-file")
+    _key_arg(s, "every datagram must carry an HMAC-SHA256 tag made with this key")
     s.add_argument("--duration", type=_positive, default=None,
                    help="stop after this many seconds (default: until interrupted)")
     s.add_argument("--core", default="kinematic", help="registered core (default: kinematic)")
@@ -94,12 +127,12 @@ def register(subparsers) -> None:
     s.set_defaults(func=_serve)
 
     st = actions.add_parser("status", help="print the layer's state")
-    st.add_argument("--port", type=_port(False), required=True, help="UDP port of the layer")
+    _peer_args(st)
     st.add_argument("--timeout", type=_positive, default=1.0, help="seconds to wait (default 1)")
     st.set_defaults(func=_status)
 
     m = actions.add_parser("move", help="send a joint setpoint and wait until settled")
-    m.add_argument("--port", type=_port(False), required=True, help="UDP port of the layer")
+    _peer_args(m, session=True)
     m.add_argument("--to", type=_degrees3, required=True, metavar="DEG,DEG,DEG",
                    help="target joint angles in degrees")
     m.add_argument("--speed", type=_positive, default=None, metavar="DEG_S",
@@ -117,7 +150,7 @@ def register(subparsers) -> None:
     m.set_defaults(func=_move)
 
     pl = actions.add_parser("payload", help="tell the layer the end-effector payload")
-    pl.add_argument("--port", type=_port(False), required=True, help="UDP port of the layer")
+    _peer_args(pl, session=True)
     pl.add_argument("--kg", type=_mass, required=True, metavar="KG",
                     help="payload at the end effector in kg (mount, plates, caught balls)")
     pl.add_argument("--timeout", type=_positive, default=1.0, help="seconds to wait (default 1)")
@@ -168,17 +201,40 @@ def _core_options(args) -> dict:
     return opts
 
 
+def _keygen(args) -> int:
+    from .protocol import write_key_file
+    write_key_file(args.out, overwrite=args.force)
+    print(f"key written to {args.out} (permissions 0600); give it to the layer and its clients only")
+    return 0
+
+
 def _serve(args) -> int:
+    import ipaddress
+
+    from .._checks import TudorVisionError
     from .server import JointLayerServer, ServerConfig, make_core
     from .transport import UdpTransport
 
+    key = _read_key(args)
+    try:
+        loopback = ipaddress.ip_address(args.host).is_loopback
+    except ValueError:
+        loopback = args.host == "localhost"
+    if key is None and not loopback:
+        raise TudorVisionError(f"--host {args.host}: serving beyond loopback needs --key-file "
+                               f"(tudorvision joint keygen --out KEY)")
     core = make_core(args.core, **_core_options(args))
-    with UdpTransport.server(port=args.port) as transport:
-        server = JointLayerServer(transport, core,
+    try:
+        transport = UdpTransport.server(port=args.port, host=args.host)
+    except OSError as err:
+        raise TudorVisionError(f"--host {args.host} --port {args.port}: cannot bind: {err.strerror}") from None
+    with transport:
+        server = JointLayerServer(transport, core, key=key,
                                   config=ServerConfig(rate_hz=args.rate,
                                                       watchdog_s=args.watchdog))
         host, port = transport.address
-        print(f"joint layer (core {args.core}) listening on udp {host}:{port}", flush=True)
+        auth = "HMAC-SHA256" if key is not None else "no key, loopback only"
+        print(f"joint layer (core {args.core}, {auth}) listening on udp {host}:{port}", flush=True)
         if args.duration is None:
             server.serve_forever()
         else:
@@ -201,14 +257,22 @@ def _format_state(st) -> str:
         f"counters accepted={c.accepted} refused={c.refused} malformed={c.malformed} "
         f"duplicates={c.duplicates} stale={c.stale} watchdog_stops={c.watchdog_stops} "
         f"overruns={c.overruns}",
+        f"security unauthenticated={c.unauthenticated} replayed={c.replayed} "
+        f"rate_limited={c.rate_limited} not_owner={c.not_owner} faults={c.faults}",
+        f"tick_interval_ms p50 {st.tick_p50_s * 1e3:.3f} p99 {st.tick_p99_s * 1e3:.3f} "
+        f"max {st.tick_max_s * 1e3:.3f} (last second)",
     ]
     return "\n".join(lines)
 
 
-def _client(port: int):
+_KEY_HINT = " (nothing listening, or a layer with another key: see --key-file)"
+
+
+def _client(args):
     from .adapter import JointAdapter
     from .transport import UdpTransport
-    return JointAdapter(UdpTransport.client(port))
+    return JointAdapter(UdpTransport.client(args.port, host=args.host), key=_read_key(args),
+                        takeover=getattr(args, "takeover", False))
 
 
 def _fail(action: str, text: str) -> int:
@@ -217,10 +281,11 @@ def _fail(action: str, text: str) -> int:
 
 
 def _status(args) -> int:
-    with _client(args.port) as joints:
+    with _client(args) as joints:
         st = joints.request_state(timeout=args.timeout)
     if st is None:
-        return _fail("status", f"no answer from 127.0.0.1:{args.port} within {args.timeout:g} s")
+        return _fail("status", f"no answer from {args.host}:{args.port} within {args.timeout:g} s"
+                               f"{_KEY_HINT}")
     print(_format_state(st))
     return 0
 
@@ -228,10 +293,11 @@ def _status(args) -> int:
 def _payload(args) -> int:
     from .protocol import Ack
 
-    with _client(args.port) as joints:
+    with _client(args) as joints:
         reply = joints.set_payload(args.kg, timeout=args.timeout)
     if reply is None:
-        return _fail("payload", f"no answer from 127.0.0.1:{args.port} within {args.timeout:g} s")
+        return _fail("payload", f"no answer from {args.host}:{args.port} within {args.timeout:g} s"
+                                f"{_KEY_HINT}")
     if not isinstance(reply, Ack):
         return _fail("payload", f"refused: {reply.code.name} {reply.text}")
     print(f"payload {args.kg:g} kg accepted")
@@ -244,17 +310,17 @@ def _move(args) -> int:
     target = np.deg2rad(args.to)
     speed = None if args.speed is None else float(np.deg2rad(args.speed))
     accel = None if args.accel is None else float(np.deg2rad(args.accel))
-    with _client(args.port) as joints:
+    with _client(args) as joints:
         damping = None if args.damping is None else Damping[args.damping.upper()]
         reply = joints.set_mode(Mode.SETPOINT, damping=damping, timeout=min(args.timeout, 2.0))
         if reply is None:
-            return _fail("move", f"no answer from 127.0.0.1:{args.port}")
+            return _fail("move", f"no answer from {args.host}:{args.port}{_KEY_HINT}")
         if not isinstance(reply, Ack):
             return _fail("move", f"mode switch refused: {reply.code.name} {reply.text}")
         reply = joints.send_setpoint(target, max_speed=speed, max_accel=accel,
                                      timeout=min(args.timeout, 2.0))
         if reply is None:
-            return _fail("move", f"no answer to the setpoint from 127.0.0.1:{args.port}")
+            return _fail("move", f"no answer to the setpoint from {args.host}:{args.port}")
         if not isinstance(reply, Ack):
             return _fail("move", f"setpoint refused: {reply.code.name}: {reply.text}")
         if reply.text:
