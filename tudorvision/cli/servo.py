@@ -152,10 +152,9 @@ def _write_csv(path: Path, h: dict) -> None:
 
 def plot_errors(h: dict, path) -> None:
     """Workspace error (a) and image-space error (b) over time, as the seed's figure 9.3."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, (a, b) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=(7, 6))
+    a, b = fig.subplots(2, 1, sharex=True)
     t = h["t"]
     a.plot(t, 1e3 * h["error_true_m"], label="true camera position error")
     a.plot(t, 1e3 * h["error_est_m"], "--", label=r"estimated $\|L^{-1}e\|$")
@@ -173,7 +172,6 @@ def plot_errors(h: dict, path) -> None:
     b.grid(True, alpha=0.3)
     fig.tight_layout()
     fig.savefig(str(path), dpi=100)
-    plt.close(fig)
 
 
 class _RerunServoLog:

@@ -52,10 +52,9 @@ def _cmd_ptp(args) -> int:
     np.savetxt(out, cols[::max(1, args.decimate)], delimiter=",", header=header, comments="# ", fmt="%.9g")
     print(f"wrote {len(cols[::max(1, args.decimate)])} samples to {out}")
     if args.plot:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-        fig, ax = plt.subplots(3, 1, figsize=(8, 8), sharex=True)
+        from matplotlib.figure import Figure
+        fig = Figure(figsize=(8, 8))
+        ax = fig.subplots(3, 1, sharex=True)
         ax[0].plot(log.t, np.rad2deg(log.theta)); ax[0].set_ylabel("joint angle [deg]")
         ax[0].legend(["θ1", "θ2", "θ3"])
         ax[1].plot(log.t, log.strain * 1e6); ax[1].set_ylabel("strain [µm/m]")

@@ -41,11 +41,10 @@ def _physics_summary(params):
 
 
 def _plot_step(log, path):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
     ee = log.ee_position()
-    fig, ax = plt.subplots(2, 2, figsize=(11, 7))
+    fig = Figure(figsize=(11, 7))
+    ax = fig.subplots(2, 2)
     ax[0, 0].plot(log.t, np.rad2deg(log.theta)); ax[0, 0].set_ylabel("joint angle [deg]")
     ax[0, 0].legend(["θ1", "θ2", "θ3"]); ax[0, 0].set_xlabel("t [s]")
     ax[0, 1].plot(log.t, log.strain * 1e6); ax[0, 1].set_ylabel("strain [µm/m]"); ax[0, 1].set_xlabel("t [s]")
@@ -60,7 +59,6 @@ def _plot_step(log, path):
     fig.suptitle("TUDOR step [0,45,−45] → [0,135,45] deg, 300 g payload, no damping")
     fig.tight_layout()
     fig.savefig(path, dpi=90)
-    plt.close(fig)
 
 
 def _contact_sheet(stereo_dir: Path, rgbd_dirs, path):

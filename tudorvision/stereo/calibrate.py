@@ -401,12 +401,29 @@ def calibrate_stereo_from_images(left_paths, right_paths, board: tuple[int, int]
 def plot_view_errors(result: StereoCalibrationResult, path) -> Path:
     """Bar plot of the per-view RMS reprojection errors (left and right) as PNG.
 
-    matplotlib is imported here (Agg backend).
+    matplotlib is imported here; the plot is drawn on its own
+    :class:`matplotlib.figure.Figure`, so the global backend is left alone.
+
+    Parameters
+    ----------
+    result : StereoCalibrationResult
+        Calibration result; ``per_view_rms_px`` (shape (V, 2), pixels, left
+        and right) and ``views`` are plotted.
+    path : str or Path
+        Output PNG; parent directories are created.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    TudorVisionError
+        If matplotlib is not installed.
     """
     try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from matplotlib.figure import Figure
     except ImportError:  # pragma: no cover
         raise TudorVisionError("plotting needs matplotlib: pip install matplotlib") from None
     path = Path(path)
@@ -414,7 +431,8 @@ def plot_view_errors(result: StereoCalibrationResult, path) -> Path:
     err = result.per_view_rms_px
     n = len(err)
     x = np.arange(n)
-    fig, ax = plt.subplots(figsize=(max(6.0, 0.45 * n + 2), 3.8))
+    fig = Figure(figsize=(max(6.0, 0.45 * n + 2), 3.8))
+    ax = fig.add_subplot()
     ax.bar(x - 0.2, err[:, 0], 0.4, label="left")
     ax.bar(x + 0.2, err[:, 1], 0.4, label="right")
     ax.axhline(result.rms_px, color="k", ls="--", lw=1, label=f"overall {result.rms_px:.3f} px")
@@ -425,5 +443,4 @@ def plot_view_errors(result: StereoCalibrationResult, path) -> Path:
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path

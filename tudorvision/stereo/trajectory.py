@@ -288,28 +288,36 @@ def read_trajectory_csv(path) -> Trajectory:
 def plot_trajectory(traj: Trajectory, path, *, title: str | None = None) -> Path:
     """Draw the trajectory (3D), the speed and the acceleration magnitude over time as a PNG.
 
-    Like figure 2.7 (f)-(h) of the seed. matplotlib is imported here (Agg backend).
+    Like figure 2.7 (f)-(h) of the seed. matplotlib is imported here; the plot
+    is drawn on its own :class:`matplotlib.figure.Figure`, so the global
+    backend is left alone.
 
     Parameters
     ----------
     traj : Trajectory
+        Positions (metres, in ``traj.frame``), speed and acceleration to draw.
     path : str or Path
-        Output PNG.
+        Output PNG; parent directories are created.
     title : str, optional
+        Figure title (default "end-effector trajectory").
 
     Returns
     -------
     Path
+        ``path``.
+
+    Raises
+    ------
+    TudorVisionError
+        If matplotlib is not installed.
     """
     try:
-        import matplotlib
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from matplotlib.figure import Figure
     except ImportError:  # pragma: no cover
         raise TudorVisionError("plotting needs matplotlib: pip install matplotlib") from None
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig = plt.figure(figsize=(13, 4.2))
+    fig = Figure(figsize=(13, 4.2))
     ax3 = fig.add_subplot(1, 3, 1, projection="3d")
     ok = traj.valid
     ax3.plot(traj.p[:, 0], traj.p[:, 1], traj.p[:, 2], "-", lw=0.6, color="0.6")
@@ -343,5 +351,4 @@ def plot_trajectory(traj: Trajectory, path, *, title: str | None = None) -> Path
     fig.suptitle(sup)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
