@@ -318,6 +318,16 @@ def make_frame(origin, z_axis, x_hint) -> np.ndarray:
 def invert_transform(T) -> np.ndarray:
     """Inverse of a rigid transform: ``T_b_a`` from ``T_a_b``.
 
+    Parameters
+    ----------
+    T : array_like, shape (4, 4)
+        Rigid transform ``T_a_b`` (maps frame-b points into frame a).
+
+    Returns
+    -------
+    T_b_a : ndarray, shape (4, 4)
+        The inverse transform ``[R^T, -R^T t; 0, 1]``.
+
     Raises
     ------
     ValueError
@@ -371,6 +381,21 @@ def transform_points(T, points) -> np.ndarray:
 def rotation_angle(R) -> float:
     """Rotation angle (radians, in [0, pi]) of a 3x3 rotation matrix.
 
+    Parameters
+    ----------
+    R : array_like, shape (3, 3)
+        Rotation matrix.
+
+    Returns
+    -------
+    float
+        Rotation angle in radians, in [0, pi].
+
+    Raises
+    ------
+    ValueError
+        If ``R`` is not 3x3.
+
     Examples
     --------
     >>> round(rotation_angle(make_frame([0, 0, 0], [0, 0, 1], [0, 1, 0])[:3, :3]), 6)
@@ -385,6 +410,11 @@ def rotation_angle(R) -> float:
 
 def transform_difference(T_a, T_b) -> tuple[float, float]:
     """Translation distance and rotation angle between two poses of the same frame.
+
+    Parameters
+    ----------
+    T_a, T_b : array_like, shape (4, 4)
+        Two rigid transforms of the same frame into the same reference frame.
 
     Returns
     -------

@@ -58,6 +58,8 @@ def planar_from_joints(theta2, theta3, params: RobotParams | None = None):
     ----------
     theta2, theta3 : array_like
         Joint angles in radians (broadcastable).
+    params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml`` (:func:`load_robot_params`).
 
     Returns
     -------
@@ -85,6 +87,8 @@ def fk_ee(theta, params: RobotParams | None = None) -> np.ndarray:
     ----------
     theta : array_like, shape (3,) or (N, 3)
         Joint angles, radians.
+    params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml`` (:func:`load_robot_params`).
 
     Returns
     -------
@@ -104,6 +108,19 @@ def fk_ee(theta, params: RobotParams | None = None) -> np.ndarray:
 
 def T_base_ee(theta, params: RobotParams | None = None) -> np.ndarray:
     """Rigid pose of the end-effector frame, shape (4, 4) or (N, 4, 4).
+
+    Parameters
+    ----------
+    theta : array_like, shape (3,) or (N, 3)
+        Joint angles ``[theta1, theta2, theta3]`` in radians.
+    params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml`` (:func:`load_robot_params`).
+
+    Returns
+    -------
+    T_base_ee : ndarray, shape (4, 4) or (N, 4, 4)
+        Rigid transform mapping end-effector-frame points into the base frame
+        (``p_base = T_base_ee @ p_ee``), translation in metres.
 
     Examples
     --------
@@ -127,6 +144,13 @@ def T_base_ee(theta, params: RobotParams | None = None) -> np.ndarray:
 def fk_spheres(theta, params: RobotParams | None = None) -> dict[str, np.ndarray]:
     """Centres of the tracking spheres in the base frame (rigid kinematics).
 
+    Parameters
+    ----------
+    theta : array_like, shape (3,) or (N, 3)
+        Joint angles ``[theta1, theta2, theta3]`` in radians.
+    params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml`` (:func:`load_robot_params`).
+
     Returns
     -------
     dict
@@ -148,6 +172,13 @@ def fk_spheres(theta, params: RobotParams | None = None) -> dict[str, np.ndarray
 
 def jacobian_ee(theta, params: RobotParams | None = None) -> np.ndarray:
     """Analytic translational Jacobian d p_base / d theta.
+
+    Parameters
+    ----------
+    theta : array_like, shape (3,) or (N, 3)
+        Joint angles ``[theta1, theta2, theta3]`` in radians.
+    params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml`` (:func:`load_robot_params`).
 
     Returns
     -------
@@ -180,6 +211,20 @@ def jacobian_ee(theta, params: RobotParams | None = None) -> np.ndarray:
 def within_limits(theta, params: RobotParams | None = None, *, margin_rad: float = 0.0) -> np.ndarray:
     """Whether each configuration lies inside the joint ranges (shrunk by ``margin_rad``).
 
+    Parameters
+    ----------
+    theta : array_like, shape (3,) or (N, 3)
+        Joint angles ``[theta1, theta2, theta3]`` in radians.
+    params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml`` (:func:`load_robot_params`).
+    margin_rad : float, optional
+        Margin in radians by which every joint range is shrunk on both ends.
+
+    Returns
+    -------
+    ok : bool or ndarray of bool, shape (N,)
+        True where all three joints lie inside their (shrunk) ranges.
+
     Examples
     --------
     >>> bool(within_limits([0.0, 0.0, 2.0]))
@@ -193,7 +238,20 @@ def within_limits(theta, params: RobotParams | None = None, *, margin_rad: float
 
 
 def clip_to_limits(theta, params: RobotParams | None = None) -> np.ndarray:
-    """Clamp joint angles into the joint ranges."""
+    """Clamp joint angles into the joint ranges.
+
+    Parameters
+    ----------
+    theta : array_like, shape (3,) or (N, 3)
+        Joint angles ``[theta1, theta2, theta3]`` in radians.
+    params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml`` (:func:`load_robot_params`).
+
+    Returns
+    -------
+    theta : ndarray, shape (3,) or (N, 3)
+        Joint angles in radians, each clamped into its joint range.
+    """
     p = _params(params)
     th, single = _theta(theta)
     out = np.clip(th, p.joint_limits_rad[:, 0], p.joint_limits_rad[:, 1])
@@ -216,6 +274,8 @@ def ik_all(p_base, params: RobotParams | None = None, *, respect_limits: bool = 
         Target position, metres, base frame.
     respect_limits : bool
         Drop solutions outside the joint ranges.
+    params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml`` (:func:`load_robot_params`).
 
     Returns
     -------
@@ -276,6 +336,8 @@ def ik(p_base, params: RobotParams | None = None, *, elbow: str | None = None,
     near : array_like, shape (3,), optional
         Current configuration; the valid solution nearest to it is returned.
         Default: the solution with theta1 facing the target.
+    params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml`` (:func:`load_robot_params`).
 
     Returns
     -------

@@ -18,7 +18,21 @@ DEFAULT_PARAMS_PATH = Path(str(resources.files("tudorvision.robot").joinpath("da
 
 @dataclass(frozen=True, kw_only=True)
 class LinkParams:
-    """An elastic spring-steel blade (appendix A.1). SI units."""
+    """An elastic spring-steel blade (appendix A.1). SI units.
+
+    Parameters
+    ----------
+    length_m : float
+        Blade length in metres.
+    width_m : float
+        Blade width in metres (horizontal, across the bending plane).
+    height_m : float
+        Blade thickness in metres (in the arm's vertical bending plane).
+    density_kg_m3 : float
+        Material density in kg/m^3.
+    youngs_modulus_Pa : float
+        Young's modulus in pascals.
+    """
 
     length_m: float
     width_m: float
@@ -55,6 +69,47 @@ class RobotParams:
 
     Build with :func:`load_robot_params`; override single values with
     ``dataclasses.replace(params, link1_height_m=0.4)``.
+
+    Parameters
+    ----------
+    gravity_m_s2 : float
+        Gravitational acceleration in m/s^2.
+    link1_height_m : float
+        Height of the shoulder (joint 2 axis) above the base origin, metres.
+    link2_length_m, link3_length_m : float
+        Rigid-equivalent lengths of links 2 and 3, metres.
+    sphere_radius_m : float
+        Radius of the red and green tracking spheres, metres.
+    sphere_offsets_ee_m : dict
+        ``{"red": (3,), "green": (3,)}`` sphere centres in the end-effector frame, metres.
+    joint_limits_rad : ndarray, shape (3, 2)
+        ``[lower, upper]`` range of each joint, radians.
+    max_speed_rad_s, max_accel_rad_s2 : ndarray, shape (3,)
+        Joint speed (rad/s) and acceleration (rad/s^2) limits.
+    experiment_speed_rad_s, experiment_accel_rad_s2 : float
+        Speed and acceleration used by the seed's experiments.
+    gear_ratio, rotor_inertia_kg_m2 : ndarray, shape (3,)
+        Gear ratio and rotor inertia (kg m^2, motor side) per joint.
+    viscous_pos_Nms_rad, viscous_neg_Nms_rad : ndarray, shape (3,)
+        Viscous friction for positive and negative velocity, N m s/rad.
+    coulomb_pos_Nm, coulomb_neg_Nm : ndarray, shape (3,)
+        Coulomb friction for positive and negative velocity, N m.
+    torque_constant_Nm_A, amplifier_gain_A_V, amplifier_cutoff_hz : ndarray, shape (3,)
+        Motor torque constant (N m/A), amplifier gain (A/V) and cut-off (Hz) per joint.
+    max_intermittent_torque_Nm : ndarray, shape (3,)
+        Intermittent torque limit per joint, N m.
+    actuator_mass_kg : ndarray
+        Masses of the actuators carried by the links, kg.
+    link2, link3 : LinkParams
+        The elastic blades of links 2 and 3.
+    gauge_positions_m : dict
+        Strain-gauge positions along each link from its root, metres.
+    modal_damping_ratio : ndarray
+        Damping ratio of each retained bending mode (dimensionless).
+    plate_mass_kg, camera_and_spheres_mass_kg, end_effector_mount_mass_kg, ball_mass_kg : float
+        Masses of one payload plate, the camera with spheres, the end-effector mount and the ball, kg.
+    extra : dict, optional
+        Further keys of the parameter file, unparsed.
     """
 
     gravity_m_s2: float
@@ -90,7 +145,18 @@ class RobotParams:
     extra: dict = field(default_factory=dict)
 
     def replace(self, **changes) -> "RobotParams":
-        """Return a copy with some fields changed."""
+        """Return a copy with some fields changed.
+
+        Parameters
+        ----------
+        **changes
+            Field names and their new values.
+
+        Returns
+        -------
+        RobotParams
+            A new parameter set; ``self`` is unchanged.
+        """
         return dataclasses.replace(self, **changes)
 
 
@@ -102,6 +168,16 @@ def _arr(x) -> np.ndarray:
 
 def load_robot_params(path: str | Path | None = None) -> RobotParams:
     """Load robot parameters from a YAML file (default: the packaged ``tudor.yaml``).
+
+    Parameters
+    ----------
+    path : str or Path, optional
+        YAML parameter file; default :data:`DEFAULT_PARAMS_PATH` (the packaged ``tudor.yaml``).
+
+    Returns
+    -------
+    RobotParams
+        The parsed parameters in SI units.
 
     Raises
     ------
