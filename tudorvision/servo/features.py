@@ -102,7 +102,18 @@ class SquareFeatures:
 
     @classmethod
     def lost(cls, reason: str) -> "SquareFeatures":
-        """Features of a frame without a usable square."""
+        """Features of a frame without a usable square.
+
+        Parameters
+        ----------
+        reason : str
+            Why no square was found.
+
+        Returns
+        -------
+        SquareFeatures
+            ``found=False``, all coordinates and depths NaN.
+        """
         nan2 = np.full(2, np.nan)
         return cls(found=False, centroid_uv=nan2, center_uv=nan2.copy(), corners_uv=np.full((4, 2), np.nan),
                    depth_m=np.full(5, np.nan), reason=reason)
@@ -364,6 +375,7 @@ def extract_square(bgr, depth_m=None, *, config: FeatureConfig = FeatureConfig()
     depth_m : ndarray, shape (H, W), optional
         Registered depth in metres, NaN invalid. Without it all depths are NaN.
     config : FeatureConfig
+        Area, contrast, corner-fit and depth-window thresholds.
 
     Returns
     -------

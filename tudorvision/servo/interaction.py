@@ -125,6 +125,19 @@ def hybrid_matrix(Z: float, f_px: float) -> np.ndarray:
 
     Use with the seed error ``e = s* - s`` (see the module notes).
 
+    Parameters
+    ----------
+    Z : float
+        Depth of the feature along the optical axis, metres (> 0).
+    f_px : float
+        Focal length in pixels.
+
+    Returns
+    -------
+    L_c : ndarray, shape (3, 3)
+        ``diag(f/Z, f/Z, 1)``: maps the camera velocity (m/s, camera frame)
+        to the rate of ``[u px, v px, z m]`` with the seed's sign convention.
+
     Raises
     ------
     ValueError

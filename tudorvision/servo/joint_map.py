@@ -60,7 +60,19 @@ class JointMapConfig:
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class JointCommand:
-    """Joint velocity command (rad/s, shape (3,)); zero with a reason when not ok."""
+    """Joint velocity command (rad/s, shape (3,)); zero with a reason when not ok.
+
+    Parameters
+    ----------
+    theta_dot : ndarray, shape (3,)
+        Joint velocities, rad/s.
+    ok : bool
+        False when the command was zeroed (singularity, joint-range end).
+    reason : str, optional
+        Why the command was zeroed; empty when ``ok``.
+    sigma_min : float, optional
+        Smallest singular value of the Jacobian used (NaN if not computed).
+    """
 
     theta_dot: np.ndarray
     ok: bool
@@ -122,7 +134,9 @@ def joint_velocity(v_cam, theta, T_ee_cam, *, params: RobotParams | None = None,
     T_ee_cam : array_like, shape (4, 4)
         Hand-eye transform (``p_ee = T_ee_cam @ p_cam``).
     params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml``.
     config : JointMapConfig
+        Damping, singularity stop, joint-range margin and speed limits.
 
     Returns
     -------

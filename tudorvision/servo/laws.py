@@ -63,7 +63,22 @@ def adaptive_gain(x, lambda_0: float, lambda_inf: float, slope_0: float):
 
 @dataclass(frozen=True, kw_only=True)
 class AdaptiveGain:
-    """``lambda(x)`` parameters; equal ``lambda_0`` and ``lambda_inf`` give a constant gain."""
+    """``lambda(x)`` parameters; equal ``lambda_0`` and ``lambda_inf`` give a constant gain.
+
+    Parameters
+    ----------
+    lambda_0 : float
+        Gain at zero distance (1/s), > 0.
+    lambda_inf : float
+        Gain far from the goal (1/s), > 0.
+    slope_0 : float
+        Slope of ``lambda(x)`` at ``x = 0`` (1/(s m)), >= 0.
+
+    Raises
+    ------
+    ValueError
+        If a gain is not positive or the slope negative.
+    """
 
     lambda_0: float = 1.2
     lambda_inf: float = 0.6
@@ -141,6 +156,18 @@ class ServoCommand:
 
     @classmethod
     def zero(cls, reason: str) -> "ServoCommand":
+        """A zero camera velocity with ``ok=False``.
+
+        Parameters
+        ----------
+        reason : str
+            Why no command was computed.
+
+        Returns
+        -------
+        ServoCommand
+            Zero ``v_cam``, NaN error.
+        """
         return cls(v_cam=np.zeros(3), ok=False, reason=reason, error=np.full(3, np.nan))
 
 
@@ -168,6 +195,7 @@ def hybrid_law(uvz, uvz_star, principal_uv, f_px: float, gain) -> tuple[np.ndarr
         Unused by the law itself (L_c has no off-axis terms); kept so the
         hybrid and IBVS laws take the same camera description.
     f_px : float
+        Focal length in pixels.
     gain : callable or float
         ``lambda(x)`` of the estimated distance ``x`` (m) or a constant.
 
@@ -209,9 +237,13 @@ def ibvs_law(uv, Z, uv_star, Z_star, principal_uv, f_px: float, gain, *,
     Z, Z_star : array_like, shape (N,)
         Their depths, metres.
     principal_uv : array_like, shape (2,)
+        Principal point ``(u0, v0)``, pixels (u right, v down).
     f_px : float
+        Focal length in pixels.
     gain : callable or float
+        ``lambda(x)`` of the estimated distance ``x`` (m) or a constant.
     interaction : {"current", "desired", "mean"}
+        Depths and points the interaction matrix is evaluated at.
 
     Returns
     -------
@@ -268,6 +300,22 @@ class GoalFeatures:
 
 def servo_command(features: SquareFeatures, goal: GoalFeatures, config: LawConfig = LawConfig()) -> ServoCommand:
     """Camera velocity for one frame, or a zero command when features or depth are missing.
+
+    Parameters
+    ----------
+    features : SquareFeatures
+        Features of the current frame.
+    goal : GoalFeatures
+        Taught goal features and the camera's focal length and principal point.
+    config : LawConfig
+        Control law, interaction matrix choice, gain and velocity limit.
+
+    Returns
+    -------
+    ServoCommand
+        Camera velocity ``v_cam`` (m/s, camera frame), clipped to
+        ``config.v_max_m_s``; zero with ``ok=False`` and a ``reason`` when
+        features or depths are missing.
 
     Examples
     --------

@@ -29,6 +29,16 @@ DEFAULT_SMOOTHING_FRAMES = 15
 def default_T_ee_cam(offset_m: float = 0.05) -> np.ndarray:
     """Nominal hand-eye transform: optical axis along end-effector x, camera x along end-effector z.
 
+    Parameters
+    ----------
+    offset_m : float, optional
+        Distance of the optical centre from the end-effector origin along its x axis, metres.
+
+    Returns
+    -------
+    T_ee_cam : ndarray, shape (4, 4)
+        Maps camera-frame points into the end-effector frame.
+
     Examples
     --------
     >>> default_T_ee_cam()[:3, :3].tolist()
@@ -45,7 +55,17 @@ def default_T_ee_cam(offset_m: float = 0.05) -> np.ndarray:
 # --------------------------------------------------------------------------- perception side
 @dataclass(frozen=True, kw_only=True, eq=False)
 class ServoStep:
-    """Everything one frame produced: features, camera command, joint command."""
+    """Everything one frame produced: features, camera command, joint command.
+
+    Parameters
+    ----------
+    features : SquareFeatures
+        Features of the frame (after the moving-average filter).
+    command : ServoCommand
+        Camera velocity command, m/s, camera frame.
+    joint : JointCommand
+        Joint velocity command, rad/s.
+    """
 
     features: SquareFeatures
     command: ServoCommand
@@ -65,13 +85,23 @@ def servo_step(bgr, depth_m, theta, goal: GoalFeatures, T_ee_cam, *, law: LawCon
     Parameters
     ----------
     bgr : ndarray, shape (H, W, 3) uint8
+        Colour image of the eye-in-hand camera (BGR).
     depth_m : ndarray, shape (H, W)
         Metres, NaN invalid.
     theta : array_like, shape (3,)
         Joint angles from the joint layer, radians.
     goal : GoalFeatures
+        Taught goal features.
     T_ee_cam : array_like, shape (4, 4)
         Hand-eye calibration.
+    law : LawConfig, optional
+        Control law, interaction matrix choice, gain and velocity limit.
+    joint_map : JointMapConfig, optional
+        Damping, singularity stop, joint-range margin and speed limits.
+    features : FeatureConfig, optional
+        Square-extraction thresholds.
+    params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml``.
 
     Returns
     -------
@@ -112,14 +142,28 @@ class VisualServo:
     Parameters
     ----------
     goal : GoalFeatures
+        Taught goal features.
     T_ee_cam : array_like, shape (4, 4)
-    law, joint_map, features : configs
+        Hand-eye calibration (``p_ee = T_ee_cam @ p_cam``).
+    law : LawConfig, optional
+        Control law, interaction matrix choice, gain and velocity limit.
+    joint_map : JointMapConfig, optional
+        Damping, singularity stop, joint-range margin and speed limits.
+    features : FeatureConfig, optional
+        Square-extraction thresholds.
+    params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml``.
     smoothing_frames : int
         Moving average over this many consecutive frames with found
         features (1: none). The elastic arm's first mode (1.5-2.7 Hz) makes
         the camera swing; averaging over about one period (15 frames at
         30 Hz) keeps the servo from feeding it. A frame without features
         empties the filter (and gives a zero command).
+
+    Raises
+    ------
+    ValueError
+        If ``T_ee_cam`` is not a rigid transform or ``smoothing_frames < 1``.
     """
 
     def __init__(self, goal: GoalFeatures, T_ee_cam, *, law: LawConfig = LawConfig(),
@@ -135,7 +179,31 @@ class VisualServo:
 
     @classmethod
     def from_goal_image(cls, bgr, depth_m, K, T_ee_cam, **options) -> "VisualServo":
-        """Teach the goal as an image: extract its features (raises ValueError without a square)."""
+        """Teach the goal as an image: extract its features (raises ValueError without a square).
+
+        Parameters
+        ----------
+        bgr : ndarray, shape (H, W, 3) uint8
+            Goal image (BGR) of the eye-in-hand camera.
+        depth_m : ndarray, shape (H, W)
+            Registered depth, metres, NaN invalid.
+        K : array_like, shape (3, 3)
+            Camera matrix (pixels).
+        T_ee_cam : array_like, shape (4, 4)
+            Hand-eye calibration.
+        **options
+            Keyword options of :class:`VisualServo`.
+
+        Returns
+        -------
+        VisualServo
+            A controller with this goal.
+
+        Raises
+        ------
+        ValueError
+            If no square (or no depth at it) is found in the goal image.
+        """
         fcfg = options.get("features", FeatureConfig())
         f = extract_square(bgr, depth_m, config=fcfg)
         if not f.found:
@@ -149,7 +217,22 @@ class VisualServo:
         self._hist.clear()
 
     def step(self, bgr, depth_m, theta) -> ServoStep:
-        """Process one frame (see :func:`servo_step`), with the moving-average feature filter."""
+        """Process one frame (see :func:`servo_step`), with the moving-average feature filter.
+
+        Parameters
+        ----------
+        bgr : ndarray, shape (H, W, 3) uint8
+            Current colour image (BGR).
+        depth_m : ndarray, shape (H, W)
+            Registered depth, metres, NaN invalid.
+        theta : array_like, shape (3,)
+            Joint angles from the joint layer, radians.
+
+        Returns
+        -------
+        ServoStep
+            Features, camera command and joint command of this frame.
+        """
         f = extract_square(bgr, depth_m, config=self.features)
         ok = f.found and (f.centroid_depth_ok if self.law.law == "hybrid" else f.all_depth_ok)
         if not ok:
@@ -161,7 +244,22 @@ class VisualServo:
         return self.step_features(used, theta, raw=f)
 
     def step_features(self, features: SquareFeatures, theta, *, raw: SquareFeatures | None = None) -> ServoStep:
-        """Law and joint map for already extracted (and filtered) features."""
+        """Law and joint map for already extracted (and filtered) features.
+
+        Parameters
+        ----------
+        features : SquareFeatures
+            Features to steer by (already filtered).
+        theta : array_like, shape (3,)
+            Joint angles, radians.
+        raw : SquareFeatures, optional
+            The unfiltered features, reported in the step (default ``features``).
+
+        Returns
+        -------
+        ServoStep
+            Features, camera command and joint command.
+        """
         cmd = servo_command(features, self.goal, self.law)
         if not cmd.ok:
             jc = JointCommand(theta_dot=np.zeros(3), ok=False, reason=cmd.reason)
