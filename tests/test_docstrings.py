@@ -1,0 +1,364 @@
+"""Public API documentation: numpydoc sections on every exported name, and no global matplotlib state.
+
+Every function and class named in the ``__all__`` of a subpackage (and of the
+top-level modules ``geometry`` and ``sensors``), and every public method those
+classes define, is run through :func:`numpydoc.validate.validate`. The test
+fails on these error codes:
+
+* ``GL08``: the object has no docstring;
+* ``SS01``: no one-line summary;
+* ``PR01``: a parameter of the signature is not documented;
+* ``PR02``: a documented parameter is not in the signature (docs drifting from code);
+* ``PR04``: a documented parameter has no type (``name : type``);
+* ``PR07``: a documented parameter has no description;
+* ``RT01``: a function that returns a value has no Returns section;
+* ``YD01``: a generator has no Yields section.
+
+Extended summaries (``ES01``), See Also and Examples are not required here
+(doctests run separately). Dataclasses, named tuples and protocols document
+their fields in a Parameters or an Attributes section; the check is the same
+(``PR01``: an undocumented field). Enums and exceptions are checked for a
+docstring and a summary only.
+
+A second test walks the syntax tree of every module under ``tudorvision/``
+and fails on ``matplotlib.use(...)`` and on any import of
+``matplotlib.pyplot``: plots draw on a :class:`matplotlib.figure.Figure` and
+never switch a user's backend.
+"""
+from __future__ import annotations
+
+import ast
+import dataclasses
+import enum
+import importlib
+import inspect
+from pathlib import Path
+from typing import Protocol
+
+import pytest
+
+numpydoc_validate = pytest.importorskip("numpydoc.validate")
+
+ROOT = Path(__file__).resolve().parents[1]
+PKG = ROOT / "tudorvision"
+
+MODULES = ["tudorvision.robot", "tudorvision.io", "tudorvision.stereo", "tudorvision.rgbd", "tudorvision.servo",
+           "tudorvision.catch", "tudorvision.joint", "tudorvision.sim", "tudorvision.lab", "tudorvision.geometry",
+           "tudorvision.sensors"]
+
+CHECKED = ("GL08", "SS01", "PR01", "PR02", "PR04", "PR07", "RT01", "YD01")
+
+# Temporary known lists; the test reports an entry that no longer fails (documented, renamed or no longer
+# exported), so they only shrink. Fix the docstring, then delete the entry.
+#
+# (a) Names defined in files that other work in progress rewrites: the security rework of
+# joint/{protocol,server,adapter,transport,proxy,safety}.py, the strain-dynamics split out of joint/collision.py,
+# and the unified depth conversion in sensors.py / io/frames.py / sim/depth_sensor.py / rgbd/depth_model.py.
+KNOWN_IN_FILES_BEING_REWRITTEN = {
+    "tudorvision.io.frames.JointLog.at", "tudorvision.io.frames.MonoFrame", "tudorvision.io.frames.StereoFrame",
+    "tudorvision.joint.adapter.AdapterStats", "tudorvision.joint.adapter.JointAdapter.encode",
+    "tudorvision.joint.adapter.JointAdapter.poll", "tudorvision.joint.adapter.JointAdapter.release",
+    "tudorvision.joint.adapter.JointAdapter.reply_for", "tudorvision.joint.adapter.JointAdapter.request_state",
+    "tudorvision.joint.adapter.JointAdapter.reset_fault", "tudorvision.joint.adapter.JointAdapter.send_setpoint",
+    "tudorvision.joint.adapter.JointAdapter.send_velocity", "tudorvision.joint.adapter.JointAdapter.set_mode",
+    "tudorvision.joint.adapter.JointAdapter.set_payload", "tudorvision.joint.adapter.JointAdapter.stats",
+    "tudorvision.joint.adapter.JointAdapter.wait_settled", "tudorvision.joint.protocol.Ack",
+    "tudorvision.joint.protocol.JointSetpoint", "tudorvision.joint.protocol.JointVelocityCommand",
+    "tudorvision.joint.protocol.ModeSwitch", "tudorvision.joint.protocol.PayloadUpdate",
+    "tudorvision.joint.protocol.Refusal", "tudorvision.joint.proxy.FaultModel",
+    "tudorvision.joint.proxy.LossyUdpProxy.start", "tudorvision.joint.proxy.LossyUdpProxy.stats",
+    "tudorvision.joint.proxy.LossyUdpProxy.stop", "tudorvision.joint.proxy.LossyUdpProxy.wait_idle",
+    "tudorvision.joint.safety.SafetyLimits.from_params", "tudorvision.joint.safety.SafetyPolicy",
+    "tudorvision.joint.server.JointCore.apply_setpoint", "tudorvision.joint.server.JointCore.apply_velocity",
+    "tudorvision.joint.server.JointCore.set_modes", "tudorvision.joint.server.JointCore.step",
+    "tudorvision.joint.server.JointLayerServer", "tudorvision.joint.server.JointLayerServer.command_log",
+    "tudorvision.joint.server.JointLayerServer.events", "tudorvision.joint.server.JointLayerServer.poll",
+    "tudorvision.joint.server.JointLayerServer.run_for", "tudorvision.joint.server.JointLayerServer.serve_forever",
+    "tudorvision.joint.server.JointLayerServer.shutdown", "tudorvision.joint.server.JointLayerServer.start",
+    "tudorvision.joint.server.JointLayerServer.state", "tudorvision.joint.server.JointLayerServer.tick",
+    "tudorvision.joint.server.JointLayerServer.tick_stats", "tudorvision.joint.server.KinematicCore.apply_setpoint",
+    "tudorvision.joint.server.KinematicCore.apply_velocity", "tudorvision.joint.server.KinematicCore.set_modes",
+    "tudorvision.joint.server.KinematicCore.set_payload", "tudorvision.joint.server.KinematicCore.state",
+    "tudorvision.joint.server.KinematicCore.step", "tudorvision.joint.server.KinematicCore.stop",
+    "tudorvision.joint.server.core_names", "tudorvision.joint.server.make_core",
+    "tudorvision.joint.server.register_core", "tudorvision.joint.strain_dynamics.StrainDynamicsModel.at_payload",
+    "tudorvision.joint.strain_dynamics.StrainDynamicsModel.predict",
+    "tudorvision.joint.strain_dynamics.StrainDynamicsModel.terms",
+    "tudorvision.joint.strain_dynamics.fit_strain_dynamics", "tudorvision.joint.transport.InProcessTransport",
+    "tudorvision.joint.transport.InProcessTransport.close", "tudorvision.joint.transport.InProcessTransport.pair",
+    "tudorvision.joint.transport.InProcessTransport.recv", "tudorvision.joint.transport.InProcessTransport.send",
+    "tudorvision.joint.transport.LockstepClientTransport.close",
+    "tudorvision.joint.transport.LockstepClientTransport.recv",
+    "tudorvision.joint.transport.LockstepClientTransport.send", "tudorvision.joint.transport.Transport.recv",
+    "tudorvision.joint.transport.Transport.send", "tudorvision.joint.transport.UdpTransport",
+    "tudorvision.joint.transport.UdpTransport.client", "tudorvision.joint.transport.UdpTransport.close",
+    "tudorvision.joint.transport.UdpTransport.fileno", "tudorvision.joint.transport.UdpTransport.recv",
+    "tudorvision.joint.transport.UdpTransport.send", "tudorvision.joint.transport.UdpTransport.server",
+    "tudorvision.rgbd.depth_model.calibrate_depth_model", "tudorvision.rgbd.depth_model.plot_depth_model",
+    "tudorvision.rgbd.depth_model.read_depth_table_csv", "tudorvision.rgbd.depth_model.write_depth_table_csv",
+    "tudorvision.sensors.DepthNoiseModel", "tudorvision.sensors.DepthNoiseModel.as_dict",
+    "tudorvision.sensors.DepthNoiseModel.from_dict",
+}
+# (b) Not yet documented (issue 13's docstring pass got through robot, geometry and servo first).
+KNOWN_NOT_YET_DOCUMENTED = {
+    "tudorvision.catch.ballistic.BallisticPredictor", "tudorvision.catch.ballistic.BallisticPredictor.add",
+    "tudorvision.catch.ballistic.BallisticPredictor.predict", "tudorvision.catch.ballistic.BallisticPredictor.reset",
+    "tudorvision.catch.ballistic.fit_ballistic", "tudorvision.catch.ekf.BallEKF",
+    "tudorvision.catch.ekf.BallEKF.predict", "tudorvision.catch.ekf.BallEKF.predict_at",
+    "tudorvision.catch.ekf.BallEKF.step", "tudorvision.catch.ekf.BallEKF.update",
+    "tudorvision.catch.ekf.init_from_detections", "tudorvision.catch.ekf.predict", "tudorvision.catch.ekf.propagate",
+    "tudorvision.catch.ekf.update", "tudorvision.catch.intercept.Intercept",
+    "tudorvision.catch.intercept.InterceptOptions", "tudorvision.catch.intercept.InterceptPlanner",
+    "tudorvision.catch.intercept.InterceptPlanner.update", "tudorvision.catch.intercept.PlaneCrossing",
+    "tudorvision.catch.intercept.net_target", "tudorvision.catch.intercept.plane_crossing",
+    "tudorvision.catch.intercept.reachable_solutions", "tudorvision.catch.intercept.working_plane_normal",
+    "tudorvision.catch.perception.CatchPerception", "tudorvision.catch.perception.CatchPerception.step",
+    "tudorvision.catch.perception.detection_to_base", "tudorvision.io.calibration.Calibration.allclose",
+    "tudorvision.io.calibration.Calibration.camera", "tudorvision.io.calibration.Calibration.from_dict",
+    "tudorvision.io.calibration.Calibration.merge", "tudorvision.io.calibration.Calibration.to_dict",
+    "tudorvision.io.calibration.Calibration.transform", "tudorvision.io.calibration.Calibration.with_updates",
+    "tudorvision.io.calibration.CameraModel.allclose", "tudorvision.io.calibration.CameraModel.replace",
+    "tudorvision.io.calibration.DepthModel.allclose", "tudorvision.io.calibration.DepthModel.sigma_m",
+    "tudorvision.io.calibration.StereoExtrinsics.allclose", "tudorvision.io.calibration.save_calibration",
+    "tudorvision.io.formats.calibration_from_ros", "tudorvision.io.formats.load_ros_camera_info",
+    "tudorvision.io.formats.save_opencv_stereo", "tudorvision.io.formats.save_ros_camera_info",
+    "tudorvision.io.playback.Playback", "tudorvision.io.playback.Playback.stats", "tudorvision.io.sequence.Sequence",
+    "tudorvision.io.sequence.Sequence.groundtruth", "tudorvision.io.sequence.Sequence.joints",
+    "tudorvision.io.sequence.Sequence.load_or_report", "tudorvision.io.sequence.Sequence.play",
+    "tudorvision.io.writer.SequenceWriter.add_joints", "tudorvision.io.writer.SequenceWriter.add_mono",
+    "tudorvision.io.writer.SequenceWriter.add_rgbd", "tudorvision.io.writer.SequenceWriter.add_stereo",
+    "tudorvision.io.writer.SequenceWriter.close", "tudorvision.io.writer.SequenceWriter.write_groundtruth",
+    "tudorvision.joint.cascade.JointCascade", "tudorvision.joint.cascade.JointCascade.reset",
+    "tudorvision.joint.cascade.design_cascade", "tudorvision.joint.collision.CollisionMonitor",
+    "tudorvision.joint.collision.CollisionMonitor.set_payload", "tudorvision.joint.collision.CollisionMonitor.step",
+    "tudorvision.joint.collision.MomentumObserver", "tudorvision.joint.collision.MomentumObserver.reset",
+    "tudorvision.joint.collision.MomentumObserver.set_payload", "tudorvision.joint.collision.MomentumObserver.step",
+    "tudorvision.joint.collision.reaction_config", "tudorvision.joint.damping.StrainDamper",
+    "tudorvision.joint.damping.StrainDamper.set_gains", "tudorvision.joint.damping.StrainDamper.set_payload",
+    "tudorvision.joint.damping.default_damping_config", "tudorvision.joint.metrics.damping_metrics",
+    "tudorvision.joint.metrics.settling_time", "tudorvision.joint.planner.JointMotion.sample_scalar",
+    "tudorvision.joint.planner.OnlinePlanner", "tudorvision.joint.planner.OnlinePlanner.sample",
+    "tudorvision.joint.planner.OnlinePlanner.sample_scalar", "tudorvision.joint.planner.OnlinePlanner.set_goal",
+    "tudorvision.lab.lockstep.LockstepLayer.advance_to", "tudorvision.lab.lockstep.LockstepLayer.close",
+    "tudorvision.lab.lockstep.LockstepLayer.state", "tudorvision.lab.record.RecordOptions",
+    "tudorvision.lab.record.record", "tudorvision.lab.simulation.SimCore", "tudorvision.lab.simulation.simulate_ptp",
+    "tudorvision.rgbd.ball.BallDetection", "tudorvision.rgbd.ball.BallDetector",
+    "tudorvision.rgbd.ball.BallDetector.update", "tudorvision.rgbd.ball.ColorBallDetector",
+    "tudorvision.rgbd.ball.ColorBallDetector.update", "tudorvision.rgbd.ball.DepthBackground",
+    "tudorvision.rgbd.ball.detect_balls", "tudorvision.rgbd.cloud.cloud_from_points",
+    "tudorvision.rgbd.cloud.cloud_from_rgbd", "tudorvision.rgbd.cloud.read_ply", "tudorvision.rgbd.cloud.write_ply",
+    "tudorvision.rgbd.disc.DiscObservation", "tudorvision.rgbd.disc.DiscOptions",
+    "tudorvision.rgbd.disc.DiscTracker", "tudorvision.rgbd.disc.DiscTracker.reseed",
+    "tudorvision.rgbd.disc.DiscTracker.update", "tudorvision.rgbd.disc.track_disc",
+    "tudorvision.rgbd.frames.Intrinsics.from_matrix", "tudorvision.rgbd.frames.Intrinsics.scaled",
+    "tudorvision.rgbd.frames.points_cam_from_depth", "tudorvision.rgbd.frames.uv_from_points_cam",
+    "tudorvision.sim.arm.ElasticArm", "tudorvision.sim.arm.ElasticArm.T_base_ee",
+    "tudorvision.sim.arm.ElasticArm.design_inertia_kg_m2", "tudorvision.sim.arm.ElasticArm.ee_position",
+    "tudorvision.sim.arm.ElasticArm.measured_strain", "tudorvision.sim.arm.ElasticArm.measured_theta",
+    "tudorvision.sim.arm.ElasticArm.reset_at_rest", "tudorvision.sim.arm.ElasticArm.set_payload",
+    "tudorvision.sim.arm.ElasticArm.sphere_positions", "tudorvision.sim.arm.ElasticArm.step",
+    "tudorvision.sim.camera.intrinsic_matrix", "tudorvision.sim.camera.look_at",
+    "tudorvision.sim.camera.project_points", "tudorvision.sim.camera.with_pose",
+    "tudorvision.sim.lighting.AmbientLight", "tudorvision.sim.lighting.DirectionalLight",
+    "tudorvision.sim.lighting.PointLight", "tudorvision.sim.model.Payload.from_parts",
+    "tudorvision.sim.model.SimLog", "tudorvision.sim.model.SimLog.T_base_ee",
+    "tudorvision.sim.model.SimLog.ee_position", "tudorvision.sim.model.SimLog.sphere_positions",
+    "tudorvision.sim.model.SpringDamperObstacle.force", "tudorvision.sim.model.fk_elastic",
+    "tudorvision.sim.render.render_bgr", "tudorvision.sim.render.render_rgbd",
+    "tudorvision.sim.roi_render.RoiRenderer", "tudorvision.sim.roi_render.RoiRenderer.render",
+    "tudorvision.sim.scenes.SimSetup", "tudorvision.sim.scenes.StereoRigConfig", "tudorvision.sim.scenes.ball_throw",
+    "tudorvision.sim.scenes.checkerboard_lab", "tudorvision.sim.scenes.eye_in_hand",
+    "tudorvision.sim.scenes.planar_target", "tudorvision.sim.scenes.stereo_lab", "tudorvision.sim.scenes.stereo_rig",
+    "tudorvision.sim.scenes.wall_disc", "tudorvision.sim.shapes.Box", "tudorvision.sim.shapes.Box.corners",
+    "tudorvision.sim.shapes.Box.intersect", "tudorvision.sim.shapes.Box.normals", "tudorvision.sim.shapes.Capsule",
+    "tudorvision.sim.shapes.Capsule.corners", "tudorvision.sim.shapes.Capsule.intersect",
+    "tudorvision.sim.shapes.Capsule.normals", "tudorvision.sim.shapes.Cylinder",
+    "tudorvision.sim.shapes.Cylinder.intersect", "tudorvision.sim.shapes.Cylinder.normals",
+    "tudorvision.sim.shapes.Disc", "tudorvision.sim.shapes.Disc.corners", "tudorvision.sim.shapes.Disc.intersect",
+    "tudorvision.sim.shapes.Disc.normals", "tudorvision.sim.shapes.Rectangle",
+    "tudorvision.sim.shapes.Rectangle.albedo", "tudorvision.sim.shapes.Rectangle.corners",
+    "tudorvision.sim.shapes.Rectangle.inner_corners", "tudorvision.sim.shapes.Rectangle.intersect",
+    "tudorvision.sim.shapes.Rectangle.normals", "tudorvision.sim.shapes.Scene.object_ids",
+    "tudorvision.sim.shapes.Sphere", "tudorvision.sim.shapes.Sphere.corners",
+    "tudorvision.sim.shapes.Sphere.intersect", "tudorvision.sim.shapes.Sphere.normals",
+    "tudorvision.stereo.base_frame.BaseFrameReport.summary",
+    "tudorvision.stereo.calibrate.StereoCalibrationResult.summary",
+    "tudorvision.stereo.calibrate.calibrate_stereo_from_images", "tudorvision.stereo.calibrate.parse_board",
+    "tudorvision.stereo.colormodel.ColorModel.from_dict", "tudorvision.stereo.colormodel.ColorModel.to_dict",
+    "tudorvision.stereo.colormodel.ColorModelSet.for_camera", "tudorvision.stereo.colormodel.ColorModelSet.get",
+    "tudorvision.stereo.colormodel.ColorModelSet.spheres", "tudorvision.stereo.colormodel.load_color_models",
+    "tudorvision.stereo.colormodel.save_color_models", "tudorvision.stereo.pipeline.StereoFrameResult.uv",
+    "tudorvision.stereo.pipeline.StereoPipeline", "tudorvision.stereo.pipeline.StereoPipeline.detect",
+    "tudorvision.stereo.pipeline.TrackStats", "tudorvision.stereo.pipeline.TrackStats.summary",
+    "tudorvision.stereo.pipeline.iter_stereo", "tudorvision.stereo.pipeline.read_mono_track_csv",
+    "tudorvision.stereo.pipeline.track_mono", "tudorvision.stereo.pipeline.track_stereo",
+    "tudorvision.stereo.pipeline.write_mono_track_csv", "tudorvision.stereo.rerun_log.RerunStereoLog.log_frame",
+    "tudorvision.stereo.rerun_log.RerunStereoLog.log_trajectory", "tudorvision.stereo.segment.detect_spheres",
+    "tudorvision.stereo.tracker2d.SphereTracker", "tudorvision.stereo.trajectory.read_trajectory_csv",
+    "tudorvision.stereo.trajectory.trajectory_from_points", "tudorvision.stereo.trajectory.write_trajectory_csv",
+}
+KNOWN_UNDOCUMENTED = KNOWN_IN_FILES_BEING_REWRITTEN | KNOWN_NOT_YET_DOCUMENTED
+
+# Modules that still switch the matplotlib backend, temporarily: both are being restructured by other work
+# (rgbd/depth_model.py: the depth-model unification; lab/catch_demo.py: the catch-demo split).
+KNOWN_MATPLOTLIB_GLOBAL_STATE = {"tudorvision/rgbd/depth_model.py", "tudorvision/lab/catch_demo.py"}
+
+
+def _is_protocol(cls) -> bool:
+    return Protocol in getattr(cls, "__mro__", ()) or getattr(cls, "_is_protocol", False)
+
+
+def _exported():
+    """Yield ``(qualified name, object, owning class or None)`` for every checked object."""
+    seen = set()
+    for modname in MODULES:
+        try:
+            mod = importlib.import_module(modname)
+        except ModuleNotFoundError as exc:
+            if exc.name == modname:
+                continue
+            raise
+        for name in getattr(mod, "__all__", ()):
+            obj = getattr(mod, name)
+            if not (inspect.isfunction(obj) or inspect.isclass(obj)):
+                continue
+            qual = f"{obj.__module__}.{obj.__qualname__}"
+            if qual in seen:
+                continue
+            seen.add(qual)
+            yield qual, obj, None
+            if inspect.isclass(obj):
+                for attr, raw in vars(obj).items():
+                    if attr.startswith("_"):
+                        continue
+                    if isinstance(raw, (staticmethod, classmethod)):
+                        raw = raw.__func__
+                    if inspect.isfunction(raw) and raw.__qualname__.startswith(obj.__qualname__ + "."):
+                        yield f"{qual}.{attr}", raw, obj
+
+
+def _section_names(doc, section: str) -> set[str]:
+    names = set()
+    for param in doc[section]:
+        for part in param.name.replace("\\", "").split(","):
+            if part.strip():
+                names.add(part.strip())
+    return names
+
+
+def _class_errors(cls) -> list[tuple[str, str]]:
+    """Errors for a class docstring: the numpydoc codes, with fields allowed under Attributes."""
+    from numpydoc.docscrape import ClassDoc
+
+    result = numpydoc_validate.validate(f"{cls.__module__}.{cls.__qualname__}")
+    errors = [(c, m) for c, m in result["errors"] if c in CHECKED and c not in ("PR01", "PR02")]
+    if any(c == "GL08" for c, _ in errors) or issubclass(cls, (enum.Enum, BaseException)):
+        return errors
+    doc = ClassDoc(cls, config={"show_class_members": False})
+    documented = (_section_names(doc, "Parameters") | _section_names(doc, "Other Parameters")
+                  | _section_names(doc, "Attributes"))
+    if _is_protocol(cls):
+        fields = [n for n in getattr(cls, "__annotations__", {}) if not n.startswith("_")]
+    elif dataclasses.is_dataclass(cls):
+        fields = [f.name for f in dataclasses.fields(cls) if f.init]
+    elif issubclass(cls, tuple) and hasattr(cls, "_fields"):
+        fields = list(cls._fields)
+    else:
+        try:
+            sig = inspect.signature(cls)
+        except (TypeError, ValueError):
+            sig = None
+        init_is_python = any(inspect.isfunction(vars(k).get("__init__")) or inspect.isfunction(vars(k).get("__new__"))
+                             for k in cls.__mro__ if k is not object and k.__module__.startswith("tudorvision"))
+        fields = [] if sig is None or not init_is_python else [
+            p.name if p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD) else
+            ("*" if p.kind == p.VAR_POSITIONAL else "**") + p.name
+            for p in sig.parameters.values()]
+        extra = _section_names(doc, "Parameters") - set(fields) - {f.lstrip("*") for f in fields}
+        if extra and fields:
+            errors.append(("PR02", f"Unknown parameters {sorted(extra)}"))
+    missing = [f for f in fields if f not in documented and f.lstrip("*") not in documented]
+    if missing:
+        errors.append(("PR01", f"Parameters/fields {missing} not documented"))
+    return errors
+
+
+def _errors(qual, obj, owner) -> list[tuple[str, str]]:
+    if inspect.isclass(obj):
+        return _class_errors(obj)
+    result = numpydoc_validate.validate(qual)
+    return [(c, m) for c, m in result["errors"] if c in CHECKED]
+
+
+def _all_problems() -> dict[str, list[tuple[str, str]]]:
+    return {qual: errs for qual, obj, owner in _exported() if (errs := _errors(qual, obj, owner))}
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")   # numpydoc on section underlines
+def test_exported_names_have_numpydoc_sections():
+    problems = _all_problems()
+    failing = {q: e for q, e in problems.items() if q not in KNOWN_UNDOCUMENTED}
+    lines = [f"{q}: {code} {msg}" for q, errs in sorted(failing.items()) for code, msg in errs]
+    assert not lines, f"{len(failing)} public objects with docstring errors:\n" + "\n".join(lines)
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")   # numpydoc on section underlines
+def test_known_undocumented_list_only_shrinks():
+    problems = _all_problems()
+    fixed = sorted(KNOWN_UNDOCUMENTED - set(problems))
+    assert not fixed, "now documented (or renamed, or no longer exported), remove from the known lists: " \
+        + ", ".join(fixed)
+
+
+def test_the_validator_catches_a_missing_parameter():
+    def undocumented(x, y):
+        """Add two numbers.
+
+        Parameters
+        ----------
+        x : float
+            First.
+        """
+        return x + y
+
+    codes = {c for c, _ in numpydoc_validate.validate(
+        numpydoc_validate.get_doc_object(undocumented))["errors"]}
+    assert {"PR01", "RT01"} <= codes
+
+
+# ----------------------------------------------------------------------------- matplotlib global state
+def _matplotlib_global_state(tree: ast.AST) -> list[tuple[int, str]]:
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found += [(node.lineno, f"import {a.name}") for a in node.names if a.name.startswith("matplotlib.pyplot")]
+        elif isinstance(node, ast.ImportFrom):
+            mod = node.module or ""
+            if mod.startswith("matplotlib.pyplot") or (mod == "matplotlib" and any(a.name == "pyplot"
+                                                                                    for a in node.names)):
+                found.append((node.lineno, f"from {mod} import ..."))
+        elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "use" \
+                and isinstance(node.func.value, ast.Name) and node.func.value.id in ("matplotlib", "mpl"):
+            found.append((node.lineno, ast.unparse(node)))
+    return sorted(found)
+
+
+def test_the_matplotlib_check_catches_pyplot():
+    tree = ast.parse("import matplotlib\nmatplotlib.use('Agg')\nimport matplotlib.pyplot as plt\n"
+                     "from matplotlib import pyplot\n")
+    assert sorted(line for line, _ in _matplotlib_global_state(tree)) == [2, 3, 4]
+    assert _matplotlib_global_state(ast.parse("from matplotlib.figure import Figure\n")) == []
+
+
+def test_no_module_touches_the_global_matplotlib_state():
+    problems, known = [], set()
+    for path in sorted(PKG.rglob("*.py")):
+        rel = path.relative_to(ROOT).as_posix()
+        found = _matplotlib_global_state(ast.parse(path.read_text(), filename=str(path)))
+        if rel in KNOWN_MATPLOTLIB_GLOBAL_STATE:
+            known |= {rel} if found else set()
+            continue
+        problems += [f"{rel}:{line}: {what}" for line, what in found]
+    assert not problems, "use matplotlib.figure.Figure instead:\n" + "\n".join(problems)
+    fixed = KNOWN_MATPLOTLIB_GLOBAL_STATE - known
+    assert not fixed, "no longer touch the global state, remove from KNOWN_MATPLOTLIB_GLOBAL_STATE: " + ", ".join(fixed)
