@@ -3,14 +3,18 @@
 Measures, in one run:
 
 1. ``adapter/udp``   - ``JointAdapter.request_state`` over UDP on 127.0.0.1 to a
-   ``JointLayerServer`` (kinematic core) running in a thread of this process;
-2. ``adapter/inproc`` - the same over the in-process transport;
-3. ``peer/udp``      - a bare ``socket.sendto``/``recvfrom`` echo with the same
-   request and reply sizes (28 and 183 bytes), no protocol, echo in a thread;
+   ``JointLayerServer`` (kinematic core) running in a thread of this process,
+   in the adapter's session (protocol v2, no key);
+2. ``adapter/udp+hmac`` - the same with a key: every datagram carries and is
+   checked against an HMAC-SHA256 tag (stdlib ``hmac``);
+3. ``adapter/inproc`` - the same as 1 over the in-process transport;
+4. ``peer/udp``      - a bare ``socket.sendto``/``recvfrom`` echo with the
+   authenticated request and reply sizes, no protocol, echo in a thread;
 
-and with ``--processes`` the UDP server and the bare echo in separate
-processes (no GIL sharing, closer to the lab). Prints p50/p99 in microseconds
-and the overhead ratio adapter/peer.
+and with ``--processes`` the UDP server (``tudorvision joint serve``, with
+``--key-file``) and the bare echo in separate processes (no GIL sharing,
+closer to the lab). Prints p50/p99 in microseconds and the overhead ratio
+adapter/peer.
 
 Run: ``.venv/bin/python benchmarks/bench_udp_roundtrip.py [--n 5000] [--processes]``
 """
@@ -22,6 +26,7 @@ import platform
 import socket
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 
@@ -32,8 +37,9 @@ from tudorvision.joint.adapter import JointAdapter
 from tudorvision.joint.server import JointLayerServer, KinematicCore, ServerConfig
 from tudorvision.joint.transport import InProcessTransport, UdpTransport
 
-REQ_SIZE = len(P.encode(P.StateRequest(), 1, 0.0))
-REPLY_SIZE = len(P.encode(P.State(t=0.0, theta=(0, 0, 0), theta_dot=(0, 0, 0)), 1, 0.0))
+KEY = bytes(range(32))
+REQ_SIZE = len(P.encode(P.StateRequest(), 1, 0.0, key=KEY))
+REPLY_SIZE = len(P.encode(P.State(t=0.0, theta=(0, 0, 0), theta_dot=(0, 0, 0)), 1, 0.0, key=KEY))
 
 ECHO_SRC = f"""
 import socket, sys
@@ -50,6 +56,8 @@ except socket.timeout:
 
 
 def _adapter_times(adapter, n, warmup):
+    if not isinstance(adapter.open_session(timeout=2.0), P.Welcome):   # the owner: no rate limit
+        raise RuntimeError("could not open a session")
     out = np.empty(n)
     for i in range(warmup + n):
         t0 = time.perf_counter()
@@ -116,8 +124,10 @@ def main(argv=None):
     args = ap.parse_args(argv)
     cpu = next((ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo")
                 if ln.startswith("model name")), platform.processor())
-    print(f"machine: {cpu}, {os.cpu_count()} cores, Python {platform.python_version()}")
-    print(f"payloads: request {REQ_SIZE} B, reply {REPLY_SIZE} B; n = {args.n}; "
+    print(f"machine: {cpu}, {platform.machine()}, {os.cpu_count()} cores, "
+          f"Python {platform.python_version()}")
+    print(f"payloads with tag: request {REQ_SIZE} B, reply {REPLY_SIZE} B (without: "
+          f"{REQ_SIZE - P.TAG_SIZE} / {REPLY_SIZE - P.TAG_SIZE} B); n = {args.n}; "
           f"server rate {args.rate:g} Hz\n")
     cfg = ServerConfig(rate_hz=args.rate)
     res = {}
@@ -127,6 +137,13 @@ def main(argv=None):
         with JointAdapter(UdpTransport.client(end.address[1])) as a:
             res["adapter/udp"] = _row("adapter/udp (thread)",
                                       _adapter_times(a, args.n, args.warmup))
+    end.close()
+
+    end = UdpTransport.server(0)
+    with JointLayerServer(end, KinematicCore(), config=cfg, key=KEY):
+        with JointAdapter(UdpTransport.client(end.address[1]), key=KEY) as a:
+            res["adapter/udp+hmac"] = _row("adapter/udp+hmac (thread)",
+                                           _adapter_times(a, args.n, args.warmup))
     end.close()
 
     client, end = InProcessTransport.pair()
@@ -141,17 +158,21 @@ def main(argv=None):
     stop.set()
 
     if args.processes:
+        keydir = tempfile.TemporaryDirectory()
+        keyfile = os.path.join(keydir.name, "joint.key")
+        P.write_key_file(keyfile)
         srv = subprocess.Popen([sys.executable, "-m", "tudorvision.cli", "joint", "serve",
-                                "--port", "0", "--duration", "300", "--rate", str(args.rate)],
+                                "--port", "0", "--duration", "300", "--rate", str(args.rate),
+                                "--key-file", keyfile],
                                stdout=subprocess.PIPE, text=True)
         echo = subprocess.Popen([sys.executable, "-c", ECHO_SRC, "30"],
                                 stdout=subprocess.PIPE, text=True)
         try:
             sport = int(srv.stdout.readline().rsplit(":", 1)[1])
             eport = int(echo.stdout.readline())
-            with JointAdapter(UdpTransport.client(sport)) as a:
-                res["adapter/udp/proc"] = _row("adapter/udp (process)",
-                                               _adapter_times(a, args.n, args.warmup))
+            with JointAdapter(UdpTransport.client(sport), key=P.read_key_file(keyfile)) as a:
+                res["adapter/udp+hmac/proc"] = _row("adapter/udp+hmac (process)",
+                                                    _adapter_times(a, args.n, args.warmup))
             res["peer/udp/proc"] = _row("peer bare udp echo (process)",
                                         _peer_times(eport, args.n, args.warmup))
         finally:
@@ -159,9 +180,11 @@ def main(argv=None):
             echo.terminate()
             srv.wait(5)
             echo.wait(5)
+            keydir.cleanup()
 
     print()
-    for a, b in (("adapter/udp", "peer/udp"), ("adapter/udp/proc", "peer/udp/proc"),
+    for a, b in (("adapter/udp", "peer/udp"), ("adapter/udp+hmac", "peer/udp"),
+                 ("adapter/udp+hmac", "adapter/udp"), ("adapter/udp+hmac/proc", "peer/udp/proc"),
                  ("adapter/inproc", "peer/udp")):
         if a in res and b in res:
             print(f"overhead {a} / {b}: p50 x{res[a][0] / res[b][0]:.2f}, "

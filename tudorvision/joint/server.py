@@ -529,6 +529,7 @@ class JointLayerServer:
         self._limiter = _RateLimiter(config.source_rate_hz, config.source_burst, config.max_sources)
         self._ticks = collections.deque()           # (t_wall, interval) over the last second
         self._last_tick_wall = None
+        self._tick_stats, self._tick_stats_at = (0.0, 0.0, 0.0), None
         self._speeds = collections.deque()          # (t_core, theta_dot) for the acceleration check
         core.set_modes(damping=self._damping, collision=self._collision)
         core.stop()
@@ -573,13 +574,22 @@ class JointLayerServer:
             return list(self._events)
 
     def tick_stats(self) -> tuple[float, float, float]:
-        """Tick-interval p50, p99 and maximum in s over the last second of the wall-clock loop."""
+        """Tick-interval p50, p99 and maximum in s over the last second of the wall-clock loop.
+
+        Recomputed at most every 50 ms (a State request must stay cheap).
+        """
         with self._lock:
-            if not self._ticks:
-                return 0.0, 0.0, 0.0
-            iv = np.fromiter((x for _, x in self._ticks), dtype=float, count=len(self._ticks))
-        p50, p99 = np.percentile(iv, [50, 99])
-        return float(p50), float(p99), float(iv.max())
+            now = time.monotonic()
+            if self._tick_stats_at is not None and now - self._tick_stats_at < 0.05:
+                return self._tick_stats
+            iv = sorted(x for _, x in self._ticks)
+            if iv:
+                n = len(iv)
+                self._tick_stats = (iv[(n - 1) // 2], iv[min(n - 1, int(0.99 * (n - 1) + 0.5))], iv[-1])
+            else:
+                self._tick_stats = (0.0, 0.0, 0.0)
+            self._tick_stats_at = now
+            return self._tick_stats
 
     def state(self, request_seq: int = 0) -> P.State:
         """The state feedback message for the current core state."""
