@@ -103,11 +103,11 @@ KNOWN_IN_FILES_BEING_REWRITTEN = {
 KNOWN_NOT_YET_DOCUMENTED = {
     "tudorvision.catch.ballistic.BallisticPredictor", "tudorvision.catch.ballistic.BallisticPredictor.add",
     "tudorvision.catch.ballistic.BallisticPredictor.predict", "tudorvision.catch.ballistic.BallisticPredictor.reset",
-    "tudorvision.catch.ballistic.fit_ballistic", "tudorvision.catch.ekf.BallEKF",
-    "tudorvision.catch.ekf.BallEKF.predict", "tudorvision.catch.ekf.BallEKF.predict_at",
-    "tudorvision.catch.ekf.BallEKF.step", "tudorvision.catch.ekf.BallEKF.update",
-    "tudorvision.catch.ekf.init_from_detections", "tudorvision.catch.ekf.predict", "tudorvision.catch.ekf.propagate",
-    "tudorvision.catch.ekf.update", "tudorvision.catch.intercept.Intercept",
+    "tudorvision.catch.ballistic.fit_ballistic",
+
+
+
+    "tudorvision.catch.intercept.Intercept",
     "tudorvision.catch.intercept.InterceptOptions", "tudorvision.catch.intercept.InterceptPlanner",
     "tudorvision.catch.intercept.InterceptPlanner.update", "tudorvision.catch.intercept.PlaneCrossing",
     "tudorvision.catch.intercept.net_target", "tudorvision.catch.intercept.plane_crossing",

@@ -168,8 +168,13 @@ def propagate(x, dt: float, model: BallModel = BallModel(), *, jacobian: bool = 
     Parameters
     ----------
     x : array_like, shape (6,)
+        State ``[x, y, z, vx, vy, vz]``, metres and m/s, filter frame.
     dt : float
         Seconds (may be negative: backwards in time).
+    model : BallModel, optional
+        Gravity, drag coefficient and integration step.
+    jacobian : bool, optional
+        Also integrate the state-transition Jacobian ``F``.
 
     Returns
     -------
@@ -329,6 +334,19 @@ def process_noise(dt: float, q_m2_s3: float) -> np.ndarray:
 def predict(x, P, dt: float, model: BallModel = BallModel(), q_m2_s3: float = 0.001):
     """EKF prediction over ``dt`` seconds: ``x <- f(x)``, ``P <- F P F^T + Q``.
 
+    Parameters
+    ----------
+    x : array_like, shape (6,)
+        State ``[x, y, z, vx, vy, vz]``, metres and m/s, filter frame.
+    P : array_like, shape (6, 6)
+        State covariance.
+    dt : float
+        Prediction horizon, seconds.
+    model : BallModel, optional
+        Gravity, drag coefficient and integration step.
+    q_m2_s3 : float, optional
+        White-acceleration process-noise spectral density, m^2/s^3.
+
     Returns
     -------
     x : ndarray, shape (6,)
@@ -355,7 +373,9 @@ def update(x, P, z, R):
     Parameters
     ----------
     x : array_like, shape (6,)
+        State ``[x, y, z, vx, vy, vz]``, metres and m/s, filter frame.
     P : array_like, shape (6, 6)
+        State covariance (m^2, m^2/s, m^2/s^2 blocks).
     z : array_like, shape (3,)
         Measured ball centre, metres, filter frame.
     R : array_like, shape (3, 3)
@@ -405,6 +425,10 @@ def init_from_detections(t, p, R, model: BallModel = BallModel(), *, velocity_si
         Ball centres, metres, filter frame.
     R : array_like, shape (N, 3, 3)
         Their covariances, m^2.
+    model : BallModel, optional
+        Flight model (gravity, drag) used for the curvature term.
+    velocity_sigma_floor_m_s : float, optional
+        Lower bound on the initial velocity standard deviation, m/s.
 
     Returns
     -------
@@ -465,6 +489,11 @@ class BallEKF:
     :func:`process_noise`). Feed detections in time order with
     :meth:`step`, or call :meth:`predict` then :meth:`update` yourself.
 
+    Parameters
+    ----------
+    options : EKFOptions, optional
+        Flight model, process noise, gating, initialisation and restart settings.
+
     Attributes
     ----------
     t : float or None
@@ -522,7 +551,18 @@ class BallEKF:
 
     # ------------------------------------------------------------- filtering
     def predict(self, dt: float) -> None:
-        """Propagate the estimate by ``dt`` seconds (filterpy ``predict`` with F, Q set)."""
+        """Propagate the estimate by ``dt`` seconds (filterpy ``predict`` with F, Q set).
+
+        Parameters
+        ----------
+        dt : float
+            Seconds.
+
+        Raises
+        ------
+        RuntimeError
+            If the filter is not initialised.
+        """
         if not self.initialised:
             raise RuntimeError("predict: the filter is not initialised")
         o = self.options
@@ -534,7 +574,20 @@ class BallEKF:
         self.t += float(dt)
 
     def update(self, z, R) -> bool:
-        """Gate and fuse one detection at the current time; returns whether it was accepted."""
+        """Gate and fuse one detection at the current time; returns whether it was accepted.
+
+        Parameters
+        ----------
+        z : array_like, shape (3,)
+            Measured ball centre, metres, filter frame.
+        R : array_like, shape (3, 3)
+            Its covariance, m^2.
+
+        Returns
+        -------
+        bool
+            True if the detection passed the NIS gate and was fused.
+        """
         z = check_array(z, "z", (3,))
         R = check_array(R, "R", (3, 3))
         y = z - self._kf.x[:3, 0]
@@ -550,6 +603,15 @@ class BallEKF:
 
     def step(self, t: float, z, R) -> str:
         """Offer the detection at time ``t`` (seconds); handles init, gating and new throws.
+
+        Parameters
+        ----------
+        t : float
+            Detection time, seconds.
+        z : array_like, shape (3,)
+            Measured ball centre, metres, filter frame.
+        R : array_like, shape (3, 3)
+            Its covariance, m^2.
 
         Returns
         -------
@@ -594,7 +656,25 @@ class BallEKF:
         return "rejected"
 
     def predict_at(self, t: float):
-        """Predicted ``(x, P)`` at time ``t`` without changing the filter."""
+        """Predicted ``(x, P)`` at time ``t`` without changing the filter.
+
+        Parameters
+        ----------
+        t : float
+            Time, seconds (same clock as :meth:`step`).
+
+        Returns
+        -------
+        x : ndarray, shape (6,)
+            Predicted state ``[x, y, z, vx, vy, vz]``.
+        P : ndarray, shape (6, 6)
+            Its covariance.
+
+        Raises
+        ------
+        RuntimeError
+            If the filter is not initialised.
+        """
         if not self.initialised:
             raise RuntimeError("predict_at: the filter is not initialised")
         return predict(self._kf.x[:, 0], self._kf.P, t - self.t, self.options.model, self.options.q_m2_s3)
