@@ -8,19 +8,32 @@ damping and collision handling is wired in with :func:`register_core`.
 
 Safety that the server owns, whatever the core:
 
+* one owner at a time: a client opens a session (nonce handshake) and holds
+  a lease, renewed by every valid datagram of the session and ended after
+  ``lease_s`` of control time without one, on release, or on an explicit
+  takeover (which stops the arm and goes IDLE); commands from anyone else
+  are refused with ``NO_SESSION`` / ``NOT_OWNER`` and change nothing;
+* with a key, every datagram must carry an HMAC-SHA256 tag (the long-term key
+  outside a session, the session key inside); untagged, wrongly tagged,
+  replayed (outside the session's sequence window) or forged-ahead datagrams
+  are dropped and counted, never answered;
 * velocity commands expire after ``watchdog_s`` of control time (default 0.1 s);
   then the velocity reference ramps to zero at the acceleration limits
   (controlled stop) and ``WATCHDOG_STOP`` is flagged;
 * velocity references are speed-checked, acceleration-limited and braked so
   each joint stops inside its range; setpoints outside the ranges and profile
-  limits above the joint limits are clamped or refused (:class:`SafetyPolicy`);
+  limits outside sane bounds are refused (:class:`SafetyPolicy`);
 * datagrams that fail to decode (checksum, length, NaN ...) are counted and
   never executed; well-formed but non-finite commands get a refusal;
-* per client address, commands with an already seen sequence number
+* within a session, commands with an already seen sequence number
   (duplicates) or older than the newest one (stale, uint32 wrap-aware) are
   ignored; a duplicate of the last command gets its original reply again;
-* a core state outside the joint ranges or above the speed limits stops the
-  core and flags ``FAULT`` until the next mode switch.
+* a core state outside the joint ranges, above the speed limits or not
+  finite, and any exception in the tick or the handler, stop the core and
+  flag ``FAULT``; the layer keeps serving, and only the owner clears the
+  fault with an explicit :class:`~tudorvision.joint.protocol.FaultReset`;
+* in the wall-clock loop, sources other than the owner are rate-limited
+  before decoding, and the owner's datagrams are handled first.
 
 Examples
 --------
