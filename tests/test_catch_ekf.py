@@ -4,7 +4,7 @@ import pytest
 
 from tudorvision.catch import (BallEKF, BallModel, BallisticPredictor, EKFOptions, init_from_detections,
                                plane_crossing, propagate, reachable_solutions, update, working_plane_normal)
-from tudorvision.catch.ekf import ball_dynamics, dynamics_jacobian
+from tudorvision.catch.ball_model import ball_dynamics, dynamics_jacobian
 from tudorvision.catch.intercept import InterceptOptions, InterceptPlanner
 from tudorvision.robot import fk_ee
 from tudorvision.lab.record import random_throw, throw_trajectory

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from tudorvision.catch import BallModel, net_target, propagate, reachable_solutions
-from tudorvision.catch.ekf import _propagate_reference
+from tudorvision.catch.ball_model import _propagate_reference
 from tudorvision.catch.intercept import InterceptOptions, InterceptPlanner
 from tudorvision.robot import load_robot_params
 

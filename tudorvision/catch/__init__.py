@@ -7,7 +7,8 @@ robot's working plane (:mod:`.intercept`), a drag-free ballistic peer
 The simulated catching demo lives in :mod:`tudorvision.lab.catch_demo`.
 """
 from .ballistic import BallisticPredictor, fit_ballistic
-from .ekf import BallEKF, BallModel, EKFOptions, init_from_detections, predict, propagate, update
+from .ball_model import BallModel, propagate
+from .ekf import BallEKF, EKFOptions, init_from_detections, predict, update
 from .intercept import (Intercept, InterceptOptions, InterceptPlanner, PlaneCrossing, net_target, plane_crossing,
                         reachable_solutions, working_plane_normal)
 from .perception import CatchPerception, detection_to_base

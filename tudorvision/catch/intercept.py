@@ -20,7 +20,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .._checks import check_array
-from .ekf import BallModel, propagate_state, predict
+from .ball_model import BallModel, propagate_state
+from .ekf import predict
 
 __all__ = ["working_plane_normal", "PlaneCrossing", "plane_crossing", "planar_coordinates", "reachable_solutions",
            "net_target",
