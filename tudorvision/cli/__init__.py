@@ -27,7 +27,7 @@ COMMAND_MODULES = (
     "tudorvision.cli.rgbd",
     "tudorvision.cli.servo",
     "tudorvision.cli.catch",
-    "tudorvision.joint.cli",
+    "tudorvision.cli.joint",
     "tudorvision.cli.demo",
 )
 

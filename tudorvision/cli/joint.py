@@ -71,7 +71,7 @@ def _degrees3(text: str) -> np.ndarray:
 
 
 def _damping_names():
-    from .protocol import Damping
+    from ..joint.protocol import Damping
     return list(Damping)
 
 
@@ -90,7 +90,7 @@ def _peer_args(parser, session: bool = False) -> None:
 
 
 def _read_key(args):
-    from .protocol import read_key_file
+    from ..joint.protocol import read_key_file
     return None if args.key_file is None else read_key_file(args.key_file)
 
 
@@ -179,8 +179,8 @@ def _core_options(args) -> dict:
     import os
 
     from .._checks import TudorVisionError
-    from .collision import ResidualCoupling
-    from .strain_dynamics import N_PARAMS, StrainDynamicsModel
+    from ..joint.collision import ResidualCoupling
+    from ..joint.strain_dynamics import N_PARAMS, StrainDynamicsModel
     opts = {}
     if (args.collision_model or args.damping_model) and args.core != "sim":
         raise TudorVisionError(f"--collision-model/--damping-model: only for --core sim, not {args.core!r}")
@@ -202,7 +202,7 @@ def _core_options(args) -> dict:
 
 
 def _keygen(args) -> int:
-    from .protocol import write_key_file
+    from ..joint.protocol import write_key_file
     write_key_file(args.out, overwrite=args.force)
     print(f"key written to {args.out} (permissions 0600); give it to the layer and its clients only")
     return 0
@@ -212,8 +212,8 @@ def _serve(args) -> int:
     import ipaddress
 
     from .._checks import TudorVisionError
-    from .server import JointLayerServer, ServerConfig, make_core
-    from .transport import UdpTransport
+    from ..joint.server import JointLayerServer, ServerConfig, make_core
+    from ..joint.transport import UdpTransport
 
     key = _read_key(args)
     try:
@@ -269,8 +269,8 @@ _KEY_HINT = " (nothing listening, or a layer with another key: see --key-file)"
 
 
 def _client(args):
-    from .adapter import JointAdapter
-    from .transport import UdpTransport
+    from ..joint.adapter import JointAdapter
+    from ..joint.transport import UdpTransport
     return JointAdapter(UdpTransport.client(args.port, host=args.host), key=_read_key(args),
                         takeover=getattr(args, "takeover", False))
 
@@ -291,7 +291,7 @@ def _status(args) -> int:
 
 
 def _payload(args) -> int:
-    from .protocol import Ack
+    from ..joint.protocol import Ack
 
     with _client(args) as joints:
         reply = joints.set_payload(args.kg, timeout=args.timeout)
@@ -305,7 +305,7 @@ def _payload(args) -> int:
 
 
 def _move(args) -> int:
-    from .protocol import Ack, Damping, Mode
+    from ..joint.protocol import Ack, Damping, Mode
 
     target = np.deg2rad(args.to)
     speed = None if args.speed is None else float(np.deg2rad(args.speed))
