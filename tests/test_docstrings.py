@@ -94,10 +94,6 @@ KNOWN_IN_FILES_BEING_REWRITTEN = {
     "tudorvision.joint.transport.UdpTransport.client", "tudorvision.joint.transport.UdpTransport.close",
     "tudorvision.joint.transport.UdpTransport.fileno", "tudorvision.joint.transport.UdpTransport.recv",
     "tudorvision.joint.transport.UdpTransport.send", "tudorvision.joint.transport.UdpTransport.server",
-    "tudorvision.rgbd.depth_model.calibrate_depth_model", "tudorvision.rgbd.depth_model.plot_depth_model",
-    "tudorvision.rgbd.depth_model.read_depth_table_csv", "tudorvision.rgbd.depth_model.write_depth_table_csv",
-    "tudorvision.sensors.DepthNoiseModel", "tudorvision.sensors.DepthNoiseModel.as_dict",
-    "tudorvision.sensors.DepthNoiseModel.from_dict",
 }
 # (b) Not yet documented (issue 13's docstring pass got through robot, geometry and servo first).
 KNOWN_NOT_YET_DOCUMENTED = {
@@ -199,9 +195,8 @@ KNOWN_NOT_YET_DOCUMENTED = {
 }
 KNOWN_UNDOCUMENTED = KNOWN_IN_FILES_BEING_REWRITTEN | KNOWN_NOT_YET_DOCUMENTED
 
-# Modules that still switch the matplotlib backend, temporarily: both are being restructured by other work
-# (rgbd/depth_model.py: the depth-model unification; lab/catch_demo.py: the catch-demo split).
-KNOWN_MATPLOTLIB_GLOBAL_STATE = {"tudorvision/rgbd/depth_model.py", "tudorvision/lab/catch_demo.py"}
+# Modules allowed to switch the matplotlib backend: none.
+KNOWN_MATPLOTLIB_GLOBAL_STATE: set = set()
 
 
 def _is_protocol(cls) -> bool:

@@ -73,6 +73,9 @@ class DepthNoiseModel:
         turns negative below about 0.52 m). Read in cm, the Kinect model
         stays above the default floor inside :data:`KINECT_RANGE_M` (its
         minimum there is 2.5 mm at 0.6 m); read in mm it would not.
+    extra : dict
+        Further entries read from a file and kept for writing it back
+        (not compared, not used in evaluation).
 
     Raises
     ------
@@ -154,6 +157,11 @@ class DepthNoiseModel:
     def as_dict(self) -> dict:
         """Plain dict for calibration files (``sigma_z_coeffs_m``: highest power first).
 
+        Returns
+        -------
+        dict
+            ``sigma_z_coeffs_m``, ``z_range_m``, ``floor_m`` and a ``units`` note.
+
         Examples
         --------
         >>> DepthNoiseModel(coeffs=(0.01, 0.0)).as_dict()["sigma_z_coeffs_m"]
@@ -165,6 +173,15 @@ class DepthNoiseModel:
     @classmethod
     def from_dict(cls, doc: dict) -> "DepthNoiseModel":
         """Inverse of :meth:`as_dict`.
+
+        Parameters
+        ----------
+        doc : dict
+            As written by :meth:`as_dict` (e.g. read from a calibration file).
+
+        Returns
+        -------
+        DepthNoiseModel
 
         Raises
         ------

@@ -236,10 +236,16 @@ def calibrate_depth_model(stacks, intrinsics: Intrinsics, *, nominal_distances_m
     ----------
     stacks : sequence of array_like, each shape (F, H, W)
         One depth stack (metres) per target distance.
+    intrinsics : Intrinsics
+        Depth camera intrinsics (the planar fit works on back-projected points).
     nominal_distances_m : sequence of float, optional
         True distances (for the bias column).
     rois : sequence of (u0, v0, u1, v1) or None, optional
         Planar region per stack.
+    degree : int
+        Polynomial degree of ``sigma_z(z)`` (3 as in the seed).
+    **step_options
+        Passed to :func:`depth_step_stats`.
 
     Returns
     -------
@@ -260,7 +266,20 @@ def calibrate_depth_model(stacks, intrinsics: Intrinsics, *, nominal_distances_m
 
 
 def write_depth_table_csv(path, table) -> Path:
-    """Write the calibration table (columns distance_m, sigma_m, bias_m, n_pixels)."""
+    """Write the calibration table (columns distance_m, sigma_m, bias_m, n_pixels).
+
+    Parameters
+    ----------
+    path : str or Path
+        Output CSV.
+    table : sequence of DepthStepStats
+        Rows, SI units.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
     with path.open("w", newline="") as fh:
         w = csv.writer(fh)
@@ -272,6 +291,15 @@ def write_depth_table_csv(path, table) -> Path:
 
 def read_depth_table_csv(path) -> list[DepthStepStats]:
     """Read a table written by :func:`write_depth_table_csv`.
+
+    Parameters
+    ----------
+    path : str or Path
+        CSV file.
+
+    Returns
+    -------
+    list of DepthStepStats
 
     Raises
     ------
@@ -290,17 +318,35 @@ def read_depth_table_csv(path) -> list[DepthStepStats]:
 
 def plot_depth_model(path, table, model: DepthNoiseModel, *,
                      reference: DepthNoiseModel | None = KINECT_DEPTH_NOISE) -> Path:
-    """PNG plot of measured sigma per distance and the fitted ``sigma_z(z)`` (centimetres)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    """PNG plot of measured sigma per distance and the fitted ``sigma_z(z)`` (centimetres).
+
+    Draws on its own :class:`matplotlib.figure.Figure` (the global backend is not touched).
+
+    Parameters
+    ----------
+    path : str or Path
+        Output PNG.
+    table : sequence of DepthStepStats
+        Measured per-distance statistics (distance and sigma in metres).
+    model : DepthNoiseModel
+        Fitted model (SI units).
+    reference : DepthNoiseModel, optional
+        Drawn dashed for comparison (default: the seed's Kinect fit); ``None`` to omit.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    from matplotlib.figure import Figure
 
     path = Path(path)
     d = np.array([r.distance_m for r in table])
     s = np.array([r.sigma_m for r in table])
     lo, hi = min(model.z_range_m[0], d.min(initial=np.inf)), max(model.z_range_m[1], d.max(initial=-np.inf))
     z = np.linspace(lo, hi, 200)
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig = Figure(figsize=(6, 4))
+    ax = fig.add_subplot()
     ax.plot(d, s * 100, "o", label="measured (mean per-pixel std)")
     c = model.coeffs
     ax.plot(z, model.sigma_m(z) * 100, "-", label="fit: " + " ".join(f"{100 * a:+.3g}" for a in c) + " (cm, z in m)")
@@ -314,5 +360,4 @@ def plot_depth_model(path, table, model: DepthNoiseModel, *,
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)
     return path
