@@ -1,0 +1,25 @@
+"""The ball-catching demo in the virtual lab (section 9.3), in four parts.
+
+* :mod:`.scenario`: the world the agent must not see: thrower, throws and their
+  ground truth, the simulated arm behind the joint layer, the wall RGB-D camera
+  (rendered frames or the detection-noise model), the operator who empties the net;
+* :mod:`.agent`: the catching side: ball detector, EKF and intercept
+  (:class:`~tudorvision.catch.perception.CatchPerception`), compensated inverse
+  kinematics, commands and payload through the joint layer's adapter only;
+* :mod:`.score`: caught or missed, and why, from ground truth
+  (:class:`~.score.ThrowResult`, one per throw) and the run's summary;
+* :mod:`.writers`: ``throws.csv``, ``predictions.csv``, ``setpoints.csv``,
+  ``summary.json``, ``catch.png`` and ``catch.rrd``;
+
+:func:`~.run.run_demo` wires them (``tudorvision catch demo``); its options are
+:class:`~.options.DemoOptions`.
+"""
+from .agent import WEIGH_REST_SPEED_RAD_S, CatchAgent, CatchIK, pause_and_weigh
+from .options import DemoOptions, trained_payload_range_kg
+from .run import demo_kinematics, run_demo
+from .scenario import CatchScenario, simulated_detection, true_crossing
+from .score import PER_THROW_COLUMNS, ThrowResult, summarize_throws
+
+__all__ = ["DemoOptions", "run_demo", "demo_kinematics", "simulated_detection", "PER_THROW_COLUMNS", "ThrowResult",
+           "summarize_throws", "trained_payload_range_kg", "CatchScenario", "CatchAgent", "CatchIK",
+           "pause_and_weigh", "true_crossing", "WEIGH_REST_SPEED_RAD_S"]

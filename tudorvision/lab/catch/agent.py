@@ -1,0 +1,367 @@
+"""The catching side of the demo: perception, intercept, compensated IK, commands through the joint layer.
+
+The agent sees the world only through the wall camera's frames
+(:class:`~tudorvision.lab.catch.scenario.CameraFrame`) and the calibrated
+camera extrinsics, and acts on the arm only through the joint layer: the
+:class:`~tudorvision.joint.adapter.JointAdapter` of a
+:class:`~tudorvision.lab.lockstep.LockstepLayer` (setpoints, mode, payload)
+and the layer's state message (joint angles, speeds, strains, flags). It
+never reads the simulated arm or the true ball; it weighs the payload from
+the strains the layer reports. In the lockstep lab, waiting means advancing
+the layer's simulated clock (:func:`pause_and_weigh`).
+
+Per frame::
+
+    depth image -> BallDetector (background subtraction)  |  modelled detection
+    -> camera frame -> base frame (T_base_cam) -> CatchPerception (EKF, intercept, release rule)
+    -> net target -> compensated IK (deflection model, estimated payload) -> JointAdapter.send_setpoint
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...catch.intercept import net_target
+from ...catch.perception import detection_to_base
+
+__all__ = ["CatchAgent", "CatchIK", "ThrowLog", "WEIGH_REST_SPEED_RAD_S", "pause_and_weigh", "profile_limits",
+           "PREDICTION_COLUMNS", "SETPOINT_COLUMNS"]
+
+WEIGH_REST_SPEED_RAD_S = 0.02   # joints slower than this throughout the weighing window: the arm rests
+ARRIVED_TOL_RAD = float(np.deg2rad(1.0))
+
+#: Columns of the agent's prediction rows (``predictions.csv``): one per intercept estimate.
+PREDICTION_COLUMNS = ["throw", "t_s", "status", "x_m", "y_m", "z_m", "vx_m_s", "vy_m_s", "vz_m_s", "t_cross_s",
+                      "x_cross_m", "y_cross_m", "z_cross_m", "sigma_m", "reachable", "send", "x_ballistic_m",
+                      "y_ballistic_m", "z_ballistic_m"]
+#: Columns of the agent's setpoint rows (``setpoints.csv``): one per intercept setpoint sent.
+SETPOINT_COLUMNS = ["throw", "t_s", "theta1_rad", "theta2_rad", "theta3_rad", "x_target_m", "y_target_m",
+                    "z_target_m"]
+
+
+def profile_limits(options, params) -> tuple[float, float]:
+    """Setpoint profile speed and acceleration of the demo, rad/s and rad/s^2.
+
+    The speed is ``speed_fraction`` of the slowest joint's limit: at the
+    limit itself the links' swing pushed the measured joint speed past the
+    layer's fault threshold (105 %).
+
+    Parameters
+    ----------
+    options : DemoOptions
+        ``speed_fraction`` and ``accel_fraction``.
+    params : RobotParams
+        Joint speed and acceleration limits.
+
+    Returns
+    -------
+    tuple of float
+        ``(max_speed, max_accel)``.
+    """
+    return (options.speed_fraction * float(np.min(params.max_speed_rad_s)),
+            options.accel_fraction * float(np.min(params.max_accel_rad_s2)))
+
+
+def pause_and_weigh(layer, t_now: float, duration: float, rate: float, weigh_s: float = 0.6, on_frame=None):
+    """Advance the layer by ``duration`` s; strains sampled at ``rate`` over the last ``weigh_s`` s.
+
+    Parameters
+    ----------
+    layer : LockstepLayer
+        Anything with ``advance_to(t)`` and ``state()`` (strains, theta_dot).
+    t_now : float
+        Current time, s.
+    duration : float
+        Pause length, s.
+    rate : float
+        Sampling rate, Hz.
+    weigh_s : float
+        Length of the weighing window at the end of the pause, s.
+    on_frame : callable, optional
+        Called after every step (e.g. to clear a fault).
+
+    Returns
+    -------
+    tuple
+        The time at the end, s, and the strain samples (list of (4,) arrays),
+        or an empty list when a joint still moved faster than
+        :data:`WEIGH_REST_SPEED_RAD_S` during the weighing window (the arm
+        had not reached the ready pose yet: its strains carry the motion, not the payload).
+    """
+    t_end = t_now + duration
+    strains, moving = [], False
+    while t_now < t_end - 1e-9:
+        t_now = min(t_now + 1.0 / rate, t_end)
+        layer.advance_to(t_now)
+        if on_frame is not None:
+            on_frame()
+        if t_end - t_now < weigh_s:
+            st = layer.state()
+            strains.append(np.asarray(st.strains))
+            moving |= bool(np.max(np.abs(st.theta_dot)) > WEIGH_REST_SPEED_RAD_S)
+    return t_now, ([] if moving else strains)
+
+
+class CatchIK:
+    """Inverse kinematics of the net: compensated (data-based deflection model) or rigid.
+
+    Parameters
+    ----------
+    inverse : InverseKinematics
+        The compensated inverse kinematics (:class:`~tudorvision.catch.kinematics.InverseKinematics`).
+    params : RobotParams
+        The robot's parameters (rigid IK).
+    compensate : bool
+        Use the deflection model (else rigid IK).
+    theta1_rad : float
+        Angle of the working plane, rad.
+    """
+
+    def __init__(self, inverse, params, *, compensate: bool, theta1_rad: float):
+        self.inverse, self.params, self.compensate, self.theta1_rad = inverse, params, compensate, theta1_rad
+
+    def __call__(self, p_base, payload_kg: float, *, near=None, elbow: str | None = None) -> np.ndarray:
+        """Joint angles (3,) that put the net at ``p_base`` (m, base frame) carrying ``payload_kg`` (kg)."""
+        if self.compensate:
+            return self.inverse(p_base, self.theta1_rad, payload_kg, near=near, elbow=elbow)
+        from ...robot import ik
+
+        return ik(p_base, self.params, elbow=elbow, near=near)
+
+
+@dataclass
+class ThrowLog:
+    """What the agent saw and did during one throw (its own view, no ground truth).
+
+    Attributes
+    ----------
+    detections : int
+        Ball detections.
+    last_intercept : Intercept or None
+        The last intercept estimate.
+    last_ballistic_base : ndarray, shape (3,), or None
+        The ballistic peer's crossing at that estimate, metres, base frame.
+    t_first_setpoint_s : float or None
+        When the first intercept setpoint was sent, s.
+    setpoint : ndarray, shape (3,), or None
+        The last intercept setpoint, rad.
+    t_arrived_s : float or None
+        When the joints came within 1 deg of it, s.
+    payload_est_kg : float
+        The payload estimate used during the throw, kg.
+    """
+
+    detections: int = 0
+    last_intercept: object = None
+    last_ballistic_base: np.ndarray | None = None
+    t_first_setpoint_s: float | None = None
+    setpoint: np.ndarray | None = None
+    t_arrived_s: float | None = None
+    payload_est_kg: float = 0.0
+
+
+class CatchAgent:
+    """Catches balls with the arm behind a joint layer, from wall-camera frames.
+
+    Parameters
+    ----------
+    layer : LockstepLayer
+        The joint layer: its ``adapter`` (commands) and ``state()`` (feedback).
+    ik : CatchIK
+        Net inverse kinematics.
+    strain_model : StrainModel
+        Payload estimator from settled strains (:class:`~tudorvision.catch.kinematics.StrainModel`).
+    perception : CatchPerception
+        Ball filter, intercept planner and ballistic peer.
+    detector : BallDetector
+        Ball detector on depth images (rendered mode).
+    T_base_cam : ndarray, shape (4, 4)
+        The wall camera's calibrated extrinsics.
+    options : DemoOptions
+        The demo's options (damping, profile, margins, ready point).
+    params : RobotParams
+        The robot's parameters (limits, mount mass).
+    payload_range_kg : tuple of float
+        Range the payload estimate is clipped to (the kinematics' trained range), kg.
+
+    Attributes
+    ----------
+    payload_est_kg : float
+        Current payload estimate on top of the mount, kg.
+    faults : list of float
+        Times of the layer faults cleared, s.
+    refused : int
+        Setpoints the layer did not acknowledge.
+    latencies_s : list of float
+        Per detection: detector (rendered mode) + filter + intercept, s (the peer's time excluded).
+    predictions : list of list
+        Rows of ``predictions.csv`` (:data:`PREDICTION_COLUMNS`).
+    setpoints : list of list
+        Rows of ``setpoints.csv`` (:data:`SETPOINT_COLUMNS`).
+    """
+
+    def __init__(self, layer, ik: CatchIK, strain_model, perception, detector, T_base_cam, *, options, params,
+                 payload_range_kg: tuple[float, float]):
+        from ...joint import Damping, Mode
+
+        self.layer, self.adapter = layer, layer.adapter
+        self.ik, self.strain_model, self.perception, self.detector = ik, strain_model, perception, detector
+        self.T_base_cam = np.asarray(T_base_cam, float)
+        self.options, self.params = options, params
+        self.payload_range_kg = payload_range_kg
+        self.mount_kg = float(params.end_effector_mount_mass_kg)
+        self.max_speed, self.max_accel = profile_limits(options, params)
+        self.lims = np.asarray(params.joint_limits_rad, float)
+        self.ready_point_base = np.asarray(options.ready_point_base, float)
+        self.damping = {"off": Damping.OFF, "proportional": Damping.PROPORTIONAL, "integral": Damping.INTEGRAL,
+                        "half_integrator": Damping.HALF_INTEGRATOR}[options.damping]
+        self._mode = Mode.SETPOINT
+        self.adapter.set_mode(self._mode, damping=self.damping)
+        self.payload_est_kg = 0.0
+        self.faults: list[float] = []
+        self.refused = 0
+        self.latencies_s: list[float] = []
+        self.predictions: list[list] = []
+        self.setpoints: list[list] = []
+        self._last_sent = None
+        self._throw = -1
+        self.log = ThrowLog()
+
+    # ------------------------------------------------------------------ commands
+    def _setpoint(self, theta):
+        return self.adapter.send_setpoint(theta, max_speed=self.max_speed, max_accel=self.max_accel, timeout=5.0)
+
+    def _clear_fault_and_resend(self, theta, t: float):
+        # the layer stopped the arm (speed or range fault): log it, clear it and send again
+        self.faults.append(float(t))
+        self.adapter.set_mode(self._mode, damping=self.damping)
+        return self._setpoint(theta)
+
+    def send(self, theta, t: float) -> bool:
+        """Send a joint setpoint (rad, (3,)) at time ``t`` (s); a fault stop is cleared and the setpoint resent.
+
+        Returns
+        -------
+        bool
+            Whether the layer acknowledged it.
+        """
+        from ...joint import Ack, Reason, Refusal
+
+        self._last_sent = np.asarray(theta, float)
+        reply = self._setpoint(theta)
+        if isinstance(reply, Refusal) and reply.code == Reason.FAULT:
+            reply = self._clear_fault_and_resend(theta, t)
+        ok = isinstance(reply, Ack)
+        self.refused += not ok
+        return ok
+
+    def recover(self, t: float) -> None:
+        """Clear a fault stop at once and send the last setpoint again (checked every frame), at ``t`` (s)."""
+        from ...joint import StateFlags
+
+        if self._last_sent is not None and self.layer.state().flags & StateFlags.FAULT:
+            self._clear_fault_and_resend(self._last_sent, t)
+
+    # ------------------------------------------------------------------ one throw
+    def learn_background(self, depth_mm) -> None:
+        """Feed an empty-scene depth frame (uint16 mm) to the detector's background model."""
+        self.detector.update(depth_mm.astype(np.float32) / 1000.0)
+
+    def begin_throw(self, index: int) -> None:
+        """Start a new throw's log (the filter notices a new throw by itself)."""
+        self._throw = index
+        self.log = ThrowLog(payload_est_kg=self.payload_est_kg)
+
+    def step(self, t: float, frame):
+        """One camera frame at ``t`` (s): check the layer, perceive, and send an intercept setpoint when released.
+
+        Parameters
+        ----------
+        t : float
+            Frame time, s.
+        frame : CameraFrame or None
+            The wall camera's frame (None: nothing delivered).
+
+        Returns
+        -------
+        tuple or None
+            ``(p_base, record)`` for a detection: its base-frame centre (3,) and the perception record
+            (:meth:`~tudorvision.catch.perception.CatchPerception.step`); None without one.
+        """
+        log = self.log
+        self.recover(t)
+        st = self.layer.state()
+        if log.setpoint is not None and log.t_arrived_s is None and \
+                np.max(np.abs(st.theta - log.setpoint)) < ARRIVED_TOL_RAD:
+            log.t_arrived_s = t
+        if frame is None:
+            return None
+        t0 = time.perf_counter()
+        if frame.depth_mm is not None:
+            d = self.detector.update(frame.depth_mm.astype(np.float32) / 1000.0)
+            if d is None:
+                return None
+            p_cam, cov_cam = d.p_cam, d.cov_cam
+        else:
+            p_cam, cov_cam = frame.detection_cam
+        log.detections += 1
+        p_b, C_b = detection_to_base(p_cam, cov_cam, self.T_base_cam)
+        rec = self.perception.step(t, p_b, C_b)
+        self.latencies_s.append(time.perf_counter() - t0 - rec["peer_s"])
+        it = rec["intercept"]
+        if it is not None:
+            log.last_intercept = it
+            bal = rec["ballistic"][1]
+            log.last_ballistic_base = bal
+            self.predictions.append([self._throw, t, rec["status"], *rec["x"], it.t_cross, *it.p_base, it.sigma_m,
+                                     int(it.reachable), int(it.send), *(bal if bal is not None else [np.nan] * 3)])
+            if it.send:        # the planner releases only for a crossing still ahead (its own estimate)
+                self._intercept(t, it, np.asarray(st.theta))
+        return p_b, rec
+
+    def _intercept(self, t: float, it, theta_now) -> None:
+        o = self.options
+        try:
+            th = self.ik(net_target(it.p_base, self.ik.theta1_rad, self.params, reach_margin_m=o.reach_margin_m),
+                         self.payload_est_kg, near=theta_now)
+        except ValueError:
+            return
+        # the joints overshoot by up to 8 deg on fast moves: a setpoint near the edge of a range tripped the
+        # layer's range fault (1 deg tolerance)
+        th = np.clip(th, self.lims[:, 0] + o.setpoint_margin_rad, self.lims[:, 1] - o.setpoint_margin_rad)
+        self.send(th, t)
+        self.log.setpoint, self.log.t_arrived_s = th, None
+        self.setpoints.append([self._throw, t, *th, *it.p_base])
+        if self.log.t_first_setpoint_s is None:
+            self.log.t_first_setpoint_s = t
+
+    # ------------------------------------------------------------------ between throws
+    def return_to_ready(self, t: float) -> None:
+        """Send the arm back to the ready pose (the nearest IK solution), at ``t`` (s)."""
+        self.send(self.ik(self.ready_point_base, self.payload_est_kg, near=np.asarray(self.layer.state().theta)), t)
+
+    def wait(self, t_now: float, duration: float, rate: float):
+        """Wait ``duration`` s (advancing the lockstep layer), clearing faults; strains of the last 0.6 s at rest.
+
+        Returns
+        -------
+        tuple
+            ``(t, strains)`` as :func:`pause_and_weigh`.
+        """
+        return pause_and_weigh(self.layer, t_now, duration, rate, on_frame=lambda: self.recover(t_now))
+
+    def weigh(self, strains) -> None:
+        """Estimate the payload from strains sampled at rest and tell the layer (it schedules its damping on it).
+
+        The mean over the window averages the residual swing. The estimate (on
+        top of the mount) is clipped to ``payload_range_kg``, the range the
+        kinematics were trained on; nothing happens without samples.
+        """
+        if not len(strains):
+            return
+        st = self.layer.state()
+        m = self.strain_model.payload(np.asarray(st.theta)[None, 1:], np.mean(strains, axis=0)[None])[0]
+        self.payload_est_kg = float(np.clip(m, *self.payload_range_kg))
+        self.adapter.set_payload(self.mount_kg + self.payload_est_kg)

@@ -1,0 +1,163 @@
+"""Options of the catching demo (:func:`~tudorvision.lab.catch.run.run_demo`)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...catch.ekf import EKFOptions
+from ..data_collection import DEMO_COLLECTION, CollectionOptions
+
+__all__ = ["DemoOptions", "DAMPING_LAWS", "trained_payload_range_kg"]
+
+DAMPING_LAWS = ("off", "proportional", "integral", "half_integrator")
+
+
+@dataclass(frozen=True, kw_only=True)
+class DemoOptions:
+    """Options of :func:`~tudorvision.lab.catch.run.run_demo` (SI units).
+
+    Attributes
+    ----------
+    throws : int
+        Number of throws.
+    seed : int
+        Seed of every random stream of the run (throws, rendering, detection noise, scene).
+    render : bool
+        Render the wall RGB-D frames and detect the ball in them; ``False``:
+        the detection-noise model (:func:`~tudorvision.lab.catch.scenario.simulated_detection`,
+        for long benchmarks).
+    noise_scale : float
+        Factor on the detection-noise model's standard deviations.
+    damping : str
+        Damping law of the joint layer (``"off"``, ``"proportional"``, ``"integral"``,
+        ``"half_integrator"``).
+    compensate : bool
+        Data-based deflection compensation in the inverse kinematics (else rigid IK).
+    gap_s : float
+        Pause between a crossing and the next release (the arm returns to the ready pose), s.
+    ready_point_base : tuple of float
+        Net position waited at between throws, metres, base frame.
+    target_height_m : tuple of float
+        Range of the thrower's aim height at the robot (the simulator's
+        ``random_throw``: release 1.4-1.9 m high about 6 m away, aim within
+        +-0.45 m sideways, flight 0.8-1.1 s, drag).
+    net_radius_m : float
+        Radius of the net, m: a ball whose centre passes within it of the net centre is caught.
+    ball_radius_m : float
+        Radius of the ball, m (rendering and the detector).
+    release_sigma_m : float
+        Intercept release threshold (largest in-plane standard deviation), m.
+    refine_sigma_factor : float
+        A refinement is sent only if the intercept moved more than this many of its current
+        standard deviations (and more than 2 cm); 0: the 2 cm rule alone.
+    speed_fraction : float
+        Setpoint profile speed as a fraction of the slowest joint's limit (at
+        the limit, the links' swing trips the layer's over-speed fault).
+    accel_fraction : float
+        Setpoint profile acceleration as a fraction of the joints' limit (400 deg/s^2).
+    layer_rate_hz : float
+        Control rate of the lockstep joint layer (its over-speed and range checks run every period).
+    reach_margin_m : float
+        Net targets are kept this far inside full stretch (:func:`~tudorvision.catch.intercept.net_target`).
+    setpoint_margin_rad : float
+        Setpoints are clipped this far inside the joint ranges (the joints overshot by up to
+        8 deg on fast moves, and the layer faults 1 deg outside a range, then cannot clear it).
+    empty_pause_s : float
+        Extra pause after the net is emptied, before the payload is weighed again, s.
+    net_capacity_balls : int
+        The net is emptied (by the operator, during the pause) once it holds this
+        many balls; keeps the payload within the kinematics' trained range (400 g).
+        Emptying happens at the end of the pause, the arm at rest, and adds
+        ``empty_pause_s`` of pause before the payload is weighed again.
+    drag_k_per_m : float
+        Quadratic drag coefficient of the ball, 1/m (the throws and the EKF's model).
+    cache_dir : str
+        Where the kinematics data collection is cached (the default collection is shipped
+        with the package and found there first).
+    collection : CollectionOptions
+        The data collection the kinematics are learnt from (default: the seed's grid
+        measured through the stereo tracker, :data:`~tudorvision.lab.data_collection.DEMO_COLLECTION`).
+        Its ``payloads_kg`` bound the payload estimate (:func:`trained_payload_range_kg`).
+    rerun : bool
+        Write a rerun recording (``catch.rrd``).
+    plots : bool
+        Write the PNG plot (``catch.png``).
+    show_progress : bool or None
+        Progress bar over the throws; ``None``: only on a terminal.
+    ekf : EKFOptions
+        Ball filter options (its ball model is replaced by one with ``drag_k_per_m``).
+
+    Raises
+    ------
+    ValueError
+        On a non-positive number of throws, an unknown damping law, a
+        non-positive net radius or a negative gap.
+
+    Examples
+    --------
+    >>> DemoOptions(throws=3, render=False).net_radius_m
+    0.09
+    """
+
+    throws: int = 5
+    seed: int = 0
+    render: bool = True
+    noise_scale: float = 1.0
+    damping: str = "proportional"
+    compensate: bool = True
+    gap_s: float = 1.2
+    ready_point_base: tuple = (0.0, 0.0, 1.07)
+    target_height_m: tuple = (0.45, 1.2)
+    net_radius_m: float = 0.09
+    ball_radius_m: float = 0.045
+    release_sigma_m: float = 0.1
+    refine_sigma_factor: float = 2.0
+    speed_fraction: float = 0.75
+    accel_fraction: float = 1.0
+    layer_rate_hz: float = 500.0
+    reach_margin_m: float = 0.05
+    setpoint_margin_rad: float = float(np.deg2rad(10.0))
+    empty_pause_s: float = 1.0
+    net_capacity_balls: int = 8
+    drag_k_per_m: float = 0.012
+    cache_dir: str = "out/catch/cache"
+    collection: CollectionOptions = DEMO_COLLECTION
+    rerun: bool = True
+    plots: bool = True
+    show_progress: bool | None = None
+    ekf: EKFOptions = field(default_factory=EKFOptions)
+
+    def __post_init__(self):
+        if int(self.throws) != self.throws or self.throws < 1:
+            raise ValueError(f"throws: expected a positive integer, got {self.throws}")
+        if self.damping not in DAMPING_LAWS:
+            raise ValueError(f"damping: expected off, proportional, integral or half_integrator, got {self.damping!r}")
+        if not self.net_radius_m > 0 or not self.gap_s >= 0:
+            raise ValueError("net_radius_m, gap_s: expected > 0 and >= 0")
+
+
+def trained_payload_range_kg(collection: CollectionOptions) -> tuple[float, float]:
+    """Range of added payload (on top of the end-effector mount) the kinematics were trained on, kg.
+
+    The settled poses are collected with ``mount + m`` for each ``m`` in
+    ``collection.payloads_kg``; the strain model's payload estimate is
+    clipped to this range, so the payload told to the joint layer stays
+    within ``mount + [0, max(payloads_kg)]``.
+
+    Parameters
+    ----------
+    collection : CollectionOptions
+        The collection the kinematics were fitted on.
+
+    Returns
+    -------
+    tuple of float
+        ``(0.0, max(payloads_kg))``, kg.
+
+    Examples
+    --------
+    >>> trained_payload_range_kg(CollectionOptions(payloads_kg=(0.0, 0.2, 0.4)))
+    (0.0, 0.4)
+    """
+    return 0.0, float(max(max(collection.payloads_kg), 0.0))

@@ -1,0 +1,193 @@
+"""The catching demo's run loop: the scenario's clock, the agent, the scorer and the writers.
+
+Loop per wall-camera frame (30 Hz)::
+
+    scenario: render RGB-D frame (or the detection-noise model)
+    agent:    BallDetector -> T_base_cam -> CatchPerception (EKF, intercept) -> compensated IK
+              -> JointAdapter.send_setpoint -> joint-control layer (JointLayerServer) -> simulated elastic arm
+    scorer:   at the true crossing, the net against the ball (ground truth)
+
+Simulation time: the joint-control layer (:class:`~tudorvision.joint.server.JointLayerServer`
+with its safety checks and faults) runs in lockstep with the demo
+(:class:`~tudorvision.lab.lockstep.LockstepLayer`, ``tick`` at ``layer_rate_hz``);
+commands still travel through the adapter, and runs are deterministic for a
+seed whatever the machine's load.
+
+Caught balls add 30 g of payload each and swing with the arm. Between throws
+the arm returns to the ready pose and the agent weighs the payload from the
+strains the layer reports at rest; the estimate is clipped to the range the
+kinematics were trained on (``collection.payloads_kg``, on top of the mount:
+:func:`~tudorvision.lab.catch.options.trained_payload_range_kg`).
+
+The frames after the ball has left the sensor's detection range (4.5 m) are
+not rendered (nothing can be detected in them); between throws no frames
+are rendered.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from ...catch.ekf import BallModel, EKFOptions
+from ...catch.intercept import InterceptOptions
+from ...catch.perception import CatchPerception
+from .agent import CatchAgent, CatchIK, profile_limits
+from .options import DemoOptions, trained_payload_range_kg
+from .scenario import FRAME_RATE_HZ, CatchScenario
+from .score import score_throw, summarize_throws
+from . import writers
+
+__all__ = ["demo_kinematics", "run_demo"]
+
+N_BACKGROUND_FRAMES = 10
+AFTER_CROSSING_S = 0.1      # frames go on this long after the true crossing
+
+
+def demo_kinematics(options: DemoOptions, params):
+    """The data-based kinematics of the demo, learnt from its settled-pose collection (cached).
+
+    Parameters
+    ----------
+    options : DemoOptions
+        ``collection`` and ``cache_dir``.
+    params : RobotParams
+        The robot's parameters.
+
+    Returns
+    -------
+    tuple
+        ``(models, inverse)``: the fitted :class:`~tudorvision.catch.kinematics.KinematicsModels`
+        (test payload 100 g held out) and the compensated
+        :class:`~tudorvision.catch.kinematics.InverseKinematics` (1 deg inside the joint ranges).
+    """
+    from ...catch.kinematics import InverseKinematics, fit_kinematics
+    from ..data_collection import load_or_collect
+
+    data = load_or_collect(options.cache_dir, options.collection, params)
+    km = fit_kinematics(data, test_payloads_kg=[0.1], params=params)
+    return km, InverseKinematics(km.deflection, params, margin_rad=np.deg2rad(1.0))
+
+
+def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
+    """Run the catching demo and write ``summary.json``, ``throws.csv``, ``predictions.csv``, plots, ``catch.rrd``.
+
+    Parameters
+    ----------
+    out : str or Path
+        Output directory (created).
+    options : DemoOptions
+        The demo's options.
+
+    Returns
+    -------
+    dict
+        The summary (also written to ``out/summary.json``), with ``per_throw`` (one
+        :meth:`ThrowResult.as_dict <tudorvision.lab.catch.score.ThrowResult.as_dict>` per throw, as in
+        ``throws.csv``), ``predictions`` (the rows of ``predictions.csv``) and ``latencies_s``
+        (per detection: detector in rendered mode + filter + intercept, s).
+    """
+    from ..._progress import progress
+    from ...rgbd.ball import BallDetector
+    from ...robot import load_robot_params
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    o = options
+    params = load_robot_params()
+    wall0 = time.perf_counter()
+    km, inverse = demo_kinematics(o, params)
+    ekf_opts = EKFOptions(**{**asdict(o.ekf), "model": BallModel(drag_k_per_m=o.drag_k_per_m)})
+    iopts = InterceptOptions(release_sigma_m=o.release_sigma_m, refine_sigma_factor=o.refine_sigma_factor)
+    ik = CatchIK(inverse, params, compensate=o.compensate, theta1_rad=iopts.theta1_rad)
+
+    world = CatchScenario(o, params, ik(np.asarray(o.ready_point_base, float), 0.0, elbow="up"))
+    layer = world.layer
+    detector = BallDetector(world.intrinsics, world.detector_options, n_background=N_BACKGROUND_FRAMES)
+    agent = CatchAgent(layer, ik, km.strain, CatchPerception(ekf_opts, iopts, params), detector, world.T_base_cam,
+                       options=o, params=params, payload_range_kg=trained_payload_range_kg(o.collection))
+    max_speed, max_accel = profile_limits(o, params)
+    rate = FRAME_RATE_HZ
+    t_now = 0.0
+    if o.render:
+        for _ in range(N_BACKGROUND_FRAMES):
+            agent.learn_background(world.render_depth(t_now))
+            t_now += 1.0 / rate
+        layer.advance_to(t_now)
+
+    rr_log = writers.RerunLog(out / "catch.rrd", net_radius_m=o.net_radius_m) if o.rerun else None
+    results = []
+    for i in progress(range(o.throws), desc="throws", enabled=o.show_progress):
+        throw = world.throw(i, t_now)
+        theta_release = np.asarray(layer.state().theta)
+        payload_true = world.payload_added_kg
+        agent.begin_throw(i)
+        net = None
+        k = int(np.ceil(t_now * rate - 1e-9))
+        while (t := k / rate) <= throw.t_cross_s + AFTER_CROSSING_S:
+            if t > t_now:
+                # plant to this frame, evaluating the net at the true crossing on the way
+                if throw.crosses and net is None and t_now < throw.t_cross_s <= t:
+                    layer.advance_to(throw.t_cross_s)
+                    net = world.net_position()
+                layer.advance_to(t)
+                t_now = t
+            seen = agent.step(t, world.observe(t))
+            if seen is not None and rr_log is not None:
+                rr_log.frame(t, seen[0], seen[1], world.net_position())
+            k += 1
+        if throw.crosses and net is None:
+            layer.advance_to(throw.t_cross_s)
+            net = world.net_position()
+        result = score_throw(throw, agent.log, net_at_cross=net, theta_at_release=theta_release,
+                             payload_true_kg=payload_true, options=o, params=params, theta1_rad=iopts.theta1_rad,
+                             max_speed=max_speed, max_accel=max_accel, frame_rate_hz=rate)
+        results.append(result)
+        if result.caught:
+            world.catch_ball()
+        world.end_throw()
+        # back to the ready pose; weigh the payload at the end of the pause (strain model, 9.2)
+        agent.return_to_ready(t_now)
+        t_now, strains = agent.wait(t_now, o.gap_s, rate)
+        if world.net_full:
+            # the operator empties the net once the arm rests at the ready pose and tells the layer; the
+            # payload is weighed again after a short settling pause
+            world.empty_net()
+            t_now, strains = agent.wait(t_now, o.empty_pause_s, rate)
+        agent.weigh(strains)
+    world.close()
+
+    lat = np.array(agent.latencies_s) if agent.latencies_s else np.array([np.nan])
+    score = summarize_throws(results)
+    summary = {
+        "throws": int(o.throws), "crossing_workspace": score["crossing_workspace"], "caught": score["caught"],
+        "caught_in_workspace": score["caught_in_workspace"], "success_rate": score["success_rate"],
+        # secondary: the crossing throws the arm could reach in time at all (lower bound on the move time)
+        "crossing_in_time": score["crossing_in_time"], "caught_in_time": score["caught_in_time"],
+        "success_rate_in_time": score["success_rate_in_time"],
+        "seed": o.seed, "render": o.render, "damping": o.damping, "compensate": o.compensate,
+        "net_radius_m": o.net_radius_m, "balls_in_net": world.balls, "net_emptied": world.emptied,
+        "median_pred_error_m": score["median_pred_error_m"],
+        "median_ballistic_error_m": score["median_ballistic_error_m"],
+        "perception_latency_ms_median": float(np.nanmedian(lat) * 1e3),
+        "setpoints_not_acknowledged": agent.refused,
+        "layer_faults_cleared": len(agent.faults),
+        "kinematics": km.report, "wall_time_s": time.perf_counter() - wall0,
+        "misses": score["misses"],
+    }
+    writers.write_throws_csv(out / "throws.csv", results)
+    writers.write_predictions_csv(out / "predictions.csv", agent.predictions)
+    writers.write_setpoints_csv(out / "setpoints.csv", agent.setpoints)
+    if o.plots:
+        fig = writers.plot_catch(results, agent.predictions, net_radius_m=o.net_radius_m, params=params)
+        fig.savefig(out / "catch.png", dpi=110)
+    if rr_log is not None:
+        rr_log.close()
+    summary["wall_time_s"] = time.perf_counter() - wall0
+    writers.write_summary_json(out / "summary.json", summary)
+    summary["per_throw"] = [r.as_dict() for r in results]
+    summary["predictions"] = agent.predictions          # as in predictions.csv
+    summary["latencies_s"] = agent.latencies_s          # per detection: detector (rendered mode) + filter + intercept
+    return summary

@@ -1,0 +1,224 @@
+"""Outputs of the catching demo: CSV tables, JSON summary, the plot and the rerun recording.
+
+Files written by :func:`~tudorvision.lab.catch.run.run_demo`:
+
+* ``throws.csv``: one :class:`~tudorvision.lab.catch.score.ThrowResult` per row,
+  columns :data:`~tudorvision.lab.catch.score.PER_THROW_COLUMNS`;
+* ``predictions.csv``, ``setpoints.csv``: the agent's intercept estimates and
+  setpoints (:data:`~tudorvision.lab.catch.agent.PREDICTION_COLUMNS`,
+  :data:`~tudorvision.lab.catch.agent.SETPOINT_COLUMNS`);
+* ``summary.json``; ``catch.png`` (:func:`plot_catch`); ``catch.rrd`` (:class:`RerunLog`).
+
+Numbers are written with 6 significant digits, missing values (``nan``,
+``inf``) as empty cells, flags as 0/1.
+"""
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .agent import PREDICTION_COLUMNS, SETPOINT_COLUMNS
+from .score import PER_THROW_COLUMNS
+
+__all__ = ["RerunLog", "format_cell", "plot_catch", "write_csv", "write_summary_json", "write_throws_csv"]
+
+
+def format_cell(v):
+    """One CSV cell: strings as they are, integers (and flags) as integers, floats with 6 digits, nan/inf empty.
+
+    Parameters
+    ----------
+    v : str, int, bool or float
+        The value.
+
+    Returns
+    -------
+    str or int
+        The cell.
+
+    Examples
+    --------
+    >>> [format_cell(x) for x in ("arm late", True, 3, 0.1234567, float("nan"))]
+    ['arm late', 1, 3, '0.123457', '']
+    """
+    if isinstance(v, str):
+        return v
+    if isinstance(v, (int, np.integer)):
+        return int(v)
+    v = float(v)
+    return "" if not np.isfinite(v) else f"{v:.6g}"
+
+
+def write_csv(path, columns, rows) -> Path:
+    """Write ``rows`` (sequences of values in ``columns`` order) under a header line.
+
+    Parameters
+    ----------
+    path : str or Path
+        Output file.
+    columns : sequence of str
+        Header.
+    rows : iterable of sequence
+        Values, formatted by :func:`format_cell`.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    path = Path(path)
+    with path.open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(columns)
+        for row in rows:
+            w.writerow([format_cell(v) for v in row])
+    return path
+
+
+def write_throws_csv(path, results) -> Path:
+    """Write ``throws.csv``: one row per :class:`~tudorvision.lab.catch.score.ThrowResult`.
+
+    Parameters
+    ----------
+    path : str or Path
+        Output file.
+    results : sequence of ThrowResult
+        The throws.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    return write_csv(path, PER_THROW_COLUMNS, (r.as_row() for r in results))
+
+
+def write_predictions_csv(path, rows) -> Path:
+    """Write ``predictions.csv`` from the agent's prediction rows (:data:`PREDICTION_COLUMNS`)."""
+    return write_csv(path, PREDICTION_COLUMNS, rows)
+
+
+def write_setpoints_csv(path, rows) -> Path:
+    """Write ``setpoints.csv`` from the agent's setpoint rows (:data:`SETPOINT_COLUMNS`)."""
+    return write_csv(path, SETPOINT_COLUMNS, rows)
+
+
+def write_summary_json(path, summary: dict) -> Path:
+    """Write the run's summary as indented JSON.
+
+    Parameters
+    ----------
+    path : str or Path
+        Output file.
+    summary : dict
+        JSON-serialisable summary.
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
+    path = Path(path)
+    path.write_text(json.dumps(summary, indent=2))
+    return path
+
+
+def plot_catch(results, predictions, *, net_radius_m: float, params):
+    """Crossings and nets in the working plane, and the intercept error against the time before the crossing.
+
+    Parameters
+    ----------
+    results : sequence of ThrowResult
+        The throws.
+    predictions : sequence of sequence
+        The agent's prediction rows (:data:`PREDICTION_COLUMNS`).
+    net_radius_m : float
+        Net radius drawn around each net centre, m.
+    params : RobotParams
+        The robot (its reach is drawn).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        Two panels; the global pyplot state and backend are left alone.
+    """
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Circle
+
+    fig = Figure(figsize=(12, 5))
+    a, b = fig.subplots(1, 2)
+    reach = params.link2_length_m + params.link3_length_m
+    ang = np.linspace(0, 2 * np.pi, 200)
+    a.plot(reach * np.cos(ang), params.link1_height_m + reach * np.sin(ang), "k--", lw=0.8, label="reach")
+    for r in results:
+        if not r.crosses_plane:
+            continue
+        col = "tab:green" if r.caught else ("tab:red" if r.crossing_workspace else "tab:gray")
+        a.plot(r.x_cross_true_m, r.z_cross_true_m, "o", color=col)
+        if np.isfinite(r.x_net_m):
+            a.add_patch(Circle((r.x_net_m, r.z_net_m), net_radius_m, fill=False, color=col, lw=0.8))
+    a.set_aspect("equal")
+    a.set_xlabel("x base (m)")
+    a.set_ylabel("z base (m)")
+    a.set_title("crossings (dots) and net (circles): green caught, red missed, grey outside")
+    col = {name: PREDICTION_COLUMNS.index(name) for name in ("throw", "t_s", "x_cross_m", "z_cross_m")}
+    pr = np.array([[p[col["throw"]], p[col["t_s"]], p[col["x_cross_m"]], p[col["z_cross_m"]]] for p in predictions],
+                  float) if len(predictions) else np.zeros((0, 4))
+    for r in results:
+        if not r.crosses_plane:
+            continue
+        sel = pr[pr[:, 0] == r.throw]
+        if len(sel) == 0:
+            continue
+        t_cross = r.t_release_s + r.t_cross_true_s
+        err = np.hypot(sel[:, 2] - r.x_cross_true_m, sel[:, 3] - r.z_cross_true_m)
+        b.semilogy(t_cross - sel[:, 1], err * 100, ".-", lw=0.8)
+    b.axvline(0.3, color="k", ls=":")
+    b.axhline(2.0, color="k", ls=":")
+    b.invert_xaxis()
+    b.set_xlabel("time before crossing (s)")
+    b.set_ylabel("intercept error (cm)")
+    b.set_title("EKF intercept error vs time before crossing")
+    fig.tight_layout()
+    return fig
+
+
+class RerunLog:
+    """rerun recording of the demo: detections, intercepts, net.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.rrd`` file.
+    net_radius_m : float
+        Radius the net is drawn with, m.
+    """
+
+    def __init__(self, path, *, net_radius_m: float):
+        import rerun as rr
+
+        self.rr = rr
+        self.rec = rr.RecordingStream("tudorvision_catch")
+        self.rec.save(str(path))
+        self.net_radius_m = float(net_radius_m)
+        self._pts: list = []
+
+    def frame(self, t: float, p_det_base, record: dict, net_now_base) -> None:
+        """Log one detection at ``t`` (s): the last 40 detections, the net now and the intercept (m, base frame)."""
+        rr, r = self.rr, self.rec
+        r.set_time("time", duration=float(t))
+        self._pts.append(p_det_base)
+        r.log("world/detections", rr.Points3D(np.array(self._pts[-40:]), radii=0.01, colors=(255, 200, 0)))
+        r.log("world/net", rr.Points3D([net_now_base], radii=self.net_radius_m, colors=(80, 160, 255)))
+        it = record.get("intercept")
+        if it is not None:
+            r.log("world/intercept", rr.Points3D([it.p_base], radii=max(it.sigma_m, 0.01),
+                                                 colors=(0, 255, 0) if it.send else (255, 80, 80)))
+            r.log("plots/intercept_sigma_m", rr.Scalars(it.sigma_m))
+
+    def close(self) -> None:
+        """Flush the recording."""
+        self.rec.flush()
