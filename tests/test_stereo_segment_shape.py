@@ -14,8 +14,9 @@ import pytest
 
 from test_stereo_segment_scenes import RED_BGR, SS, sphere_patch
 from tudorvision._checks import TudorVisionError
+from tudorvision.stereo._circle import circle_lsq, fit_rim_circle
 from tudorvision.stereo.colormodel import fit_color_model
-from tudorvision.stereo.segment import SegmentParams, _circle_lsq, _fit_rim_circle, detect_sphere
+from tudorvision.stereo.segment import SegmentParams, detect_sphere
 
 CENTER = (60.37, 58.71)
 RADIUS = 9.0
@@ -133,14 +134,14 @@ def test_blur_streak_keeps_the_moment(model):
 def test_circle_fits():
     t = np.linspace(0, 2 * np.pi, 40, endpoint=False)
     pts = np.c_[10 + 6 * np.cos(t), 20 + 6 * np.sin(t)]
-    assert _circle_lsq(pts) == pytest.approx((10, 20, 6))
+    assert circle_lsq(pts) == pytest.approx((10, 20, 6))
     # a third of the rim pulled 2 px inwards (an occluder): the robust fit ignores it
     bad = pts.copy()
     bad[:13] = np.c_[10 + 4 * np.cos(t[:13]), 20 + 4 * np.sin(t[:13])]
-    cu, cv_, r, inl = _fit_rim_circle(bad, 0.5)
+    cu, cv_, r, inl = fit_rim_circle(bad, 0.5)
     assert (cu, cv_, r) == pytest.approx((10, 20, 6), abs=1e-9)
     assert not inl[:13].any() and inl[13:].all()
-    assert np.hypot(*(np.subtract(_circle_lsq(bad)[:2], (10, 20)))) > 0.5  # plain least squares is pulled
+    assert np.hypot(*(np.subtract(circle_lsq(bad)[:2], (10, 20)))) > 0.5  # plain least squares is pulled
 
 
 def test_params_checked():

@@ -70,7 +70,12 @@ def _err(path, line_of, keys, msg):
     return TudorVisionError(f"{where}: {'.'.join(map(str, keys))}: {msg}")
 
 
-def _positive(meta, key, path, line_of, *, required):
+def positive_entry(meta, key, path, line_of, *, required):
+    """``meta[key]`` as a positive float, None when absent and not ``required``.
+
+    ``path`` and ``line_of`` (from :func:`~tudorvision.io._yaml.read_yaml`)
+    locate the entry in the error message.
+    """
     if key not in meta or meta[key] is None:
         if required:
             raise TudorVisionError(f"{path}: missing {key!r}")
@@ -81,7 +86,11 @@ def _positive(meta, key, path, line_of, *, required):
     return float(v)
 
 
-def _parse_size(value, streams, path, line_of):
+def parse_size(value, streams, path, line_of):
+    """The ``size`` entry: ``[width, height]`` for every stream in ``streams``, or ``{stream: [w, h]}``.
+
+    Returns ``{stream: (width, height)}`` in pixels, or None when ``value`` is None.
+    """
     def pair(v, keys):
         if (not isinstance(v, (list, tuple)) or len(v) != 2
                 or not all(isinstance(x, int) and not isinstance(x, bool) and x > 0 for x in v)):
@@ -109,8 +118,8 @@ def spec_tudorvision(root: Path, data: dict, line_of, *, max_dt_s=None) -> Spec:
     kind = data.get("kind")
     if kind not in KINDS:
         raise _err(ypath, line_of, ("kind",), f"expected one of {', '.join(KINDS)}, got {kind!r}")
-    rate = _positive(data, "rate_hz", ypath, line_of, required=True)
-    depth_scale = _positive(data, "depth_scale", ypath, line_of, required=kind == "rgbd")
+    rate = positive_entry(data, "rate_hz", ypath, line_of, required=True)
+    depth_scale = positive_entry(data, "depth_scale", ypath, line_of, required=kind == "rgbd")
     streams = data.get("streams", list(FRAME_STREAMS[kind]))
     if not isinstance(streams, list) or not all(isinstance(s, str) for s in streams):
         raise _err(ypath, line_of, ("streams",), f"expected a list of stream names, got {streams!r}")
@@ -118,7 +127,7 @@ def spec_tudorvision(root: Path, data: dict, line_of, *, max_dt_s=None) -> Spec:
     spec = Spec(path=root, layout="tudorvision", kind=kind, rate_hz=rate, depth_scale=depth_scale,
                 streams=tuple(streams), description=str(desc), meta=dict(data))
     frame_streams = FRAME_STREAMS[kind]
-    spec.size = _parse_size(data.get("size"), frame_streams, ypath, line_of)
+    spec.size = parse_size(data.get("size"), frame_streams, ypath, line_of)
     cal = data.get("calibration")
     if cal is not None:
         if not isinstance(cal, str):

@@ -54,6 +54,8 @@ __all__ = ["CameraModel", "StereoExtrinsics", "DepthModel", "Calibration",
 
 FORMAT_NAME = "tudorvision-calibration"
 _UNITS_TO_M = {"m": 1.0, "cm": 0.01, "mm": 0.001}
+#: Optional rectification matrices of :class:`StereoExtrinsics` and their shapes, in field order.
+RECTIFICATION_SHAPES = MappingProxyType({"R1": (3, 3), "R2": (3, 3), "P1": (3, 4), "P2": (3, 4), "Q": (4, 4)})
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
@@ -169,8 +171,6 @@ class StereoExtrinsics:
     P2: np.ndarray | None = None
     Q: np.ndarray | None = None
 
-    _SHAPES = {"R1": (3, 3), "R2": (3, 3), "P1": (3, 4), "P2": (3, 4), "Q": (4, 4)}
-
     def __post_init__(self):
         R = check_array(self.R, "R", (3, 3))
         T4 = np.eye(4)
@@ -178,7 +178,7 @@ class StereoExtrinsics:
         check_transform(T4, "R")
         object.__setattr__(self, "R", _frozen(R))
         object.__setattr__(self, "T", _frozen(check_array(self.T, "T", (3,))))
-        for name, shape in self._SHAPES.items():
+        for name, shape in RECTIFICATION_SHAPES.items():
             v = getattr(self, name)
             if v is not None:
                 object.__setattr__(self, name, _frozen(check_array(v, name, shape)))
@@ -198,12 +198,12 @@ class StereoExtrinsics:
 
     @property
     def has_rectification(self) -> bool:
-        return all(getattr(self, n) is not None for n in self._SHAPES)
+        return all(getattr(self, n) is not None for n in RECTIFICATION_SHAPES)
 
     def allclose(self, other: "StereoExtrinsics", atol: float = 1e-9) -> bool:
         return (isinstance(other, StereoExtrinsics) and (self.left, self.right) == (other.left, other.right)
                 and all(_opt_close(getattr(self, n), getattr(other, n), atol)
-                        for n in ("R", "T", *self._SHAPES)))
+                        for n in ("R", "T", *RECTIFICATION_SHAPES)))
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -386,7 +386,7 @@ class Calibration:
         if self.stereo is not None:
             s = self.stereo
             d = {"left": s.left, "right": s.right, "R": s.R.tolist(), "T": s.T.tolist()}
-            rect = {n: getattr(s, n).tolist() for n in StereoExtrinsics._SHAPES if getattr(s, n) is not None}
+            rect = {n: getattr(s, n).tolist() for n in RECTIFICATION_SHAPES if getattr(s, n) is not None}
             if rect:
                 d["rectification"] = rect
             out["stereo"] = d
@@ -450,7 +450,7 @@ class Calibration:
                 raise ctx.error(("stereo",), "expected a mapping with R and T")
             rect = s.get("rectification") or {}
             kw = {n: ctx.array(rect[n], ("stereo", "rectification", n), shp)
-                  for n, shp in StereoExtrinsics._SHAPES.items() if n in rect}
+                  for n, shp in RECTIFICATION_SHAPES.items() if n in rect}
             try:
                 stereo = StereoExtrinsics(R=ctx.array(s["R"], ("stereo", "R"), (3, 3)),
                                           T=ctx.array(s["T"], ("stereo", "T"), (3,)),

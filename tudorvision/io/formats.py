@@ -25,7 +25,7 @@ import numpy as np
 from .._checks import TudorVisionError, check_array
 from ._yaml import YamlContext as _Ctx
 from ._yaml import dump_yaml, read_yaml
-from .calibration import Calibration, CameraModel, StereoExtrinsics
+from .calibration import RECTIFICATION_SHAPES, Calibration, CameraModel, StereoExtrinsics
 
 __all__ = ["CameraInfo", "load_ros_camera_info", "save_ros_camera_info", "calibration_from_ros",
            "load_opencv_stereo", "save_opencv_stereo"]
@@ -269,7 +269,7 @@ def load_opencv_stereo(intrinsics_path, extrinsics_path=None, *, size=None, left
     epath = Path(extrinsics_path)
     fs = _open_storage(epath)
     R, T = _cv_mat(fs, epath, "R", (3, 3)), _cv_mat(fs, epath, "T", (3,))
-    rect = {n: _cv_mat(fs, epath, n, shp, optional=True) for n, shp in StereoExtrinsics._SHAPES.items()}
+    rect = {n: _cv_mat(fs, epath, n, shp, optional=True) for n, shp in RECTIFICATION_SHAPES.items()}
     fs.release()
     s = float(m_per_unit)
     T = T * s
@@ -309,7 +309,7 @@ def save_opencv_stereo(calibration: Calibration, intrinsics_path, extrinsics_pat
     ipath, epath = Path(intrinsics_path), Path(extrinsics_path)
     entries_i = [("M1", cl.K), ("D1", cl.dist[None, :]), ("M2", cr.K), ("D2", cr.dist[None, :])]
     entries_e = [("R", st.R), ("T", st.T[:, None] / s)]
-    for name in StereoExtrinsics._SHAPES:
+    for name in RECTIFICATION_SHAPES:
         m = getattr(st, name)
         if m is None:
             continue

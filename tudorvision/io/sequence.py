@@ -60,9 +60,9 @@ import numpy as np
 
 from .._checks import TudorVisionError, check_array
 from ._index import ImageProblem, Problem, parse_table, read_columns, read_image
-from ._layouts import (FRAME_STREAMS, LAYOUTS, VIDEO_SUFFIXES, Record, Spec, _parse_size, _positive,
-                       detect_layout, parse_sequence_yaml, spec_image_folder, spec_kinect_folders,
-                       spec_numbered_pairs, spec_tudorvision, spec_tum)
+from ._layouts import (FRAME_STREAMS, LAYOUTS, VIDEO_SUFFIXES, Record, Spec, detect_layout, parse_sequence_yaml,
+                       parse_size, positive_entry, spec_image_folder, spec_kinect_folders, spec_numbered_pairs,
+                       spec_tudorvision, spec_tum)
 from ._video import VideoSource
 from .calibration import Calibration, CameraModel, load_calibration
 from .frames import (JointLog, MonoFrame, RGBDFrame, StereoFrame, depth_m_from_raw,
@@ -130,7 +130,7 @@ class Sequence:
             if self.strict:
                 self.close()
                 raise p.error()
-            self._record(p)
+            self.record_problem(p)
 
     # -------------------------------------------------------------- basics
     def __repr__(self) -> str:
@@ -166,11 +166,26 @@ class Sequence:
         ts = self.timestamps
         return float(ts[-1] - ts[0]) if ts.size else 0.0
 
-    def _record(self, problem: Problem) -> None:
+    def record_problem(self, problem: Problem) -> None:
+        """Add a defect to :attr:`report`, once (a repeated ``where`` and ``reason`` is ignored).
+
+        Parameters
+        ----------
+        problem : Problem
+            The defect found (lenient mode).
+        """
         key = (problem.where, problem.reason)
         if key not in self._seen:
             self._seen.add(key)
             self.report.append(problem)
+
+    # the CLI's scan called this before record_problem was public; remove once it calls record_problem
+    _record = record_problem
+
+    @property
+    def joints_path(self) -> Path | None:
+        """Path of the joint log (``joints.txt``), or None when the sequence has none."""
+        return self._spec.joints_path
 
     # -------------------------------------------------------------- frames
     def __getitem__(self, index: int):
@@ -207,7 +222,7 @@ class Sequence:
         except _FrameProblem as fp:
             if self.strict:
                 raise fp.problem.error() from None
-            self._record(fp.problem)
+            self.record_problem(fp.problem)
             return None
 
     def _check_size(self, img, stream, where, i):
@@ -296,7 +311,7 @@ class Sequence:
         problems: list[Problem] = []
         log = load_joint_log(path, strict=self.strict, report=problems)
         for p in problems:
-            self._record(p)
+            self.record_problem(p)
         return log
 
     @property
@@ -439,7 +454,7 @@ def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
                                        f"of {', '.join(x for x in LAYOUTS if x != 'video')}, got {layout!r}")
         side_rate = None
         if layout != "tudorvision":
-            side_rate = _positive(data, "rate_hz", path / "sequence.yaml", line_of, required=False)
+            side_rate = positive_entry(data, "rate_hz", path / "sequence.yaml", line_of, required=False)
         folder_rate = float(rate_hz or side_rate or 30.0)
         if layout == "tudorvision":
             spec = spec_tudorvision(path, data, line_of, max_dt_s=max_dt_s)
@@ -485,12 +500,12 @@ def _apply_sidecar(spec: Spec, data: dict, line_of, ypath: Path) -> None:
     """Sidecar sequence.yaml of a folder layout: rate, depth scale, calibration, intrinsics, size."""
     if not data:
         return
-    ds = _positive(data, "depth_scale", ypath, line_of, required=False)
+    ds = positive_entry(data, "depth_scale", ypath, line_of, required=False)
     if ds is not None:
         spec.depth_scale = ds
     if data.get("calibration") is not None:
         spec.calibration_path = ypath.parent / str(data["calibration"])
-    spec.size = _parse_size(data.get("size"), FRAME_STREAMS[spec.kind], ypath, line_of) or spec.size
+    spec.size = parse_size(data.get("size"), FRAME_STREAMS[spec.kind], ypath, line_of) or spec.size
     intr = data.get("intrinsics")
     if intr is not None:
         if not isinstance(intr, dict) or not all(k in intr for k in ("fx", "fy", "cx", "cy")):

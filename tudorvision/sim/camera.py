@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, field
+from typing import Any, Callable
 
 import numpy as np
 
@@ -85,6 +86,30 @@ class PinholeCamera:
             object.__setattr__(self, name, arr)
         object.__setattr__(self, "width", int(self.width))
         object.__setattr__(self, "height", int(self.height))
+
+    def cached(self, key: str, make: Callable[[], Any]) -> Any:
+        """Data derived from this camera, computed by ``make()`` on first use and kept on the instance.
+
+        The per-pixel ray grids and the field-of-view box live here, so a
+        camera is set up once however many frames it renders.
+
+        Parameters
+        ----------
+        key : str
+            Name of the derived data (e.g. ``"rays_cam"``, ``"fov_box"``).
+        make : callable
+            ``make() -> value``, called only when ``key`` is not cached yet.
+
+        Returns
+        -------
+        object
+            The cached value (treat it as read-only).
+        """
+        value = self._cache.get(key)
+        if value is None:
+            value = make()
+            self._cache[key] = value
+        return value
 
 
 def intrinsic_matrix(f_px: float, cx: float, cy: float, *, fy_px: float | None = None) -> np.ndarray:
@@ -270,10 +295,11 @@ def project_points(camera: PinholeCamera, points_world) -> np.ndarray:
     z = p[:, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
         xy = p[:, :2] / np.where(z > 0, z, np.nan)[:, None]
-    return _pixels_from_normalized(camera, distort_normalized(xy, camera.dist))
+    return pixels_from_normalized(camera, distort_normalized(xy, camera.dist))
 
 
-def _pixels_from_normalized(camera: PinholeCamera, xy_d: np.ndarray) -> np.ndarray:
+def pixels_from_normalized(camera: PinholeCamera, xy_d: np.ndarray) -> np.ndarray:
+    """Pixel coordinates ``(..., 2)`` (u right, v down) of distorted normalised coordinates ``xy_d`` (..., 2)."""
     K = camera.K
     u = K[0, 0] * xy_d[..., 0] + K[0, 1] * xy_d[..., 1] + K[0, 2]
     v = K[1, 1] * xy_d[..., 1] + K[1, 2]
@@ -431,5 +457,5 @@ def sphere_silhouette_centroid(camera: PinholeCamera, center_world, radius: floa
     dx = (distort_normalized(pts + [h, 0], camera.dist) - distort_normalized(pts - [h, 0], camera.dist)) / (2 * h)
     dy = (distort_normalized(pts + [0, h], camera.dist) - distort_normalized(pts - [0, h], camera.dist)) / (2 * h)
     jac = np.abs(dx[..., 0] * dy[..., 1] - dx[..., 1] * dy[..., 0]) * weights
-    uv = _pixels_from_normalized(camera, distort_normalized(pts, camera.dist))
+    uv = pixels_from_normalized(camera, distort_normalized(pts, camera.dist))
     return (uv * jac[..., None]).sum(axis=(0, 1)) / jac.sum()

@@ -13,10 +13,10 @@ from typing import Sequence
 
 import numpy as np
 
-from .camera import (PinholeCamera, camera_center_world, distort_normalized,
-                     ray_directions_cam, ray_directions_world_soa, _pixels_from_normalized)
+from .camera import (PinholeCamera, camera_center_world, distort_normalized, pixels_from_normalized,
+                     ray_directions_cam, ray_directions_world_soa)
 from .lighting import light_terms
-from .shapes import Scene, _INF
+from .shapes import Scene
 
 __all__ = ["GBuffer", "render_gbuffer", "cast_rays", "pixel_bbox", "pixel_bboxes"]
 
@@ -87,7 +87,7 @@ def pixel_bboxes(camera: PinholeCamera, corners_list, *, pad: int = 2) -> list:
     lo, hi = np.maximum(lo, flo), np.minimum(hi, fhi)
     s = _EDGE_SAMPLES
     edge = lo[:, None, :] + s[None] * (hi - lo)[:, None, :]                   # (n, 36, 2)
-    uv = _pixels_from_normalized(camera, distort_normalized(edge, camera.dist))
+    uv = pixels_from_normalized(camera, distort_normalized(edge, camera.dist))
     umin, umax = np.floor(uv[..., 0].min(axis=1)), np.ceil(uv[..., 0].max(axis=1))
     vmin, vmax = np.floor(uv[..., 1].min(axis=1)), np.ceil(uv[..., 1].max(axis=1))
     for k, i in enumerate(idx):
@@ -130,15 +130,15 @@ _EDGE_SAMPLES = np.concatenate([np.stack([_s9, np.zeros(9)], 1), np.stack([_s9, 
 
 
 def _fov_box(camera):
-    box = camera._cache.get("fov_box")
-    if box is None:
+    """Normalised-coordinate box ``(lo, hi)`` around the camera's field of view (2 % margin), cached."""
+    def make():
         r = ray_directions_cam(camera)
         border = np.concatenate([r[0], r[-1], r[:, 0], r[:, -1]])
         xy = border[:, :2] / border[:, 2:]
         span = xy.max(axis=0) - xy.min(axis=0)
-        box = (xy.min(axis=0) - 0.02 * span, xy.max(axis=0) + 0.02 * span)
-        camera._cache["fov_box"] = box
-    return box
+        return (xy.min(axis=0) - 0.02 * span, xy.max(axis=0) + 0.02 * span)
+
+    return camera.cached("fov_box", make)
 
 
 def cast_rays(camera: PinholeCamera, shapes: Sequence, *, cull: bool = True,
@@ -169,7 +169,7 @@ def cast_rays(camera: PinholeCamera, shapes: Sequence, *, cull: bool = True,
     H, W = camera.height, camera.width
     rays = _rays_soa(camera)
     o = camera_center_world(camera)
-    t = np.full((H, W), _INF) if t_init is None else t_init.copy()
+    t = np.full((H, W), np.inf) if t_init is None else t_init.copy()
     ids = np.zeros((H, W), dtype=np.int32)
     bboxes = []
     boxes = pixel_bboxes(camera, [sh.corners() for sh in shapes]) if cull else [(0, H, 0, W)] * len(shapes)
@@ -190,8 +190,12 @@ def _rays_soa(camera: PinholeCamera) -> np.ndarray:
     return ray_directions_world_soa(camera)
 
 
-def _surface(camera, shape, rr, cc, t):
-    """Hit points (N, 3), camera-facing unit normals and albedo of ``shape`` at pixels (rr, cc)."""
+def surface_at(camera, shape, rr, cc, t):
+    """Hit points (N, 3), camera-facing unit normals and albedo of ``shape`` at pixels (rr, cc).
+
+    ``t`` (N,) is the ray length to the hit in metres. For the renderer; not
+    in ``__all__``.
+    """
     flat = rr * camera.width + cc
     d = _rays_soa(camera).reshape(3, -1)[:, flat]
     p = np.ascontiguousarray((camera_center_world(camera)[:, None] + t * d).T)
@@ -203,18 +207,25 @@ def _surface(camera, shape, rr, cc, t):
 
 
 @dataclass(eq=False)
-class _StaticCache:
-    t: np.ndarray
-    ids: np.ndarray
-    normal: np.ndarray
-    albedo: np.ndarray
+class StaticCast:
+    """The static shapes of a scene ray-cast by one camera (cached on the scene), arrays indexed ``[v, u]``."""
+
+    t: np.ndarray       # (H, W) ray length in metres, inf where nothing is hit
+    ids: np.ndarray     # (H, W) int32 object ids
+    normal: np.ndarray  # (H, W, 3) float32 camera-facing unit normals, world frame
+    albedo: np.ndarray  # (H, W, 3) float32 linear RGB reflectance
     terms: np.ndarray   # (L, H, W, 3) float32
 
 
-def _static(camera: PinholeCamera, scene: Scene) -> _StaticCache:
-    st = scene._cache.get(camera)
-    if st is not None:
-        return st
+def static_cast(camera: PinholeCamera, scene: Scene) -> StaticCast:
+    """The static shapes of ``scene`` ray-cast and lit for ``camera``, once per camera (cached on the scene).
+
+    For the renderer; not in ``__all__``.
+    """
+    return scene.cached_for(camera, lambda: _cast_static(camera, scene))
+
+
+def _cast_static(camera: PinholeCamera, scene: Scene) -> StaticCast:
     H, W = camera.height, camera.width
     t, ids, bboxes = cast_rays(camera, scene.static)
     normal = np.zeros((H * W, 3), np.float32)
@@ -230,7 +241,7 @@ def _static(camera: PinholeCamera, scene: Scene) -> _StaticCache:
         rr += v0
         cc += u0
         flat = rr * W + cc
-        _, n, a = _surface(camera, shape, rr, cc, t_flat[flat])
+        _, n, a = surface_at(camera, shape, rr, cc, t_flat[flat])
         normal[flat] = n
         albedo[flat] = a
     # light terms over the whole frame at once (no per-object scatter)
@@ -238,15 +249,14 @@ def _static(camera: PinholeCamera, scene: Scene) -> _StaticCache:
     tt = np.where(np.isfinite(t_flat), t_flat, 0.0)
     p = np.ascontiguousarray((camera_center_world(camera)[:, None] + tt * d).T)
     terms = light_terms(scene.lights, p, normal, albedo).reshape(len(scene.lights), H, W, 3)
-    st = _StaticCache(t=t, ids=ids, normal=normal.reshape(H, W, 3), albedo=albedo.reshape(H, W, 3), terms=terms)
-    scene._cache[camera] = st
-    return st
+    return StaticCast(t=t, ids=ids, normal=normal.reshape(H, W, 3), albedo=albedo.reshape(H, W, 3), terms=terms)
 
 
-def _dynamic_hits(camera, shapes, full_boxes, st, rows):
+def dynamic_hits(camera, shapes, full_boxes, st, rows):
     """Cast dynamic ``shapes`` (with their full-image ``full_boxes``) over the static depth in row range ``rows``.
 
-    Returns a list of (j, shape, rr, cc, t) per shape with the pixels it wins.
+    ``st`` is the camera's :class:`StaticCast`. Returns a list of (j, shape, rr, cc, t) per shape with the
+    pixels it wins. For the renderer; not in ``__all__``.
     """
     r0, r1 = rows
     boxes = []
@@ -301,7 +311,7 @@ def render_gbuffer(camera: PinholeCamera, scene: Scene, t: float = 0.0) -> GBuff
     >>> round(float(g.depth_m[11:13, 15:17].mean()), 2), int(g.object_id[0, 0])
     (1.5, 0)
     """
-    st = _static(camera, scene)
+    st = static_cast(camera, scene)
     dist = st.t.copy()
     ids = st.ids.copy()
     normal = st.normal.copy()
@@ -309,8 +319,8 @@ def render_gbuffer(camera: PinholeCamera, scene: Scene, t: float = 0.0) -> GBuff
     if scene.dynamic is not None:
         shapes = list(scene.dynamic(t))
         boxes = pixel_bboxes(camera, [sh.corners() for sh in shapes])
-        for j, shape, rr, cc, tj in _dynamic_hits(camera, shapes, boxes, st, (0, camera.height)):
-            _, n, a = _surface(camera, shape, rr, cc, tj)
+        for j, shape, rr, cc, tj in dynamic_hits(camera, shapes, boxes, st, (0, camera.height)):
+            _, n, a = surface_at(camera, shape, rr, cc, tj)
             dist[rr, cc] = tj
             ids[rr, cc] = scene.n_static + 1 + j
             normal[rr, cc] = n

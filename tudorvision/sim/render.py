@@ -28,8 +28,8 @@ import numpy as np
 from .camera import PinholeCamera
 from .depth_sensor import DepthModel, depth_mm_from_gbuffer, depth_sigma_m
 from .lighting import SensorModel, apply_sensor, intensity_at, light_terms, weighted_sum
-from .raycast import (GBuffer, _dynamic_hits, _static, _surface, cast_rays, pixel_bbox, pixel_bboxes,
-                      render_gbuffer)
+from .raycast import (GBuffer, cast_rays, dynamic_hits, pixel_bbox, pixel_bboxes, render_gbuffer, static_cast,
+                      surface_at)
 from .shapes import Box, Capsule, Cylinder, Disc, Rectangle, Scene, Sphere
 
 __all__ = [
@@ -90,7 +90,7 @@ def render_radiance(camera: PinholeCamera, scene: Scene, t: float, *, exposure_s
     """
     _check_timing(exposure_s, n_subframes, line_time_s, band_rows)
     H = camera.height
-    st = _static(camera, scene)
+    st = static_cast(camera, scene)
     t_light = t + 0.5 * exposure_s + 0.5 * (H - 1) * line_time_s
     gains = np.array([intensity_at(light, t_light) for light in scene.lights], np.float32)
     base = weighted_sum(gains, st.terms)
@@ -118,8 +118,8 @@ def render_radiance(camera: PinholeCamera, scene: Scene, t: float, *, exposure_s
             shapes = list(scene.dynamic(time_of(k)))
             cache[k] = (shapes, pixel_bboxes(camera, [sh.corners() for sh in shapes]))
         shapes, boxes = cache[k]
-        for j, shape, rr, cc, tj in _dynamic_hits(camera, shapes, boxes, st, rows):
-            p, n, a = _surface(camera, shape, rr, cc, tj)
+        for j, shape, rr, cc, tj in dynamic_hits(camera, shapes, boxes, st, rows):
+            p, n, a = surface_at(camera, shape, rr, cc, tj)
             rad = weighted_sum(gains, light_terms(scene.lights, p, n, a))
             out[rr, cc] += (rad - base[rr, cc]) / K
     return out

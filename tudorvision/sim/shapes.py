@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import weakref
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -410,6 +410,27 @@ class Scene:
     @property
     def n_static(self) -> int:
         return len(self.static)
+
+    def cached_for(self, camera, make: Callable[[], Any]) -> Any:
+        """Data this scene keeps per camera (the static shapes' ray-cast), computed by ``make()`` on first use.
+
+        Parameters
+        ----------
+        camera : PinholeCamera
+            The camera (held weakly: the entry goes with the camera).
+        make : callable
+            ``make() -> value``, called only when nothing is cached for ``camera``.
+
+        Returns
+        -------
+        object
+            The cached value (treat it as read-only).
+        """
+        value = self._cache.get(camera)
+        if value is None:
+            value = make()
+            self._cache[camera] = value
+        return value
 
     def object_ids(self, t: float = 0.0) -> dict:
         """Map shape name -> object id for every named shape (dynamic ones evaluated at ``t``)."""

@@ -42,8 +42,9 @@ from typing import Callable, Iterator, Mapping
 import numpy as np
 
 from .._checks import TudorVisionError, check_transform
+from ._frame import FramePlanes
 from .colormodel import ColorModel, ColorModelSet
-from .segment import SegmentParams, SphereDetection, detect_spheres
+from .segment import SegmentParams, SphereDetection, detect_spheres, regions_in_window
 from .tracker2d import FrameTracker, SphereTracker, TrackerParams
 from .trajectory import Trajectory, trajectory_from_points
 from .triangulate import SphereTriangulation, triangulate_spheres
@@ -304,11 +305,9 @@ class StereoPipeline:
 
     def _candidates(self, img, cam: str, sphere: str) -> list:
         """Valid regions of one sphere in a full frame (full resolution), heaviest first."""
-        from .segment import _detect_window, _Frame
-
         h, w = img.shape[:2]
-        found = _detect_window(_Frame(img), self._models[cam][sphere], self.options.tracker.segment,
-                               (0, 0, w, h), False)
+        found = regions_in_window(FramePlanes(img), self._models[cam][sphere], self.options.tracker.segment,
+                                  (0, 0, w, h), False)
         return [d for d in found if d.valid][:6]
 
     def _make_consistent(self, dets: dict, images: dict) -> dict:
@@ -504,7 +503,7 @@ def _iter_pairs(sequence, pipeline, *, live, speed, stats, clock, sleep):
             res = StereoFrameResult(index=res.index, t=res.t, detections=res.detections, spheres=res.spheres,
                                     ee=res.ee, valid=res.valid, frame=res.frame, latency_s=latency,
                                     dropped=res.dropped)
-            st._add(res)
+            st.record(res)
             st.skipped, st.dropped = play.skipped, play.dropped
             yield res, played.frame
         st.skipped, st.dropped = play.skipped, play.dropped
@@ -515,7 +514,7 @@ def _iter_pairs(sequence, pipeline, *, live, speed, stats, clock, sleep):
             st.skipped += 1
             continue
         res = pipeline.process(frame)
-        st._add(res)
+        st.record(res)
         yield res, frame
 
 
@@ -549,7 +548,15 @@ class TrackStats:
     max_latency_s: float = float("nan")
     _n_latency: int = 0
 
-    def _add(self, res) -> None:
+    def record(self, res) -> None:
+        """Count one processed frame.
+
+        Parameters
+        ----------
+        res : StereoFrameResult
+            The frame's result: ``valid`` and, from live playback, a finite
+            ``latency_s`` in seconds.
+        """
         self.processed += 1
         self.valid += int(bool(res.valid))
         lat = getattr(res, "latency_s", float("nan"))

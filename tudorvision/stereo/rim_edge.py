@@ -46,6 +46,8 @@ import math
 import cv2
 import numpy as np
 
+from ._circle import circle_lsq
+
 __all__ = ["luma_rim_points", "refine_circle_on_luma", "LOSSY_SUFFIXES", "chroma_subsampled_source"]
 
 #: File suffixes whose colour is usually stored at reduced resolution (JPEG; video codecs).
@@ -188,8 +190,6 @@ def refine_circle_on_luma(gray, log_odds, centre, radius: float, *, tol_px: floa
     >>> round(u, 1), round(v, 1), round(r, 1), frac
     (20.3, 19.6, 8.0, 1.0)
     """
-    from .segment import _circle_lsq
-
     pts, n = luma_rim_points(gray, log_odds, centre, radius, min_contrast=min_contrast)
     if len(pts) < max(8, min_fraction * n):
         return None
@@ -200,7 +200,7 @@ def refine_circle_on_luma(gray, log_odds, centre, radius: float, *, tol_px: floa
         inl = np.abs(np.hypot(pts[:, 0] - fu, pts[:, 1] - fv) - fr) < band
         if np.count_nonzero(inl) < 5:
             return None
-        fu, fv, fr = _circle_lsq(pts[inl])
+        fu, fv, fr = circle_lsq(pts[inl])
         if not math.isfinite(fr):
             return None
     inl = np.abs(np.hypot(pts[:, 0] - fu, pts[:, 1] - fv) - fr) < tol_px

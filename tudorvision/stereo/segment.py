@@ -103,7 +103,9 @@ import cv2
 import numpy as np
 
 from tudorvision._checks import TudorVisionError
-from tudorvision.stereo.colormodel import ColorModel, _check_frame
+from tudorvision.stereo._circle import circle_lsq, fit_rim_circle
+from tudorvision.stereo._colortables import ColorModel
+from tudorvision.stereo._frame import FramePlanes, check_frame
 from tudorvision.stereo.rim_edge import refine_circle_on_luma
 
 __all__ = [
@@ -322,45 +324,6 @@ def _logit(p: float) -> float:
     return math.log(p / (1.0 - p))
 
 
-def _check_hsv(hsv, shape) -> np.ndarray:
-    arr = np.asarray(hsv)
-    if arr.dtype != np.uint8 or arr.shape != shape:
-        raise TudorVisionError(f"hsv: expected a uint8 HSV image of shape {shape}, got {arr.dtype} {arr.shape}")
-    return arr
-
-
-class _Frame:
-    """Per-frame cache (private): HSV and the six planes B, G, R, H, S, V, shared between spheres."""
-
-    def __init__(self, bgr: np.ndarray, hsv: np.ndarray | None = None):
-        self.bgr = bgr
-        self.hsv = hsv
-        self.height, self.width = bgr.shape[:2]
-        self._full = None
-        self._coarse = {}
-
-    def full_planes(self):
-        if self._full is None:
-            if self.hsv is None:
-                self.hsv = cv2.cvtColor(self.bgr, cv2.COLOR_BGR2HSV)
-            self._full = (*cv2.split(self.bgr), *cv2.split(self.hsv))
-        return self._full
-
-    def coarse_planes(self, step: int):
-        if step not in self._coarse:
-            size = (self.width // step, self.height // step)
-            small = cv2.resize(self.bgr, size, interpolation=cv2.INTER_NEAREST)
-            self._coarse[step] = (*cv2.split(small), *cv2.split(cv2.cvtColor(small, cv2.COLOR_BGR2HSV)))
-        return self._coarse[step]
-
-    def window_planes(self, x0: int, y0: int, w: int, h: int):
-        if self._full is not None:
-            return tuple(p[y0:y0 + h, x0:x0 + w] for p in self._full)
-        win = self.bgr[y0:y0 + h, x0:x0 + w]
-        hw = cv2.cvtColor(win, cv2.COLOR_BGR2HSV) if self.hsv is None else self.hsv[y0:y0 + h, x0:x0 + w]
-        return (*cv2.split(win), *cv2.split(hw))
-
-
 def _log_odds_planes(planes, model: ColorModel, blur: bool = False) -> np.ndarray:
     tabs = model.plane_tables_blur if blur else model.plane_tables
     acc = cv2.LUT(planes[0], tabs[0])
@@ -378,7 +341,7 @@ def hsv_from_bgr(frame_bgr) -> np.ndarray:
     Compute it once per frame and pass it as ``hsv=`` to the functions of this
     module to share it between spheres.
     """
-    return cv2.cvtColor(_check_frame(frame_bgr), cv2.COLOR_BGR2HSV)
+    return cv2.cvtColor(check_frame(frame_bgr), cv2.COLOR_BGR2HSV)
 
 
 def log_odds_image(frame_bgr, model: ColorModel, *, hsv=None) -> np.ndarray:
@@ -400,8 +363,7 @@ def log_odds_image(frame_bgr, model: ColorModel, *, hsv=None) -> np.ndarray:
     -------
     ndarray, shape (H, W), float32
     """
-    bgr = _check_frame(frame_bgr)
-    frame = _Frame(bgr, None if hsv is None else _check_hsv(hsv, bgr.shape))
+    frame = FramePlanes.checked(frame_bgr, hsv)
     return _log_odds_planes(frame.full_planes(), model)
 
 
@@ -444,92 +406,6 @@ def _fill_holes(mask: np.ndarray) -> np.ndarray:
     pad[1:-1, 1:-1] = mask
     cv2.floodFill(pad, None, (0, 0), 1)  # everything outside the region becomes 1
     return mask | (pad[1:-1, 1:-1] == 0)
-
-
-_TRIPLES: dict = {}
-
-
-def _triples(n: int) -> np.ndarray:
-    """Deterministic index triples into ``n`` rim points, each pair at least ``n / 8`` apart along the rim."""
-    if n not in _TRIPLES:
-        rng = np.random.default_rng(n)
-        cand = np.sort(rng.integers(0, n, size=(256, 3)), axis=1)
-        gaps = np.diff(np.c_[cand, cand[:, :1] + n], axis=1)
-        _TRIPLES[n] = np.ascontiguousarray(cand[(gaps >= max(n // 8, 1)).all(axis=1)][:48])
-    return _TRIPLES[n]
-
-
-def _circle_lsq(pts: np.ndarray):
-    """Algebraic (Kasa) least-squares circle ``(cu, cv, r)`` through ``pts`` (n x 2, n >= 3).
-
-    Closed form from the centred second and third moments (no general solver:
-    this runs per detection).
-
-    Examples
-    --------
-    >>> t = np.linspace(0, np.pi, 7)
-    >>> [round(x, 6) for x in _circle_lsq(np.c_[3 + 2 * np.cos(t), -1 + 2 * np.sin(t)])]
-    [3.0, -1.0, 2.0]
-    """
-    n = len(pts)
-    m = pts.sum(axis=0) / n
-    q = pts - m
-    s2 = q.T @ q                                     # [[suu, suv], [suv, svv]]
-    r12 = 0.5 * ((q * q).sum(axis=1) @ q)            # [r1, r2]
-    suu, suv, svv = float(s2[0, 0]), float(s2[0, 1]), float(s2[1, 1])
-    r1, r2 = float(r12[0]), float(r12[1])
-    mu, mv = float(m[0]), float(m[1])
-    det = suu * svv - suv * suv
-    if not det > 1e-12:
-        return mu, mv, float("nan")
-    uc, vc = (r1 * svv - r2 * suv) / det, (r2 * suu - r1 * suv) / det
-    return uc + mu, vc + mv, math.sqrt(uc * uc + vc * vc + (suu + svv) / n)
-
-
-def _fit_rim_circle(pts: np.ndarray, tol: float):
-    """Robust circle through the rim points ``pts`` (n x 2): ``(cu, cv, r, inliers)``.
-
-    Candidate circles through triples of points spread along the rim are
-    scored by the points within ``tol`` of them, minus twice those clearly
-    outside (an occluder or a rejected highlight only removes parts of the
-    silhouette, so rim points may lie inside the true circle, hardly
-    outside); the best is refined by least squares on its inliers (twice).
-    When the least-squares circle through all points explains every one of
-    them, it is taken directly.
-    """
-    cu, cv_, r = _circle_lsq(pts)                   # fast path: a fully visible rim
-    if math.isfinite(r):
-        inl = np.abs(np.hypot(pts[:, 0] - cu, pts[:, 1] - cv_) - r) < tol
-        if inl.all():
-            return cu, cv_, r, inl
-        if np.count_nonzero(inl) >= 0.9 * len(pts):  # a few stray points: refit without them
-            cu, cv_, r = _circle_lsq(pts[inl])
-            res = np.hypot(pts[:, 0] - cu, pts[:, 1] - cv_) - r
-            inl2 = np.abs(res) < tol
-            if math.isfinite(r) and (inl2 == inl).all() and not (res > 2.0 * tol).any():
-                return cu, cv_, r, inl
-    tri = _triples(len(pts))
-    if len(tri) == 0:
-        return None
-    q = pts[tri]                                     # (k, 3, 2)
-    a, b = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
-    det = 2.0 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
-    det[np.abs(det) < 1e-9] = np.nan                 # collinear: no circle
-    na, nb = (a * a).sum(axis=1), (b * b).sum(axis=1)
-    du = (b[:, 1] * na - a[:, 1] * nb) / det
-    dv = (a[:, 0] * nb - b[:, 0] * na) / det
-    res = np.hypot(pts[:, 0] - (du + q[:, 0, 0])[:, None], pts[:, 1] - (dv + q[:, 0, 1])[:, None])
-    res -= np.hypot(du, dv)[:, None]
-    score = (np.abs(res) < tol).sum(axis=1) - 2 * (res > 2.0 * tol).sum(axis=1)
-    inl = np.abs(res[int(np.argmax(score))]) < tol
-    for _ in range(2):
-        if np.count_nonzero(inl) < 5:
-            return None
-        cu, cv_, r = _circle_lsq(pts[inl])
-        if not math.isfinite(r):
-            return None
-        inl = np.abs(np.hypot(pts[:, 0] - cu, pts[:, 1] - cv_) - r) < tol
-    return cu, cv_, r, inl
 
 
 def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, image_size: tuple,
@@ -688,7 +564,7 @@ def _refine_shape(filled: np.ndarray, r_area: float, params: SegmentParams, box_
     if len(c) < 12:
         return None
     pts = c.reshape(-1, 2).astype(np.float64) + (sx0, sy0)
-    fit = _fit_rim_circle(pts, params.rim_tol_px)
+    fit = fit_rim_circle(pts, params.rim_tol_px)
     if fit is None:
         return None
     fu, fv, fr, inl = fit
@@ -702,7 +578,7 @@ def _refine_shape(filled: np.ndarray, r_area: float, params: SegmentParams, box_
         # intersection of the discs at the start and the end of the exposure, two arcs of the same
         # radius. The circle then fits one of them; the lens is symmetric about the mid-exposure
         # position, so its moment is the right measure.
-        ou, ov, orr = _circle_lsq(pts[~inl])
+        ou, ov, orr = circle_lsq(pts[~inl])
         if (math.isfinite(orr) and 0.6 * fr <= orr <= 1.6 * fr and math.hypot(ou - fu, ov - fv) < fr
                 and float(np.sqrt(np.mean((np.hypot(pts[~inl, 0] - ou, pts[~inl, 1] - ov) - orr) ** 2)))
                 < params.rim_tol_px):
@@ -725,7 +601,7 @@ class _EdgeSource:
     windows and full-frame search give the same result.
     """
 
-    def __init__(self, frame: "_Frame", model: ColorModel, blur: bool):
+    def __init__(self, frame: FramePlanes, model: ColorModel, blur: bool):
         self.frame, self.model, self.blur = frame, model, blur
 
     def refine(self, centre: tuple, radius: float, params: SegmentParams):
@@ -757,7 +633,33 @@ def _check_roi(roi, width: int, height: int) -> tuple:
     return x0, y0, x1 - x0, y1 - y0
 
 
-def _detect_window(frame: _Frame, model: ColorModel, params: SegmentParams, roi: tuple, blur: bool) -> list:
+def regions_in_window(frame: FramePlanes, model: ColorModel, params: SegmentParams, roi: tuple,
+                      blur: bool) -> list:
+    """Every seeded region of one sphere in a window of a frame, at full resolution, best first.
+
+    For the trackers and the stereo pipeline, which share one
+    :class:`~tudorvision.stereo._frame.FramePlanes` between spheres; not in
+    ``__all__``.
+
+    Parameters
+    ----------
+    frame : FramePlanes
+        The frame and its cached planes.
+    model : ColorModel
+        The sphere's colour model for this camera.
+    params : SegmentParams
+        Thresholds and limits.
+    roi : tuple of int
+        Window ``(x, y, w, h)`` in frame pixels, already inside the frame.
+    blur : bool
+        Use the model's blur-tolerant tables and ``min_circularity_blur``.
+
+    Returns
+    -------
+    list of SphereDetection
+        Valid regions before invalid ones, then by probability mass; ``uv``
+        in full-frame pixels.
+    """
     x0, y0, w, h = roi
     lo = _log_odds_planes(frame.window_planes(x0, y0, w, h), model, blur)
     return _candidates(lo, params, (x0, y0), (frame.width, frame.height), blur,
@@ -771,7 +673,7 @@ def _grow_roi(bbox, margin: int, width: int, height: int) -> tuple:
     return x0, y0, x1 - x0, y1 - y0
 
 
-def _detect_full(frame: _Frame, model: ColorModel, params: SegmentParams, blur: bool) -> SphereDetection:
+def _detect_full(frame: FramePlanes, model: ColorModel, params: SegmentParams, blur: bool) -> SphereDetection:
     step = int(params.coarse_step)
     if step == 1:
         lo = _log_odds_planes(frame.full_planes(), model, blur)
@@ -787,7 +689,7 @@ def _detect_full(frame: _Frame, model: ColorModel, params: SegmentParams, blur: 
         margin = 2 * step + int(params.erode_radius_px) + 2
         for _ in range(4):  # widen the window until the full-resolution region fits
             roi = _grow_roi(cand.bbox, margin, frame.width, frame.height)
-            found = _detect_window(frame, model, params, roi, blur)
+            found = regions_in_window(frame, model, params, roi, blur)
             if not found or not found[0].touches_window:
                 break
             cand = found[0]
@@ -796,10 +698,36 @@ def _detect_full(frame: _Frame, model: ColorModel, params: SegmentParams, blur: 
     return best[0] if best else _none()
 
 
-def _detect(frame: _Frame, model: ColorModel, params: SegmentParams, roi, blur: bool) -> SphereDetection:
+def detect_on_planes(frame: FramePlanes, model: ColorModel, params: SegmentParams, roi,
+                     blur: bool) -> SphereDetection:
+    """One sphere in a frame whose planes are cached: :func:`detect_sphere` after its input checks.
+
+    For the trackers, which share one
+    :class:`~tudorvision.stereo._frame.FramePlanes` between spheres; not in
+    ``__all__``.
+
+    Parameters
+    ----------
+    frame : FramePlanes
+        The frame and its cached planes.
+    model : ColorModel
+        The sphere's colour model for this camera.
+    params : SegmentParams
+        Thresholds and limits.
+    roi : tuple of int or None
+        Checked window ``(x, y, w, h)`` in frame pixels, or None for the full
+        frame (coarse to fine when ``params.coarse_step > 1``).
+    blur : bool
+        Use the model's blur-tolerant tables and ``min_circularity_blur``.
+
+    Returns
+    -------
+    SphereDetection
+        The best region (invalid, with a reason, when there is none).
+    """
     if roi is None:
         return _detect_full(frame, model, params, blur)
-    found = _detect_window(frame, model, params, roi, blur)
+    found = regions_in_window(frame, model, params, roi, blur)
     return found[0] if found else _none()
 
 
@@ -849,12 +777,11 @@ def detect_sphere(frame_bgr, model: ColorModel, *, params: SegmentParams | None 
     (True, 45.0, 30.0)
     """
     params = SegmentParams() if params is None else params
-    bgr = _check_frame(frame_bgr)
-    frame = _Frame(bgr, None if hsv is None else _check_hsv(hsv, bgr.shape))
+    frame = FramePlanes.checked(frame_bgr, hsv)
     blur = params.motion_blur if motion_blur is None else bool(motion_blur)
     if roi is not None:
         roi = _check_roi(roi, frame.width, frame.height)
-    return _detect(frame, model, params, roi, blur)
+    return detect_on_planes(frame, model, params, roi, blur)
 
 
 def detect_spheres(frame_bgr, models: Mapping[str, ColorModel], *, params: SegmentParams | None = None,
@@ -878,6 +805,5 @@ def detect_spheres(frame_bgr, models: Mapping[str, ColorModel], *, params: Segme
         One detection per model name (invalid ones say why in ``reason``).
     """
     params = SegmentParams() if params is None else params
-    bgr = _check_frame(frame_bgr)
-    frame = _Frame(bgr, None if hsv is None else _check_hsv(hsv, bgr.shape))
-    return {name: _detect(frame, m, params, None, params.motion_blur) for name, m in models.items()}
+    frame = FramePlanes.checked(frame_bgr, hsv)
+    return {name: detect_on_planes(frame, m, params, None, params.motion_blur) for name, m in models.items()}

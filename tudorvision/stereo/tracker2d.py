@@ -42,8 +42,9 @@ from typing import Mapping
 import numpy as np
 
 from tudorvision._checks import TudorVisionError
-from tudorvision.stereo.colormodel import ColorModel, _check_frame
-from tudorvision.stereo.segment import SegmentParams, SphereDetection, _check_hsv, _detect, _detect_window, _Frame
+from tudorvision.stereo._frame import FramePlanes
+from tudorvision.stereo.colormodel import ColorModel
+from tudorvision.stereo.segment import SegmentParams, SphereDetection, detect_on_planes, regions_in_window
 
 __all__ = ["TrackerParams", "SphereTracker", "FrameTracker"]
 
@@ -201,10 +202,24 @@ class SphereTracker:
         -------
         SphereDetection
         """
-        bgr = _check_frame(frame_bgr)
-        return self._update(_Frame(bgr, None if hsv is None else _check_hsv(hsv, bgr.shape)))
+        return self.update_planes(FramePlanes.checked(frame_bgr, hsv))
 
-    def _update(self, frame: _Frame) -> SphereDetection:
+    def update_planes(self, frame: FramePlanes) -> SphereDetection:
+        """Find the sphere in the next frame, given as the per-frame plane cache.
+
+        :class:`FrameTracker` shares one cache between the trackers of a
+        camera's spheres; :meth:`update` is this after its input checks.
+
+        Parameters
+        ----------
+        frame : FramePlanes
+            The next frame of this camera and its cached colour planes
+            (:class:`tudorvision.stereo._frame.FramePlanes`).
+
+        Returns
+        -------
+        SphereDetection
+        """
         pred = self._prediction()
         self._index += 1
         p = self.params
@@ -228,7 +243,7 @@ class SphereTracker:
                               and self._err <= 1.0 + 0.25 * speed)
                     seg = self._seg_moving if moving else p.segment
                     for blur in passes:
-                        det = self._nearest(_detect_window(frame, self.model, seg, roi, blur), uv)
+                        det = self._nearest(regions_in_window(frame, self.model, seg, roi, blur), uv)
                         if det is not None:
                             break
         if det is not None:
@@ -239,7 +254,7 @@ class SphereTracker:
             # the blur-tolerant ones also accept darker objects of the sphere's hue
             self.mode = "full"
             self.n_full += 1
-            det = _detect(frame, self.model, p.segment, None, p.segment.motion_blur)
+            det = detect_on_planes(frame, self.model, p.segment, None, p.segment.motion_blur)
             if not det.valid and pred is not None and self._fast and not p.segment.motion_blur:
                 det = self._reacquire_blurred(frame, pred[0], det)
         if det.valid:
@@ -265,7 +280,7 @@ class SphereTracker:
         det = min(ok, key=lambda d: math.hypot(d.uv[0] - uv[0], d.uv[1] - uv[1]))
         return None if det.touches_window else det  # cut by the window edge: search the full frame
 
-    def _reacquire_blurred(self, frame: _Frame, uv_pred, fallback: SphereDetection) -> SphereDetection:
+    def _reacquire_blurred(self, frame: FramePlanes, uv_pred, fallback: SphereDetection) -> SphereDetection:
         """Lost while fast: a blur streak may only pass the blur-tolerant tables.
 
         Searched in a ``max_half_window_px`` window around the prediction, keeping
@@ -276,7 +291,7 @@ class SphereTracker:
         x1, y1 = min(x0 + 2 * h + 1, frame.width), min(y0 + 2 * h + 1, frame.height)
         if x1 - x0 < 3 or y1 - y0 < 3:
             return fallback
-        found = _detect_window(frame, self.model, self.params.segment, (x0, y0, x1 - x0, y1 - y0), True)
+        found = regions_in_window(frame, self.model, self.params.segment, (x0, y0, x1 - x0, y1 - y0), True)
         ok = [d for d in found if d.valid and not d.touches_window and 0.5 <= d.area_px / self._area <= 2.0]
         if not ok:
             return fallback
@@ -318,6 +333,5 @@ class FrameTracker:
 
     def update(self, frame_bgr, *, hsv=None) -> dict:
         """Detections ``{sphere: SphereDetection}`` in the next frame."""
-        bgr = _check_frame(frame_bgr)
-        frame = _Frame(bgr, None if hsv is None else _check_hsv(hsv, bgr.shape))
-        return {name: t._update(frame) for name, t in self.trackers.items()}
+        frame = FramePlanes.checked(frame_bgr, hsv)
+        return {name: t.update_planes(frame) for name, t in self.trackers.items()}

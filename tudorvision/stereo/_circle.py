@@ -1,0 +1,98 @@
+"""Circles fitted to rim points: the algebraic least-squares circle and a robust one (internal).
+
+Used by the colour rim of :mod:`.segment` and the luma rim of
+:mod:`.rim_edge`. Points are ``(n, 2)`` arrays of image coordinates
+``(u, v)`` (u right, v down), in pixels.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["circle_lsq", "fit_rim_circle"]
+
+_TRIPLES: dict = {}
+
+
+def _triples(n: int) -> np.ndarray:
+    """Deterministic index triples into ``n`` rim points, each pair at least ``n / 8`` apart along the rim."""
+    if n not in _TRIPLES:
+        rng = np.random.default_rng(n)
+        cand = np.sort(rng.integers(0, n, size=(256, 3)), axis=1)
+        gaps = np.diff(np.c_[cand, cand[:, :1] + n], axis=1)
+        _TRIPLES[n] = np.ascontiguousarray(cand[(gaps >= max(n // 8, 1)).all(axis=1)][:48])
+    return _TRIPLES[n]
+
+
+def circle_lsq(pts: np.ndarray):
+    """Algebraic (Kasa) least-squares circle ``(cu, cv, r)`` through ``pts`` (n x 2, n >= 3).
+
+    Closed form from the centred second and third moments (no general solver:
+    this runs per detection).
+
+    Examples
+    --------
+    >>> t = np.linspace(0, np.pi, 7)
+    >>> [round(x, 6) for x in circle_lsq(np.c_[3 + 2 * np.cos(t), -1 + 2 * np.sin(t)])]
+    [3.0, -1.0, 2.0]
+    """
+    n = len(pts)
+    m = pts.sum(axis=0) / n
+    q = pts - m
+    s2 = q.T @ q                                     # [[suu, suv], [suv, svv]]
+    r12 = 0.5 * ((q * q).sum(axis=1) @ q)            # [r1, r2]
+    suu, suv, svv = float(s2[0, 0]), float(s2[0, 1]), float(s2[1, 1])
+    r1, r2 = float(r12[0]), float(r12[1])
+    mu, mv = float(m[0]), float(m[1])
+    det = suu * svv - suv * suv
+    if not det > 1e-12:
+        return mu, mv, float("nan")
+    uc, vc = (r1 * svv - r2 * suv) / det, (r2 * suu - r1 * suv) / det
+    return uc + mu, vc + mv, math.sqrt(uc * uc + vc * vc + (suu + svv) / n)
+
+
+def fit_rim_circle(pts: np.ndarray, tol: float):
+    """Robust circle through the rim points ``pts`` (n x 2): ``(cu, cv, r, inliers)``.
+
+    Candidate circles through triples of points spread along the rim are
+    scored by the points within ``tol`` of them, minus twice those clearly
+    outside (an occluder or a rejected highlight only removes parts of the
+    silhouette, so rim points may lie inside the true circle, hardly
+    outside); the best is refined by least squares on its inliers (twice).
+    When the least-squares circle through all points explains every one of
+    them, it is taken directly.
+    """
+    cu, cv_, r = circle_lsq(pts)                   # fast path: a fully visible rim
+    if math.isfinite(r):
+        inl = np.abs(np.hypot(pts[:, 0] - cu, pts[:, 1] - cv_) - r) < tol
+        if inl.all():
+            return cu, cv_, r, inl
+        if np.count_nonzero(inl) >= 0.9 * len(pts):  # a few stray points: refit without them
+            cu, cv_, r = circle_lsq(pts[inl])
+            res = np.hypot(pts[:, 0] - cu, pts[:, 1] - cv_) - r
+            inl2 = np.abs(res) < tol
+            if math.isfinite(r) and (inl2 == inl).all() and not (res > 2.0 * tol).any():
+                return cu, cv_, r, inl
+    tri = _triples(len(pts))
+    if len(tri) == 0:
+        return None
+    q = pts[tri]                                     # (k, 3, 2)
+    a, b = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
+    det = 2.0 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    det[np.abs(det) < 1e-9] = np.nan                 # collinear: no circle
+    na, nb = (a * a).sum(axis=1), (b * b).sum(axis=1)
+    du = (b[:, 1] * na - a[:, 1] * nb) / det
+    dv = (a[:, 0] * nb - b[:, 0] * na) / det
+    res = np.hypot(pts[:, 0] - (du + q[:, 0, 0])[:, None], pts[:, 1] - (dv + q[:, 0, 1])[:, None])
+    res -= np.hypot(du, dv)[:, None]
+    score = (np.abs(res) < tol).sum(axis=1) - 2 * (res > 2.0 * tol).sum(axis=1)
+    inl = np.abs(res[int(np.argmax(score))]) < tol
+    for _ in range(2):
+        if np.count_nonzero(inl) < 5:
+            return None
+        cu, cv_, r = circle_lsq(pts[inl])
+        if not math.isfinite(r):
+            return None
+        inl = np.abs(np.hypot(pts[:, 0] - cu, pts[:, 1] - cv_) - r) < tol
+    return cu, cv_, r, inl
