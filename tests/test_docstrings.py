@@ -180,7 +180,6 @@ KNOWN_NOT_YET_DOCUMENTED = {
     "tudorvision.stereo.base_frame.BaseFrameReport.summary",
     "tudorvision.stereo.calibrate.StereoCalibrationResult.summary",
     "tudorvision.stereo.calibrate.calibrate_stereo_from_images", "tudorvision.stereo.calibrate.parse_board",
-    "tudorvision.stereo.colormodel.ColorModel.from_dict", "tudorvision.stereo.colormodel.ColorModel.to_dict",
     "tudorvision.stereo.colormodel.ColorModelSet.for_camera", "tudorvision.stereo.colormodel.ColorModelSet.get",
     "tudorvision.stereo.colormodel.ColorModelSet.spheres", "tudorvision.stereo.colormodel.load_color_models",
     "tudorvision.stereo.colormodel.save_color_models", "tudorvision.stereo.pipeline.StereoFrameResult.uv",

@@ -145,14 +145,12 @@ def run_stereo(args) -> int:
 def _joint_log(args):
     """(t (M,), theta (M, 3) radians) from --joints or the sequence's joints.txt."""
     if args.joints:
-        from ..io._index import parse_table
+        from ..io import load_joint_log
         path = Path(args.joints)
         if not path.is_file():
             raise TudorVisionError(f"{path}: joints file not found")
-        rows, _, problems = parse_table(path, 4)
-        if problems:
-            raise problems[0].error()
-        t, th = rows[:, 0], rows[:, 1:]
+        log = load_joint_log(path)
+        t, th = log.t, log.theta_rad
     elif args.seq:
         from ..io.sequence import open_sequence
         log = open_sequence(args.seq).joints()

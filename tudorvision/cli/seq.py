@@ -51,15 +51,15 @@ def scan_sequence(seq: Sequence, *, decode: bool = True, show_progress: bool | N
     else:
         ok = len(seq)
     for action in (lambda: seq.calibration,
-                   lambda: seq.joints() if seq._spec.joints_path is not None else None,
+                   lambda: seq.joints() if seq.joints_path is not None else None,
                    lambda: [seq.groundtruth(n) for n in seq.groundtruth_names]):
         try:
             action()
         except TudorVisionError as exc:
             if seq.strict:
                 raise
-            from ..io._index import Problem
-            seq._record(Problem(str(exc).split(": ", 1)[0], str(exc).split(": ", 1)[-1]))
+            from ..io.sequence import Problem
+            seq.record_problem(Problem(str(exc).split(": ", 1)[0], str(exc).split(": ", 1)[-1]))
     return ok
 
 
