@@ -179,9 +179,6 @@ class Sequence:
             self._seen.add(key)
             self.report.append(problem)
 
-    # the CLI's scan called this before record_problem was public; remove once it calls record_problem
-    _record = record_problem
-
     @property
     def joints_path(self) -> Path | None:
         """Path of the joint log (``joints.txt``), or None when the sequence has none."""
