@@ -24,7 +24,8 @@ import numpy as np
 from tudorvision.sim.camera import ray_directions_world
 from tudorvision.sim.lighting import apply_sensor, intensity_at, light_terms, weighted_sum
 from tudorvision.sim.render import SensorModel, _surface, cast_rays, render_bgr, render_rgbd
-from tudorvision.sim.scenes import arm_geometry_from_joints, ball_throw, ballistic, stereo_lab
+from tudorvision.sim.scenes import arm_geometry_from_joints, stereo_lab
+from tudorvision.sim.scenes_rgbd import ball_throw, ballistic
 from tudorvision.robot import load_robot_params
 
 

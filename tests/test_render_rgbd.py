@@ -7,8 +7,8 @@ from tudorvision.sensors import KINECT_DEPTH_NOISE
 from tudorvision.sim.camera import look_at, project_points
 from tudorvision.sim.depth_sensor import DepthSensorModel, depth_mm_from_gbuffer
 from tudorvision.sim.render import Rectangle, render_gbuffer, render_rgbd
-from tudorvision.sim.scenes import (ArmGeometry, arm_geometry_from_joints, ball_throw, ballistic, checkerboard_lab,
-                                    eye_in_hand, planar_target, stereo_lab, wall_disc)
+from tudorvision.sim.scenes import ArmGeometry, arm_geometry_from_joints, checkerboard_lab, stereo_lab
+from tudorvision.sim.scenes_rgbd import ball_throw, ballistic, eye_in_hand, planar_target, wall_disc
 
 W, H = 80, 60
 

@@ -239,7 +239,7 @@ def test_virtual_lab_disc_scene_has_no_tracking_spheres():
     """The net holds the disc: no tracking sphere stands in front of it (one did, 3 cm too near at 5 m)."""
     import importlib
 
-    from tudorvision.sim.scenes import wall_disc
+    from tudorvision.sim.scenes_rgbd import wall_disc
 
     record = importlib.import_module("tudorvision.lab.record")
     th = np.radians([0.0, 40.0, 0.0])

@@ -36,8 +36,9 @@ from ..sim.arm import Payload, fk_elastic, spheres_from_T, ElasticArm
 from .simulation import simulate_ptp
 from ..sim.camera import PinholeCamera, look_at
 from ..sim.render import render_bgr, render_rgbd
-from ..sim.scenes import (ArmGeometry, StereoRigConfig, ball_throw, checkerboard_lab, eye_in_hand, planar_target,
-                     sphere_image_truth, stereo_lab, wall_disc, KINECT_RATE_HZ, STEREO_RATE_HZ)
+from ..sim.scenes import (ArmGeometry, StereoRigConfig, checkerboard_lab, sphere_image_truth, stereo_lab,
+                          KINECT_RATE_HZ, STEREO_RATE_HZ)
+from ..sim.scenes_rgbd import ball_throw, eye_in_hand, planar_target, wall_disc
 
 __all__ = ["RecordOptions", "KINDS", "record", "elastic_arm_geometry", "T_WORLD_BASE",
            "calibration_from_cameras", "static_arm_state"]

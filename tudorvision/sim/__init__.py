@@ -12,8 +12,8 @@ from .lighting import AmbientLight, DirectionalLight, PointLight, SensorModel
 from .roi_render import RoiRenderer
 from .depth_sensor import DepthSensorModel
 from .render import Box, Capsule, Cylinder, Disc, Rectangle, Scene, Sphere, render_bgr, render_rgbd
-from .scenes import (SimSetup, StereoRigConfig, ball_throw, checkerboard_lab, eye_in_hand, planar_target, stereo_lab,
-                     stereo_rig, wall_disc)
+from .scenes import SimSetup, StereoRigConfig, checkerboard_lab, stereo_lab, stereo_rig
+from .scenes_rgbd import ball_throw, eye_in_hand, planar_target, wall_disc
 
 __all__ = [
     "ElasticArm", "Payload", "PlantConfig", "SimLog", "SpringDamperObstacle", "fk_elastic",

@@ -1,4 +1,7 @@
-"""Scene builders for the virtual TUDOR lab: stereo rig, RGB-D sets, checkerboards.
+"""Scene builders for the virtual TUDOR lab: rooms, the drawn arm, the stereo rig, checkerboards.
+
+The RGB-D sets (wall Kinect, planar target, disc sweep, throws, eye-in-hand) are in
+:mod:`tudorvision.sim.scenes_rgbd`.
 
 Every builder takes explicit parameters and a ``numpy.random.Generator`` that
 randomises what should not matter (lighting, clutter positions and colours), so
@@ -22,12 +25,11 @@ import numpy as np
 from .._checks import check_points, check_transform, check_vector
 from .camera import PinholeCamera, intrinsic_matrix, look_at, sphere_silhouette_centroid
 from .lighting import AmbientLight, DirectionalLight, PointLight, Varying
-from .render import Box, Capsule, Cylinder, Disc, Rectangle, Scene, Sphere, exposure_times
+from .render import Box, Capsule, Cylinder, Rectangle, Scene, Sphere, exposure_times
 
 __all__ = [
     "ArmGeometry", "arm_geometry_from_joints", "arm_shapes", "SimSetup", "StereoRigConfig",
-    "stereo_rig", "stereo_lab", "kinect_camera", "planar_target", "wall_disc", "ball_throw",
-    "ballistic", "eye_in_hand", "checkerboard_lab", "lab_room", "sphere_image_truth", "KINECT_RATE_HZ",
+    "stereo_rig", "stereo_lab", "checkerboard_lab", "lab_room", "sphere_image_truth", "KINECT_RATE_HZ",
     "STEREO_RATE_HZ",
 ]
 
@@ -76,6 +78,13 @@ class ArmGeometry:
             k: check_vector(v, f"sphere_centers_base[{k!r}]", 3) for k, v in self.sphere_centers_base.items()})
 
 
+def positive_float(v, name: str) -> float:
+    """``float(v)`` if it is > 0, else a ``ValueError`` naming ``name``."""
+    if not v > 0:
+        raise ValueError(f"{name}: expected > 0, got {v!r}")
+    return float(v)
+
+
 def arm_geometry_from_joints(theta, params=None, *, n_points: int = 2) -> ArmGeometry:
     """Rigid-equivalent arm drawing (straight links) from joint angles, for scenes and tests.
 
@@ -89,7 +98,7 @@ def arm_geometry_from_joints(theta, params=None, *, n_points: int = 2) -> ArmGeo
     [0.0, 0.0, 1.19]
     """
     from ..robot import fk_ee, fk_spheres
-    p = params or _default_params()
+    p = params or default_robot_params()
     th = check_vector(theta, "theta", 3)
     joint2 = np.array([0.0, 0.0, p.link1_height_m])
     c1, s1 = np.cos(th[0]), np.sin(th[0])
@@ -101,12 +110,12 @@ def arm_geometry_from_joints(theta, params=None, *, n_points: int = 2) -> ArmGeo
 
 
 @functools.lru_cache(maxsize=1)
-def _default_params():
+def default_robot_params():
     from ..robot import load_robot_params
     return load_robot_params()
 
 
-def _to_world(T, p):
+def to_world(T, p):
     return p @ T[:3, :3].T + T[:3, 3]
 
 
@@ -120,12 +129,12 @@ def arm_shapes(arm: ArmGeometry, T_world_base, *, sphere_radius_m: float, link_r
     tracking spheres and their bar (the catching net replaces them).
     """
     T = check_transform(T_world_base, "T_world_base")
-    red = _to_world(T, arm.sphere_centers_base["red"])
-    green = _to_world(T, arm.sphere_centers_base["green"])
+    red = to_world(T, arm.sphere_centers_base["red"])
+    green = to_world(T, arm.sphere_centers_base["green"])
     grey, dark = (0.55, 0.56, 0.58), (0.12, 0.12, 0.13)
     shapes = [Sphere(center=red, radius=sphere_radius_m, color_rgb=red_rgb, name="red_sphere"),
               Sphere(center=green, radius=sphere_radius_m, color_rgb=green_rgb, name="green_sphere")] if spheres else []
-    links = [_to_world(T, p) for p in arm.link_points_base]
+    links = [to_world(T, p) for p in arm.link_points_base]
     shapes.append(Sphere(center=links[0][0], radius=0.05, color_rgb=dark, name="actuator2"))
     if len(links) > 1:
         shapes.append(Sphere(center=links[1][0], radius=0.035, color_rgb=dark, name="actuator3"))
@@ -216,7 +225,7 @@ def lab_room(rng: np.random.Generator, *, size_m=(8.0, 7.0, 3.0), center_xy=(0.0
             continue
         hx, hy, h = rng.uniform(0.5, 0.8), rng.uniform(0.3, 0.45), 0.75
         yaw = rng.uniform(-0.3, 0.3)
-        R = _yaw(yaw)
+        R = yaw_matrix(yaw)
         shapes.append(Box(center=(spot[0], spot[1], h - 0.02), half_extents=(hx, hy, 0.02), R_world_box=R,
                           color_rgb=_rand_color(rng) * 0.6 + 0.3, name=f"table{k}"))
         for sx in (-1, 1):
@@ -240,7 +249,7 @@ def lab_room(rng: np.random.Generator, *, size_m=(8.0, 7.0, 3.0), center_xy=(0.0
         xy, z0 = clutter_pose(he[:2].max())
         if xy is None:
             continue
-        shapes.append(Box(center=(xy[0], xy[1], z0 + he[2]), half_extents=he, R_world_box=_yaw(rng.uniform(0, np.pi)),
+        shapes.append(Box(center=(xy[0], xy[1], z0 + he[2]), half_extents=he, R_world_box=yaw_matrix(rng.uniform(0, np.pi)),
                           color_rgb=_rand_color(rng), name=f"clutter{k}"))
     for k in range(int(n_distractors)):
         kind = "reddish" if k % 2 == 0 else "greenish"
@@ -260,12 +269,12 @@ def lab_room(rng: np.random.Generator, *, size_m=(8.0, 7.0, 3.0), center_xy=(0.0
             shapes.append(Sphere(center=(xy[0], xy[1], z0 + r), radius=r, color_rgb=col, name=f"distractor{k}"))
         else:
             shapes.append(Box(center=(xy[0], xy[1], z0 + r), half_extents=(r, 1.5 * r, r),
-                              R_world_box=_yaw(rng.uniform(0, np.pi)), color_rgb=col, name=f"distractor{k}"))
+                              R_world_box=yaw_matrix(rng.uniform(0, np.pi)), color_rgb=col, name=f"distractor{k}"))
     lights = _lab_lights(rng, ceiling_xy=(kx, ky), ceiling_z=Lz - 0.05)
     return shapes, lights
 
 
-def _yaw(a):
+def yaw_matrix(a):
     c, s = np.cos(a), np.sin(a)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
@@ -332,10 +341,10 @@ def stereo_rig(T_world_base, *, config: StereoRigConfig = StereoRigConfig(),
     T = check_transform(T_world_base, "T_world_base")
     c = config
     K = intrinsic_matrix(c.f_px, (c.width - 1) / 2, (c.height - 1) / 2)
-    aim = _to_world(T, check_vector(c.aim_base, "aim_base", 3))
+    aim = to_world(T, check_vector(c.aim_base, "aim_base", 3))
     cams = []
     for side in (-1.0, 1.0):
-        eye = _to_world(T, np.array([side * c.baseline_m / 2, -c.standoff_m, 0.0]))
+        eye = to_world(T, np.array([side * c.baseline_m / 2, -c.standoff_m, 0.0]))
         eye[2] = c.height_m
         target = aim.copy()
         if rng is not None:
@@ -345,7 +354,7 @@ def stereo_rig(T_world_base, *, config: StereoRigConfig = StereoRigConfig(),
     return cams[0], cams[1]
 
 
-def _arm_fn(arm):
+def arm_at_time(arm):
     if arm is None:
         return None
     if isinstance(arm, ArmGeometry):
@@ -355,19 +364,19 @@ def _arm_fn(arm):
     raise ValueError("arm: expected an ArmGeometry, a callable t -> ArmGeometry or None")
 
 
-def _sphere_radius(sphere_radius_m):
+def sphere_radius_at_time(sphere_radius_m):
     if sphere_radius_m is None:
-        return _default_params().sphere_radius_m
+        return default_robot_params().sphere_radius_m
     if not sphere_radius_m > 0:
         raise ValueError(f"sphere_radius_m: expected > 0, got {sphere_radius_m!r}")
     return float(sphere_radius_m)
 
 
-def _robot_base_shapes(T, link1_height_m):
-    base = _to_world(T, np.zeros(3))
-    top = _to_world(T, np.array([0.0, 0.0, link1_height_m - 0.05]))
+def robot_base_shapes(T, link1_height_m):
+    base = to_world(T, np.zeros(3))
+    top = to_world(T, np.array([0.0, 0.0, link1_height_m - 0.05]))
     return [Cylinder(p0=base, p1=top, radius=0.09, color_rgb=(0.35, 0.36, 0.4), name="robot_base"),
-            Cylinder(p0=base, p1=_to_world(T, np.array([0.0, 0.0, 0.02])), radius=0.2, color_rgb=(0.3, 0.3, 0.3),
+            Cylinder(p0=base, p1=to_world(T, np.array([0.0, 0.0, 0.02])), radius=0.2, color_rgb=(0.3, 0.3, 0.3),
                      name="base_plate")]
 
 
@@ -406,16 +415,16 @@ def stereo_lab(rng: np.random.Generator, *, arm=None, T_world_base=np.eye(4),
     (['left', 'right'], True)
     """
     T = check_transform(T_world_base, "T_world_base")
-    radius = _sphere_radius(sphere_radius_m)
+    radius = sphere_radius_at_time(sphere_radius_m)
     if link1_height_m is None:
-        link1_height_m = _default_params().link1_height_m
+        link1_height_m = default_robot_params().link1_height_m
     left, right = stereo_rig(T, config=rig, rng=rng if jitter_rig else None)
     base_xy = T[:2, 3]
     shapes, lights = lab_room(rng, center_xy=base_xy + [0.0, 0.0], keepout_xy=base_xy, n_clutter=n_clutter,
                               n_distractors=n_distractors, size_m=(8.0, 7.0, rig.height_m + 0.3),
                               clutter_region_y=(base_xy[1] - 0.8, base_xy[1] + 3.4))
-    shapes += _robot_base_shapes(T, link1_height_m)
-    arm_at = _arm_fn(arm)
+    shapes += robot_base_shapes(T, link1_height_m)
+    arm_at = arm_at_time(arm)
     dynamic = None
     if arm_at is not None:
         def dynamic(t):
@@ -424,212 +433,6 @@ def stereo_lab(rng: np.random.Generator, *, arm=None, T_world_base=np.eye(4),
     return SimSetup(scene=scene, cameras={"left": left, "right": right},
                     meta={"T_world_base": T, "sphere_radius_m": radius, "object_ids": scene.object_ids(t0),
                           "rate_hz": STEREO_RATE_HZ})
-
-
-def kinect_camera(T_world_cam, *, width: int = 640, height: int = 480, f_px: float = 525.0,
-                  dist=(0.0, 0.0, 0.0, 0.0, 0.0)) -> PinholeCamera:
-    """Kinect-like RGB-D camera (colour and registered depth share these intrinsics).
-
-    Examples
-    --------
-    >>> kinect_camera(np.eye(4)).K[0, 0]
-    np.float64(525.0)
-    """
-    return PinholeCamera(K=intrinsic_matrix(f_px * width / 640.0, (width - 1) / 2, (height - 1) / 2),
-                         dist=np.asarray(dist, float), width=width, height=height, T_world_cam=T_world_cam)
-
-
-def _room_for_rgbd(rng, *, size_m, center_xy, keepout_xy, keepout_radius_m, n_clutter, n_distractors, region_y):
-    return lab_room(rng, size_m=size_m, center_xy=center_xy, keepout_xy=keepout_xy,
-                    keepout_radius_m=keepout_radius_m, n_clutter=n_clutter, n_distractors=n_distractors,
-                    clutter_region_y=region_y)
-
-
-def planar_target(distance_m: float, rng: np.random.Generator, *, width: int = 640, height: int = 480,
-                  target_size_m=(1.2, 0.9), textured: bool = True, square_m: float = 0.1) -> SimSetup:
-    """Planar target perpendicular to the optical axis at ``distance_m`` (depth-noise calibration).
-
-    The camera sits at world (0, 0, 1.2) looking along +y; the target is
-    centred on the optical axis. The back wall is beyond the Kinect range.
-
-    Returns
-    -------
-    SimSetup
-        ``cameras = {"rgbd"}``; ``meta``: ``target_id``, ``distance_m``,
-        ``target_corners_world`` (4, 3), ``rate_hz``.
-    """
-    if not distance_m > 0:
-        raise ValueError(f"distance_m: expected > 0, got {distance_m!r}")
-    eye = np.array([0.0, 0.0, 1.2])
-    cam = kinect_camera(look_at(eye, eye + [0, 1, 0], K=np.eye(3)).T_world_cam, width=width, height=height)
-    ts = check_vector(target_size_m, "target_size_m", 2)
-    board = Rectangle(center=eye + [0, distance_m, 0], axis_u=(1, 0, 0), axis_v=(0, 0, 1), half_size=ts / 2,
-                      checker_square_m=square_m if textured else None, color_rgb=(0.85, 0.85, 0.85),
-                      color2_rgb=(0.08, 0.08, 0.08), name="target")
-    shapes, lights = _room_for_rgbd(rng, size_m=(8.0, 2 * (distance_m + 8.0), 3.0), center_xy=(0.0, 0.0),
-                                    keepout_xy=(0.0, distance_m / 2), keepout_radius_m=distance_m / 2 + 1.0,
-                                    n_clutter=4, n_distractors=2, region_y=(-1.0, distance_m + 6.0))
-    scene = Scene(static=[board] + shapes, lights=lights)
-    return SimSetup(scene=scene, cameras={"rgbd": cam},
-                    meta={"target_id": 1, "distance_m": float(distance_m), "target_corners_world": board.corners(),
-                          "rate_hz": KINECT_RATE_HZ})
-
-
-def wall_disc(disc_center_base, rng: np.random.Generator, *, T_world_base=np.eye(4), arm=None,
-              disc_radius_m: float = 0.075, camera_standoff_m: float = 3.5, camera_height_m: float = 1.6,
-              draw_spheres: bool = False,
-              width: int = 640, height: int = 480, t0: float = 0.0) -> SimSetup:
-    """Wall-mounted RGB-D camera facing the robot, a disc in the catching net (base calibration sweep).
-
-    Parameters
-    ----------
-    disc_center_base : array_like, shape (3,), or callable t -> (3,)
-        Disc centre in the base frame (the net at the end effector).
-    arm : ArmGeometry or callable t -> ArmGeometry, optional
-        Drawn as in :func:`stereo_lab`; the tracking spheres only with
-        ``draw_spheres`` (the net holds the disc, as in the seed's set-up).
-    disc_radius_m : float
-        7.5 cm: a 15 cm disc in the 18 cm net.
-
-    The camera is ``camera_standoff_m`` in front of the base (base −y) at
-    world height ``camera_height_m``, looking at the point 0.6 m above the base.
-    The disc faces the camera.
-
-    Returns
-    -------
-    SimSetup
-        ``cameras = {"rgbd"}``; ``meta``: ``object_ids`` (``"disc"``),
-        ``T_world_base``, ``disc_center_world(t)`` (a function), ``rate_hz``.
-    """
-    T = check_transform(T_world_base, "T_world_base")
-    radius = _positive(disc_radius_m, "disc_radius_m")
-    disc_fn = disc_center_base if callable(disc_center_base) else (
-        lambda t, c=check_vector(disc_center_base, "disc_center_base", 3): c)
-    eye = _to_world(T, np.array([0.0, -camera_standoff_m, 0.0]))
-    eye[2] = camera_height_m
-    cam = kinect_camera(look_at(eye, _to_world(T, np.array([0.0, 0.0, 0.6])), K=np.eye(3)).T_world_cam,
-                        width=width, height=height)
-    shapes, lights = _room_for_rgbd(rng, size_m=(8.0, 2 * camera_standoff_m + 2.0, 3.0), center_xy=T[:2, 3],
-                                    keepout_xy=T[:2, 3], keepout_radius_m=1.4, n_clutter=6, n_distractors=2,
-                                    region_y=(T[1, 3] - 0.5, T[1, 3] + camera_standoff_m))
-    shapes += _robot_base_shapes(T, _default_params().link1_height_m)
-    arm_at = _arm_fn(arm)
-    sphere_r = _sphere_radius(None)
-
-    def disc_world(t):
-        return _to_world(T, check_vector(disc_fn(t), "disc_center_base", 3))
-
-    def dynamic(t):
-        c = disc_world(t)
-        out = [Disc(center=c, normal=eye - c, radius=radius, color_rgb=(0.9, 0.85, 0.2), name="disc")]
-        if arm_at is not None:
-            out += arm_shapes(arm_at(t), T, sphere_radius_m=sphere_r, spheres=draw_spheres)
-        return out
-
-    scene = Scene(static=shapes, lights=lights, dynamic=dynamic)
-    return SimSetup(scene=scene, cameras={"rgbd": cam},
-                    meta={"object_ids": scene.object_ids(t0), "T_world_base": T, "disc_center_world": disc_world,
-                          "disc_radius_m": radius, "rate_hz": KINECT_RATE_HZ})
-
-
-def _positive(v, name):
-    if not v > 0:
-        raise ValueError(f"{name}: expected > 0, got {v!r}")
-    return float(v)
-
-
-def ballistic(p0_world, v0_world, *, t0: float = 0.0, gravity_m_s2: float = 9.81) -> Callable[[float], np.ndarray]:
-    """Drag-free flight ``p(t) = p0 + v0 (t - t0) - g/2 (t - t0)^2 e_z`` (world, m).
-
-    Examples
-    --------
-    >>> ballistic([0, 0, 1], [1, 0, 0])(1.0).round(3).tolist()
-    [1.0, 0.0, -3.905]
-    """
-    p0 = check_vector(p0_world, "p0_world", 3)
-    v0 = check_vector(v0_world, "v0_world", 3)
-    g = np.array([0.0, 0.0, -gravity_m_s2])
-
-    def at(t):
-        dt = t - t0
-        return p0 + v0 * dt + 0.5 * g * dt * dt
-    return at
-
-
-def ball_throw(ball_center_world: Callable[[float], np.ndarray], rng: np.random.Generator, *,
-               T_world_base=np.eye(4), arm=None, ball_radius_m: float = 0.045,
-               camera_position_world=(0.0, -6.8, 2.0), width: int = 640, height: int = 480,
-               t0: float = 0.0) -> SimSetup:
-    """RGB-D camera on the wall behind the thrower, looking at the robot; a 9 cm ball in flight.
-
-    The ball is the only moving object within 4.5 m of the sensor (the arm,
-    if drawn, stands about 6.8 m away). ``ball_center_world(t)`` gives the
-    ball centre (see :func:`ballistic`).
-
-    Returns
-    -------
-    SimSetup
-        ``cameras = {"rgbd"}``; ``meta``: ``object_ids`` (``"ball"``),
-        ``ball_center_world`` (the function), ``ball_radius_m``, ``T_world_base``, ``rate_hz``.
-    """
-    if not callable(ball_center_world):
-        raise ValueError("ball_center_world: expected a callable t -> (3,) centre")
-    T = check_transform(T_world_base, "T_world_base")
-    r = _positive(ball_radius_m, "ball_radius_m")
-    eye = check_vector(camera_position_world, "camera_position_world", 3)
-    cam = kinect_camera(look_at(eye, _to_world(T, np.array([0.0, 0.0, 1.0])), K=np.eye(3)).T_world_cam,
-                        width=width, height=height)
-    span = abs(eye[1] - T[1, 3])
-    shapes, lights = _room_for_rgbd(rng, size_m=(8.0, span + 3.0, 3.2), center_xy=(T[0, 3], (eye[1] + T[1, 3]) / 2),
-                                    keepout_xy=T[:2, 3], keepout_radius_m=1.4, n_clutter=8, n_distractors=2,
-                                    region_y=(T[1, 3] - 1.0, T[1, 3] + 1.5))
-    shapes += _robot_base_shapes(T, _default_params().link1_height_m)
-    ball_rgb = rng.choice([(0.9, 0.8, 0.1), (0.95, 0.45, 0.05), (0.2, 0.5, 0.9)])
-    arm_at = _arm_fn(arm)
-    sphere_r = _sphere_radius(None)
-
-    def dynamic(t):
-        out = [Sphere(center=ball_center_world(t), radius=r, color_rgb=ball_rgb, name="ball")]
-        if arm_at is not None:
-            out += arm_shapes(arm_at(t), T, sphere_radius_m=sphere_r)
-        return out
-
-    scene = Scene(static=shapes, lights=lights, dynamic=dynamic)
-    return SimSetup(scene=scene, cameras={"rgbd": cam},
-                    meta={"object_ids": scene.object_ids(t0), "ball_center_world": ball_center_world,
-                          "ball_radius_m": r, "T_world_base": T, "rate_hz": KINECT_RATE_HZ})
-
-
-def eye_in_hand(T_world_cam, rng: np.random.Generator, *, square_center_world=(0.6, 0.0, 0.0),
-                square_size_m: float = 0.1, square_yaw_rad: float = 0.0, width: int = 640,
-                height: int = 480) -> SimSetup:
-    """Eye-in-hand RGB-D view of a black square on white ground (visual servoing).
-
-    The ground is the plane z = 0 (white, slightly randomised); the square
-    lies 1 mm above it. For a moving camera re-pose the returned camera with
-    :func:`tudorvision.sim.camera.with_pose` and render the same scene.
-
-    Returns
-    -------
-    SimSetup
-        ``cameras = {"rgbd"}``; ``meta``: ``object_ids`` (``"square"``),
-        ``square_corners_world`` (4, 3), ``rate_hz``.
-    """
-    c = check_vector(square_center_world, "square_center_world", 3)
-    s = _positive(square_size_m, "square_size_m")
-    cam = kinect_camera(T_world_cam, width=width, height=height)
-    R = _yaw(square_yaw_rad)
-    white = rng.uniform(0.8, 0.92)
-    ground = Rectangle(center=(c[0], c[1], 0.0), half_size=(3.0, 3.0), color_rgb=np.full(3, white), name="ground")
-    square = Rectangle(center=c + [0, 0, 0.001], axis_u=R[:, 0], axis_v=R[:, 1], half_size=(s / 2, s / 2),
-                       color_rgb=(0.05, 0.05, 0.05), name="square")
-    lights = [AmbientLight(intensity=rng.uniform(0.3, 0.45)),
-              DirectionalLight(direction_world=(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), -1.0),
-                               intensity=rng.uniform(0.3, 0.5))]
-    scene = Scene(static=[ground, square], lights=lights)
-    return SimSetup(scene=scene, cameras={"rgbd": cam},
-                    meta={"object_ids": scene.object_ids(), "square_corners_world": square.corners(),
-                          "rate_hz": KINECT_RATE_HZ})
 
 
 def checkerboard_lab(T_world_board, rng: np.random.Generator, *, squares=(9, 7), square_m: float = 0.06,
@@ -663,7 +466,7 @@ def checkerboard_lab(T_world_board, rng: np.random.Generator, *, squares=(9, 7),
     ((3, 2), (6, 3))
     """
     T = check_transform(T_world_base, "T_world_base")
-    sq = _positive(square_m, "square_m")
+    sq = positive_float(square_m, "square_m")
     n = np.asarray(squares)
     if n.shape != (2,) or np.any(n < 2):
         raise ValueError(f"squares: expected two integers >= 2, got {squares!r}")

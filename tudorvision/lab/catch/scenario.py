@@ -208,7 +208,7 @@ class CatchScenario:
     def __init__(self, options, params, theta_start):
         from ...rgbd.ball import BallDetectorOptions
         from ...rgbd.frames import Intrinsics
-        from ...sim.scenes import ball_throw
+        from ...sim.scenes_rgbd import ball_throw
         from ..record import T_WORLD_BASE, elastic_arm_geometry
 
         o = self.options = options

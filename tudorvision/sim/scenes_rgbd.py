@@ -1,0 +1,221 @@
+"""RGB-D scene builders for the virtual TUDOR lab: wall Kinect, planar target, disc sweep, throws, eye-in-hand.
+
+Same conventions as :mod:`tudorvision.sim.scenes`: explicit parameters, a
+``numpy.random.Generator`` for what should not matter, a :class:`SimSetup`
+with the scene, its cameras and the ground truth in ``meta``. World frame:
+z up, floor at z = 0.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from .._checks import check_transform, check_vector
+from .camera import PinholeCamera, intrinsic_matrix, look_at
+from .lighting import AmbientLight, DirectionalLight
+from .render import Disc, Rectangle, Scene, Sphere
+from .scenes import (KINECT_RATE_HZ, SimSetup, arm_at_time, arm_shapes, default_robot_params, lab_room, positive_float,
+                     robot_base_shapes, sphere_radius_at_time, to_world, yaw_matrix)
+
+__all__ = ["kinect_camera", "planar_target", "wall_disc", "ballistic", "ball_throw", "eye_in_hand"]
+
+
+def kinect_camera(T_world_cam, *, width: int = 640, height: int = 480, f_px: float = 525.0,
+                  dist=(0.0, 0.0, 0.0, 0.0, 0.0)) -> PinholeCamera:
+    """Kinect-like RGB-D camera (colour and registered depth share these intrinsics).
+
+    Examples
+    --------
+    >>> kinect_camera(np.eye(4)).K[0, 0]
+    np.float64(525.0)
+    """
+    return PinholeCamera(K=intrinsic_matrix(f_px * width / 640.0, (width - 1) / 2, (height - 1) / 2),
+                         dist=np.asarray(dist, float), width=width, height=height, T_world_cam=T_world_cam)
+
+
+def _room_for_rgbd(rng, *, size_m, center_xy, keepout_xy, keepout_radius_m, n_clutter, n_distractors, region_y):
+    return lab_room(rng, size_m=size_m, center_xy=center_xy, keepout_xy=keepout_xy,
+                    keepout_radius_m=keepout_radius_m, n_clutter=n_clutter, n_distractors=n_distractors,
+                    clutter_region_y=region_y)
+
+
+def planar_target(distance_m: float, rng: np.random.Generator, *, width: int = 640, height: int = 480,
+                  target_size_m=(1.2, 0.9), textured: bool = True, square_m: float = 0.1) -> SimSetup:
+    """Planar target perpendicular to the optical axis at ``distance_m`` (depth-noise calibration).
+
+    The camera sits at world (0, 0, 1.2) looking along +y; the target is
+    centred on the optical axis. The back wall is beyond the Kinect range.
+
+    Returns
+    -------
+    SimSetup
+        ``cameras = {"rgbd"}``; ``meta``: ``target_id``, ``distance_m``,
+        ``target_corners_world`` (4, 3), ``rate_hz``.
+    """
+    if not distance_m > 0:
+        raise ValueError(f"distance_m: expected > 0, got {distance_m!r}")
+    eye = np.array([0.0, 0.0, 1.2])
+    cam = kinect_camera(look_at(eye, eye + [0, 1, 0], K=np.eye(3)).T_world_cam, width=width, height=height)
+    ts = check_vector(target_size_m, "target_size_m", 2)
+    board = Rectangle(center=eye + [0, distance_m, 0], axis_u=(1, 0, 0), axis_v=(0, 0, 1), half_size=ts / 2,
+                      checker_square_m=square_m if textured else None, color_rgb=(0.85, 0.85, 0.85),
+                      color2_rgb=(0.08, 0.08, 0.08), name="target")
+    shapes, lights = _room_for_rgbd(rng, size_m=(8.0, 2 * (distance_m + 8.0), 3.0), center_xy=(0.0, 0.0),
+                                    keepout_xy=(0.0, distance_m / 2), keepout_radius_m=distance_m / 2 + 1.0,
+                                    n_clutter=4, n_distractors=2, region_y=(-1.0, distance_m + 6.0))
+    scene = Scene(static=[board] + shapes, lights=lights)
+    return SimSetup(scene=scene, cameras={"rgbd": cam},
+                    meta={"target_id": 1, "distance_m": float(distance_m), "target_corners_world": board.corners(),
+                          "rate_hz": KINECT_RATE_HZ})
+
+
+def wall_disc(disc_center_base, rng: np.random.Generator, *, T_world_base=np.eye(4), arm=None,
+              disc_radius_m: float = 0.075, camera_standoff_m: float = 3.5, camera_height_m: float = 1.6,
+              draw_spheres: bool = False,
+              width: int = 640, height: int = 480, t0: float = 0.0) -> SimSetup:
+    """Wall-mounted RGB-D camera facing the robot, a disc in the catching net (base calibration sweep).
+
+    Parameters
+    ----------
+    disc_center_base : array_like, shape (3,), or callable t -> (3,)
+        Disc centre in the base frame (the net at the end effector).
+    arm : ArmGeometry or callable t -> ArmGeometry, optional
+        Drawn as in :func:`stereo_lab`; the tracking spheres only with
+        ``draw_spheres`` (the net holds the disc, as in the seed's set-up).
+    disc_radius_m : float
+        7.5 cm: a 15 cm disc in the 18 cm net.
+
+    The camera is ``camera_standoff_m`` in front of the base (base −y) at
+    world height ``camera_height_m``, looking at the point 0.6 m above the base.
+    The disc faces the camera.
+
+    Returns
+    -------
+    SimSetup
+        ``cameras = {"rgbd"}``; ``meta``: ``object_ids`` (``"disc"``),
+        ``T_world_base``, ``disc_center_world(t)`` (a function), ``rate_hz``.
+    """
+    T = check_transform(T_world_base, "T_world_base")
+    radius = positive_float(disc_radius_m, "disc_radius_m")
+    disc_fn = disc_center_base if callable(disc_center_base) else (
+        lambda t, c=check_vector(disc_center_base, "disc_center_base", 3): c)
+    eye = to_world(T, np.array([0.0, -camera_standoff_m, 0.0]))
+    eye[2] = camera_height_m
+    cam = kinect_camera(look_at(eye, to_world(T, np.array([0.0, 0.0, 0.6])), K=np.eye(3)).T_world_cam,
+                        width=width, height=height)
+    shapes, lights = _room_for_rgbd(rng, size_m=(8.0, 2 * camera_standoff_m + 2.0, 3.0), center_xy=T[:2, 3],
+                                    keepout_xy=T[:2, 3], keepout_radius_m=1.4, n_clutter=6, n_distractors=2,
+                                    region_y=(T[1, 3] - 0.5, T[1, 3] + camera_standoff_m))
+    shapes += robot_base_shapes(T, default_robot_params().link1_height_m)
+    arm_at = arm_at_time(arm)
+    sphere_r = sphere_radius_at_time(None)
+
+    def disc_world(t):
+        return to_world(T, check_vector(disc_fn(t), "disc_center_base", 3))
+
+    def dynamic(t):
+        c = disc_world(t)
+        out = [Disc(center=c, normal=eye - c, radius=radius, color_rgb=(0.9, 0.85, 0.2), name="disc")]
+        if arm_at is not None:
+            out += arm_shapes(arm_at(t), T, sphere_radius_m=sphere_r, spheres=draw_spheres)
+        return out
+
+    scene = Scene(static=shapes, lights=lights, dynamic=dynamic)
+    return SimSetup(scene=scene, cameras={"rgbd": cam},
+                    meta={"object_ids": scene.object_ids(t0), "T_world_base": T, "disc_center_world": disc_world,
+                          "disc_radius_m": radius, "rate_hz": KINECT_RATE_HZ})
+
+
+def ballistic(p0_world, v0_world, *, t0: float = 0.0, gravity_m_s2: float = 9.81) -> Callable[[float], np.ndarray]:
+    """Drag-free flight ``p(t) = p0 + v0 (t - t0) - g/2 (t - t0)^2 e_z`` (world, m).
+
+    Examples
+    --------
+    >>> ballistic([0, 0, 1], [1, 0, 0])(1.0).round(3).tolist()
+    [1.0, 0.0, -3.905]
+    """
+    p0 = check_vector(p0_world, "p0_world", 3)
+    v0 = check_vector(v0_world, "v0_world", 3)
+    g = np.array([0.0, 0.0, -gravity_m_s2])
+
+    def at(t):
+        dt = t - t0
+        return p0 + v0 * dt + 0.5 * g * dt * dt
+    return at
+
+
+def ball_throw(ball_center_world: Callable[[float], np.ndarray], rng: np.random.Generator, *,
+               T_world_base=np.eye(4), arm=None, ball_radius_m: float = 0.045,
+               camera_position_world=(0.0, -6.8, 2.0), width: int = 640, height: int = 480,
+               t0: float = 0.0) -> SimSetup:
+    """RGB-D camera on the wall behind the thrower, looking at the robot; a 9 cm ball in flight.
+
+    The ball is the only moving object within 4.5 m of the sensor (the arm,
+    if drawn, stands about 6.8 m away). ``ball_center_world(t)`` gives the
+    ball centre (see :func:`ballistic`).
+
+    Returns
+    -------
+    SimSetup
+        ``cameras = {"rgbd"}``; ``meta``: ``object_ids`` (``"ball"``),
+        ``ball_center_world`` (the function), ``ball_radius_m``, ``T_world_base``, ``rate_hz``.
+    """
+    if not callable(ball_center_world):
+        raise ValueError("ball_center_world: expected a callable t -> (3,) centre")
+    T = check_transform(T_world_base, "T_world_base")
+    r = positive_float(ball_radius_m, "ball_radius_m")
+    eye = check_vector(camera_position_world, "camera_position_world", 3)
+    cam = kinect_camera(look_at(eye, to_world(T, np.array([0.0, 0.0, 1.0])), K=np.eye(3)).T_world_cam,
+                        width=width, height=height)
+    span = abs(eye[1] - T[1, 3])
+    shapes, lights = _room_for_rgbd(rng, size_m=(8.0, span + 3.0, 3.2), center_xy=(T[0, 3], (eye[1] + T[1, 3]) / 2),
+                                    keepout_xy=T[:2, 3], keepout_radius_m=1.4, n_clutter=8, n_distractors=2,
+                                    region_y=(T[1, 3] - 1.0, T[1, 3] + 1.5))
+    shapes += robot_base_shapes(T, default_robot_params().link1_height_m)
+    ball_rgb = rng.choice([(0.9, 0.8, 0.1), (0.95, 0.45, 0.05), (0.2, 0.5, 0.9)])
+    arm_at = arm_at_time(arm)
+    sphere_r = sphere_radius_at_time(None)
+
+    def dynamic(t):
+        out = [Sphere(center=ball_center_world(t), radius=r, color_rgb=ball_rgb, name="ball")]
+        if arm_at is not None:
+            out += arm_shapes(arm_at(t), T, sphere_radius_m=sphere_r)
+        return out
+
+    scene = Scene(static=shapes, lights=lights, dynamic=dynamic)
+    return SimSetup(scene=scene, cameras={"rgbd": cam},
+                    meta={"object_ids": scene.object_ids(t0), "ball_center_world": ball_center_world,
+                          "ball_radius_m": r, "T_world_base": T, "rate_hz": KINECT_RATE_HZ})
+
+
+def eye_in_hand(T_world_cam, rng: np.random.Generator, *, square_center_world=(0.6, 0.0, 0.0),
+                square_size_m: float = 0.1, square_yaw_rad: float = 0.0, width: int = 640,
+                height: int = 480) -> SimSetup:
+    """Eye-in-hand RGB-D view of a black square on white ground (visual servoing).
+
+    The ground is the plane z = 0 (white, slightly randomised); the square
+    lies 1 mm above it. For a moving camera re-pose the returned camera with
+    :func:`tudorvision.sim.camera.with_pose` and render the same scene.
+
+    Returns
+    -------
+    SimSetup
+        ``cameras = {"rgbd"}``; ``meta``: ``object_ids`` (``"square"``),
+        ``square_corners_world`` (4, 3), ``rate_hz``.
+    """
+    c = check_vector(square_center_world, "square_center_world", 3)
+    s = positive_float(square_size_m, "square_size_m")
+    cam = kinect_camera(T_world_cam, width=width, height=height)
+    R = yaw_matrix(square_yaw_rad)
+    white = rng.uniform(0.8, 0.92)
+    ground = Rectangle(center=(c[0], c[1], 0.0), half_size=(3.0, 3.0), color_rgb=np.full(3, white), name="ground")
+    square = Rectangle(center=c + [0, 0, 0.001], axis_u=R[:, 0], axis_v=R[:, 1], half_size=(s / 2, s / 2),
+                       color_rgb=(0.05, 0.05, 0.05), name="square")
+    lights = [AmbientLight(intensity=rng.uniform(0.3, 0.45)),
+              DirectionalLight(direction_world=(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), -1.0),
+                               intensity=rng.uniform(0.3, 0.5))]
+    scene = Scene(static=[ground, square], lights=lights)
+    return SimSetup(scene=scene, cameras={"rgbd": cam},
+                    meta={"object_ids": scene.object_ids(), "square_corners_world": square.corners(),
+                          "rate_hz": KINECT_RATE_HZ})
