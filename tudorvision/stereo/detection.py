@@ -1,0 +1,203 @@
+"""What the sphere segmentation is told and what it finds: :class:`SegmentParams`, :class:`SphereDetection`.
+
+The segmentation itself is :mod:`tudorvision.stereo.segment`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from tudorvision._checks import TudorVisionError
+
+__all__ = ["SegmentParams", "SphereDetection"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class SegmentParams:
+    """Thresholds and plausibility limits of the sphere segmentation.
+
+    Parameters
+    ----------
+    p_seed : float
+        Posterior probability a seed pixel needs (before erosion).
+    p_grow : float
+        Posterior probability a pixel needs to join a region grown from a
+        seed; ``p_grow <= p_seed``.
+    erode_radius_px : int
+        Radius of the elliptic erosion element for the seeds (0: none).
+    min_area_px, max_area_px : float
+        Plausible region area in pixels.
+    min_mean_prob : float
+        Smallest mean posterior over the region.
+    min_circularity : float
+        Smallest ``sqrt(lam2 / lam1)`` without motion blur.
+    motion_blur : bool
+        Blur is expected: use ``min_circularity_blur`` instead.
+    min_circularity_blur : float
+        Smallest circularity accepted when ``motion_blur`` is set.
+    min_fill, max_fill : float
+        Accepted range of ``area / (4 pi sqrt(lam1 lam2))``.
+    weighting : {"probability", "binary"}
+        Centroid weights, see the module docstring.
+    reject_border : bool
+        Reject regions touching the image border (the sphere is partly out of
+        view and its centroid biased).
+    centroid : {"shape", "moment", "rim_moment"}
+        How the image position is measured (module docstring, step 4):
+        ``"moment"``, the region's first moment; ``"shape"`` (default), the
+        centre of a circle fitted robustly to the region's rim, robust to
+        partial occlusion and to parts the colour model misses (falls back to
+        the moment when the circle does not explain the rim; under motion
+        blur the moment is always used); ``"rim_moment"``, the binary first
+        moment of the region grown to ``rim_prob`` within 2 px (the tracker
+        uses it for fast, smoothly moving spheres, see
+        :class:`~tudorvision.stereo.tracker2d.TrackerParams`).
+    rim_prob : float
+        Probability level of the rim the circle is fitted to (the region
+        grows to it within 2 px).
+    lens_check : bool
+        Use the moment when the rim points off the circle lie on a second
+        circle of similar radius (the lens-shaped core of a blur streak)
+        and the moment sits halfway between the two centres. Off by default:
+        on the virtual lab it helps on blurred frames (step 3D error
+        -0.2 mm on two of five seeds) but trips on partly hidden static
+        spheres (static centroid RMS 0.13 -> 0.23 px).
+    rim_tol_px : float
+        Rim points within this distance of the fitted circle are inliers.
+    min_rim_fraction : float
+        Smallest fraction of the rim points the circle must explain to be used.
+    edge_refine : bool
+        With ``centroid="shape"``: refine the circle on the luma edge
+        (module docstring, step 4c). Use it for JPEG frames and video
+        (chroma subsampled): on the virtual lab it brings the centroid RMS
+        from 0.43 to 0.13 px there; on lossless frames it changes little.
+    edge_min_contrast : float
+        Smallest sphere-to-background luma difference (grey levels) of a ray
+        the luma refinement uses.
+    coarse_step : int
+        Full-frame search runs coarse to fine: candidate regions are found on
+        the frame decimated by ``coarse_step`` (nearest neighbour, no
+        erosion), then each of the ``max_candidates`` heaviest is segmented at
+        full resolution in a window around it, widened until the region fits;
+        the result equals a full-resolution search whenever the coarse pass
+        sees the sphere (spheres of radius >= about ``coarse_step`` px).
+        1 searches the full frame at full resolution.
+    max_candidates : int
+        Coarse candidates refined at full resolution.
+    """
+
+    p_seed: float = 0.999
+    p_grow: float = 0.99
+    erode_radius_px: int = 1
+    min_area_px: float = 8.0
+    max_area_px: float = 40000.0
+    min_mean_prob: float = 0.6
+    min_circularity: float = 0.55
+    motion_blur: bool = False
+    min_circularity_blur: float = 0.12
+    min_fill: float = 0.7
+    max_fill: float = 1.3
+    weighting: str = "probability"
+    reject_border: bool = True
+    centroid: str = "shape"
+    rim_prob: float = 0.5
+    lens_check: bool = False
+    rim_tol_px: float = 0.75
+    min_rim_fraction: float = 0.5
+    edge_refine: bool = False
+    edge_min_contrast: float = 8.0
+    coarse_step: int = 2
+    max_candidates: int = 4
+
+    def __post_init__(self):
+        if not (0.0 < self.p_grow <= self.p_seed < 1.0):
+            raise TudorVisionError(
+                f"p_grow, p_seed: need 0 < p_grow <= p_seed < 1, got {self.p_grow}, {self.p_seed}")
+        if int(self.erode_radius_px) != self.erode_radius_px or self.erode_radius_px < 0:
+            raise TudorVisionError(f"erode_radius_px: must be a non-negative integer, got {self.erode_radius_px}")
+        if not (0 <= self.min_area_px <= self.max_area_px):
+            raise TudorVisionError(
+                f"min_area_px, max_area_px: need 0 <= min <= max, got {self.min_area_px}, {self.max_area_px}")
+        if not (0.0 <= self.min_mean_prob <= 1.0):
+            raise TudorVisionError(f"min_mean_prob: must lie in [0, 1], got {self.min_mean_prob}")
+        if not (0.0 <= self.min_circularity_blur <= self.min_circularity <= 1.0):
+            raise TudorVisionError("min_circularity_blur, min_circularity: need 0 <= blur <= plain <= 1")
+        if not (0.0 <= self.min_fill <= self.max_fill):
+            raise TudorVisionError(f"min_fill, max_fill: need 0 <= min <= max, got {self.min_fill}, {self.max_fill}")
+        if int(self.coarse_step) != self.coarse_step or self.coarse_step < 1:
+            raise TudorVisionError(f"coarse_step: must be a positive integer, got {self.coarse_step}")
+        if int(self.max_candidates) != self.max_candidates or self.max_candidates < 1:
+            raise TudorVisionError(f"max_candidates: must be a positive integer, got {self.max_candidates}")
+        if self.centroid not in ("shape", "moment", "rim_moment"):
+            raise TudorVisionError(
+                f"centroid: must be 'shape', 'moment' or 'rim_moment', got {self.centroid!r}")
+        if not (0.0 < self.rim_prob <= self.p_grow):
+            raise TudorVisionError(f"rim_prob: need 0 < rim_prob <= p_grow, got {self.rim_prob}")
+        if not (self.rim_tol_px > 0.0):
+            raise TudorVisionError(f"rim_tol_px: must be positive, got {self.rim_tol_px}")
+        if not (0.0 < self.min_rim_fraction <= 1.0):
+            raise TudorVisionError(f"min_rim_fraction: must lie in (0, 1], got {self.min_rim_fraction}")
+        if not (self.edge_min_contrast >= 0.0):
+            raise TudorVisionError(f"edge_min_contrast: must be >= 0 grey levels, got {self.edge_min_contrast}")
+        if self.weighting not in ("probability", "binary"):
+            raise TudorVisionError(f"weighting: must be 'probability' or 'binary', got {self.weighting!r}")
+
+
+@dataclass(frozen=True)
+class SphereDetection:
+    """One sphere detection in one image.
+
+    Parameters
+    ----------
+    uv : tuple of float
+        Sub-pixel centroid ``(u, v)`` in full-frame pixels (u right, v down,
+        pixel centres at integers); ``(nan, nan)`` when no region was found.
+    area_px : float
+        Region area in pixels.
+    mean_prob : float
+        Mean posterior probability over the region.
+    circularity : float
+        ``sqrt(lam2 / lam1)`` of the region's second moments (1 = round).
+    valid : bool
+        Whether the region passed every plausibility check.
+    reason : str
+        Empty when valid, otherwise why the region was rejected (or that
+        none was found).
+    fill : float
+        ``area / (4 pi sqrt(lam1 lam2))`` (1 for a filled ellipse).
+    bbox : tuple of int
+        ``(x, y, w, h)`` of the region in full-frame pixels.
+    touches_window : bool
+        The region touches the border of the searched window where that
+        border is not the image border (the window was too small).
+    uv_moment : tuple of float
+        The region's first moment (``uv`` with ``centroid="moment"``).
+    rim_fraction : float
+        Fraction of the region's rim points on the fitted circle (NaN when
+        no circle was fitted: motion blur, ``centroid="moment"``, too small).
+    rim_rms_px : float
+        RMS distance of those rim points from the circle (px).
+    method : str
+        How ``uv`` was measured: ``"moment"``, ``"shape"`` (the centre of the
+        circle fitted to the colour rim), ``"edge"`` (the circle fitted to
+        the luma edge) or ``"rim_moment"`` (see :class:`SegmentParams`).
+    """
+
+    uv: tuple
+    area_px: float
+    mean_prob: float
+    circularity: float
+    valid: bool
+    reason: str = ""
+    fill: float = float("nan")
+    bbox: tuple = (0, 0, 0, 0)
+    touches_window: bool = False
+    uv_moment: tuple = (float("nan"), float("nan"))
+    rim_fraction: float = float("nan")
+    rim_rms_px: float = float("nan")
+    method: str = "moment"
+
+    @property
+    def radius_px(self) -> float:
+        """Radius of the disc with the region's area, ``sqrt(area / pi)``."""
+        return math.sqrt(self.area_px / math.pi)
