@@ -77,13 +77,7 @@ def noise_model_from_calibration(cal) -> DepthNoiseModel:
     dm = getattr(cal, "depth_model", None) if cal is not None else None
     if dm is None:
         return KINECT_DEPTH_NOISE
-    units = {"m": 1.0, "cm": 0.01, "mm": 0.001}
-    zu, su = units[dm.z_unit], units[dm.sigma_unit]
-    poly = np.asarray(dm.sigma_z_poly, dtype=np.float64)
-    deg = len(poly) - 1
-    coeffs = tuple(float(c) * su / zu ** (deg - i) for i, c in enumerate(poly))
-    rng = tuple(dm.valid_range_m) if dm.valid_range_m is not None else (0.6, 6.0)
-    return DepthNoiseModel(coeffs=coeffs, z_range_m=rng)
+    return dm.noise_model()
 
 
 def _open(path):

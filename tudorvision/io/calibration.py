@@ -250,6 +250,33 @@ class DepthModel:
         z = np.asarray(z_m, dtype=np.float64) / _UNITS_TO_M[self.z_unit]
         return np.polyval(self.sigma_z_poly, z) * _UNITS_TO_M[self.sigma_unit]
 
+    def noise_model(self, *, default_range_m=(0.6, 6.0)):
+        """The same polynomial in SI units as the package's noise model.
+
+        Parameters
+        ----------
+        default_range_m : (float, float)
+            Fitted depth range to use when the file gives none, metres.
+
+        Returns
+        -------
+        tudorvision.sensors.DepthNoiseModel
+            Coefficients converted to z and sigma in metres.
+
+        Examples
+        --------
+        >>> dm = DepthModel(sigma_z_poly=[0.51, -2.1, 5.12, -2.18], sigma_unit="cm")
+        >>> round(float(dm.noise_model().sigma_m(2.0)), 4)
+        0.0374
+        """
+        from ..sensors import DepthNoiseModel
+
+        zu, su = _UNITS_TO_M[self.z_unit], _UNITS_TO_M[self.sigma_unit]
+        deg = len(self.sigma_z_poly) - 1
+        coeffs = tuple(float(c) * su / zu ** (deg - i) for i, c in enumerate(self.sigma_z_poly))
+        rng = tuple(self.valid_range_m) if self.valid_range_m is not None else tuple(default_range_m)
+        return DepthNoiseModel(coeffs=coeffs, z_range_m=rng)
+
     def allclose(self, other: "DepthModel", atol: float = 1e-9) -> bool:
         return (isinstance(other, DepthModel) and (self.z_unit, self.sigma_unit) == (other.z_unit, other.sigma_unit)
                 and _opt_close(self.sigma_z_poly, other.sigma_z_poly, atol)
