@@ -63,7 +63,7 @@ def _throw_scene(rng):
     """
     from tudorvision.rgbd.frames import Intrinsics
     from tudorvision.lab.record import T_WORLD_BASE
-    from tudorvision.sim.scenes import ball_throw
+    from tudorvision.sim.scenes_rgbd import ball_throw
 
     cur = {"f": None}
 
@@ -280,7 +280,9 @@ def main() -> None:
         r["batch"] = -1
     rows_x = s["per_throw"]
     results["render"] = success(rows_x)
-    print("\n2. success rate over throws that cross the reachable workspace (net radius 9 cm, proportional damping)")
+    o = DemoOptions(**base)
+    print(f"\n2. success rate over throws that cross the reachable workspace (net radius "
+          f"{100 * o.net_radius_m:.0f} cm, {o.damping} damping)")
     print(f"{'run':34s} {'throws':>7s} {'crossing':>9s} {'caught':>7s} {'rate':>7s}  misses")
     names = {"model": "compensated IK, noise model", "rigid": "rigid IK, noise model",
              "render": "compensated IK, rendered frames"}
