@@ -7,6 +7,7 @@ caller decides whether a problem raises (strict) or is skipped (lenient).
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,8 +15,9 @@ import cv2
 import numpy as np
 
 from .._checks import TudorVisionError
+from ._imageheader import DEFAULT_MAX_PIXELS, HEADER_BYTES, check_pixel_limit, image_size_from_header
 
-__all__ = ["Problem", "IndexEntry", "parse_index", "parse_table", "associate", "read_image",
+__all__ = ["Problem", "IndexEntry", "parse_index", "path_inside", "parse_table", "associate", "read_image",
            "ImageProblem", "read_columns"]
 
 
@@ -83,7 +85,34 @@ def _parse_float(token: str) -> float:
     return value
 
 
-def parse_index(path: Path, *, check_files: bool = True) -> tuple[list[IndexEntry], list[Problem]]:
+def path_inside(name: str) -> bool:
+    """Whether an index entry's file name stays inside the index file's folder.
+
+    Lexical test: absolute paths and names whose normalised form climbs out
+    with ``..`` are outside (symbolic links are not followed).
+
+    Parameters
+    ----------
+    name : str
+        The file name as written in the index line.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> path_inside("left/000001.png"), path_inside("../../x.png"), path_inside("/etc/passwd")
+    (True, False, False)
+    """
+    if not name or os.path.isabs(name) or Path(name).anchor:
+        return False
+    norm = os.path.normpath(name)
+    return norm != ".." and not norm.startswith(".." + os.sep) and norm != "."
+
+
+def parse_index(path: Path, *, check_files: bool = True,
+                allow_outside: bool = False) -> tuple[list[IndexEntry], list[Problem]]:
     """Parse a TUM-style index file (``timestamp path`` per line, ``#`` comments).
 
     Parameters
@@ -92,6 +121,9 @@ def parse_index(path: Path, *, check_files: bool = True) -> tuple[list[IndexEntr
         The index file, e.g. ``left.txt``.
     check_files : bool
         Report lines whose file does not exist.
+    allow_outside : bool
+        Accept absolute paths and paths climbing out of the index file's
+        folder (``../x.png``); by default such lines are problems.
 
     Returns
     -------
@@ -129,6 +161,10 @@ def parse_index(path: Path, *, check_files: bool = True) -> tuple[list[IndexEntr
             t = _parse_float(parts[0])
         except ValueError:
             problems.append(Problem(where, f"malformed timestamp {parts[0]!r}"))
+            continue
+        if not allow_outside and not path_inside(parts[1].strip()):
+            problems.append(Problem(where, f"file {parts[1].strip()!r} is outside the sequence folder "
+                                           "(allow it with --allow-outside / allow_outside=True)"))
             continue
         file = (base / parts[1].strip()).resolve() if not Path(parts[1].strip()).is_absolute() \
             else Path(parts[1].strip())
@@ -259,7 +295,7 @@ def associate(t_a: np.ndarray, t_b: np.ndarray, max_dt_s: float) -> np.ndarray:
     return np.asarray(out, dtype=np.int64).reshape(-1, 2)
 
 
-def read_image(path: Path, *, depth: bool = False) -> np.ndarray:
+def read_image(path: Path, *, depth: bool = False, max_pixels: int | None = DEFAULT_MAX_PIXELS) -> np.ndarray:
     """Decode an image file without OpenCV's console warnings.
 
     Parameters
@@ -268,6 +304,9 @@ def read_image(path: Path, *, depth: bool = False) -> np.ndarray:
         Image file (PNG, JPEG, PGM, ...).
     depth : bool
         Read a depth image: it must decode to a single-channel 16-bit array.
+    max_pixels : int or None
+        Refuse images whose header (PNG, JPEG, BMP, PNM) declares more
+        pixels, before decoding; None: no limit.
 
     Returns
     -------
@@ -278,7 +317,8 @@ def read_image(path: Path, *, depth: bool = False) -> np.ndarray:
     Raises
     ------
     ImageProblem
-        If the file is absent, unreadable, corrupt, or (depth) not 16-bit.
+        If the file is absent, unreadable, corrupt, over ``max_pixels``, or
+        (depth) not 16-bit.
     """
     try:
         buf = np.fromfile(str(path), dtype=np.uint8)
@@ -288,6 +328,9 @@ def read_image(path: Path, *, depth: bool = False) -> np.ndarray:
         raise ImageProblem(f"cannot read file ({exc.strerror or exc})") from None
     if buf.size == 0:
         raise ImageProblem("empty image file")
+    too_big = check_pixel_limit(image_size_from_header(buf[:HEADER_BYTES].tobytes()), max_pixels)
+    if too_big:
+        raise ImageProblem(too_big)
     try:
         img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
     except cv2.error:

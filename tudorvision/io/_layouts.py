@@ -23,6 +23,8 @@ FRAME_STREAMS = {"stereo": ("left", "right"), "rgbd": ("rgb", "depth"), "mono": 
 VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv", ".webm", ".mpg", ".mpeg", ".m4v", ".wmv"}
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".pgm", ".ppm", ".bmp", ".tif", ".tiff"}
 LAYOUTS = ("tudorvision", "tum", "kinect_folders", "numbered_pairs", "image_folder", "video")
+#: Marker file of a recording that has not completed (written first, removed by a successful close).
+INCOMPLETE_MARKER = "INCOMPLETE"
 
 
 @dataclass(frozen=True)
@@ -112,7 +114,7 @@ def parse_sequence_yaml(yaml_path: Path) -> tuple[dict, object]:
     return data, line_of
 
 
-def spec_tudorvision(root: Path, data: dict, line_of, *, max_dt_s=None) -> Spec:
+def spec_tudorvision(root: Path, data: dict, line_of, *, max_dt_s=None, allow_outside: bool = False) -> Spec:
     """Our own directory format (see :mod:`tudorvision.io.sequence`)."""
     ypath = root / "sequence.yaml"
     kind = data.get("kind")
@@ -126,6 +128,9 @@ def spec_tudorvision(root: Path, data: dict, line_of, *, max_dt_s=None) -> Spec:
     desc = data.get("description", "") or ""
     spec = Spec(path=root, layout="tudorvision", kind=kind, rate_hz=rate, depth_scale=depth_scale,
                 streams=tuple(streams), description=str(desc), meta=dict(data))
+    if data.get("incomplete") or (root / INCOMPLETE_MARKER).is_file():
+        why = data.get("interrupted") or f"{INCOMPLETE_MARKER} marker present"
+        spec.problems.append(Problem(str(ypath), f"recording is incomplete ({why})"))
     frame_streams = FRAME_STREAMS[kind]
     spec.size = parse_size(data.get("size"), frame_streams, ypath, line_of)
     cal = data.get("calibration")
@@ -149,17 +154,19 @@ def spec_tudorvision(root: Path, data: dict, line_of, *, max_dt_s=None) -> Spec:
             raise _err(ypath, line_of, ("video",), f"video file {video!r} does not exist")
         return spec
     tol = max_dt_s if max_dt_s is not None else float(data.get("sync_tolerance_s", 0.25 / rate))
-    spec.records = _records_from_indices(root, frame_streams, tol, spec, strict_pairs=True)
+    spec.records = _records_from_indices(root, frame_streams, tol, spec, strict_pairs=True,
+                                         allow_outside=allow_outside)
     return spec
 
 
-def _records_from_indices(root: Path, streams, tol, spec: Spec, *, strict_pairs: bool) -> list[Record]:
+def _records_from_indices(root: Path, streams, tol, spec: Spec, *, strict_pairs: bool,
+                          allow_outside: bool = False) -> list[Record]:
     entries = {}
     for s in streams:
         idx = root / f"{s}.txt"
         if not idx.is_file():
             raise TudorVisionError(f"{idx}: index file for stream {s!r} not found")
-        e, probs = parse_index(idx)
+        e, probs = parse_index(idx, allow_outside=allow_outside)
         entries[s] = e
         spec.problems.extend(probs)
     first = entries[streams[0]]
@@ -184,12 +191,13 @@ def _records_from_indices(root: Path, streams, tol, spec: Spec, *, strict_pairs:
     return out
 
 
-def spec_tum(root: Path, *, max_dt_s=None) -> Spec:
+def spec_tum(root: Path, *, max_dt_s=None, allow_outside: bool = False) -> Spec:
     """A TUM RGB-D benchmark directory: rgb.txt + depth.txt (+ groundtruth.txt)."""
     spec = Spec(path=root, layout="tum", kind="rgbd", rate_hz=None, depth_scale=5000.0,
                 streams=("rgb", "depth"))
     tol = 0.02 if max_dt_s is None else float(max_dt_s)
-    spec.records = _records_from_indices(root, ("rgb", "depth"), tol, spec, strict_pairs=False)
+    spec.records = _records_from_indices(root, ("rgb", "depth"), tol, spec, strict_pairs=False,
+                                         allow_outside=allow_outside)
     if len(spec.records) > 1:
         spec.rate_hz = float(1.0 / np.median(np.diff([r.t for r in spec.records])))
     gt = root / "groundtruth.txt"
@@ -266,6 +274,8 @@ def detect_layout(root: Path) -> str:
     """Name of the layout of directory ``root`` (see :data:`LAYOUTS`)."""
     if (root / "sequence.yaml").is_file():
         return "tudorvision"
+    if (root / INCOMPLETE_MARKER).is_file():
+        raise TudorVisionError(f"{root}: recording is incomplete ({INCOMPLETE_MARKER} marker, no sequence.yaml)")
     if (root / "rgb.txt").is_file() and (root / "depth.txt").is_file():
         return "tum"
     if (root / "color").is_dir() and (root / "depth").is_dir():

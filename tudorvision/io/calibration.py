@@ -48,6 +48,7 @@ import numpy as np
 from .._checks import TudorVisionError, check_array, check_transform
 from ._yaml import YamlContext as _Ctx
 from ._yaml import dump_yaml, read_yaml
+from .atomic import write_text_atomic
 
 __all__ = ["CameraModel", "StereoExtrinsics", "DepthModel", "Calibration",
            "load_calibration", "save_calibration"]
@@ -568,5 +569,5 @@ def save_calibration(calibration: Calibration, path, *, header: str | None = Non
     if header:
         text += "".join(f"# {line}\n" for line in header.splitlines())
     text += dump_yaml(calibration.to_dict())
-    path.write_text(text, encoding="utf-8")
+    write_text_atomic(path, text)
     return path

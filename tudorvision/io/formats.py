@@ -25,6 +25,7 @@ import numpy as np
 from .._checks import TudorVisionError, check_array
 from ._yaml import YamlContext as _Ctx
 from ._yaml import dump_yaml, read_yaml
+from .atomic import write_text_atomic
 from .calibration import RECTIFICATION_SHAPES, Calibration, CameraModel, StereoExtrinsics
 
 __all__ = ["CameraInfo", "load_ros_camera_info", "save_ros_camera_info", "calibration_from_ros",
@@ -148,8 +149,7 @@ def save_ros_camera_info(path, camera: CameraModel, *, name: str = "camera", R_r
            "distortion_coefficients": mat(camera.dist[None, :]), "rectification_matrix": mat(R),
            "projection_matrix": mat(P)}
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(dump_yaml(doc), encoding="utf-8")
+    write_text_atomic(path, dump_yaml(doc))
     return path
 
 
@@ -327,7 +327,6 @@ def save_opencv_stereo(calibration: Calibration, intrinsics_path, extrinsics_pat
             fs.write("image_width", int(extra[0]))
             fs.write("image_height", int(extra[1]))
         text = fs.releaseAndGetString()
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(text, encoding="utf-8")
+        write_text_atomic(path, text)
         out.append(path)
     return out[0], out[1]

@@ -59,6 +59,7 @@ import cv2
 import numpy as np
 
 from .._checks import TudorVisionError, check_array
+from ._imageheader import DEFAULT_MAX_PIXELS
 from ._index import ImageProblem, Problem, parse_table, read_columns, read_image
 from ._layouts import (FRAME_STREAMS, LAYOUTS, VIDEO_SUFFIXES, Record, Spec, detect_layout, parse_sequence_yaml,
                        parse_size, positive_entry, spec_image_folder, spec_kinect_folders, spec_numbered_pairs,
@@ -99,6 +100,8 @@ class Sequence:
         Streams present (image streams and e.g. ``joints``).
     strict : bool
         Raise on the first defect (True) or skip and report (False).
+    max_pixels : int or None
+        Images whose header declares more pixels are defective (not decoded).
     report : list of Problem
         Defects found so far (lenient mode): index lines left out at open,
         frames skipped while iterating.
@@ -106,7 +109,8 @@ class Sequence:
         Non-defects worth knowing (e.g. TUM frames without a partner).
     """
 
-    def __init__(self, spec: Spec, *, strict: bool = True, calibration: Calibration | None = None):
+    def __init__(self, spec: Spec, *, strict: bool = True, calibration: Calibration | None = None,
+                 max_pixels: int | None = DEFAULT_MAX_PIXELS):
         self._spec = spec
         self.path = spec.path
         self.layout = spec.layout
@@ -118,6 +122,8 @@ class Sequence:
         self.description = spec.description
         self.meta = spec.meta
         self.strict = bool(strict)
+        self.max_pixels = max_pixels
+        self._first_size: dict = {}   # stream -> (w, h) of the first frame read, when size is not declared
         self.notes = list(spec.notes)
         self.report: list[Problem] = []
         self._seen: set = set()
@@ -223,12 +229,17 @@ class Sequence:
             return None
 
     def _check_size(self, img, stream, where, i):
+        label = "image" if stream == "image" else f"{stream} image"
         if self.size and stream in self.size:
             w, h = self.size[stream]
             if img.shape[1] != w or img.shape[0] != h:
-                label = "image" if stream == "image" else f"{stream} image"
                 raise _FrameProblem(Problem(where, f"{label} is {img.shape[1]}x{img.shape[0]}, "
                                                    f"expected {w}x{h} (size)", i))
+        else:   # no declared size: every frame must match the first one read (a rotated phone JPEG does not)
+            w, h = self._first_size.setdefault(stream, (img.shape[1], img.shape[0]))
+            if img.shape[1] != w or img.shape[0] != h:
+                raise _FrameProblem(Problem(where, f"{label} is {img.shape[1]}x{img.shape[0]}, "
+                                                   f"expected {w}x{h} like the first frame", i))
 
     def _load(self, i: int):
         if self._video is not None:
@@ -244,7 +255,7 @@ class Sequence:
             depth = slot.stream == "depth"
             where = slot.where if slot.where == str(slot.path) else f"{slot.where} ({slot.path.name})"
             try:
-                img = read_image(slot.path, depth=depth)
+                img = read_image(slot.path, depth=depth, max_pixels=self.max_pixels)
             except ImageProblem as exc:
                 raise _FrameProblem(Problem(where, str(exc), i)) from None
             self._check_size(img, slot.stream, where, i)
@@ -380,7 +391,8 @@ def _camera_name(kind: str) -> str:
 # ----------------------------------------------------------------------------- opening
 def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
                   depth_scale: float | None = None, K=None, calibration=None, size=None,
-                  max_dt_s: float | None = None) -> Sequence:
+                  max_dt_s: float | None = None, allow_outside: bool = False,
+                  max_pixels: int | None = DEFAULT_MAX_PIXELS) -> Sequence:
     """Open a recorded sequence (directory, sequence.yaml, or video file).
 
     Parameters
@@ -404,6 +416,13 @@ def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
         Expected ``(width, height)`` of every image stream.
     max_dt_s : float, optional
         Pairing tolerance of the two image streams (TUM: 0.02 s).
+    allow_outside : bool
+        Follow index lines naming absolute paths or paths outside the
+        sequence folder (``../x.png``); by default each such line is a
+        defect naming the index file and line.
+    max_pixels : int or None
+        Largest image accepted, checked from the file header before
+        decoding (default 100 megapixels); None: no limit.
 
     Returns
     -------
@@ -454,9 +473,9 @@ def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
             side_rate = positive_entry(data, "rate_hz", path / "sequence.yaml", line_of, required=False)
         folder_rate = float(rate_hz or side_rate or 30.0)
         if layout == "tudorvision":
-            spec = spec_tudorvision(path, data, line_of, max_dt_s=max_dt_s)
+            spec = spec_tudorvision(path, data, line_of, max_dt_s=max_dt_s, allow_outside=allow_outside)
         elif layout == "tum":
-            spec = spec_tum(path, max_dt_s=max_dt_s)
+            spec = spec_tum(path, max_dt_s=max_dt_s, allow_outside=allow_outside)
         elif layout == "kinect_folders":
             spec = spec_kinect_folders(path, rate_hz=folder_rate)
             spec.depth_scale = 1000.0
@@ -490,7 +509,10 @@ def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
     if calibration is not None:
         cal = calibration if isinstance(calibration, Calibration) else load_calibration(calibration)
         spec.calibration_path = None
-    return Sequence(spec, strict=strict, calibration=cal)
+    if max_pixels is not None and (isinstance(max_pixels, bool) or not isinstance(max_pixels, (int, np.integer))
+                                   or max_pixels < 1):
+        raise ValueError(f"max_pixels: expected a positive integer or None, got {max_pixels!r}")
+    return Sequence(spec, strict=strict, calibration=cal, max_pixels=max_pixels)
 
 
 def _apply_sidecar(spec: Spec, data: dict, line_of, ypath: Path) -> None:

@@ -3,10 +3,18 @@
 Index files are written line by line as frames arrive (a crashed recording
 keeps its frames); :meth:`SequenceWriter.close` writes ``sequence.yaml``.
 Depth is always a 16-bit PNG; colour is PNG (lossless) or JPEG (small).
+
+A recording is marked incomplete until it completes: the writer creates an
+``INCOMPLETE`` marker file first and removes it only in a successful
+:meth:`SequenceWriter.close`. Leaving the ``with`` block by an exception
+(Ctrl-C, a full disk) writes ``sequence.yaml`` with ``incomplete: true`` and
+``interrupted: "<reason> after N frames"`` and keeps the marker, so
+``tudorvision seq check`` reports the sequence as incomplete.
 """
 from __future__ import annotations
 
 import math
+import re
 import shutil
 from pathlib import Path
 
@@ -14,8 +22,9 @@ import cv2
 import numpy as np
 
 from .._checks import TudorVisionError, check_array
-from ._layouts import FRAME_STREAMS, KINDS
-from ._yaml import dump_yaml
+from ._layouts import FRAME_STREAMS, INCOMPLETE_MARKER, KINDS
+from ._yaml import dump_yaml, read_yaml
+from .atomic import atomic_path, write_error, write_text_atomic
 from .calibration import Calibration, load_calibration, save_calibration
 from .frames import raw_from_depth_m
 
@@ -29,7 +38,8 @@ class SequenceWriter:
     ----------
     out_dir : str or Path
         Sequence directory; created. It must be empty or absent unless
-        ``overwrite=True`` (which removes the files a previous sequence left).
+        ``overwrite=True``, which removes only the files a previous recording
+        writes (:meth:`own_outputs`); a user's other files are kept.
     kind : {"stereo", "rgbd", "mono"}
     rate_hz : float
         Nominal frame rate, Hz.
@@ -47,6 +57,12 @@ class SequenceWriter:
         Extra YAML-serialisable keys for ``sequence.yaml`` (e.g. seed, scene).
     overwrite : bool
         Allow writing into a non-empty directory.
+
+    Raises
+    ------
+    TudorVisionError
+        ``out_dir`` is not empty (without ``overwrite``) or is a file; an
+        image or file cannot be written (disk full, read-only), naming it.
 
     Examples
     --------
@@ -83,7 +99,12 @@ class SequenceWriter:
             if not overwrite:
                 raise TudorVisionError(f"{self.out_dir}: directory is not empty (pass overwrite=True)")
             self._clear()
-        self.out_dir.mkdir(parents=True, exist_ok=True)
+        try:
+            self.out_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise write_error(self.out_dir, exc) from None
+        write_text_atomic(self.out_dir / INCOMPLETE_MARKER,
+                          "recording in progress or interrupted: this sequence is incomplete\n")
         self.kind = kind
         self.rate_hz = float(rate_hz)
         self.depth_scale = float(depth_scale)
@@ -92,7 +113,7 @@ class SequenceWriter:
         self.description = description
         self.meta = dict(meta or {})
         reserved = {"kind", "rate_hz", "streams", "depth_scale", "size", "calibration", "groundtruth",
-                    "frames", "description", "layout", "video", "sync_tolerance_s"}
+                    "frames", "description", "layout", "video", "sync_tolerance_s", "incomplete", "interrupted"}
         for k in self.meta:
             if k in reserved:
                 raise ValueError(f"meta: key {k!r} is reserved for sequence.yaml")
@@ -107,23 +128,73 @@ class SequenceWriter:
             if isinstance(calibration, Calibration):
                 save_calibration(calibration, self.out_dir / "calibration.yaml")
             else:
-                shutil.copyfile(cal_src, self.out_dir / "calibration.yaml")
+                with atomic_path(self.out_dir / "calibration.yaml") as tmp:
+                    shutil.copyfile(cal_src, tmp)
             self._calibration_file = "calibration.yaml"
 
+    @staticmethod
+    def own_outputs(out_dir) -> list[Path]:
+        """The files in ``out_dir`` that a recording writes, and only those.
+
+        Index files (``left.txt`` ... ``joints.txt``), ``sequence.yaml``,
+        ``calibration.yaml``, the ``INCOMPLETE`` marker, numbered frames
+        ``<stream>/NNNNNN.png|jpg`` of the image streams, and the
+        ground-truth files listed in the old ``sequence.yaml``. A user's
+        other files (even in ``depth/`` or ``groundtruth/``) are not listed.
+
+        Parameters
+        ----------
+        out_dir : str or Path
+            A directory that may hold a previous recording.
+
+        Returns
+        -------
+        list of Path
+            Existing files, in no particular order.
+        """
+        out_dir = Path(out_dir)
+        files = [out_dir / n for n in ("left.txt", "right.txt", "rgb.txt", "depth.txt", "image.txt",
+                                       "joints.txt", "sequence.yaml", "calibration.yaml", INCOMPLETE_MARKER)]
+        frame = re.compile(r"^\d{6}\.(?:png|jpg)$")
+        for stream in ("left", "right", "rgb", "depth", "image"):
+            if (out_dir / stream).is_dir() and not (out_dir / stream).is_symlink():
+                files += [p for p in (out_dir / stream).iterdir() if frame.match(p.name)]
+        try:
+            doc, _ = read_yaml(out_dir / "sequence.yaml")
+        except TudorVisionError:
+            doc = None
+        gts = doc.get("groundtruth") if isinstance(doc, dict) else None
+        for g in gts if isinstance(gts, list) else []:
+            if isinstance(g, str) and re.match(r"^groundtruth/[A-Za-z0-9_-]+\.csv$", g):
+                files.append(out_dir / g)
+        return [p for p in files if p.is_file() and not p.is_symlink()]
+
     def _clear(self):
-        for name in ("left", "right", "rgb", "depth", "image", "groundtruth"):
-            if (self.out_dir / name).is_dir():
-                shutil.rmtree(self.out_dir / name)
-        for name in ("left.txt", "right.txt", "rgb.txt", "depth.txt", "image.txt", "joints.txt",
-                     "sequence.yaml", "calibration.yaml"):
-            (self.out_dir / name).unlink(missing_ok=True)
+        try:
+            for p in self.own_outputs(self.out_dir):
+                p.unlink()
+            for name in ("left", "right", "rgb", "depth", "image", "groundtruth"):
+                d = self.out_dir / name
+                if d.is_dir() and not d.is_symlink() and not any(d.iterdir()):
+                    d.rmdir()
+        except OSError as exc:
+            raise write_error(exc.filename or self.out_dir, exc) from None
 
     # -------------------------------------------------------------- context manager
     def __enter__(self):
         return self
 
     def __exit__(self, exc_type, exc, tb):
-        self.close()
+        if exc_type is None:
+            self.close()
+            return
+        first = str(exc).splitlines()[0] if str(exc) else ""
+        reason = "interrupted (Ctrl-C)" if issubclass(exc_type, KeyboardInterrupt) else \
+            f"stopped by an error ({exc_type.__name__}: {first})"
+        try:
+            self.close(interrupted=reason)
+        except (TudorVisionError, OSError):
+            pass   # the INCOMPLETE marker is still there; the original exception goes on
 
     # -------------------------------------------------------------- helpers
     def _check_open(self):
@@ -180,7 +251,10 @@ class SequenceWriter:
         ok, buf = cv2.imencode(ext, np.ascontiguousarray(img), params)
         if not ok:
             raise TudorVisionError(f"{self.out_dir / rel}: cannot encode image")
-        buf.tofile(str(self.out_dir / rel))
+        try:
+            buf.tofile(str(self.out_dir / rel))
+        except OSError as exc:
+            raise write_error(self.out_dir / rel, exc) from None
         what = {"left": "left camera images", "right": "right camera images", "rgb": "colour images (BGR)",
                 "depth": f"16-bit depth images, {self.depth_scale:g} units per metre, 0 = invalid",
                 "image": "images"}[stream]
@@ -280,10 +354,9 @@ class SequenceWriter:
             if not isinstance(c, str) or not c or any(ch in c for ch in ", \t\n#"):
                 raise ValueError(f"columns: bad column name {c!r}")
         path = self.out_dir / "groundtruth" / f"{name}.csv"
-        path.parent.mkdir(exist_ok=True)
         lines = [f"# {line}" for line in comment.splitlines()] + [",".join(names)]
         lines += [",".join(repr(float(v)) for v in row) for row in data]
-        path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+        write_text_atomic(path, "\n".join(lines) + "\n")
         rel = f"groundtruth/{name}.csv"
         if rel not in self._gt:
             self._gt.append(rel)
@@ -294,23 +367,46 @@ class SequenceWriter:
         """Frames written so far."""
         return self._count.get(FRAME_STREAMS[self.kind][0], 0)
 
-    def close(self) -> Path:
-        """Flush the index files and write ``sequence.yaml``; returns its path. Idempotent."""
+    def close(self, *, interrupted: str | None = None) -> Path:
+        """Flush the index files and write ``sequence.yaml``. Idempotent.
+
+        Parameters
+        ----------
+        interrupted : str, optional
+            Why the recording stopped early. Then ``sequence.yaml`` gets
+            ``incomplete: true`` and ``interrupted: "<reason> after N
+            frames"``, and the ``INCOMPLETE`` marker stays; without it the
+            marker is removed (the recording is complete).
+
+        Returns
+        -------
+        Path
+            The written ``sequence.yaml``.
+
+        Raises
+        ------
+        TudorVisionError
+            ``sequence.yaml`` cannot be written (naming it).
+        """
         ypath = self.out_dir / "sequence.yaml"
         if self._closed:
             return ypath
         for f in self._files.values():
-            f.close()
+            try:
+                f.close()
+            except OSError as exc:
+                if interrupted is None:
+                    raise write_error(f.name, exc) from None
         self._closed = True
         streams = [s for s in FRAME_STREAMS[self.kind]]
         if "joints" in self._files:
             streams.append("joints")
         if self.kind == "mono" and self.frame_count == 0:
-            (self.out_dir / "image.txt").write_text("# images\n# timestamp filename\n", encoding="utf-8")
+            write_text_atomic(self.out_dir / "image.txt", "# images\n# timestamp filename\n")
         for s in FRAME_STREAMS[self.kind]:
             idx = self.out_dir / f"{s}.txt"
             if not idx.exists():
-                idx.write_text("# timestamp filename\n", encoding="utf-8")
+                write_text_atomic(idx, "# timestamp filename\n")
         doc = {"kind": self.kind, "rate_hz": self.rate_hz, "streams": streams}
         if self.kind == "rgbd":
             doc["depth_scale"] = self.depth_scale
@@ -323,6 +419,16 @@ class SequenceWriter:
         doc["frames"] = self.frame_count
         doc["description"] = self.description
         doc.update(self.meta)
-        ypath.write_text("# tudorvision recorded sequence (see docs/sequence_format.md)\n"
-                         + dump_yaml(doc), encoding="utf-8")
+        marker = self.out_dir / INCOMPLETE_MARKER
+        if interrupted is not None:
+            doc["incomplete"] = True
+            doc["interrupted"] = f"{interrupted} after {self.frame_count} frames"
+            write_text_atomic(marker, f"{doc['interrupted']}\n")
+        write_text_atomic(ypath, "# tudorvision recorded sequence (see docs/sequence_format.md)\n"
+                          + dump_yaml(doc))
+        if interrupted is None:
+            try:
+                marker.unlink(missing_ok=True)
+            except OSError as exc:
+                raise write_error(marker, exc) from None
         return ypath

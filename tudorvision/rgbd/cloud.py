@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import TudorVisionError, check_points
+from ..io.atomic import atomic_path
 from .frames import Intrinsics, check_depth, points_cam_from_depth
 
 __all__ = [
@@ -157,16 +158,17 @@ def write_ply(path, points, colors=None, *, binary: bool = True) -> Path:
 
     Raises
     ------
-    OSError
-        If Open3D cannot write the file.
+    TudorVisionError
+        If the file cannot be written (the previous file stays intact).
     """
     o3d = _open3d()
     path = Path(path)
     if not path.parent.is_dir():
         raise FileNotFoundError(2, "folder does not exist", str(path.parent))
     pcd = cloud_from_points(points, colors)
-    if not o3d.io.write_point_cloud(str(path), pcd, write_ascii=not binary):
-        raise OSError(f"{path}: Open3D could not write the point cloud")
+    with atomic_path(path, mkdir=False) as tmp:   # a failed write leaves the previous file intact
+        if not o3d.io.write_point_cloud(str(tmp), pcd, write_ascii=not binary):
+            raise TudorVisionError(f"{path}: Open3D could not write the point cloud")
     return path
 
 

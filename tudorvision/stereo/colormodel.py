@@ -32,6 +32,7 @@ import cv2
 import numpy as np
 
 from tudorvision._checks import TudorVisionError
+from tudorvision.io.atomic import atomic_write
 from tudorvision.stereo._colortables import CHANNEL_LEVELS, CHANNELS, HUE_INDEX, HUE_LEVELS, ColorModel
 from tudorvision.stereo._frame import check_frame
 from tudorvision.stereo.segment import detect_sphere
@@ -424,7 +425,7 @@ def save_color_models(model_set: ColorModelSet, path) -> None:
                     for cam, spheres in model_set.models.items()},
     }
     path = os.fspath(path)
-    with open(path, "w", encoding="utf-8") as fh:
+    with atomic_write(path, "w") as fh:
         if path.lower().endswith(".json"):
             json.dump(doc, fh, indent=1)
         else:

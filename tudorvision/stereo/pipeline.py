@@ -42,6 +42,7 @@ from typing import Callable, Iterator, Mapping
 import numpy as np
 
 from .._checks import TudorVisionError, check_transform
+from ..io.atomic import write_text_atomic
 from ._frame import FramePlanes
 from .colormodel import ColorModel, ColorModelSet
 from .segment import SegmentParams, SphereDetection, detect_spheres, regions_in_window
@@ -835,7 +836,7 @@ def write_mono_track_csv(path, result: MonoTrackResult, *, comment: str | None =
         us = repr(float(u)) if ok else "nan"
         vs = repr(float(v)) if ok else "nan"
         lines.append(f"{int(k)},{float(t)!r},{us},{vs},{int(bool(ok))}")
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_text_atomic(path, "\n".join(lines) + "\n")
     return path
 
 

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import TudorVisionError, check_array, check_points
+from ..io.atomic import write_text_atomic
 
 __all__ = ["Trajectory", "finite_differences", "trajectory_from_points", "write_trajectory_csv",
            "read_trajectory_csv", "plot_trajectory", "FRAME_DESCRIPTIONS"]
@@ -212,7 +213,7 @@ def write_trajectory_csv(path, traj: Trajectory, *, comment: str | None = None) 
     for row, ok in zip(data, traj.valid):
         vals = ["nan" if not np.isfinite(x) else repr(float(x)) for x in row]
         lines.append(",".join(vals + ["1" if ok else "0"]))
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    write_text_atomic(path, "\n".join(lines) + "\n")   # a full disk leaves the previous file intact
     return path
 
 
