@@ -115,7 +115,8 @@ def test_track_stereo_corrupt_frame_partial(lab, static_models, tmp_path, capsys
     out = tmp_path / "partial.csv"
     rc, stdout, err = _run(capsys, "track", "stereo", d, "--colormodel", static_models, "--out", out)
     assert rc == 0, err
-    assert "1 corrupt frame(s) skipped" in stdout and bad.name in stdout
+    assert "1 corrupt frame(s) skipped" in stdout and bad.name in err   # which frame: on stderr (issue 14)
+    assert f"skipped frame 2: " in err and bad.name in out.read_text()   # ... and flagged in the CSV
     traj = read_trajectory_csv(out)
     assert len(traj.t) == 3 and traj.valid.all()
 

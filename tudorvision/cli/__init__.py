@@ -4,7 +4,8 @@ Each module of this package that offers commands has a function
 ``register(subparsers)`` that adds its subcommands; every subcommand sets
 ``func`` to a callable taking the parsed ``argparse.Namespace`` and returning
 an exit code. User mistakes raise :class:`TudorVisionError` (or ``ValueError``
-/ ``OSError``) and are printed as one line with exit code 2.
+/ ``OSError``: a missing file, a full disk, a read-only folder) and are printed
+as one line naming the file with exit code 2; Ctrl-C exits with 130.
 """
 from __future__ import annotations
 
@@ -70,11 +71,10 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("tudorvision: interrupted", file=sys.stderr)
         return 130
-    except (TudorVisionError, ValueError, FileNotFoundError, IsADirectoryError,
-            NotADirectoryError, PermissionError) as exc:
-        msg = str(exc)
-        if isinstance(exc, OSError) and exc.filename and exc.strerror:
-            msg = f"{exc.filename}: {exc.strerror.lower()}"
+    except (TudorVisionError, ValueError, OSError) as exc:
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if isinstance(exc, OSError) and exc.strerror:
+            msg = f"{exc.filename or 'file'}: {exc.strerror.lower()}"
         print(f"tudorvision {args.command}: error: {msg}", file=sys.stderr)
         return 2
 

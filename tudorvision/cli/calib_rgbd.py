@@ -239,7 +239,8 @@ def _cmd_base(args) -> int:
         written = _save(args.out, cal0, cam, transforms={"T_base_cam": T_base_cam}, circle_rmse_m=rep["circle_rmse_m"])
         print(f"wrote {written}")
     if args.report:
-        Path(args.report).write_text(json.dumps(rep, indent=2))
+        from ..io.atomic import write_text_atomic
+        write_text_atomic(args.report, json.dumps(rep, indent=2))
         print(f"wrote {args.report}")
     return 0
 

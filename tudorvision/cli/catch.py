@@ -92,7 +92,8 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
 
 
 def _write(path, cols, rows):
-    with Path(path).open("w", newline="") as fh:
+    from ..io.atomic import atomic_write
+    with atomic_write(path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(cols)
         for r in rows:

@@ -13,6 +13,7 @@ import numpy as np
 from .._checks import TudorVisionError
 from ..sensors import KINECT_DEPTH_NOISE, DepthNoiseModel
 from ..rgbd.frames import Intrinsics
+from .seq import add_sequence_options, partial_flags, problem_lines, sequence_options
 
 __all__ = ["register", "intrinsics_for", "noise_model_from_calibration", "BALL_CSV_COLUMNS"]
 
@@ -80,9 +81,9 @@ def noise_model_from_calibration(cal) -> DepthNoiseModel:
     return dm.noise_model()
 
 
-def _open(path):
+def _open(path, args=None, *, strict: bool = True):
     from ..io import open_sequence
-    return open_sequence(path)
+    return open_sequence(path, strict=strict, **sequence_options(args))
 
 
 def _cmd_cloud(args) -> int:
@@ -90,7 +91,7 @@ def _cmd_cloud(args) -> int:
 
     from ..rgbd.cloud import cloud_from_rgbd, points_colors_from_cloud, write_ply
 
-    seq = _open(args.seq)
+    seq = _open(args.seq, args)
     if seq.kind != "rgbd":
         raise TudorVisionError(f"{args.seq}: expected an RGB-D sequence, got kind {seq.kind!r}")
     if not 0 <= args.frame < len(seq):
@@ -109,35 +110,56 @@ def _cmd_cloud(args) -> int:
     return 0
 
 
-def _cmd_detect_ball(args) -> int:
+def _ball_rows(seq, args, rows: list) -> None:
+    """Detect the ball frame by frame, appending one row per readable frame to ``rows``."""
     from .._progress import progress
+    from ..io.sequence import Problem
     from ..rgbd.ball import BallDetector, BallDetectorOptions, ColorBallDetector, ColorBallOptions
 
-    seq = _open(args.seq)
-    rows = []
     if seq.kind == "rgbd":
         K, cal = intrinsics_for(seq, args.calib)
         opts = BallDetectorOptions(ball_radius_m=args.ball_diameter / 2.0, max_range_m=args.max_range,
                                    depth_model=noise_model_from_calibration(cal))
         det = BallDetector(K, opts, n_background=args.background)
-        for f in progress(seq, total=len(seq), desc="detect ball"):
-            d = det.update(f.depth_m)
-            if d is None:
-                rows.append([f.index, f.t, *([np.nan] * 5), 0])
-            else:
-                rows.append([f.index, f.t, *d.uv, *d.p_cam, 1])
     elif seq.kind == "mono":
         det = ColorBallDetector(ColorBallOptions(n_background=args.background))
-        for f in progress(seq, total=len(seq), desc="detect ball"):
-            d = det.update(f.image)
-            if d is None:
-                rows.append([f.index, f.t, *([np.nan] * 5), 0])
-            else:
-                rows.append([f.index, f.t, *d.uv, np.nan, np.nan, np.nan, 1])
     else:
         raise TudorVisionError(f"{args.seq}: ball detection needs an RGB-D sequence or a video, got kind {seq.kind!r}")
+    for f in progress(seq, total=len(seq), desc="detect ball"):   # defective frames are skipped and reported
+        if seq.kind == "rgbd":
+            if f.depth_m.shape != K.shape:
+                seq.record_problem(Problem(f"frame {f.index}", f"depth is {f.depth_m.shape[1]}x{f.depth_m.shape[0]}, "
+                                                            f"the intrinsics {K.width}x{K.height}", f.index))
+                continue
+            d = det.update(f.depth_m)
+            p = (np.nan,) * 3 if d is None else tuple(d.p_cam)
+        else:
+            d = det.update(f.image)
+            p = (np.nan,) * 3
+        rows.append([f.index, f.t, *([np.nan] * 2 if d is None else d.uv), *p, 0 if d is None else 1])
+
+
+def _cmd_detect_ball(args) -> int:
+    from ..io.atomic import atomic_write
+
+    seq = _open(args.seq, args, strict=False)
+    rows: list = []
+    interrupted = None
+    try:
+        _ball_rows(seq, args, rows)
+    except KeyboardInterrupt:
+        interrupted = "interrupted (Ctrl-C)"
+    except (TudorVisionError, ValueError, OSError, ArithmeticError) as exc:
+        if not rows:
+            raise
+        interrupted = f"stopped by an error ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})"
+    finally:
+        seq.close()
+    flags = partial_flags(len(rows), interrupted, problem_lines(seq))
     out = Path(args.out)
-    with out.open("w", newline="") as fh:
+    with atomic_write(out, "w", newline="") as fh:
+        for line in flags:
+            fh.write(f"# {line}\n")
         w = csv.writer(fh)
         w.writerow(BALL_CSV_COLUMNS)
         for r in rows:
@@ -145,7 +167,10 @@ def _cmd_detect_ball(args) -> int:
                        + [int(r[7])])
     n = sum(r[7] for r in rows)
     mode = "3D (RGB-D)" if seq.kind == "rgbd" else "pixels only (colour video)"
-    print(f"ball found in {n} of {len(rows)} frames, {mode}; wrote {out}")
+    print(f"ball found in {n} of {len(rows)} frames, {mode}; wrote {out}"
+          + (" (partial: see the # lines)" if flags else ""))
+    if interrupted:
+        return 130 if "Ctrl-C" in interrupted else 2
     return 0
 
 
@@ -165,6 +190,7 @@ def register(subparsers) -> None:
     c.add_argument("--depth-trunc", type=float, default=6.0, help="drop points farther than this, metres "
                                                                   "(default 6)")
     c.add_argument("--no-color", action="store_true", help="write points without colours")
+    add_sequence_options(c)
     c.set_defaults(func=_cmd_cloud)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
 
@@ -182,5 +208,6 @@ def register(subparsers) -> None:
     b.add_argument("--max-range", type=float, default=4.5, help="search range from the sensor, metres "
                                                                 "(default 4.5)")
     b.add_argument("--ball-diameter", type=float, default=0.09, help="ball diameter, metres (default 0.09)")
+    add_sequence_options(b)
     b.set_defaults(func=_cmd_detect_ball)
     d.set_defaults(func=lambda args: (d.print_help(), 2)[1])

@@ -1,13 +1,115 @@
 """``tudorvision seq info|check``: inspect and validate recorded sequences."""
 from __future__ import annotations
 
+import argparse
 import sys
 
 from .._checks import TudorVisionError
 from .._progress import progress
+from ..io import DEFAULT_MAX_PIXELS
 from ..io.sequence import Sequence, open_sequence
 
-__all__ = ["register", "scan_sequence"]
+__all__ = ["register", "scan_sequence", "add_sequence_options", "sequence_options", "problem_lines",
+           "partial_flags"]
+
+
+def _pixels(text: str) -> int:
+    try:
+        value = int(float(text))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a pixel count like 100000000, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative pixel count, got {text!r}")
+    return value
+
+
+def add_sequence_options(parser) -> None:
+    """Add ``--allow-outside`` and ``--max-pixels`` to a command that reads a sequence.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The subcommand's parser.
+    """
+    parser.add_argument("--allow-outside", action="store_true",
+                        help="follow index lines naming absolute paths or files outside the sequence "
+                             "folder (../x.png); refused by default")
+    parser.add_argument("--max-pixels", type=_pixels, default=DEFAULT_MAX_PIXELS, metavar="N",
+                        help=f"refuse images whose header declares more than N pixels, before decoding "
+                             f"(default {DEFAULT_MAX_PIXELS}; 0 = no limit)")
+
+
+def sequence_options(args) -> dict:
+    """Keyword arguments of :func:`tudorvision.io.open_sequence` from :func:`add_sequence_options`.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed arguments (missing options take their defaults).
+
+    Returns
+    -------
+    dict
+        ``allow_outside`` and ``max_pixels`` (None for no limit).
+    """
+    mp = getattr(args, "max_pixels", DEFAULT_MAX_PIXELS)
+    return {"allow_outside": bool(getattr(args, "allow_outside", False)), "max_pixels": mp or None}
+
+
+def problem_lines(seq) -> list[str]:
+    """One line per defect a lenient sequence skipped: ``skipped frame I: FILE: reason``.
+
+    Parameters
+    ----------
+    seq : Sequence
+        A sequence after reading (its :attr:`~tudorvision.io.Sequence.report`).
+
+    Returns
+    -------
+    list of str
+    """
+    out = []
+    for p in seq.report:
+        what = f"skipped frame {p.frame}" if p.frame is not None else "skipped"
+        out.append(f"{what}: {p}")
+    return out
+
+
+def partial_flags(n_done: int, interrupted: str | None, problems: list[str], *, limit: int = 50) -> list[str]:
+    """Comment lines that flag a partial output; also printed on stderr.
+
+    Parameters
+    ----------
+    n_done : int
+        Frames whose rows were written.
+    interrupted : str or None
+        Why the run stopped early (Ctrl-C, an error), or None.
+    problems : list of str
+        Defects skipped (from :func:`problem_lines`).
+    limit : int
+        Most problem lines kept; the rest are counted.
+
+    Returns
+    -------
+    list of str
+        Without the ``#``; empty for a complete run without defects.
+
+    Examples
+    --------
+    >>> partial_flags(3, "interrupted (Ctrl-C)", [])
+    ['interrupted after 3 frames: interrupted (Ctrl-C)']
+    """
+    lines = []
+    if interrupted:
+        lines.append(f"interrupted after {n_done} frames: {interrupted}")
+    if problems:
+        lines.append(f"partial: {len(problems)} defect(s) skipped")
+        lines += problems[:limit]
+        if len(problems) > limit:
+            lines.append(f"... and {len(problems) - limit} more")
+    for line in lines:
+        print(line, file=sys.stderr)
+    return lines
 
 
 def register(subparsers) -> None:
@@ -28,6 +130,7 @@ def register(subparsers) -> None:
                        help="frame rate for folders without timestamps (default 30)")
         q.add_argument("--index-only", action="store_true",
                        help="check the index files only, do not decode images")
+        add_sequence_options(q)
         q.set_defaults(func=func)
 
     def _help(args) -> int:
@@ -64,7 +167,8 @@ def scan_sequence(seq: Sequence, *, decode: bool = True, show_progress: bool | N
 
 
 def _open(args, strict):
-    return open_sequence(args.sequence, strict=strict, depth_scale=args.depth_scale, rate_hz=args.rate_hz)
+    return open_sequence(args.sequence, strict=strict, depth_scale=args.depth_scale, rate_hz=args.rate_hz,
+                         **sequence_options(args))
 
 
 def _info(args) -> int:

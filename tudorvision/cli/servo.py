@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import TudorVisionError
+from ..io.atomic import atomic_write, write_text_atomic
 
 __all__ = ["register", "run_sim", "run_sequence", "plot_errors"]
 
@@ -132,7 +133,7 @@ def run_sim(args) -> int:
                "final_error_m": result.final_error_m, "final_offset_world_m": result.final_offset_world.tolist(),
                "payload_g": g, "start_pose": args.start_pose, "law": args.law, "seed": args.seed,
                "theta_start_rad": np.asarray(theta0).tolist()}
-    (out / "result.json").write_text(json.dumps(summary, indent=2))
+    write_text_atomic(out / "result.json", json.dumps(summary, indent=2))
     print(f"servo: {'converged' if result.converged else 'did not converge'}"
           + (f" in {result.settling_time_s:.2f} s" if result.converged else "")
           + f", final camera position error {result.final_error_m * 1e3:.1f} mm; wrote {out}")
@@ -140,7 +141,7 @@ def run_sim(args) -> int:
 
 
 def _write_csv(path: Path, h: dict) -> None:
-    with open(path, "w", newline="") as fh:
+    with atomic_write(path, "w", newline="") as fh:
         wr = csv.writer(fh)
         wr.writerow(_CSV_COLUMNS)
         for i in range(len(h["t"])):
@@ -257,7 +258,7 @@ def _tracking(args) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     r = track_moving_square(seed=args.seed, cfg=_lab_config(args), law=args.law)
-    (out / "tracking.json").write_text(json.dumps(r, indent=2))
+    write_text_atomic(out / "tracking.json", json.dumps(r, indent=2))
     print(f"tracking {r['speed_m_s'] * 1e3:.0f} mm/s: steady error (square in the camera frame vs goal view) "
           f"mean {r['steady_error_mean_m'] * 1e3:.1f} mm, max {r['steady_error_max_m'] * 1e3:.1f} mm; camera "
           f"{r['world_offset_end_m'] * 1e3:.0f} mm from the goal pose carried along, tilted {r['tilt_end_deg']:.1f} deg")

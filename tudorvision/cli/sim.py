@@ -27,7 +27,8 @@ def _cmd_record(args) -> int:
     if args.frames is not None and args.frames < 1:
         raise TudorVisionError(f"--frames: expected a positive count, got {args.frames}")
     opts = RecordOptions(seed=args.seed, small=args.small, frames=args.frames, rolling_shutter=args.rolling_shutter,
-                         payload_plates=args.plates, jitter_rig=args.jitter_rig, image_ext=args.image_ext)
+                         payload_plates=args.plates, jitter_rig=args.jitter_rig, image_ext=args.image_ext,
+                         force=args.force)
     out = record(args.kind, args.out, opts)
     print(f"wrote {args.kind} recording to {out}")
     return 0
@@ -44,12 +45,13 @@ def _cmd_ptp(args) -> int:
     log = simulate_ptp(start, goal, args.duration, payload=Payload.from_parts(p, plates=args.plates,
                                                                              camera=args.camera))
     ee = log.ee_position()
+    from ..io.atomic import atomic_write
     out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     cols = np.column_stack([log.t, log.theta, log.strain * 1e6, ee])
     header = ("t_s,theta1_rad,theta2_rad,theta3_rad,strain2a_um_m,strain2b_um_m,strain3a_um_m,strain3b_um_m,"
               "ee_x_base_m,ee_y_base_m,ee_z_base_m")
-    np.savetxt(out, cols[::max(1, args.decimate)], delimiter=",", header=header, comments="# ", fmt="%.9g")
+    with atomic_write(out, "w") as fh:
+        np.savetxt(fh, cols[::max(1, args.decimate)], delimiter=",", header=header, comments="# ", fmt="%.9g")
     print(f"wrote {len(cols[::max(1, args.decimate)])} samples to {out}")
     if args.plot:
         from matplotlib.figure import Figure
@@ -75,7 +77,11 @@ def register(sub) -> None:
                                  "stereo-static, stereo-sweep, stereo-checkerboard, rgbd-plane, rgbd-disc, "
                                  "rgbd-throws, servo-views.")
     r.add_argument("kind", metavar="KIND")
-    r.add_argument("--out", required=True, help="output directory")
+    r.add_argument("--out", required=True, help="output directory (must be empty or absent unless --force)")
+    r.add_argument("--force", action="store_true",
+                   help="write into a non-empty folder, deleting only the files a recording writes (index "
+                        "files, sequence.yaml, calibration.yaml, numbered frames, listed ground truth); "
+                        "other files are kept")
     r.add_argument("--seed", type=int, default=0, help="scene and noise seed (default 0)")
     r.add_argument("--small", action="store_true", help="fewer frames (the sample_data sizes)")
     r.add_argument("--frames", type=int, default=None, help="override the number of frames/poses/throws")

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import TudorVisionError
+from .seq import add_sequence_options, partial_flags, problem_lines, sequence_options
 
 __all__ = ["register"]
 
@@ -67,6 +68,7 @@ def register(subparsers) -> None:
                    help="known sphere distance in metres; frames whose triangulated distance is off by more "
                         "than 3 cm are flagged invalid (default: from the robot parameters; 0 disables)")
     s.add_argument("--strict", action="store_true", help="stop at the first corrupt frame instead of skipping it")
+    add_sequence_options(s)
     add_luma_edge_argument(s)
     s.set_defaults(func=run_track_stereo)
 
@@ -81,6 +83,7 @@ def register(subparsers) -> None:
     m.add_argument("--out", required=True, help="pixel track CSV to write")
     m.add_argument("--full-frame", action="store_true", help="search every full frame (no tracking windows)")
     m.add_argument("--strict", action="store_true", help="stop at the first undecodable frame")
+    add_sequence_options(m)
     add_luma_edge_argument(m)
     m.set_defaults(func=run_track_mono)
 
@@ -112,20 +115,20 @@ def luma_edge_params(choice: str, source):
         on, why = choice == "on", "--luma-edge"
     return TrackerParams(segment=SegmentParams(edge_refine=on)), f"luma edge: {'on' if on else 'off'} ({why})"
 
-def _open(path, *, strict: bool = False):
+def _open(path, *, strict: bool = False, args=None):
     from ..io import open_sequence
 
     p = Path(path)
     if not p.exists():
         raise TudorVisionError(f"{p}: no such file or directory")
-    return open_sequence(p, strict=strict)
+    return open_sequence(p, strict=strict, **sequence_options(args))
 
 
-def _report_problems(seq, limit: int = 5) -> None:
-    for prob in seq.report[:limit]:
-        print(f"skipped: {prob}")
-    if len(seq.report) > limit:
-        print(f"... and {len(seq.report) - limit} more problem(s)")
+def _exit_code(interrupted: str | None) -> int:
+    """130 after Ctrl-C, 2 after an error that stopped the run, else 0."""
+    if not interrupted:
+        return 0
+    return 130 if "Ctrl-C" in interrupted else 2
 
 
 def _load_models(path):
@@ -146,7 +149,7 @@ def run_colormodel(args) -> int:
         raise TudorVisionError("give at least one --pick CAMERA:SPHERE:CU,CV:EU,EV (or --save-frame PNG)")
     if args.pick and not args.out:
         raise TudorVisionError("--out: needed to write the colour models")
-    seq = _open(args.seq, strict=True)
+    seq = _open(args.seq, strict=True, args=args)
     try:
         n = len(seq)
         if not 0 <= args.frame < n:
@@ -166,9 +169,11 @@ def run_colormodel(args) -> int:
                                    "need colour frames")
     if args.save_frame:
         img = np.hstack(list(frames.values())) if len(frames) > 1 else next(iter(frames.values()))
-        Path(args.save_frame).parent.mkdir(parents=True, exist_ok=True)
-        if not cv2.imwrite(str(args.save_frame), img):
-            raise TudorVisionError(f"{args.save_frame}: cannot write the image")
+        from ..io.atomic import write_bytes_atomic
+        ok, buf = cv2.imencode(Path(args.save_frame).suffix or ".png", img)
+        if not ok:
+            raise TudorVisionError(f"{args.save_frame}: cannot encode the image")
+        write_bytes_atomic(args.save_frame, buf.tobytes())
         print(f"wrote {args.save_frame} (frame {args.frame}, cameras {' | '.join(frames)})")
     if not args.pick:
         return 0
@@ -243,7 +248,7 @@ def run_track_stereo(args) -> int:
 
     if not args.speed > 0:
         raise TudorVisionError(f"--speed: must be positive, got {args.speed}")
-    seq = _open(args.seq, strict=args.strict)
+    seq = _open(args.seq, strict=args.strict, args=args)
     if seq.kind != "stereo":
         raise TudorVisionError(f"{args.seq}: expected a stereo sequence, got kind {seq.kind!r}")
     models = _load_models(args.colormodel)
@@ -262,7 +267,7 @@ def run_track_stereo(args) -> int:
     try:
         res = track_stereo(seq, cal, models, T_base_left=T_base_left, options=options, live=args.live,
                            speed=args.speed, show_progress=None if not args.live else False,
-                           on_result=log.log_frame if log is not None else None)
+                           on_result=log.log_frame if log is not None else None, keep_partial=True)
     except BaseException:
         if log is not None:
             log.close()
@@ -280,7 +285,7 @@ def run_track_stereo(args) -> int:
         comment.append(f"{res.stats.skipped} corrupt frame(s) skipped")
     if res.stats.dropped:
         comment.append(f"{res.stats.dropped} frame(s) dropped by live playback")
-    _report_problems(seq)
+    comment = partial_flags(len(traj.t), res.stats.interrupted, problem_lines(seq)) + comment
     out = write_trajectory_csv(args.out, traj, comment="\n".join(comment))
     frame_desc = "robot base frame" if traj.frame == "base" else "left camera optical frame"
     print(f"wrote {out} ({len(traj.t)} rows, {frame_desc})")
@@ -297,28 +302,29 @@ def run_track_stereo(args) -> int:
     if np.isfinite(speed).any():
         print(f"peak speed {np.nanmax(speed):.2f} m/s, peak acceleration {np.nanmax(traj.accel_norm):.1f} m/s^2")
     print(res.stats.summary())
-    return 0
+    return _exit_code(res.stats.interrupted)
 
 
 # ----------------------------------------------------------------------------- track mono
 def run_track_mono(args) -> int:
     from ..stereo.pipeline import track_mono, write_mono_track_csv
 
-    seq = _open(args.video, strict=args.strict)
+    seq = _open(args.video, strict=args.strict, args=args)
     models = _load_models(args.colormodel)
     model = models.get(args.camera, args.sphere)
     try:
         tracker, edge_note = luma_edge_params(args.luma_edge, args.video)
         print(edge_note)
-        res = track_mono(seq, model, tracking=not args.full_frame, params=tracker, show_progress=None)
+        res = track_mono(seq, model, tracking=not args.full_frame, params=tracker, show_progress=None,
+                         keep_partial=True)
     finally:
         seq.close()
-    _report_problems(seq)
-    out = write_mono_track_csv(args.out, res, comment=f"video: {args.video}\nsphere: {args.sphere} "
-                                                      f"({args.camera}) from {args.colormodel}")
+    flags = partial_flags(len(res.t), res.stats.interrupted, problem_lines(seq))
+    out = write_mono_track_csv(args.out, res, comment="\n".join(
+        flags + [f"video: {args.video}", f"sphere: {args.sphere} ({args.camera}) from {args.colormodel}"]))
     print(f"wrote {out} ({len(res.t)} rows)")
     if len(res.t) and not np.any(res.valid):
         print(f"warning: sphere {args.sphere!r} found in no frame: check the colour model "
               "(tudorvision colormodel --pick mono:...)")
     print(res.stats.summary())
-    return 0
+    return _exit_code(res.stats.interrupted)

@@ -5,8 +5,11 @@ image folders), lazy :class:`Sequence` with :class:`StereoFrame`,
 :class:`RGBDFrame`, :class:`MonoFrame`; :meth:`Sequence.play` for live-rate
 playback. Writing: :class:`SequenceWriter`. Calibration: :class:`Calibration`
 with :func:`load_calibration` / :func:`save_calibration`, ROS camera_info and
-OpenCV stereo files in :mod:`tudorvision.io.formats`.
+OpenCV stereo files in :mod:`tudorvision.io.formats`. Output files are written
+atomically with :mod:`tudorvision.io.atomic`.
 """
+from ._imageheader import DEFAULT_MAX_PIXELS
+from .atomic import atomic_path, atomic_write, write_bytes_atomic, write_text_atomic
 from .calibration import (Calibration, CameraModel, DepthModel, StereoExtrinsics, load_calibration,
                           save_calibration)
 from .formats import (CameraInfo, calibration_from_ros, load_opencv_stereo, load_ros_camera_info,
@@ -22,4 +25,5 @@ __all__ = [
     "Calibration", "CameraModel", "StereoExtrinsics", "DepthModel", "load_calibration",
     "save_calibration", "CameraInfo", "load_ros_camera_info", "save_ros_camera_info",
     "calibration_from_ros", "load_opencv_stereo", "save_opencv_stereo",
+    "DEFAULT_MAX_PIXELS", "atomic_write", "atomic_path", "write_text_atomic", "write_bytes_atomic",
 ]

@@ -329,6 +329,7 @@ def load_or_collect(cache_dir, options: CollectionOptions = CollectionOptions(),
                 return {k: z[k] for k in z.files}
     d = collect_settled_poses(options, params, show_progress=show_progress)
     path = Path(cache_dir) / name
-    path.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(path, **d)
+    from ..io.atomic import atomic_path
+    with atomic_path(path) as tmp:   # a cache file is never half-written
+        np.savez_compressed(tmp, **d)
     return d

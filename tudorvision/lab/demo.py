@@ -78,7 +78,10 @@ def _contact_sheet(stereo_dir: Path, rgbd_dirs, path):
     sheet = np.vstack([cv2.resize(top, (1280, 480))] + [np.hstack(tiles[i:i + 2]) if i + 1 < len(tiles)
                                                           else np.hstack([tiles[i], np.zeros_like(tiles[i])])
                                                           for i in range(0, len(tiles), 2)])
-    cv2.imwrite(str(path), sheet)
+    from ..io.atomic import write_bytes_atomic
+    ok, buf = cv2.imencode(Path(path).suffix or ".png", sheet)
+    if ok:
+        write_bytes_atomic(path, buf.tobytes())
 
 
 def _track_step(stereo_dir: Path, out: Path, log) -> dict:
@@ -139,9 +142,9 @@ def run_demo(out, *, seed: int = 0, log=print) -> dict:
                        "residual_oscillation_last_1s_um_m": round(float(np.abs(settle).max() * 1e6), 1)}
     log(f"step motion: peak strain {peak:.0f} µm/m; undamped oscillation still "
         f"{summary['step']['residual_oscillation_last_1s_um_m']:.0f} µm/m after 4 s -> {out / 'step_motion.png'}")
-    opts = RecordOptions(seed=seed, small=True, frames=60)
+    opts = RecordOptions(seed=seed, small=True, frames=60, force=True)   # the demo's own folder: re-runs replace it
     stereo_dir = record("stereo-step", out / "recordings" / "stereo-step", opts)
-    rgbd = [record(k, out / "recordings" / k, RecordOptions(seed=seed, small=True, frames=n))
+    rgbd = [record(k, out / "recordings" / k, RecordOptions(seed=seed, small=True, frames=n, force=True))
             for k, n in (("rgbd-disc", 4), ("servo-views", 2))]
     log(f"rendered recordings with ground truth -> {out / 'recordings'}")
     summary["stereo_tracking"] = _track_step(stereo_dir, out, log)
@@ -152,6 +155,7 @@ def run_demo(out, *, seed: int = 0, log=print) -> dict:
     _contact_sheet(stereo_dir, rgbd, out / "views.png")
     log(f"views -> {out / 'views.png'}")
     summary["wall_time_s"] = round(time.monotonic() - t0, 1)
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    from ..io.atomic import write_text_atomic
+    write_text_atomic(out / "summary.json", json.dumps(summary, indent=2))
     log(f"summary -> {out / 'summary.json'} ({summary['wall_time_s']} s)")
     return summary

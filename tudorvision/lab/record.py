@@ -75,6 +75,10 @@ class RecordOptions:
         Colour image format.
     jitter_rig : bool
         Randomise the stereo rig pose a little per seed.
+    force : bool
+        Write into a non-empty output folder, deleting only the files a
+        recording writes (:meth:`tudorvision.io.SequenceWriter.own_outputs`);
+        without it a non-empty folder is refused.
     """
 
     seed: int = 0
@@ -89,6 +93,7 @@ class RecordOptions:
     jpeg_quality: int = 92
     jitter_rig: bool = False
     show_progress: bool | None = None
+    force: bool = False
 
 
 # --------------------------------------------------------------------------- helpers
@@ -184,7 +189,8 @@ def _writer(out: Path, kind: str, rate_hz: float, opts: RecordOptions, *, calibr
     from ..io import SequenceWriter
     return SequenceWriter(out, kind=kind, rate_hz=rate_hz, depth_scale=1000.0, calibration=calibration,
                           image_ext=opts.image_ext, jpeg_quality=opts.jpeg_quality, description=description,
-                          meta={"generator": "tudorvision sim record", "seed": int(opts.seed)}, overwrite=True)
+                          meta={"generator": "tudorvision sim record", "seed": int(opts.seed)},
+                          overwrite=opts.force)
 
 
 def _rig_cameras(setup):
@@ -593,8 +599,16 @@ def record(kind: str, out, opts: RecordOptions = RecordOptions()) -> Path:
     Raises
     ------
     TudorVisionError
-        For an unknown kind.
+        For an unknown kind, or a non-empty ``out`` without ``opts.force``.
+        An interrupted recording (Ctrl-C, a full disk) keeps its frames and
+        is marked incomplete (see :mod:`tudorvision.io.writer`).
     """
     if kind not in KINDS:
         raise TudorVisionError(f"KIND: unknown recording kind {kind!r}; choose from {', '.join(KINDS)}")
-    return Path(KINDS[kind](Path(out), opts))
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise TudorVisionError(f"{out}: exists and is not a directory")
+    if out.is_dir() and any(out.iterdir()) and not opts.force:
+        raise TudorVisionError(f"{out}: folder is not empty; pass --force to replace a previous recording "
+                               "there (only the files a recording writes are deleted)")
+    return Path(KINDS[kind](out, opts))

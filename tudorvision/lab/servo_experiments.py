@@ -251,7 +251,8 @@ def repeatability(out, *, repetitions: int = 20, seed: int = 0, laws=("hybrid", 
                "goal_m": {"mean": 0.002, "p90": 0.004, "radius": 0.007, "convergence_rate": 1.0},
                "error_definition": "distance of the true camera position at the end of a run from the true "
                                    "camera position of the goal image (camera payload only)"}
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    from ..io.atomic import write_text_atomic
+    write_text_atomic(out / "summary.json", json.dumps(summary, indent=2))
     return summary
 
 

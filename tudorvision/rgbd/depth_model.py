@@ -280,8 +280,9 @@ def write_depth_table_csv(path, table) -> Path:
     Path
         ``path``.
     """
+    from ..io.atomic import atomic_write
     path = Path(path)
-    with path.open("w", newline="") as fh:
+    with atomic_write(path, "w", newline="", mkdir=False) as fh:
         w = csv.writer(fh)
         w.writerow(TABLE_COLUMNS)
         for r in table:

@@ -537,6 +537,9 @@ class TrackStats:
         Wall time of the run, seconds.
     latency_sum_s, max_latency_s : float
         Live playback latencies (frame due -> result).
+    interrupted : str or None
+        Why the run stopped early (``keep_partial=True``: Ctrl-C or an
+        error), None when it ran to the end.
     """
 
     frames_total: int = 0
@@ -547,6 +550,7 @@ class TrackStats:
     wall_s: float = 0.0
     latency_sum_s: float = 0.0
     max_latency_s: float = float("nan")
+    interrupted: str | None = None
     _n_latency: int = 0
 
     def record(self, res) -> None:
@@ -632,7 +636,7 @@ def track_stereo(sequence, calibration, color_models: ColorModelSet, *, T_base_l
                  options: PipelineOptions | None = None, live: bool = False, speed: float = 1.0,
                  show_progress: bool | None = False, keep_results: bool = False,
                  on_result: Callable[[StereoFrameResult, object], None] | None = None,
-                 clock=None, sleep=None) -> StereoTrackResult:
+                 clock=None, sleep=None, keep_partial: bool = False) -> StereoTrackResult:
     """Track the end effector through a stereo sequence.
 
     Parameters
@@ -660,6 +664,10 @@ def track_stereo(sequence, calibration, color_models: ColorModelSet, *, T_base_l
         the StereoFrame; e.g. for a rerun recording).
     clock, sleep : callable, optional
         Fakes for live playback (tests).
+    keep_partial : bool
+        On Ctrl-C (``KeyboardInterrupt``) or an error while reading or
+        tracking frames, stop and return the frames done so far, with the
+        reason in ``stats.interrupted``, instead of raising.
 
     Returns
     -------
@@ -680,16 +688,24 @@ def track_stereo(sequence, calibration, color_models: ColorModelSet, *, T_base_l
     uvr = {s: [] for s in pipe.spheres}
     t0 = time.perf_counter()
     it = _iter_pairs(sequence, pipe, live=live, speed=speed, stats=stats, clock=clock, sleep=sleep)
-    for res, frame in progress(it, total=len(sequence), desc="tracking", enabled=show_progress):
-        t.append(res.t)
-        idx.append(res.index)
-        for s in pipe.spheres:
-            uvl[s].append(res.uv("left", s))
-            uvr[s].append(res.uv("right", s))
-        if keep_results:
-            results.append(res)
-        if on_result is not None:
-            on_result(res, frame)
+    try:
+        for res, frame in progress(it, total=len(sequence), desc="tracking", enabled=show_progress):
+            for s in pipe.spheres:
+                uvl[s].append(res.uv("left", s))
+                uvr[s].append(res.uv("right", s))
+            t.append(res.t)
+            idx.append(res.index)
+            if keep_results:
+                results.append(res)
+            if on_result is not None:
+                on_result(res, frame)
+    except (KeyboardInterrupt, Exception) as exc:
+        if not keep_partial:
+            raise
+        stats.interrupted = _stop_reason(exc)
+        n = len(t)   # a frame interrupted half-way is left out
+        uvl = {s: v[:n] for s, v in uvl.items()}
+        uvr = {s: v[:n] for s, v in uvr.items()}
     stats.wall_s = time.perf_counter() - t0
     t = np.array(t, dtype=np.float64)
     uvl = {s: np.array(v, dtype=np.float64).reshape(-1, 2) for s, v in uvl.items()}
@@ -729,8 +745,15 @@ class MonoTrackResult:
     stats: TrackStats
 
 
+def _stop_reason(exc: BaseException) -> str:
+    if isinstance(exc, KeyboardInterrupt):
+        return "interrupted (Ctrl-C)"
+    first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+    return f"stopped by an error ({first})"
+
+
 def track_mono(sequence, model: ColorModel, *, tracking: bool = True, params: TrackerParams | None = None,
-               show_progress: bool | None = False) -> MonoTrackResult:
+               show_progress: bool | None = False, keep_partial: bool = False) -> MonoTrackResult:
     """Track one sphere through a single-camera sequence (video or image folder).
 
     Parameters
@@ -745,6 +768,9 @@ def track_mono(sequence, model: ColorModel, *, tracking: bool = True, params: Tr
     params : TrackerParams, optional
     show_progress : bool or None
         Progress bar on stderr.
+    keep_partial : bool
+        On Ctrl-C or an error while reading or tracking frames, stop and
+        return the frames done so far (reason in ``stats.interrupted``).
 
     Returns
     -------
@@ -776,27 +802,38 @@ def track_mono(sequence, model: ColorModel, *, tracking: bool = True, params: Tr
                 continue
             yield f
 
-    for f in progress(frames(), total=len(sequence), desc="tracking", enabled=show_progress):
-        img = np.asarray(f.image)
-        if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
-            raise TudorVisionError(f"frame {f.index}: image is {img.dtype} {img.shape}; colour tracking needs "
-                                   "8-bit BGR images")
-        w, h = model.image_size
-        if (w, h) != (0, 0) and (img.shape[1], img.shape[0]) != (w, h):
-            raise TudorVisionError(f"frame {f.index}: image is {img.shape[1]}x{img.shape[0]}, but the colour "
-                                   f"model was picked on a {w}x{h} image")
-        d = trk.update(img) if tracking else _detect_one(img, model, params.segment)
-        idx.append(int(f.index))
-        ts.append(float(f.t))
-        uv.append(d.uv if d.valid else _NAN2)
-        ok.append(bool(d.valid))
-        dets.append(d)
-        stats.processed += 1
-        stats.valid += int(d.valid)
+    try:
+        for f in progress(frames(), total=len(sequence), desc="tracking", enabled=show_progress):
+            _track_mono_frame(f, model, trk, tracking, params, stats, (idx, ts, uv, ok, dets))
+    except (KeyboardInterrupt, Exception) as exc:
+        if not keep_partial:
+            raise
+        stats.interrupted = _stop_reason(exc)
     stats.wall_s = time.perf_counter() - t0
     return MonoTrackResult(frame=np.array(idx, dtype=int), t=np.array(ts, dtype=np.float64),
                            uv=np.array(uv, dtype=np.float64).reshape(-1, 2), valid=np.array(ok, dtype=bool),
                            detections=dets, stats=stats)
+
+
+def _track_mono_frame(f, model, trk, tracking, params, stats, out) -> None:
+    """Track one mono frame and append its row to the ``out`` lists (all or nothing)."""
+    idx, ts, uv, ok, dets = out
+    img = np.asarray(f.image)
+    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
+        raise TudorVisionError(f"frame {f.index}: image is {img.dtype} {img.shape}; colour tracking needs "
+                               "8-bit BGR images")
+    w, h = model.image_size
+    if (w, h) != (0, 0) and (img.shape[1], img.shape[0]) != (w, h):
+        raise TudorVisionError(f"frame {f.index}: image is {img.shape[1]}x{img.shape[0]}, but the colour "
+                               f"model was picked on a {w}x{h} image")
+    d = trk.update(img) if tracking else _detect_one(img, model, params.segment)
+    idx.append(int(f.index))
+    ts.append(float(f.t))
+    uv.append(d.uv if d.valid else _NAN2)
+    ok.append(bool(d.valid))
+    dets.append(d)
+    stats.processed += 1
+    stats.valid += int(d.valid)
 
 
 def _detect_one(img, model: ColorModel, params: SegmentParams) -> SphereDetection:
