@@ -6,6 +6,7 @@ import zlib
 import numpy as np
 import pytest
 
+from tudorvision._checks import TudorVisionError
 from tudorvision.joint import protocol as P
 from tudorvision.joint.protocol import (Ack, CollisionStrategy, Counters, Damping,
                                         JointSetpoint, JointVelocityCommand, Mode, ModeSwitch,
@@ -269,19 +270,19 @@ def test_key_file_is_0600_refuses_overwrite_and_loose_permissions(tmp_path):
     key = P.write_key_file(path)
     assert os.stat(path).st_mode & 0o777 == 0o600 and len(key) == P.KEY_SIZE
     assert P.read_key_file(path) == key
-    with pytest.raises(P.TudorVisionError, match="exists"):
+    with pytest.raises(TudorVisionError, match="exists"):
         P.write_key_file(path)
     assert P.write_key_file(path, overwrite=True) != key
     assert os.stat(path).st_mode & 0o777 == 0o600
     os.chmod(path, 0o644)
-    with pytest.raises(P.TudorVisionError, match="chmod 600"):
+    with pytest.raises(TudorVisionError, match="chmod 600"):
         P.read_key_file(path)
     bad = tmp_path / "bad.key"
     bad.write_text("not hex\n")
     os.chmod(bad, 0o600)
-    with pytest.raises(P.TudorVisionError, match="not a key file"):
+    with pytest.raises(TudorVisionError, match="not a key file"):
         P.read_key_file(bad)
-    with pytest.raises(P.TudorVisionError, match="cannot read"):
+    with pytest.raises(TudorVisionError, match="cannot read"):
         P.read_key_file(tmp_path / "missing.key")
 
 
