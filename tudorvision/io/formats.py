@@ -198,9 +198,12 @@ def _cv_mat(fs, path, key, shape, *, optional=False):
         if optional:
             return None
         raise TudorVisionError(f"{path}: missing matrix {key!r}")
-    m = node.mat() if node.isMap() else None
+    # FileNode.mat() aborts the whole process on some malformed nodes (e.g. no 'cols'; found by
+    # benchmarks/fuzz_files.py), so the node's structure is checked here first.
+    m = node.mat() if node.isMap() and cv_matrix_node_ok(node) else None
     if m is None:
-        raise TudorVisionError(f"{path}: {key} is not an OpenCV matrix (!!opencv-matrix)")
+        raise TudorVisionError(f"{path}: {key} is not an OpenCV matrix (!!opencv-matrix with rows, cols, "
+                               "dt and rows * cols data values)")
     m = np.asarray(m, dtype=np.float64)
     if shape == (3,) or shape == (5,):
         m = m.ravel()
@@ -212,6 +215,32 @@ def _cv_mat(fs, path, key, shape, *, optional=False):
     if m.shape != shape:
         raise TudorVisionError(f"{path}: {key}: expected shape {shape}, got {m.shape}")
     return m
+
+
+def cv_matrix_node_ok(node) -> bool:
+    """Whether an OpenCV FileNode is a well-formed ``!!opencv-matrix`` (safe for ``node.mat()``).
+
+    Parameters
+    ----------
+    node : cv2.FileNode
+        A map node.
+
+    Returns
+    -------
+    bool
+        True when ``rows`` and ``cols`` are integers in 1..10000, ``dt`` is a
+        one-channel type code (``d``, ``f``, ``i``, ``u``, ``w``, ``s``,
+        ``c``) and ``data`` is a sequence of ``rows * cols`` numbers.
+    """
+    rows, cols, dt, data = (node.getNode(k) for k in ("rows", "cols", "dt", "data"))
+    if not (rows.isInt() and cols.isInt() and dt.isString() and data.isSeq()):
+        return False
+    r, c = int(rows.real()), int(cols.real())
+    if not (1 <= r <= 10000 and 1 <= c <= 10000) or dt.string() not in ("d", "f", "i", "u", "w", "s", "c"):
+        return False
+    if data.size() != r * c:
+        return False
+    return all(data.at(i).isReal() or data.at(i).isInt() for i in range(data.size()))
 
 
 def _cv_int(fs, key):
