@@ -123,7 +123,7 @@ KNOWN_NOT_YET_DOCUMENTED = {
     "tudorvision.io.sequence.Sequence.load_or_report", "tudorvision.io.sequence.Sequence.play",
     "tudorvision.io.writer.SequenceWriter.add_joints", "tudorvision.io.writer.SequenceWriter.add_mono",
     "tudorvision.io.writer.SequenceWriter.add_rgbd", "tudorvision.io.writer.SequenceWriter.add_stereo",
-    "tudorvision.io.writer.SequenceWriter.close", "tudorvision.io.writer.SequenceWriter.write_groundtruth",
+    "tudorvision.io.writer.SequenceWriter.write_groundtruth",
     "tudorvision.joint.cascade.JointCascade", "tudorvision.joint.cascade.JointCascade.reset",
     "tudorvision.joint.cascade.design_cascade", "tudorvision.joint.collision.CollisionMonitor",
     "tudorvision.joint.collision.CollisionMonitor.set_payload", "tudorvision.joint.collision.CollisionMonitor.step",
@@ -177,9 +177,6 @@ KNOWN_NOT_YET_DOCUMENTED = {
     "tudorvision.sim.shapes.Rectangle.normals", "tudorvision.sim.shapes.Scene.object_ids",
     "tudorvision.sim.shapes.Sphere", "tudorvision.sim.shapes.Sphere.corners",
     "tudorvision.sim.shapes.Sphere.intersect", "tudorvision.sim.shapes.Sphere.normals",
-    "tudorvision.stereo.base_frame.BaseFrameReport.summary",
-    "tudorvision.stereo.calibrate.StereoCalibrationResult.summary",
-    "tudorvision.stereo.calibrate.calibrate_stereo_from_images", "tudorvision.stereo.calibrate.parse_board",
     "tudorvision.stereo.colormodel.ColorModelSet.for_camera", "tudorvision.stereo.colormodel.ColorModelSet.get",
     "tudorvision.stereo.colormodel.ColorModelSet.spheres", "tudorvision.stereo.colormodel.load_color_models",
     "tudorvision.stereo.colormodel.save_color_models", "tudorvision.stereo.pipeline.StereoFrameResult.uv",
@@ -187,10 +184,9 @@ KNOWN_NOT_YET_DOCUMENTED = {
     "tudorvision.stereo.pipeline.TrackStats", "tudorvision.stereo.pipeline.TrackStats.summary",
     "tudorvision.stereo.pipeline.iter_stereo", "tudorvision.stereo.pipeline.read_mono_track_csv",
     "tudorvision.stereo.pipeline.track_mono", "tudorvision.stereo.pipeline.track_stereo",
-    "tudorvision.stereo.pipeline.write_mono_track_csv", "tudorvision.stereo.rerun_log.RerunStereoLog.log_frame",
-    "tudorvision.stereo.rerun_log.RerunStereoLog.log_trajectory", "tudorvision.stereo.segment.detect_spheres",
-    "tudorvision.stereo.tracker2d.SphereTracker", "tudorvision.stereo.trajectory.read_trajectory_csv",
-    "tudorvision.stereo.trajectory.trajectory_from_points", "tudorvision.stereo.trajectory.write_trajectory_csv",
+    "tudorvision.stereo.pipeline.write_mono_track_csv",
+    "tudorvision.stereo.segment.detect_spheres",
+    "tudorvision.stereo.tracker2d.SphereTracker",
 }
 KNOWN_UNDOCUMENTED = KNOWN_IN_FILES_BEING_REWRITTEN | KNOWN_NOT_YET_DOCUMENTED
 

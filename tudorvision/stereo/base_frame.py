@@ -92,7 +92,14 @@ class BaseFrameReport:
     warnings: tuple = ()
 
     def summary(self) -> str:
-        """Human-readable lines (millimetres and degrees)."""
+        """Human-readable lines (millimetres and degrees).
+
+        Returns
+        -------
+        str
+            Multi-line report: sweep points and inliers, circle fit RMSE and
+            radius, the gravity sag removed and the azimuth residual.
+        """
         lines = [f"sweep points: {self.n_points} ({self.n_inliers} inliers)",
                  f"circle RMSE: {self.circle_rmse_m * 1e3:.2f} mm, radius {self.radius_m * 1e3:.1f} mm "
                  f"(rigid reach {self.rigid_reach_m * 1e3:.1f} mm)"]

@@ -47,6 +47,22 @@ _STEREO_CRITERIA = (cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 100, 1e-5)
 def parse_board(text: str) -> tuple[int, int]:
     """``"9x6"`` -> ``(9, 6)`` inner corners (columns, rows).
 
+    Parameters
+    ----------
+    text : str
+        Board size ``"COLSxROWS"`` of inner corners, case-insensitive
+        (``"9x6"`` or ``"9X6"``).
+
+    Returns
+    -------
+    tuple of int
+        ``(columns, rows)`` of inner corners.
+
+    Raises
+    ------
+    ValueError
+        If ``text`` is not two integers joined by ``x``, or either is below 2.
+
     Examples
     --------
     >>> parse_board("9x6")
@@ -260,7 +276,14 @@ class StereoCalibrationResult:
     mode: str
 
     def summary(self) -> str:
-        """A few human-readable lines."""
+        """A few human-readable lines.
+
+        Returns
+        -------
+        str
+            Multi-line report: views used and skipped, RMS reprojection and
+            mean epipolar errors (pixels), and each camera's intrinsics.
+        """
         cal = self.calibration
         st = cal.stereo
         lines = [f"views used: {len(self.views)}, skipped: {len(self.skipped)}",
@@ -388,8 +411,32 @@ def calibrate_stereo_from_images(left_paths, right_paths, board: tuple[int, int]
                                  show_progress: bool | None = None, **kwargs) -> StereoCalibrationResult:
     """Detect the board in image pairs and calibrate (see :func:`calibrate_stereo` for ``kwargs``).
 
+    Parameters
+    ----------
+    left_paths, right_paths : sequence of str or Path
+        Left and right image files, paired by position.
+    board : tuple of int
+        Inner corners ``(columns, rows)``, e.g. from :func:`parse_board`.
+    square_m : float
+        Square edge length in metres.
+    show_progress : bool, optional
+        Draw a progress bar on stderr over the pairs; ``None`` draws it only
+        when stderr is a terminal.
+    **kwargs
+        Passed on to :func:`calibrate_stereo` (``mode``, ``fix_intrinsic``,
+        ``alpha``, ``line_time_s``, ``min_views``).
+
+    Returns
+    -------
+    StereoCalibrationResult
+        The calibration, with the pairs that were skipped (board not found in
+        both images, unreadable or differently sized images).
+
     Raises
     ------
+    ValueError
+        If the path lists differ in length or are empty, or ``square_m`` is
+        not positive.
     TudorVisionError
         If fewer than ``min_views`` pairs show the board in both images.
     """

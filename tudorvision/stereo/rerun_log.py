@@ -87,6 +87,9 @@ class RerunStereoLog:
         Parameters
         ----------
         result : StereoFrameResult
+            One frame's output of the stereo pipeline: the 2D detections per
+            camera (pixels) and the triangulated sphere and end-effector
+            positions (metres), logged at its ``index`` and time ``t``.
         frame : StereoFrame, optional
             The frame's images (``left``, ``right`` BGR).
         """
@@ -119,6 +122,8 @@ class RerunStereoLog:
         Parameters
         ----------
         traj : Trajectory
+            End-effector trajectory (seconds, metres, m/s); samples with
+            ``valid`` False break the line strip.
         index : array_like of int, shape (N,), optional
             Sequence index of each sample (default 0..N-1), for the ``frame`` timeline.
         """

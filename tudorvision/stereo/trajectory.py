@@ -168,6 +168,18 @@ def trajectory_from_points(t, p, *, frame: str = "left", max_dt_s: float | None 
     max_dt_s : float, optional
         See :func:`finite_differences`.
 
+    Returns
+    -------
+    Trajectory
+        Positions with invalid rows set wholly to NaN, and the central
+        difference velocity (m/s) and acceleration (m/s^2), same frame.
+
+    Raises
+    ------
+    ValueError
+        If ``t`` does not increase, ``p`` is not shape (N, 3) like ``t``, or
+        ``frame`` is empty or not a single line without commas.
+
     Examples
     --------
     >>> tr = trajectory_from_points([0.0, 0.02, 0.04], [[0, 0, 1], [0.1, 0, 1], [np.nan] * 3])
@@ -193,14 +205,19 @@ def write_trajectory_csv(path, traj: Trajectory, *, comment: str | None = None) 
     Parameters
     ----------
     path : str or Path
-        Output file; parent directories are created.
+        Output file; parent directories are created. Written atomically, so
+        a failed write leaves a previous file intact.
     traj : Trajectory
+        Trajectory to write; times in seconds, positions in metres in
+        ``traj.frame``, whose name (and description, for ``"left"`` and
+        ``"base"``) goes into the ``# frame:`` comment.
     comment : str, optional
         Extra comment lines (e.g. the command or the calibration file).
 
     Returns
     -------
     Path
+        ``path``.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -222,6 +239,18 @@ def read_trajectory_csv(path) -> Trajectory:
 
     Positions of rows with ``valid = 0`` are NaN. The frame comes from the
     ``# frame:`` comment (first word).
+
+    Parameters
+    ----------
+    path : str or Path
+        Trajectory CSV file.
+
+    Returns
+    -------
+    Trajectory
+        Times in seconds, positions (metres), velocities (m/s) and
+        accelerations (m/s^2) as stored; ``frame`` is ``"unknown"`` when the
+        file has no ``# frame:`` comment.
 
     Raises
     ------
