@@ -447,7 +447,7 @@ class Calibration:
             if key not in known:
                 raise ctx.error((key,), f"unknown key (known: {', '.join(sorted(known))})")
         units = data.get("units") or {}
-        if units.get("length", "m") != "m" or units.get("angle", "rad") != "rad":
+        if not isinstance(units, dict) or units.get("length", "m") != "m" or units.get("angle", "rad") != "rad":
             raise ctx.error(("units",), "only SI units (length: m, angle: rad) are supported")
         cams = {}
         raw_cams = data.get("cameras") or {}

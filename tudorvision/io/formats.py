@@ -189,6 +189,8 @@ def _open_storage(path: Path):
         raise TudorVisionError(f"{path}: malformed OpenCV YAML ({msg.strip().splitlines()[-1]})") from None
     if not fs.isOpened():
         raise TudorVisionError(f"{path}: cannot open as OpenCV FileStorage")
+    if not fs.root().isMap():   # getNode() on a sequence or scalar root raises cv2.error
+        raise TudorVisionError(f"{path}: expected a mapping of OpenCV matrices (M1, D1, ...)")
     return fs
 
 
