@@ -103,11 +103,22 @@ class BallDetectorOptions:
 class BallDetection:
     """One detected ball.
 
-    ``uv`` (2,): silhouette centroid, pixels (u right, v down);
-    ``p_cam`` (3,): ball centre, metres, camera optical frame;
-    ``cov_cam`` (3, 3): its covariance, m^2; ``n_pixels``: valid silhouette
-    pixels; ``area_ratio``: n_pixels / expected area; ``radius_px``: expected
-    image radius at the detected depth.
+    Parameters
+    ----------
+    uv : ndarray, shape (2,)
+        Silhouette centroid, pixels (u right, v down).
+    p_cam : ndarray, shape (3,)
+        Ball centre, metres, camera optical frame (x right, y down, z
+        forward).
+    cov_cam : ndarray, shape (3, 3)
+        Covariance of ``p_cam``, m^2, camera optical frame: depth noise
+        along the viewing ray, centroid noise across it.
+    n_pixels : int
+        Valid silhouette pixels used.
+    area_ratio : float
+        ``n_pixels`` / expected silhouette area ``pi radius_px^2``.
+    radius_px : float
+        Expected image radius of the ball at the detected depth, pixels.
     """
 
     uv: np.ndarray
@@ -152,10 +163,16 @@ class DepthBackground:
     frames : sequence of array_like, each shape (H, W)
         Depth in metres (NaN or 0 invalid) without the ball.
     intrinsics : Intrinsics
+        Pinhole intrinsics of the depth camera (pixels); every frame must
+        have its ``(height, width)``.
     options : BallDetectorOptions
+        Detector options; the range limits, thresholds and depth noise model
+        set the foreground limits precomputed here.
 
     Raises
     ------
+    ValueError
+        A frame whose shape does not match the intrinsics.
     TudorVisionError
         No frames, or no valid depth in any of them.
     """
@@ -257,11 +274,18 @@ def detect_balls(depth_m, background: DepthBackground) -> list[BallDetection]:
     depth_m : array_like, shape (H, W)
         Depth in metres (float32 fastest), NaN or 0 = invalid.
     background : DepthBackground
+        Background model of the same camera; supplies the intrinsics, the
+        options and the per-pixel foreground limits.
 
     Returns
     -------
     list of BallDetection
         Plausible detections, best (area ratio nearest 1) first; empty if none.
+
+    Raises
+    ------
+    ValueError
+        If ``depth_m`` does not have the background's image shape.
     """
     import cv2
 
@@ -358,9 +382,17 @@ class BallDetector:
     Parameters
     ----------
     intrinsics : Intrinsics
+        Pinhole intrinsics of the depth camera (pixels); frames must have its
+        ``(height, width)``.
     options : BallDetectorOptions
+        Detector options (ball radius, range, thresholds, depth noise model).
     n_background : int
         Number of initial frames used for the background (no detections then).
+
+    Raises
+    ------
+    ValueError
+        If ``n_background`` is below 1.
 
     Examples
     --------
@@ -387,7 +419,26 @@ class BallDetector:
         self.background: DepthBackground | None = None
 
     def update(self, depth_m) -> BallDetection | None:
-        """Feed the next frame; returns the best detection (None while learning or if none)."""
+        """Feed the next frame; returns the best detection (None while learning or if none).
+
+        Parameters
+        ----------
+        depth_m : array_like, shape (H, W)
+            Depth in metres, NaN or 0 = invalid; the first ``n_background``
+            frames (without the ball) build the background.
+
+        Returns
+        -------
+        BallDetection or None
+            The best detection (centre in metres, camera optical frame);
+            ``None`` while the background is being learnt or when no ball is
+            found.
+
+        Raises
+        ------
+        ValueError
+            If ``depth_m`` does not have the intrinsics' image shape.
+        """
         if self.background is None:
             self._frames.append(_as_depth32(depth_m, self.intrinsics.shape).copy())
             if len(self._frames) >= self.n_background:
@@ -453,6 +504,12 @@ class ColorBallDetector:
     prediction of the track is taken; without a track (or when no blob lies
     in the gate) the most compact blob not touching the image border.
 
+    Parameters
+    ----------
+    options : ColorBallOptions
+        Blob size and shape limits, foreground threshold, background
+        learning rate and processing scale.
+
     Examples
     --------
     >>> det = ColorBallDetector(ColorBallOptions(n_background=1, downsample=1))
@@ -515,7 +572,27 @@ class ColorBallDetector:
         return out
 
     def update(self, frame) -> PixelDetection | None:
-        """Feed the next frame; returns the best ball candidate or None."""
+        """Feed the next frame; returns the best ball candidate or None.
+
+        Parameters
+        ----------
+        frame : array_like, shape (H, W) or (H, W, C), uint8
+            Next video frame (grey or colour, e.g. BGR); all frames must
+            have the same shape. The first ``options.n_background`` frames
+            build the background.
+
+        Returns
+        -------
+        PixelDetection or None
+            The ball candidate (centroid in full-resolution pixels, u right,
+            v down); ``None`` while the background is being learnt or when
+            no plausible blob is found.
+
+        Raises
+        ------
+        ValueError
+            If ``frame`` is not a uint8 image.
+        """
         import cv2
 
         o = self.options

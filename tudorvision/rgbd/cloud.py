@@ -60,6 +60,8 @@ def cloud_from_rgbd(color, depth_raw, intrinsics: Intrinsics, *, depth_scale: fl
     depth_raw : ndarray, shape (H, W), uint16
         Raw depth, 0 = invalid.
     intrinsics : Intrinsics
+        Pinhole intrinsics of the registered depth and colour images
+        (pixels); its ``(height, width)`` must match both.
     depth_scale : float
         Raw units per metre (1000 mm, 5000 TUM).
     depth_trunc : float
@@ -72,8 +74,12 @@ def cloud_from_rgbd(color, depth_raw, intrinsics: Intrinsics, *, depth_scale: fl
 
     Raises
     ------
+    ValueError
+        If ``depth_raw`` or ``color`` does not match the intrinsics' shape,
+        or ``color`` is not uint8 RGB.
     TudorVisionError
-        If no pixel has valid depth below ``depth_trunc``.
+        If no pixel has valid depth below ``depth_trunc``, or Open3D is not
+        installed.
     """
     o3d = _open3d()
     raw = np.asarray(depth_raw)
@@ -118,7 +124,29 @@ def colored_points_cam_from_rgbd(color, depth_m, intrinsics: Intrinsics, *,
 
 
 def cloud_from_points(points, colors=None):
-    """Open3D point cloud from ``(N, 3)`` points and optional ``(N, 3)`` colours in [0, 1]."""
+    """Open3D point cloud from ``(N, 3)`` points and optional ``(N, 3)`` colours in [0, 1].
+
+    Parameters
+    ----------
+    points : array_like, shape (N, 3)
+        Finite points, metres, in whatever frame the cloud is to be in
+        (usually the camera optical frame).
+    colors : array_like, shape (N, 3), optional
+        RGB per point, floats in [0, 1].
+
+    Returns
+    -------
+    open3d.geometry.PointCloud
+        The points (and colours) as given.
+
+    Raises
+    ------
+    ValueError
+        If ``points`` or ``colors`` is not a finite (N, 3) array, the row
+        counts differ, or a colour lies outside [0, 1].
+    TudorVisionError
+        If Open3D is not installed.
+    """
     o3d = _open3d()
     p = check_points(points, "points")
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(p))
@@ -150,6 +178,8 @@ def write_ply(path, points, colors=None, *, binary: bool = True) -> Path:
         Metres.
     colors : array_like, shape (N, 3), optional
         RGB in [0, 1].
+    binary : bool
+        Binary PLY (default); ``False`` writes ASCII.
 
     Returns
     -------
@@ -158,8 +188,13 @@ def write_ply(path, points, colors=None, *, binary: bool = True) -> Path:
 
     Raises
     ------
+    FileNotFoundError
+        If the parent folder of ``path`` does not exist.
+    ValueError
+        If ``points`` or ``colors`` is malformed (see :func:`cloud_from_points`).
     TudorVisionError
-        If the file cannot be written (the previous file stays intact).
+        If the file cannot be written (the previous file stays intact), or
+        Open3D is not installed.
     """
     o3d = _open3d()
     path = Path(path)
@@ -175,10 +210,24 @@ def write_ply(path, points, colors=None, *, binary: bool = True) -> Path:
 def read_ply(path):
     """Read a PLY point cloud: ``(points (N, 3), colors (N, 3) or None)``.
 
+    Parameters
+    ----------
+    path : str or Path
+        PLY file, e.g. one written by :func:`write_ply`.
+
+    Returns
+    -------
+    points : ndarray, shape (N, 3)
+        Points as stored (metres, in the frame they were written in).
+    colors : ndarray, shape (N, 3) or None
+        RGB in [0, 1]; ``None`` when the file has no colours.
+
     Raises
     ------
     FileNotFoundError
         If the file does not exist.
+    TudorVisionError
+        If Open3D is not installed.
     """
     o3d = _open3d()
     path = Path(path)

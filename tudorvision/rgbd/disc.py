@@ -65,6 +65,9 @@ class DiscOptions:
         Disc radius; when given, the region must also cover between
         ``area_ratio[0]`` and ``area_ratio[1]`` times the disc's
         fronto-parallel image area at its depth.
+    area_ratio : tuple of float
+        ``(low, high)`` bounds of (region pixels) / (expected disc image area
+        ``pi (f R / z)^2``); used only with ``disc_radius_m``.
     depth_annulus : tuple of float
         The centroid depth is the robust mean raw depth of the pixels between
         these fractions of the depth window (see ``depth_window``). Default
@@ -123,10 +126,24 @@ class DiscOptions:
 class DiscObservation:
     """One disc sample.
 
-    ``centroid_cam`` (3,): metres, camera optical frame (NaN when lost);
-    ``centroid_uv`` (2,): pixel centroid (u right, v down);
-    ``seed_uv``: the seed used; ``depth_m``: reference depth at the seed;
-    ``n_pixels``: region size; ``valid``: False when lost, ``reason`` says why.
+    Parameters
+    ----------
+    valid : bool
+        False when the disc was lost (``reason`` says why).
+    centroid_cam : ndarray, shape (3,)
+        Disc centroid, metres, camera optical frame (x right, y down, z
+        forward); NaN when lost.
+    centroid_uv : ndarray, shape (2,)
+        Pixel centroid of the region (u right, v down); NaN when lost.
+    seed_uv : tuple of int
+        The seed pixel ``(u, v)`` used.
+    depth_m : float
+        Reference depth at the seed (median of the smoothed seed
+        neighbourhood), metres; NaN when the seed had no valid depth.
+    n_pixels : int
+        Region size, pixels.
+    reason : str
+        Why the disc was lost; empty when ``valid``.
     """
 
     valid: bool
@@ -345,11 +362,20 @@ class DiscTracker:
     Parameters
     ----------
     intrinsics : Intrinsics
+        Pinhole intrinsics of the depth camera (pixels); depth frames must
+        have its ``(height, width)``.
     seed_uv : array_like, shape (2,)
-        Seed pixel on the disc in the first frame.
+        Seed pixel on the disc in the first frame (u right, v down).
     options : DiscOptions
+        Segmentation options (tolerances, region size, disc radius, depth
+        window).
     max_consecutive_lost : int
         Raise once the disc has been lost this many frames in a row.
+
+    Raises
+    ------
+    TudorVisionError
+        If ``seed_uv`` lies outside the image.
 
     Examples
     --------
@@ -375,7 +401,23 @@ class DiscTracker:
         self._last_z: float | None = None
 
     def reseed(self, seed_uv, depth_m: float | None = None) -> None:
-        """Restart the search at ``seed_uv`` (e.g. after the arm jumped), optionally near depth ``depth_m``."""
+        """Restart the search at ``seed_uv`` (e.g. after the arm jumped), optionally near depth ``depth_m``.
+
+        Parameters
+        ----------
+        seed_uv : array_like, shape (2,)
+            New seed pixel on the disc (u right, v down); the velocity
+            prediction is reset.
+        depth_m : float, optional
+            Expected disc depth (z), metres: observations far from it are
+            skipped until the disc is found again. ``None`` accepts any
+            depth.
+
+        Raises
+        ------
+        TudorVisionError
+            If ``seed_uv`` lies outside the image.
+        """
         u, v = _seed_pixel(seed_uv, self.intrinsics.shape)
         self.seed_uv = (u, v)
         self._velocity = np.zeros(2)
@@ -405,8 +447,22 @@ class DiscTracker:
     def update(self, depth_m) -> DiscObservation:
         """Observe the disc in the next frame; returns the (possibly invalid) observation.
 
+        Parameters
+        ----------
+        depth_m : array_like, shape (H, W)
+            Depth (z) in metres, NaN or 0 = invalid; the intrinsics' image
+            shape.
+
+        Returns
+        -------
+        DiscObservation
+            The disc's centroid (metres, camera optical frame); when lost in
+            this frame, an observation with ``valid=False`` and the reason.
+
         Raises
         ------
+        ValueError
+            If ``depth_m`` does not have the intrinsics' image shape.
         TudorVisionError
             When the disc has been lost ``max_consecutive_lost`` frames in a row,
             or the depth frame has no valid pixel.
@@ -453,11 +509,28 @@ def track_disc(depth_frames, intrinsics: Intrinsics, seed_uv, options: DiscOptio
     ----------
     depth_frames : iterable of array_like, each shape (H, W)
         Depth in metres, one frame per sweep step.
+    intrinsics : Intrinsics
+        Pinhole intrinsics of the depth camera (pixels).
+    seed_uv : array_like, shape (2,)
+        Seed pixel on the disc in the first frame (u right, v down).
+    options : DiscOptions
+        Segmentation options.
+    max_consecutive_lost : int
+        Raise once the disc has been lost this many frames in a row.
 
     Returns
     -------
     list of DiscObservation
-        One per frame; lost samples have ``valid=False``.
+        One per frame, centroids in metres, camera optical frame; lost
+        samples have ``valid=False``.
+
+    Raises
+    ------
+    ValueError
+        If a frame does not have the intrinsics' image shape.
+    TudorVisionError
+        If ``seed_uv`` lies outside the image, a frame has no valid depth, or
+        the disc is lost ``max_consecutive_lost`` frames in a row.
     """
     tr = DiscTracker(intrinsics, seed_uv, options, max_consecutive_lost=max_consecutive_lost)
     return [tr.update(d) for d in depth_frames]

@@ -80,6 +80,25 @@ class Intrinsics:
     def from_matrix(cls, K, width: int, height: int) -> "Intrinsics":
         """Build from a 3x3 camera matrix.
 
+        Parameters
+        ----------
+        K : array_like, shape (3, 3)
+            Camera matrix ``[[fx, 0, cx], [0, fy, cy], [0, 0, 1]]``, pixels;
+            the skew ``K[0, 1]`` is ignored.
+        width, height : int
+            Image size, pixels.
+
+        Returns
+        -------
+        Intrinsics
+            Focal lengths and principal point read from ``K``.
+
+        Raises
+        ------
+        ValueError
+            If ``K`` is not 3x3, a focal length is not positive or the image
+            size is not a positive integer.
+
         Examples
         --------
         >>> Intrinsics.from_matrix([[500, 0, 320], [0, 501, 240], [0, 0, 1]], 640, 480).fy
@@ -95,6 +114,23 @@ class Intrinsics:
         """Intrinsics of the image resized by ``factor`` (pixel-centre convention).
 
         Block-averaging by an integer ``n`` corresponds to ``factor = 1 / n``.
+
+        Parameters
+        ----------
+        factor : float
+            Resize factor, positive (0.5 halves the image size).
+
+        Returns
+        -------
+        Intrinsics
+            ``fx, fy`` times ``factor``; ``c -> (c + 0.5) * factor - 0.5`` so
+            pixel centres stay at integer coordinates; width and height
+            rounded, at least 1.
+
+        Raises
+        ------
+        ValueError
+            If ``factor`` is not positive (the focal lengths would not be).
         """
         s = float(factor)
         return Intrinsics(self.fx * s, self.fy * s, (self.cx + 0.5) * s - 0.5,
@@ -180,6 +216,8 @@ def points_cam_from_depth(depth_m, intrinsics: Intrinsics, mask=None) -> np.ndar
     depth_m : array_like, shape (H, W)
         Depth (z) in metres; NaN or 0 = invalid.
     intrinsics : Intrinsics
+        Pinhole intrinsics of the depth image (pixels); its ``(height,
+        width)`` must match the depth image.
     mask : array_like of bool, shape (H, W), optional
         Only pixels where the mask is true.
 
@@ -190,6 +228,8 @@ def points_cam_from_depth(depth_m, intrinsics: Intrinsics, mask=None) -> np.ndar
 
     Raises
     ------
+    ValueError
+        If the depth image or the mask does not have the intrinsics' shape.
     TudorVisionError
         If the depth image has no valid pixel.
 
@@ -215,10 +255,23 @@ def points_cam_from_depth(depth_m, intrinsics: Intrinsics, mask=None) -> np.ndar
 def uv_from_points_cam(points_cam, intrinsics: Intrinsics) -> np.ndarray:
     """Project camera-frame points to pixel coordinates.
 
+    Parameters
+    ----------
+    points_cam : array_like, shape (N, 3) or (3,)
+        Points in metres, camera optical frame (x right, y down, z
+        forward); must be finite.
+    intrinsics : Intrinsics
+        Pinhole intrinsics (pixels); no distortion.
+
     Returns
     -------
     uv : ndarray, shape (N, 2)
-        ``u`` right, ``v`` down; NaN for points with z <= 0.
+        Pixels, ``u`` right, ``v`` down; NaN for points with z <= 0.
+
+    Raises
+    ------
+    ValueError
+        If ``points_cam`` is not shape (N, 3) or holds non-finite values.
 
     Examples
     --------
