@@ -298,7 +298,23 @@ class ColorModelSet:
         return tuple(self.models)
 
     def spheres(self, camera: str) -> tuple:
-        """Sphere names modelled for ``camera``."""
+        """Sphere names modelled for ``camera``.
+
+        Parameters
+        ----------
+        camera : str
+            Camera name (``"left"``, ``"right"`` or ``"mono"``).
+
+        Returns
+        -------
+        tuple of str
+            Sphere names, in the order they were given.
+
+        Raises
+        ------
+        TudorVisionError
+            If the set has no model for ``camera``.
+        """
         return tuple(self._camera(camera))
 
     def _camera(self, camera: str):
@@ -308,11 +324,45 @@ class ColorModelSet:
         return self.models[camera]
 
     def for_camera(self, camera: str) -> Mapping[str, ColorModel]:
-        """``{sphere: ColorModel}`` of one camera."""
+        """``{sphere: ColorModel}`` of one camera.
+
+        Parameters
+        ----------
+        camera : str
+            Camera name (``"left"``, ``"right"`` or ``"mono"``).
+
+        Returns
+        -------
+        Mapping of str to ColorModel
+            Read-only mapping from sphere name to its colour model.
+
+        Raises
+        ------
+        TudorVisionError
+            If the set has no model for ``camera``.
+        """
         return self._camera(camera)
 
     def get(self, camera: str, sphere: str) -> ColorModel:
-        """The model of one camera and sphere (TudorVisionError naming what is missing)."""
+        """The model of one camera and sphere (TudorVisionError naming what is missing).
+
+        Parameters
+        ----------
+        camera : str
+            Camera name (``"left"``, ``"right"`` or ``"mono"``).
+        sphere : str
+            Sphere name, e.g. ``"red"``.
+
+        Returns
+        -------
+        ColorModel
+            The colour model of ``sphere`` seen by ``camera``.
+
+        Raises
+        ------
+        TudorVisionError
+            If the set has no model for ``camera`` or no ``sphere`` for it.
+        """
         cam = self._camera(camera)
         if sphere not in cam:
             raise TudorVisionError(
@@ -415,6 +465,21 @@ def save_color_models(model_set: ColorModelSet, path) -> None:
     ``cameras: {camera: {sphere: {channels, mean, std, prior, use_hue,
     llr_clip, center_uv, radius_px, n_pixels, image_size, background}}}``.
     Hue is in OpenCV levels (0..179), all other channels in 8-bit levels.
+
+    Parameters
+    ----------
+    model_set : ColorModelSet
+        Colour models per camera and sphere.
+    path : str or Path
+        Output file; a ``.json`` suffix (any case) writes JSON, anything
+        else YAML. Missing parent folders are created. Written atomically: a
+        failed write leaves a previous file intact.
+
+    Raises
+    ------
+    TudorVisionError
+        If ``model_set`` is not a :class:`ColorModelSet`, or the file cannot
+        be written (disk full, read-only folder).
     """
     if not isinstance(model_set, ColorModelSet):
         raise TudorVisionError(f"model_set: expected a ColorModelSet, got {type(model_set).__name__}")
@@ -437,6 +502,17 @@ def save_color_models(model_set: ColorModelSet, path) -> None:
 
 def load_color_models(path) -> ColorModelSet:
     """Read a file written by :func:`save_color_models`.
+
+    Parameters
+    ----------
+    path : str or Path
+        Colour model file; ``.json`` (any case) is read as JSON, anything
+        else as YAML.
+
+    Returns
+    -------
+    ColorModelSet
+        The colour models per camera and sphere.
 
     Raises
     ------
