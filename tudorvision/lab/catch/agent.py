@@ -234,8 +234,10 @@ class CatchAgent:
         return self.adapter.send_setpoint(theta, max_speed=self.max_speed, max_accel=self.max_accel, timeout=5.0)
 
     def _clear_fault_and_resend(self, theta, t: float):
-        # the layer stopped the arm (speed or range fault): log it, clear it and send again
+        # the layer stopped the arm (speed or range fault): log it, clear it (a FaultReset: since protocol v2 a
+        # mode switch no longer clears FAULT), restore the mode and send again
         self.faults.append(float(t))
+        self.adapter.reset_fault()
         self.adapter.set_mode(self._mode, damping=self.damping)
         return self._setpoint(theta)
 
