@@ -275,3 +275,36 @@ def test_the_plot_draws_on_a_figure_with_the_net_radius():
     assert isinstance(fig, Figure)
     radii = [patch.get_radius() for patch in fig.axes[0].patches]
     assert radii == [pytest.approx(0.123)]
+
+
+def test_a_fault_stop_is_reset_and_the_last_setpoint_sent_again():
+    from types import SimpleNamespace
+
+    from tudorvision.joint import StateFlags
+    from tudorvision.lab.catch.agent import CatchAgent
+    from tudorvision.robot import load_robot_params
+
+    calls = []
+
+    class Adapter:
+        def __getattr__(self, name):           # set_mode, reset_fault, send_setpoint, set_payload
+            return lambda *a, **kw: calls.append(name)
+
+    class Layer:
+        adapter = Adapter()
+        flags = StateFlags(0)
+
+        def state(self):
+            return SimpleNamespace(flags=self.flags, theta=np.zeros(3))
+
+    layer = Layer()
+    agent = CatchAgent(layer, None, None, None, None, np.eye(4), options=DemoOptions(), params=load_robot_params(),
+                       payload_range_kg=(0.0, 0.4))
+    agent.recover(0.0)                                      # nothing sent yet: nothing to recover
+    agent.send(np.array([0.0, 1.0, 1.0]), 0.1)
+    agent.recover(0.2)                                      # no fault: nothing happens
+    assert calls == ["set_mode", "send_setpoint"] and agent.faults == []
+    layer.flags = StateFlags.FAULT
+    agent.recover(0.3)
+    # a mode switch alone does not clear FAULT (protocol v2): the agent resets it, then resends
+    assert calls[2:] == ["reset_fault", "set_mode", "send_setpoint"] and agent.faults == [0.3]
