@@ -131,11 +131,53 @@ class CameraModel:
     size = property(lambda self: (self.width, self.height), doc="``(width, height)`` in pixels.")
 
     def replace(self, **changes) -> "CameraModel":
-        """A copy with some fields changed."""
+        """A copy with some fields changed.
+
+        Parameters
+        ----------
+        **changes
+            New values of fields (``K``, ``dist``, ``width``, ``height``,
+            ``line_time_s``, ``T_ref_cam``), in the units of the class
+            (pixels, seconds, metres).
+
+        Returns
+        -------
+        CameraModel
+            The copy, validated like a new camera.
+
+        Raises
+        ------
+        TypeError
+            If a name is not a field.
+        ValueError
+            If a new value is invalid.
+
+        Examples
+        --------
+        >>> cam = CameraModel(K=[[500, 0, 320], [0, 500, 240], [0, 0, 1]], width=640, height=480)
+        >>> cam.replace(width=320).size
+        (320, 480)
+        """
         return dataclasses.replace(self, **changes)
 
     def allclose(self, other: "CameraModel", atol: float = 1e-9) -> bool:
-        """Field-wise comparison with absolute tolerance."""
+        """Field-wise comparison with absolute tolerance.
+
+        Parameters
+        ----------
+        other : CameraModel
+            Camera to compare with; any other type compares unequal.
+        atol : float
+            Absolute tolerance on every number (pixels for ``K``, seconds for
+            ``line_time_s``, metres for the translation of ``T_ref_cam``).
+
+        Returns
+        -------
+        bool
+            True when the image sizes are equal and ``K``, ``dist``,
+            ``line_time_s`` and ``T_ref_cam`` agree within ``atol`` (optional
+            fields must be both absent or both present).
+        """
         return (isinstance(other, CameraModel) and self.size == other.size
                 and _opt_close(self.K, other.K, atol) and _opt_close(self.dist, other.dist, atol)
                 and _opt_close(self.line_time_s, other.line_time_s, atol)
@@ -202,6 +244,22 @@ class StereoExtrinsics:
         return all(getattr(self, n) is not None for n in RECTIFICATION_SHAPES)
 
     def allclose(self, other: "StereoExtrinsics", atol: float = 1e-9) -> bool:
+        """Compare the geometry with absolute tolerance.
+
+        Parameters
+        ----------
+        other : StereoExtrinsics
+            Extrinsics to compare with; any other type compares unequal.
+        atol : float
+            Absolute tolerance on every number (metres for ``T``).
+
+        Returns
+        -------
+        bool
+            True when the camera names are equal and ``R``, ``T`` and the
+            rectification matrices agree within ``atol`` (each optional
+            matrix both absent or both present).
+        """
         return (isinstance(other, StereoExtrinsics) and (self.left, self.right) == (other.left, other.right)
                 and all(_opt_close(getattr(self, n), getattr(other, n), atol)
                         for n in ("R", "T", *RECTIFICATION_SHAPES)))
@@ -247,7 +305,19 @@ class DepthModel:
             object.__setattr__(self, "valid_range_m", (float(lo), float(hi)))
 
     def sigma_m(self, z_m):
-        """Depth standard deviation in metres at depth ``z_m`` (metres, any shape)."""
+        """Depth standard deviation in metres at depth ``z_m`` (metres, any shape).
+
+        Parameters
+        ----------
+        z_m : float or array_like
+            Depth (z along the optical axis), metres, any shape.
+
+        Returns
+        -------
+        float or ndarray
+            Standard deviation of the depth in metres, same shape as ``z_m``;
+            the polynomial is evaluated outside ``valid_range_m`` as well.
+        """
         z = np.asarray(z_m, dtype=np.float64) / _UNITS_TO_M[self.z_unit]
         return np.polyval(self.sigma_z_poly, z) * _UNITS_TO_M[self.sigma_unit]
 
@@ -279,6 +349,22 @@ class DepthModel:
         return DepthNoiseModel(coeffs=coeffs, z_range_m=rng)
 
     def allclose(self, other: "DepthModel", atol: float = 1e-9) -> bool:
+        """Compare the noise model with absolute tolerance.
+
+        Parameters
+        ----------
+        other : DepthModel
+            Model to compare with; any other type compares unequal.
+        atol : float
+            Absolute tolerance on the coefficients and the range (metres).
+
+        Returns
+        -------
+        bool
+            True when the units are equal and the coefficients and
+            ``valid_range_m`` agree within ``atol``. The same curve written
+            in other units compares unequal.
+        """
         return (isinstance(other, DepthModel) and (self.z_unit, self.sigma_unit) == (other.z_unit, other.sigma_unit)
                 and _opt_close(self.sigma_z_poly, other.sigma_z_poly, atol)
                 and _opt_close(self.valid_range_m, other.valid_range_m, atol))
@@ -348,14 +434,48 @@ class Calibration:
         object.__setattr__(self, "metadata", MappingProxyType(dict(self.metadata)))
 
     def camera(self, name: str) -> CameraModel:
-        """The camera called ``name``; ``TudorVisionError`` listing the known names otherwise."""
+        """The camera called ``name``; ``TudorVisionError`` listing the known names otherwise.
+
+        Parameters
+        ----------
+        name : str
+            Camera name, e.g. ``"left"`` or ``"rgbd"``.
+
+        Returns
+        -------
+        CameraModel
+            The camera.
+
+        Raises
+        ------
+        TudorVisionError
+            If the calibration has no camera ``name``.
+        """
         try:
             return self.cameras[name]
         except KeyError:
             raise TudorVisionError(f"no camera {name!r} in calibration (have {sorted(self.cameras)})") from None
 
     def transform(self, name: str) -> np.ndarray:
-        """The transform called ``name`` (e.g. ``"T_base_left"``), shape (4, 4)."""
+        """The transform called ``name`` (e.g. ``"T_base_left"``), shape (4, 4).
+
+        Parameters
+        ----------
+        name : str
+            Transform name ``T_<to>_<from>``.
+
+        Returns
+        -------
+        ndarray, shape (4, 4)
+            A writable copy of the homogeneous transform; ``T_base_left``
+            maps left-camera points to the base frame (``p_base = T @
+            p_left``), translation in metres.
+
+        Raises
+        ------
+        TudorVisionError
+            If the calibration has no transform ``name``.
+        """
         try:
             return np.array(self.transforms[name])
         except KeyError:
@@ -369,6 +489,33 @@ class Calibration:
         ``cameras``, ``transforms`` and ``metadata`` are merged key by key
         (new keys win); ``stereo``, ``depth_model`` and ``circle_rmse_m``
         replace the old value.
+
+        Parameters
+        ----------
+        cameras : mapping of str to CameraModel, optional
+            Cameras to add or replace.
+        stereo : StereoExtrinsics, optional
+            New stereo geometry; its cameras must be in the result.
+        transforms : mapping of str to array_like (4, 4), optional
+            Transforms ``T_<to>_<from>`` to add or replace (translation in
+            metres).
+        depth_model : DepthModel, optional
+            New depth noise model.
+        circle_rmse_m : float, optional
+            New base-frame circle fit RMSE, metres.
+        metadata : mapping, optional
+            Entries to add or replace.
+
+        Returns
+        -------
+        Calibration
+            The updated copy; ``self`` is unchanged.
+
+        Raises
+        ------
+        ValueError
+            If the result is invalid (a transform name not ``T_<to>_<from>``
+            or not a rigid transform, stereo cameras missing).
         """
         return Calibration(
             cameras={**self.cameras, **(cameras or {})},
@@ -379,13 +526,42 @@ class Calibration:
             metadata={**self.metadata, **(metadata or {})})
 
     def merge(self, other: "Calibration") -> "Calibration":
-        """Combine two calibrations; entries present in ``other`` win."""
+        """Combine two calibrations; entries present in ``other`` win.
+
+        Parameters
+        ----------
+        other : Calibration
+            Calibration whose cameras, transforms and metadata are merged
+            key by key, and whose stereo, depth model and circle RMSE
+            replace those of ``self`` when present.
+
+        Returns
+        -------
+        Calibration
+            The merged copy; neither input is changed.
+        """
         return self.with_updates(cameras=other.cameras, stereo=other.stereo,
                                  transforms=other.transforms, depth_model=other.depth_model,
                                  circle_rmse_m=other.circle_rmse_m, metadata=other.metadata)
 
     def allclose(self, other: "Calibration", atol: float = 1e-9) -> bool:
-        """Compare all numeric content with absolute tolerance ``atol``."""
+        """Compare all numeric content with absolute tolerance ``atol``.
+
+        Parameters
+        ----------
+        other : Calibration
+            Calibration to compare with; any other type compares unequal.
+        atol : float
+            Absolute tolerance on every number (pixels, metres, radians as
+            stored).
+
+        Returns
+        -------
+        bool
+            True when both hold the same camera and transform names, the
+            same optional parts, equal metadata, and all numbers agree
+            within ``atol``.
+        """
         if not isinstance(other, Calibration):
             return False
         if sorted(self.cameras) != sorted(other.cameras) or sorted(self.transforms) != sorted(other.transforms):
@@ -401,7 +577,16 @@ class Calibration:
 
     # ------------------------------------------------------------------ dict form
     def to_dict(self) -> dict:
-        """Plain-Python form of the file format (lists, floats, strings)."""
+        """Plain-Python form of the file format (lists, floats, strings).
+
+        Returns
+        -------
+        dict
+            ``format``, ``version``, ``units`` and ``cameras``, plus
+            ``stereo``, ``transforms``, ``depth_model``, ``circle_rmse_m``
+            and ``metadata`` where present (see the module docstring); SI
+            units. :meth:`from_dict` reads it back.
+        """
         out: dict = {"format": FORMAT_NAME, "version": 1, "units": {"length": "m", "angle": "rad"},
                      "cameras": {}}
         for name, cam in self.cameras.items():
@@ -434,7 +619,39 @@ class Calibration:
 
     @classmethod
     def from_dict(cls, data, *, source="<calibration>", line_of=None) -> "Calibration":
-        """Build from the plain-Python file form; errors name ``source`` and the line."""
+        """Build from the plain-Python file form; errors name ``source`` and the line.
+
+        Parameters
+        ----------
+        data : dict
+            The file form (see :meth:`to_dict` and the module docstring),
+            SI units.
+        source : str or Path
+            File name (or other label) the errors start with.
+        line_of : callable, optional
+            ``line_of(keys) -> int or None``, the 1-based line of the value
+            at a key path (as returned by the YAML reader); errors then name
+            the line.
+
+        Returns
+        -------
+        Calibration
+            The validated calibration.
+
+        Raises
+        ------
+        TudorVisionError
+            If a key is unknown, a value has the wrong type or shape, units
+            are not SI, or the content is inconsistent; the message names
+            ``source``, the line and the key path.
+
+        Examples
+        --------
+        >>> cam = CameraModel(K=np.diag([500.0, 500.0, 1.0]), width=64, height=48)
+        >>> cal = Calibration(cameras={"rgbd": cam}, transforms={"T_base_rgbd": np.eye(4)})
+        >>> Calibration.from_dict(cal.to_dict()).allclose(cal)
+        True
+        """
         ctx = _Ctx(source, line_of)
         if not isinstance(data, dict):
             raise ctx.error((), "expected a mapping at the top level")
@@ -551,8 +768,10 @@ def save_calibration(calibration: Calibration, path, *, header: str | None = Non
     Parameters
     ----------
     calibration : Calibration
+        Calibration to write (SI units: metres, radians).
     path : str or Path
-        Output file; parent directories are created.
+        Output file; parent directories are created. Written atomically: a
+        failed write leaves a previous file intact.
     header : str, optional
         Comment lines written at the top of the file.
 
@@ -560,6 +779,15 @@ def save_calibration(calibration: Calibration, path, *, header: str | None = Non
     -------
     Path
         The written file.
+
+    Raises
+    ------
+    TypeError
+        If ``calibration`` is not a :class:`Calibration`.
+    OSError
+        If missing parent folders cannot be created.
+    TudorVisionError
+        If the file cannot be written (disk full, read-only folder).
     """
     if not isinstance(calibration, Calibration):
         raise TypeError("calibration: expected a Calibration")
