@@ -110,8 +110,6 @@ KNOWN_NOT_YET_DOCUMENTED = {
     "tudorvision.catch.intercept.reachable_solutions", "tudorvision.catch.intercept.working_plane_normal",
     "tudorvision.catch.perception.CatchPerception", "tudorvision.catch.perception.CatchPerception.step",
     "tudorvision.catch.perception.detection_to_base",
-    "tudorvision.io.formats.calibration_from_ros", "tudorvision.io.formats.load_ros_camera_info",
-    "tudorvision.io.formats.save_opencv_stereo", "tudorvision.io.formats.save_ros_camera_info",
     "tudorvision.io.playback.Playback", "tudorvision.io.playback.Playback.stats", "tudorvision.io.sequence.Sequence",
     "tudorvision.io.sequence.Sequence.groundtruth", "tudorvision.io.sequence.Sequence.joints",
     "tudorvision.io.sequence.Sequence.load_or_report", "tudorvision.io.sequence.Sequence.play",

@@ -75,10 +75,14 @@ def load_ros_camera_info(path) -> CameraInfo:
     Parameters
     ----------
     path : str or Path
+        The ``camera_info`` YAML file (as written by ROS
+        ``camera_calibration`` or :func:`save_ros_camera_info`).
 
     Returns
     -------
     CameraInfo
+        Camera name, intrinsics (pixels) and distortion, rectification
+        rotation and rectified projection matrix.
 
     Raises
     ------
@@ -125,7 +129,12 @@ def save_ros_camera_info(path, camera: CameraModel, *, name: str = "camera", R_r
     Parameters
     ----------
     path : str or Path
+        Output file; written atomically (a failed write leaves a previous
+        file intact).
     camera : CameraModel
+        Intrinsics (pixels), plumb_bob distortion and image size to write;
+        ``line_time_s`` and ``T_ref_cam`` have no place in the format and
+        are left out.
     name : str
         ``camera_name``.
     R_rect : array_like, shape (3, 3), optional
@@ -136,6 +145,14 @@ def save_ros_camera_info(path, camera: CameraModel, *, name: str = "camera", R_r
     Returns
     -------
     Path
+        ``path``.
+
+    Raises
+    ------
+    ValueError
+        If ``R_rect`` or ``P`` has the wrong shape or non-finite values.
+    TudorVisionError
+        If the file cannot be written (disk full, read-only folder).
     """
     R = np.eye(3) if R_rect is None else check_array(R_rect, "R_rect", (3, 3))
     P = np.hstack([camera.K, np.zeros((3, 1))]) if P is None else check_array(P, "P", (3, 4))
@@ -160,6 +177,17 @@ def calibration_from_ros(paths) -> Calibration:
     ----------
     paths : mapping of str to path
         Camera name (``left``, ``rgbd``, ...) to its ``camera_info`` file.
+
+    Returns
+    -------
+    Calibration
+        The cameras only (intrinsics in pixels, distortion, image size); the
+        files' rectification and projection matrices are not kept.
+
+    Raises
+    ------
+    TudorVisionError
+        If a file is absent or malformed (see :func:`load_ros_camera_info`).
     """
     return Calibration(cameras={name: load_ros_camera_info(p).camera for name, p in paths.items()})
 
@@ -326,10 +354,30 @@ def save_opencv_stereo(calibration: Calibration, intrinsics_path, extrinsics_pat
     (the sample ignores unknown keys). ``T`` (and ``P2``, ``Q``) are written
     in units of ``m_per_unit`` metres.
 
+    Parameters
+    ----------
+    calibration : Calibration
+        Calibration with a stereo part. The files hold one image size for
+        both cameras: the left camera's is written.
+    intrinsics_path : str or Path
+        Output ``intrinsics.yml`` (``M1``, ``D1``, ``M2``, ``D2``, image
+        size).
+    extrinsics_path : str or Path
+        Output ``extrinsics.yml`` (``R``, ``T`` and the rectification
+        matrices present in ``calibration``).
+    m_per_unit : float
+        Metres per unit of the written ``T``; 1 writes metres, the square
+        size writes checkerboard squares like the sample.
+
+    Returns
+    -------
+    intrinsics_path, extrinsics_path : Path
+        The written files.
+
     Raises
     ------
     TudorVisionError
-        If ``calibration`` has no stereo part.
+        If ``calibration`` has no stereo part, or a file cannot be written.
     """
     st = calibration.stereo
     if st is None:
