@@ -97,7 +97,7 @@ def _ball_image(u=40):
 
 def test_track_mono_ctrl_c_and_errors_keep_the_rows(tmp_path, monkeypatch, capsys):
     from tudorvision.stereo.colormodel import fit_color_model_set, save_color_models
-    from tudorvision.stereo.pipeline import read_mono_track_csv, track_mono
+    from tudorvision.stereo.tracking import read_mono_track_csv, track_mono
 
     d = tmp_path / "m"
     with SequenceWriter(d, kind="mono", rate_hz=10.0, image_ext=".png") as wr:

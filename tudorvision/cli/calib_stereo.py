@@ -170,7 +170,8 @@ def _track_sweep(args):
     from ..io.sequence import open_sequence
     from .stereo import luma_edge_params
     from ..stereo.colormodel import load_color_models
-    from ..stereo.pipeline import PipelineOptions, track_stereo
+    from ..stereo.pipeline import PipelineOptions
+    from ..stereo.tracking import track_stereo
 
     if not args.seq:
         raise TudorVisionError("give SEQ (tracked with --calib and --colormodel) or --traj CSV")

@@ -243,7 +243,8 @@ def _sphere_separation(models):
 
 
 def run_track_stereo(args) -> int:
-    from ..stereo.pipeline import PipelineOptions, track_stereo
+    from ..stereo.pipeline import PipelineOptions
+    from ..stereo.tracking import track_stereo
     from ..stereo.trajectory import plot_trajectory, write_trajectory_csv
 
     if not args.speed > 0:
@@ -307,7 +308,7 @@ def run_track_stereo(args) -> int:
 
 # ----------------------------------------------------------------------------- track mono
 def run_track_mono(args) -> int:
-    from ..stereo.pipeline import track_mono, write_mono_track_csv
+    from ..stereo.tracking import track_mono, write_mono_track_csv
 
     seq = _open(args.video, strict=args.strict, args=args)
     models = _load_models(args.colormodel)

@@ -15,9 +15,9 @@ from .calibrate import (StereoCalibrationResult, calibrate_stereo, calibrate_ste
 from .colormodel import (ColorModel, ColorModelSet, fit_color_model, fit_color_model_set, load_color_models,
                          parse_pick, save_color_models)
 from .rerun_log import RerunStereoLog
-from .pipeline import (MonoTrackResult, PipelineOptions, StereoFrameResult, StereoPipeline, StereoTrackResult,
-                       TrackStats, iter_stereo, read_mono_track_csv, track_mono, track_stereo,
-                       write_mono_track_csv)
+from .pipeline import PipelineOptions, StereoFrameResult, StereoPipeline
+from .tracking import (MonoTrackResult, StereoTrackResult, TrackStats, iter_stereo, read_mono_track_csv, track_mono,
+                       track_stereo, write_mono_track_csv)
 from .segment import SegmentParams, SphereDetection, detect_sphere, detect_spheres
 from .tracker2d import SphereTracker, TrackerParams
 from .trajectory import (Trajectory, plot_trajectory, read_trajectory_csv, trajectory_from_points,
