@@ -41,6 +41,9 @@ class Playback:
     Parameters
     ----------
     sequence : Sequence
+        Opened recording; its ``timestamps`` (seconds) set the pace, and
+        frames are decoded only when delivered (defective frames of a
+        lenient sequence are skipped).
     speed : float
         Playback speed factor (2.0: twice as fast as recorded).
     clock, sleep : callable, optional
@@ -54,6 +57,11 @@ class Playback:
         (lenient sequences; the defects are in ``sequence.report``).
     max_latency_s : float
         Largest delivery latency so far.
+
+    Raises
+    ------
+    ValueError
+        If ``speed`` is not a positive number.
     """
 
     def __init__(self, sequence, *, speed: float = 1.0, clock=None, sleep=None):
@@ -75,7 +83,15 @@ class Playback:
         return self._latency_sum / self.delivered if self.delivered else 0.0
 
     def stats(self) -> dict:
-        """Counters as a dict (delivered, dropped, skipped, latencies)."""
+        """Counters as a dict (delivered, dropped, skipped, latencies).
+
+        Returns
+        -------
+        dict
+            ``delivered``, ``dropped``, ``skipped`` (int, frames so far) and
+            ``mean_latency_s``, ``max_latency_s`` (float, seconds; 0 before
+            the first delivery).
+        """
         return {"delivered": self.delivered, "dropped": self.dropped, "skipped": self.skipped,
                 "mean_latency_s": self.mean_latency_s, "max_latency_s": self.max_latency_s}
 

@@ -81,6 +81,26 @@ class Sequence:
     number of frames listed; iterating yields :class:`StereoFrame`,
     :class:`RGBDFrame` or :class:`MonoFrame` according to :attr:`kind`.
 
+    Parameters
+    ----------
+    spec : Spec
+        The parsed layout (paths, timestamps, streams, problems found while
+        indexing), as built by :func:`open_sequence`.
+    strict : bool
+        Raise on the first defect (True) or skip and report (False).
+    calibration : Calibration, optional
+        Replaces the calibration file of the sequence; intrinsics from the
+        layout (or the ``K`` of :func:`open_sequence`) are still added to it
+        as a camera.
+    max_pixels : int or None
+        Images whose header declares more pixels are defective (not
+        decoded); ``None`` for no limit.
+
+    Raises
+    ------
+    TudorVisionError
+        In strict mode, if indexing found a defect (a bad index line).
+
     Attributes
     ----------
     path : Path
@@ -219,7 +239,26 @@ class Sequence:
                 yield frame
 
     def load_or_report(self, i: int):
-        """Frame ``i``, or ``None`` after recording the defect (lenient); strict mode raises."""
+        """Frame ``i``, or ``None`` after recording the defect (lenient); strict mode raises.
+
+        Parameters
+        ----------
+        i : int
+            Frame index, ``0 <= i < len(self)`` (no negative indices).
+
+        Returns
+        -------
+        StereoFrame or RGBDFrame or MonoFrame or None
+            The decoded frame (timestamp in seconds, depth in metres);
+            ``None`` when it is defective in lenient mode, the defect then
+            being in :attr:`report`.
+
+        Raises
+        ------
+        TudorVisionError
+            In strict mode, if the frame is defective (unreadable,
+            oversized, or of the wrong image size).
+        """
         try:
             return self._load(i)
         except _FrameProblem as fp:
@@ -308,6 +347,12 @@ class Sequence:
     def joints(self) -> JointLog:
         """The joint log (``joints.txt``).
 
+        Returns
+        -------
+        JointLog
+            Timestamps (seconds) and joint angles (radians); in lenient mode
+            without the malformed lines, which go to :attr:`report`.
+
         Raises
         ------
         TudorVisionError
@@ -331,6 +376,23 @@ class Sequence:
         """Ground-truth table ``name`` as ``{column: (N,) array}``.
 
         Trackers never need this; it is for evaluation.
+
+        Parameters
+        ----------
+        name : str
+            One of :attr:`groundtruth_names`.
+
+        Returns
+        -------
+        dict of str to ndarray, shape (N,)
+            One float64 array per column, in file order, in the units the
+            file states (the project's writer uses SI units).
+
+        Raises
+        ------
+        TudorVisionError
+            If the sequence has no table ``name``, or the file is unreadable
+            or malformed.
         """
         try:
             path, cols = self._spec.groundtruth[name]
@@ -343,6 +405,26 @@ class Sequence:
         """Play back at the recorded rate, dropping frames the consumer is too slow for.
 
         See :class:`tudorvision.io.playback.Playback`.
+
+        Parameters
+        ----------
+        speed : float
+            Playback speed factor (2.0: twice as fast as recorded).
+        clock : callable, optional
+            Time source in seconds; default ``time.monotonic``.
+        sleep : callable, optional
+            Sleep function taking seconds; default ``time.sleep``.
+
+        Returns
+        -------
+        Playback
+            Iterator over :class:`~tudorvision.io.playback.Played` items
+            paced to wall time.
+
+        Raises
+        ------
+        ValueError
+            If ``speed`` is not a positive number.
         """
         from .playback import Playback
         return Playback(self, speed=speed, clock=clock, sleep=sleep)
