@@ -264,7 +264,25 @@ class SequenceWriter:
 
     # -------------------------------------------------------------- public API
     def add_stereo(self, t: float, left_bgr, right_bgr) -> None:
-        """Add a stereo pair: (H, W, 3) uint8 BGR (or grey) images taken at ``t`` seconds."""
+        """Add a stereo pair: (H, W, 3) uint8 BGR (or grey) images taken at ``t`` seconds.
+
+        Parameters
+        ----------
+        t : float
+            Timestamp, seconds; strictly increasing from frame to frame.
+        left_bgr, right_bgr : ndarray, shape (H, W, 3) or (H, W), uint8
+            Left and right camera images (BGR colour or grey), taken
+            together; the same size as every image of the sequence.
+
+        Raises
+        ------
+        ValueError
+            If the writer records another kind, an image has the wrong shape
+            or dtype or another size than the sequence's first image, or
+            ``t`` is not finite or does not increase.
+        TudorVisionError
+            If the writer is closed or an image cannot be encoded or written.
+        """
         self._check_open()
         self._check_kind("stereo")
         left = self._check_image(left_bgr, "left_bgr")
@@ -279,11 +297,22 @@ class SequenceWriter:
         Parameters
         ----------
         t : float
-            Timestamp, seconds.
+            Timestamp, seconds; strictly increasing from frame to frame.
         bgr : ndarray, shape (H, W, 3), uint8
+            Colour image, BGR channel order, registered to ``depth``.
         depth : ndarray, shape (H, W)
             uint16 raw units (``depth_scale`` per metre), or float metres
             (NaN / <= 0 = invalid), converted with :func:`raw_from_depth_m`.
+
+        Raises
+        ------
+        ValueError
+            If the writer records another kind, ``bgr`` is not (H, W, 3)
+            uint8, ``depth`` is neither uint16 nor float, the sizes differ
+            from the sequence's first image, or ``t`` is not finite or does
+            not increase.
+        TudorVisionError
+            If the writer is closed or an image cannot be encoded or written.
         """
         self._check_open()
         self._check_kind("rgbd")
@@ -303,7 +332,25 @@ class SequenceWriter:
         self._write_image("depth", t, raw, depth=True)
 
     def add_mono(self, t: float, image) -> None:
-        """Add one image ((H, W, 3) uint8 BGR or (H, W) uint8 grey) at ``t`` seconds."""
+        """Add one image ((H, W, 3) uint8 BGR or (H, W) uint8 grey) at ``t`` seconds.
+
+        Parameters
+        ----------
+        t : float
+            Timestamp, seconds; strictly increasing from frame to frame.
+        image : ndarray, shape (H, W, 3) or (H, W), uint8
+            BGR colour or grey image; the same size as every image of the
+            sequence.
+
+        Raises
+        ------
+        ValueError
+            If the writer records another kind, an image has the wrong shape
+            or dtype or another size than the sequence's first image, or
+            ``t`` is not finite or does not increase.
+        TudorVisionError
+            If the writer is closed or an image cannot be encoded or written.
+        """
         self._check_open()
         self._check_kind("mono")
         img = self._check_image(image, "image")
@@ -311,7 +358,24 @@ class SequenceWriter:
         self._write_image("image", t, img)
 
     def add_joints(self, t: float, theta) -> None:
-        """Log joint angles ``theta`` (3,) in radians at ``t`` seconds to ``joints.txt``."""
+        """Log joint angles ``theta`` (3,) in radians at ``t`` seconds to ``joints.txt``.
+
+        Parameters
+        ----------
+        t : float
+            Timestamp, seconds (the clock of the image timestamps); strictly
+            increasing from sample to sample.
+        theta : array_like, shape (3,)
+            Joint angles ``theta1, theta2, theta3``, radians.
+
+        Raises
+        ------
+        ValueError
+            If ``theta`` is not three finite numbers, or ``t`` is not finite
+            or does not increase.
+        TudorVisionError
+            If the writer is closed.
+        """
         self._check_open()
         th = check_array(theta, "theta", (3,))
         t = self._check_t("joints", t)
@@ -330,6 +394,19 @@ class SequenceWriter:
             e.g. ``p_base_x_m``).
         comment : str
             Comment lines at the top of the file.
+
+        Returns
+        -------
+        Path
+            The written file, ``<out_dir>/groundtruth/<name>.csv``.
+
+        Raises
+        ------
+        ValueError
+            If ``name`` or a column name is invalid, or the columns differ in
+            length.
+        TudorVisionError
+            If the writer is closed or the file cannot be written.
         """
         self._check_open()
         if not name or not all(c.isalnum() or c in "_-" for c in name):
