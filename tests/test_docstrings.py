@@ -159,8 +159,6 @@ KNOWN_NOT_YET_DOCUMENTED = {
     "tudorvision.stereo.pipeline.iter_stereo", "tudorvision.stereo.pipeline.read_mono_track_csv",
     "tudorvision.stereo.pipeline.track_mono", "tudorvision.stereo.pipeline.track_stereo",
     "tudorvision.stereo.pipeline.write_mono_track_csv",
-    "tudorvision.stereo.segment.detect_spheres",
-    "tudorvision.stereo.tracker2d.SphereTracker",
 }
 KNOWN_UNDOCUMENTED = KNOWN_IN_FILES_BEING_REWRITTEN | KNOWN_NOT_YET_DOCUMENTED
 

@@ -605,13 +605,22 @@ def detect_spheres(frame_bgr, models: Mapping[str, ColorModel], *, params: Segme
         ``{sphere: model}`` for this camera, e.g.
         ``ColorModelSet.for_camera("left")``.
     params : SegmentParams, optional
+        Segmentation thresholds and limits (pixels); default
+        ``SegmentParams()``.
     hsv : ndarray, shape (H, W, 3), uint8, optional
         Precomputed HSV of the frame.
 
     Returns
     -------
     dict of str to SphereDetection
-        One detection per model name (invalid ones say why in ``reason``).
+        One detection per model name, centre ``uv`` and radius in pixels
+        (u right, v down); invalid ones say why in ``reason``.
+
+    Raises
+    ------
+    TudorVisionError
+        If ``frame_bgr`` is not a uint8 (H, W, 3) image, or ``hsv`` is not a
+        uint8 image of the same shape.
     """
     params = SegmentParams() if params is None else params
     frame = FramePlanes.checked(frame_bgr, hsv)

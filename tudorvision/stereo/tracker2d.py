@@ -110,6 +110,14 @@ class SphereTracker:
     model : ColorModel
         The sphere's colour model for this camera.
     params : TrackerParams, optional
+        Window sizes, blur handling and segmentation options; default
+        ``TrackerParams()``.
+
+    Raises
+    ------
+    TudorVisionError
+        If ``model`` is not a :class:`ColorModel` or ``params`` not
+        :class:`TrackerParams`.
 
     Attributes
     ----------
