@@ -157,7 +157,26 @@ class StereoFrameResult:
     dropped: int = 0
 
     def uv(self, camera: str, sphere: str) -> tuple:
-        """Centroid ``(u, v)`` of a valid detection, else ``(nan, nan)``."""
+        """Centroid ``(u, v)`` of a valid detection, else ``(nan, nan)``.
+
+        Parameters
+        ----------
+        camera : str
+            ``"left"`` or ``"right"``.
+        sphere : str
+            Sphere name, e.g. ``"red"``.
+
+        Returns
+        -------
+        tuple of float
+            Centroid in pixels of that camera's image (u right, v down), or
+            ``(nan, nan)`` when the sphere was not found there.
+
+        Raises
+        ------
+        KeyError
+            If ``camera`` or ``sphere`` is not in :attr:`detections`.
+        """
         d = self.detections[camera][sphere]
         return d.uv if d.valid else _NAN2
 
@@ -202,6 +221,8 @@ class StereoPipeline:
         otherwise in the left camera optical frame (x right, y down, z
         forward).
     options : PipelineOptions, optional
+        Tracking, triangulation and consistency options; default
+        ``PipelineOptions()``.
 
     Raises
     ------
@@ -366,7 +387,31 @@ class StereoPipeline:
         return arr
 
     def detect(self, left_bgr, right_bgr, *, index: int = 0) -> dict:
-        """Sphere detections ``{"left": {sphere: SphereDetection}, "right": {...}}`` in one pair."""
+        """Sphere detections ``{"left": {sphere: SphereDetection}, "right": {...}}`` in one pair.
+
+        With ``options.tracking`` the per-camera trackers are updated (state
+        carries to the next call); otherwise each image is searched in full.
+        No epipolar check or triangulation (see :meth:`process`).
+
+        Parameters
+        ----------
+        left_bgr, right_bgr : ndarray, shape (H, W, 3), uint8
+            Left and right BGR images of one pair, of the calibrated sizes.
+        index : int
+            Frame index, used in error messages.
+
+        Returns
+        -------
+        dict
+            ``{"left": {sphere: SphereDetection}, "right": {...}}``; centres
+            and radii in pixels (u right, v down), invalid detections say why
+            in ``reason``.
+
+        Raises
+        ------
+        TudorVisionError
+            An image that is not 8-bit BGR or not of the calibrated size.
+        """
         out = {}
         for cam, img in (("left", left_bgr), ("right", right_bgr)):
             arr = self._check_image(img, cam, index)
