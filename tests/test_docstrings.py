@@ -153,10 +153,6 @@ KNOWN_NOT_YET_DOCUMENTED = {
     "tudorvision.sim.shapes.Rectangle.normals", "tudorvision.sim.shapes.Scene.object_ids",
     "tudorvision.sim.shapes.Sphere", "tudorvision.sim.shapes.Sphere.corners",
     "tudorvision.sim.shapes.Sphere.intersect", "tudorvision.sim.shapes.Sphere.normals",
-    "tudorvision.stereo.pipeline.TrackStats", "tudorvision.stereo.pipeline.TrackStats.summary",
-    "tudorvision.stereo.pipeline.iter_stereo", "tudorvision.stereo.pipeline.read_mono_track_csv",
-    "tudorvision.stereo.pipeline.track_mono", "tudorvision.stereo.pipeline.track_stereo",
-    "tudorvision.stereo.pipeline.write_mono_track_csv",
 }
 KNOWN_UNDOCUMENTED = KNOWN_IN_FILES_BEING_REWRITTEN | KNOWN_NOT_YET_DOCUMENTED
 

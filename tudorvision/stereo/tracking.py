@@ -43,6 +43,8 @@ def iter_stereo(sequence, pipeline: StereoPipeline, *, live: bool = False, speed
         A stereo sequence (:func:`tudorvision.io.open_sequence`); with
         ``strict=False`` defective frames are skipped and counted.
     pipeline : StereoPipeline
+        Configured pipeline (calibration, colour models, output frame); its
+        tracking state carries across the frames.
     live : bool
         Pace playback at the recorded rate (times ``speed``), dropping the
         frames the pipeline is too slow for; results carry ``latency_s``
@@ -58,6 +60,15 @@ def iter_stereo(sequence, pipeline: StereoPipeline, *, live: bool = False, speed
     Yields
     ------
     StereoFrameResult
+        One per processed frame, in sequence order; positions in metres in
+        the pipeline's output frame (``"base"`` or ``"left"``).
+
+    Raises
+    ------
+    TudorVisionError
+        If ``sequence`` is not a stereo sequence, a frame of a strict
+        sequence is defective, or an image is not 8-bit BGR of the
+        calibrated size.
     """
     for res, _frame in _iter_pairs(sequence, pipeline, live=live, speed=speed, stats=stats, clock=clock,
                                    sleep=sleep):
@@ -116,6 +127,9 @@ class TrackStats:
     interrupted : str or None
         Why the run stopped early (``keep_partial=True``: Ctrl-C or an
         error), None when it ran to the end.
+    _n_latency : int
+        Internal: frames with a measured live latency, the divisor of
+        :attr:`mean_latency_s`; leave it at 0 when constructing.
     """
 
     frames_total: int = 0
@@ -162,7 +176,15 @@ class TrackStats:
         return self.latency_sum_s / self._n_latency if self._n_latency else float("nan")
 
     def summary(self) -> str:
-        """One line: frames, valid %, fps, and skipped/dropped/latency where they apply."""
+        """One line: frames, valid %, fps, and skipped/dropped/latency where they apply.
+
+        Returns
+        -------
+        str
+            E.g. ``"120/125 frames tracked, 96.7% valid, 48.2 fps"``, with
+            the corrupt frames skipped and, for live runs, the frames
+            dropped and the mean and maximum latency in milliseconds.
+        """
         s = (f"{self.processed}/{self.frames_total} frames tracked, {100 * self.valid_fraction:.1f}% valid, "
              f"{self.fps:.1f} fps")
         if self.skipped:
@@ -227,6 +249,8 @@ def track_stereo(sequence, calibration, color_models: ColorModelSet, *, T_base_l
         Base pose of the left camera (e.g. ``calibration.transforms["T_base_left"]``);
         without it the output is in the left camera optical frame.
     options : PipelineOptions, optional
+        Tracking, triangulation and consistency options; default
+        ``PipelineOptions()``.
     live : bool
         Pace at the recorded rate with frame dropping (see :func:`iter_stereo`).
     speed : float
@@ -342,6 +366,7 @@ def track_mono(sequence, model: ColorModel, *, tracking: bool = True, params: Tr
     tracking : bool
         Window search around the prediction (True) or full frames.
     params : TrackerParams, optional
+        Window and segmentation options; default ``TrackerParams()``.
     show_progress : bool or None
         Progress bar on stderr.
     keep_partial : bool
@@ -426,6 +451,28 @@ def write_mono_track_csv(path, result: MonoTrackResult, *, comment: str | None =
     frame rate), ``t`` seconds, ``u``/``v`` pixels (u right, v down, pixel
     centres at integers), ``valid`` 0/1 with ``nan`` pixels when 0.
 
+    Parameters
+    ----------
+    path : str or Path
+        Output CSV; parent directories are created. Written atomically: a
+        failed write leaves a previous file intact.
+    result : MonoTrackResult
+        The pixel track (``frame``, ``t``, ``uv``, ``valid``).
+    comment : str, optional
+        Extra comment lines at the top (e.g. the command).
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    OSError
+        If missing parent folders cannot be created.
+    TudorVisionError
+        If the file cannot be written (disk full, read-only folder).
+
     Examples
     --------
     >>> import tempfile, os
@@ -455,6 +502,18 @@ def write_mono_track_csv(path, result: MonoTrackResult, *, comment: str | None =
 
 def read_mono_track_csv(path) -> dict:
     """Read a pixel track written by :func:`write_mono_track_csv` as ``{column: (N,) array}``.
+
+    Parameters
+    ----------
+    path : str or Path
+        Pixel track CSV.
+
+    Returns
+    -------
+    dict of str to ndarray, shape (N,)
+        ``frame`` (int, 0-based decode index), ``t`` (seconds), ``u``,
+        ``v`` (pixels, u right, v down; NaN when invalid) and ``valid``
+        (int, 0/1).
 
     Raises
     ------
