@@ -289,8 +289,8 @@ def test_request_state_times_out_without_server():
 
 
 def test_command_age_tolerates_clock_offset_and_drift():
-    from tudorvision.joint.server import _Client
-    c = _Client()
+    from tudorvision.joint.session import SeqWindow
+    c = SeqWindow()
     ages = []
     for k in range(20000):                    # 100 Hz for 200 s; sender clock 500 ppm slow
         t_recv = 1000.0 + 0.01 * k

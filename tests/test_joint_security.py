@@ -18,7 +18,8 @@ from tudorvision.joint import protocol as P
 from tudorvision.joint.adapter import JointAdapter
 from tudorvision.joint.protocol import Ack, Mode, Reason, Refusal, StateFlags
 from tudorvision.joint.safety import SafetyLimits
-from tudorvision.joint.server import JointLayerServer, ServerConfig, _RateLimiter
+from tudorvision.joint.server import JointLayerServer, ServerConfig
+from tudorvision.joint.session import RateLimiter
 from tudorvision.joint.transport import InProcessTransport, LockstepClientTransport, UdpTransport
 
 KEY = bytes(range(100, 132))
@@ -368,7 +369,7 @@ def test_keyless_layer_refuses_to_bind_beyond_loopback():
 
 
 def test_rate_limiter_allows_a_burst_then_the_rate():
-    lim = _RateLimiter(rate_hz=100.0, burst=10, max_sources=2)
+    lim = RateLimiter(rate_hz=100.0, burst=10, max_sources=2)
     assert sum(lim.allow("a", 0.0) for _ in range(50)) == 10
     assert sum(lim.allow("a", 0.1) for _ in range(50)) == 10      # 0.1 s at 100/s refills 10
     assert lim.allow("b", 0.1) and lim.allow("c", 0.1)            # table bounded: "a" forgotten

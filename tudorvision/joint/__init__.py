@@ -15,8 +15,9 @@ from .protocol import (Ack, CollisionStrategy, Damping, JointSetpoint, JointVelo
                        PayloadUpdate, ProtocolError, Reason, Refusal, State, StateFlags, StateRequest, decode, encode)
 from .proxy import FaultModel, LossyUdpProxy
 from .safety import SafetyLimits, SafetyPolicy
-from .server import (CoreState, JointCore, JointLayerServer, KinematicCore, ServerConfig, core_names,
-                     make_core, register_core)
+from .cores import CoreState, JointCore, KinematicCore, core_names, make_core, register_core
+from .server import JointLayerServer
+from .server_config import ServerConfig
 from .transport import InProcessTransport, LockstepClientTransport, Transport, TransportClosed, UdpTransport
 
 __all__ = [

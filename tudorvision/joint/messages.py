@@ -141,7 +141,13 @@ def _floats(value, name: str, n: int) -> tuple:
 
 @dataclass(frozen=True, kw_only=True)
 class JointVelocityCommand:
-    """Joint velocity reference in rad/s, shape (3,), held until the watchdog expires."""
+    """Joint velocity reference, held until the watchdog expires.
+
+    Parameters
+    ----------
+    theta_dot : tuple of 3 float
+        Joint speeds in rad/s at the gear output (any sequence of 3 numbers).
+    """
 
     theta_dot: tuple
 
@@ -153,8 +159,15 @@ class JointVelocityCommand:
 class JointSetpoint:
     """Joint position setpoint in rad, shape (3,), with optional scalar limits.
 
-    ``max_speed`` (rad/s) and ``max_accel`` (rad/s²) bound the point-to-point
-    profile; ``None`` lets the layer choose its defaults.
+    Parameters
+    ----------
+    theta : tuple of 3 float
+        Target joint angles in rad (any sequence of 3 numbers).
+    max_speed : float or None
+        Speed bound of the point-to-point profile in rad/s; ``None``: the
+        layer's default.
+    max_accel : float or None
+        Acceleration bound of the profile in rad/s²; ``None``: the layer's default.
     """
 
     theta: tuple
@@ -171,7 +184,17 @@ class JointSetpoint:
 
 @dataclass(frozen=True, kw_only=True)
 class ModeSwitch:
-    """Switch mode, damping law and collision strategy; ``None`` keeps the current one."""
+    """Switch mode, damping law and collision strategy; ``None`` keeps the current one.
+
+    Parameters
+    ----------
+    mode : Mode or None
+        Operating mode.
+    damping : Damping or None
+        Oscillation damping law.
+    collision : CollisionStrategy or None
+        Collision reaction strategy.
+    """
 
     mode: Mode | None = None
     damping: Damping | None = None
@@ -188,7 +211,13 @@ class ModeSwitch:
 class PayloadUpdate:
     """Tell the layer the payload at the end effector (mount, plates, caught balls), kg.
 
-    The layer schedules its damping gains and its collision model on it.
+    The layer schedules its damping gains and its collision model on it; a
+    layer whose core has no payload model refuses it with ``UNSUPPORTED``.
+
+    Parameters
+    ----------
+    payload_kg : float
+        Payload mass in kg (the layer accepts [0, 5] kg).
     """
 
     payload_kg: float
@@ -354,7 +383,17 @@ class State:
 
 @dataclass(frozen=True, kw_only=True)
 class Ack:
-    """Acceptance of command ``command_seq``; ``code`` tells whether it was clamped."""
+    """Acceptance of a command; ``code`` tells whether it was clamped.
+
+    Parameters
+    ----------
+    command_seq : int
+        Sequence number of the accepted command.
+    code : Reason
+        ``OK`` or a ``CLAMPED_*`` code (< 10).
+    text : str
+        What was clamped, for humans (at most 255 bytes of UTF-8 on the wire).
+    """
 
     command_seq: int
     code: Reason = Reason.OK
@@ -366,7 +405,17 @@ class Ack:
 
 @dataclass(frozen=True, kw_only=True)
 class Refusal:
-    """Refusal of command ``command_seq`` with a reason code and a human-readable text."""
+    """Refusal of a command with a reason code and a human-readable text.
+
+    Parameters
+    ----------
+    command_seq : int
+        Sequence number of the refused command.
+    code : Reason
+        Why (a code >= 10).
+    text : str
+        Explanation for humans (at most 255 bytes of UTF-8 on the wire).
+    """
 
     command_seq: int
     code: Reason

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._checks import check_array
-from .protocol import Reason
+from .messages import Reason
 
 __all__ = ["SafetyLimits", "SafetyPolicy", "Verdict", "SetpointVerdict",
            "check_velocity_command", "check_setpoint", "brake_velocity", "ramp_velocity",
