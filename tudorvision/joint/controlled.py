@@ -26,7 +26,7 @@ from .collision import STRATEGY_OF_CODE, CollisionMonitor, reaction_config, root
 from .damping import LAWS, StrainDamper, default_damping_config
 from .plant import Plant
 from .planner import OnlinePlanner, plan_motion
-from .server import MAX_PAYLOAD_KG, CoreState
+from .cores import MAX_PAYLOAD_KG, CoreState
 
 __all__ = ["ControlledArm", "CascadeCore"]
 
