@@ -30,6 +30,7 @@ COMMAND_MODULES = (
     "tudorvision.cli.catch",
     "tudorvision.cli.joint",
     "tudorvision.cli.demo",
+    "tudorvision.cli.label",
 )
 
 
