@@ -36,19 +36,28 @@ def _lab_ab(frame_bgr: np.ndarray) -> np.ndarray:
     return lab[..., 1:].astype(np.float32) - 128.0
 
 
-def ball_mask(frame_bgr, ref_ab, *, blur: int = 5, min_chroma: float = 6.0) -> np.ndarray:
-    """Pixels whose chroma is nearer the ball's than half way to neutral grey.
+def ball_mask(frame_bgr, ref_ab, *, blur: int = 5, min_chroma: float = 6.0, max_angle_deg: float = 40.0,
+              min_fraction: float = 0.3) -> np.ndarray:
+    """Pixels whose chroma points the ball's way from the background's.
+
+    Chroma is CIE Lab (a*, b*). The background chroma is the frame's median
+    (the wall fills most of the frame). A pixel is ball when its chroma offset
+    from the background lies within ``max_angle_deg`` of the ball's offset and
+    is at least ``min_fraction`` of its length: pale (highlighted) ball pixels
+    pass, skin (another hue) and the wall do not.
 
     Parameters
     ----------
     frame_bgr : ndarray, shape (H, W, 3), uint8
         Frame, OpenCV BGR order.
     ref_ab : array_like, shape (2,)
-        Ball chroma (CIE a*, b* as OpenCV stores them minus 128).
+        Ball chroma (CIE a*, b* as OpenCV stores them, minus 128).
     blur : int
         Odd Gaussian kernel size applied before the colour conversion (0: none).
     min_chroma : float
-        Smallest chroma (distance of ``ref_ab`` from neutral) accepted.
+        Smallest offset of ``ref_ab`` from the background accepted.
+    max_angle_deg, min_fraction : float
+        See above.
 
     Returns
     -------
@@ -57,7 +66,7 @@ def ball_mask(frame_bgr, ref_ab, *, blur: int = 5, min_chroma: float = 6.0) -> n
     Raises
     ------
     TudorVisionError
-        ``ref_ab`` too close to neutral grey to separate the ball.
+        ``ref_ab`` too close to the background chroma to separate the ball.
 
     Examples
     --------
@@ -67,14 +76,18 @@ def ball_mask(frame_bgr, ref_ab, *, blur: int = 5, min_chroma: float = 6.0) -> n
     >>> bool(m[20, 20]), bool(m[2, 2])
     (True, False)
     """
-    ref = np.asarray(ref_ab, dtype=np.float32).reshape(2)
+    img = cv2.GaussianBlur(frame_bgr, (blur, blur), 0) if blur else frame_bgr
+    ab = _lab_ab(img)
+    bg = np.median(ab[::4, ::4].reshape(-1, 2), axis=0)
+    ref = np.asarray(ref_ab, dtype=np.float32).reshape(2) - bg
     chroma = float(np.hypot(*ref))
     if chroma < min_chroma:
-        raise TudorVisionError(f"ref_ab: the picked colour is nearly grey (chroma {chroma:.1f} < {min_chroma:g}); "
-                               "pick a pixel on the ball")
-    img = cv2.GaussianBlur(frame_bgr, (blur, blur), 0) if blur else frame_bgr
-    d = np.linalg.norm(_lab_ab(img) - ref, axis=2)
-    return d < 0.5 * chroma
+        raise TudorVisionError(f"ref_ab: the picked colour is nearly the background's (chroma offset {chroma:.1f} "
+                               f"< {min_chroma:g}); pick a pixel on the ball")
+    d = ab - bg
+    along = (d @ ref) / chroma
+    across = np.abs(d[..., 0] * ref[1] - d[..., 1] * ref[0]) / chroma
+    return (along >= min_fraction * chroma) & (across <= along * math.tan(math.radians(max_angle_deg)))
 
 
 def _circle_through(p: np.ndarray):
@@ -203,7 +216,8 @@ def propose_ball_circle(frame_bgr, ref_ab, *, min_area: int = 30, near_uv=None, 
     # points on the image border are not the ball's rim
     pts = pts[(pts[:, 0] > 0) & (pts[:, 1] > 0) & (pts[:, 0] < w - 1) & (pts[:, 1] < h - 1)]
     r_area = math.sqrt(float(blob.sum()) / math.pi)
-    res = ransac_circle(pts, r_range=(0.6 * r_area, 1.6 * r_area), seed=seed)
+    # occlusion only hides ball: the circle is at least as large as the blob's area-equivalent circle
+    res = ransac_circle(pts, tol=1.5, r_range=(0.97 * r_area, 1.6 * r_area), seed=seed)
     if res is None:
         return None
     u, v, r, frac = res
@@ -212,7 +226,8 @@ def propose_ball_circle(frame_bgr, ref_ab, *, min_area: int = 30, near_uv=None, 
 
 
 # ----------------------------------------------------------------------------- sheets
-def label_tile(frame_bgr, circle, *, text: str = "", scale: int = 4, half: int | None = None) -> np.ndarray:
+def label_tile(frame_bgr, circle, *, text: str = "", scale: int | None = None, half: int | None = None,
+               tile_px: int = 400) -> np.ndarray:
     """A zoomed crop around a circle, with a coordinate grid and the circle drawn thin.
 
     Parameters
@@ -224,10 +239,13 @@ def label_tile(frame_bgr, circle, *, text: str = "", scale: int = 4, half: int |
         crop of the frame centre, nothing drawn.
     text : str
         Caption written at the top left.
-    scale : int
-        Nearest-neighbour upscaling factor.
+    scale : int, optional
+        Nearest-neighbour upscaling factor; default: the largest that keeps
+        the tile within ``tile_px`` (at least 2).
     half : int, optional
         Crop half-size in pixels (default ``1.6 r + 6``).
+    tile_px : int
+        Tile size aimed at when ``scale`` is not given.
 
     Returns
     -------
@@ -237,7 +255,7 @@ def label_tile(frame_bgr, circle, *, text: str = "", scale: int = 4, half: int |
 
     Examples
     --------
-    >>> label_tile(np.zeros((50, 60, 3), np.uint8), (30, 25, 5), half=10).shape
+    >>> label_tile(np.zeros((50, 60, 3), np.uint8), (30, 25, 5), half=10, scale=4).shape
     (84, 84, 3)
     """
     h_img, w_img = frame_bgr.shape[:2]
@@ -248,6 +266,7 @@ def label_tile(frame_bgr, circle, *, text: str = "", scale: int = 4, half: int |
     half = int(half if half is not None else math.ceil(1.6 * r + 6))
     u0, v0 = int(round(u)) - half, int(round(v)) - half
     size = 2 * half + 1
+    scale = int(scale) if scale else max(2, tile_px // size)
     crop = np.zeros((size, size, 3), np.uint8)
     xs0, ys0 = max(u0, 0), max(v0, 0)
     xs1, ys1 = min(u0 + size, w_img), min(v0 + size, h_img)
@@ -450,9 +469,9 @@ def register(subparsers) -> None:
     b.add_argument("--pick", required=True, metavar="FRAME=U,V", help="a pixel on the ball in one frame (its colour)")
     b.add_argument("--out", required=True, help="label CSV to write or update")
     b.add_argument("--sheet", help="contact sheet PNG (written as NAME_01.png, NAME_02.png, ...)")
-    b.add_argument("--per-sheet", type=int, default=16, help="tiles per sheet (default 16)")
+    b.add_argument("--per-sheet", type=int, default=12, help="tiles per sheet (default 12)")
     b.add_argument("--columns", type=int, default=4, help="tiles per sheet row (default 4)")
-    b.add_argument("--scale", type=int, default=4, help="zoom of the crops (default 4)")
+    b.add_argument("--scale", type=int, default=None, help="zoom of the crops (default: fit ~400 px tiles, >= 2)")
     b.add_argument("--min-area", type=int, default=30, help="smallest ball blob in pixels (default 30)")
     b.add_argument("--set", action="append", default=[], metavar="FRAME=U,V,R",
                    help="hand-corrected circle of a frame (method hand-corrected)")
