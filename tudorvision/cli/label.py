@@ -76,6 +76,12 @@ def ball_mask(frame_bgr, ref_ab, *, blur: int = 5, min_chroma: float = 6.0, max_
     >>> bool(m[20, 20]), bool(m[2, 2])
     (True, False)
     """
+    along, across, chroma = _chroma_along(frame_bgr, ref_ab, blur, min_chroma)
+    return (along >= min_fraction * chroma) & (across <= along * math.tan(math.radians(max_angle_deg)))
+
+
+def _chroma_along(frame_bgr, ref_ab, blur: int, min_chroma: float):
+    """Chroma offset from the wall, along and across the ball's direction; and the ball's offset length."""
     img = cv2.GaussianBlur(frame_bgr, (blur, blur), 0) if blur else frame_bgr
     ab = _lab_ab(img)
     bg = np.median(ab[::4, ::4].reshape(-1, 2), axis=0)
@@ -87,7 +93,49 @@ def ball_mask(frame_bgr, ref_ab, *, blur: int = 5, min_chroma: float = 6.0, max_
     d = ab - bg
     along = (d @ ref) / chroma
     across = np.abs(d[..., 0] * ref[1] - d[..., 1] * ref[0]) / chroma
-    return (along >= min_fraction * chroma) & (across <= along * math.tan(math.radians(max_angle_deg)))
+    return along.astype(np.float32), across.astype(np.float32), chroma
+
+
+def _refine_rim(along: np.ndarray, chroma: float, circle, pts: np.ndarray, *, reach: float = 5.0,
+                min_contrast: float = 0.3):
+    """Circle through the half-contrast crossings of ``along`` on rays through the rim points ``pts``.
+
+    On each ray from the circle's centre through a rim point, the chroma
+    profile is sampled from ``r - reach`` to ``r + reach`` (0.25 px steps);
+    the crossing of the level half way between its inner and outer ends,
+    nearest the circle, is the rim there (for a blurred step edge that is the
+    edge itself). Rays with an inner-outer contrast below ``min_contrast *
+    chroma`` are dropped; the circle is fitted by least squares with two
+    passes trimming points more than 1 px off. None when fewer than 12 rays.
+    """
+    u, v, r = circle
+    ang = np.arctan2(pts[:, 1] - v, pts[:, 0] - u)
+    s = np.arange(r - reach, r + reach + 1e-9, 0.25, dtype=np.float64)
+    mx = (u + np.cos(ang)[:, None] * s[None, :]).astype(np.float32)
+    my = (v + np.sin(ang)[:, None] * s[None, :]).astype(np.float32)
+    prof = cv2.remap(along, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
+    k2 = max(int(round(2.0 / 0.25)), 1)
+    inner, outer = prof[:, :k2].mean(axis=1), prof[:, -k2:].mean(axis=1)
+    ok = inner - outer >= min_contrast * chroma
+    rim = []
+    for i in np.flatnonzero(ok):
+        f = prof[i] - 0.5 * (inner[i] + outer[i])
+        cross = np.flatnonzero((f[:-1] >= 0) & (f[1:] < 0))
+        if cross.size == 0:
+            continue
+        k = cross[np.argmin(np.abs(s[cross] - r))]
+        sk = s[k] + 0.25 * f[k] / (f[k] - f[k + 1])
+        rim.append((u + math.cos(ang[i]) * sk, v + math.sin(ang[i]) * sk))
+    if len(rim) < 12:
+        return None
+    rim = np.array(rim)
+    c = _lsq_circle(rim)
+    for _ in range(2):
+        keep = np.abs(np.hypot(rim[:, 0] - c[0], rim[:, 1] - c[1]) - c[2]) < 1.0
+        if keep.sum() < 12:
+            return None
+        c = _lsq_circle(rim[keep])
+    return c
 
 
 def _circle_through(p: np.ndarray):
@@ -163,7 +211,8 @@ def ransac_circle(points, *, tol: float = 1.2, iterations: int = 400, r_range=(2
     return best[0], best[1], best[2], float(inl.mean())
 
 
-def propose_ball_circle(frame_bgr, ref_ab, *, min_area: int = 30, near_uv=None, seed: int = 0):
+def propose_ball_circle(frame_bgr, ref_ab, *, min_area: int = 30, near_uv=None, seed: int = 0,
+                        refine: bool = True):
     """Candidate ball circle of one frame (independent of :mod:`tudorvision.stereo`).
 
     Parameters
@@ -178,6 +227,10 @@ def propose_ball_circle(frame_bgr, ref_ab, *, min_area: int = 30, near_uv=None, 
         Take the blob nearest this pixel instead of the largest.
     seed : int
         RANSAC seed.
+    refine : bool
+        Move the RANSAC circle's rim points to the half-contrast crossing of
+        the chroma profile across the rim and refit (sub-pixel edge);
+        otherwise the circle through the blob's boundary pixels plus 0.5 px.
 
     Returns
     -------
@@ -194,7 +247,8 @@ def propose_ball_circle(frame_bgr, ref_ab, *, min_area: int = 30, near_uv=None, 
     >>> abs(u - 40) < 0.7, abs(v - 36) < 0.7, abs(r - 15) < 1.0
     (True, True, True)
     """
-    mask = ball_mask(frame_bgr, ref_ab).astype(np.uint8)
+    along, across, chroma = _chroma_along(frame_bgr, ref_ab, 5, 6.0)
+    mask = ((along >= 0.3 * chroma) & (across <= along * math.tan(math.radians(40.0)))).astype(np.uint8)
     mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
     n, lab, stats, cents = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if n <= 1:
@@ -221,8 +275,12 @@ def propose_ball_circle(frame_bgr, ref_ab, *, min_area: int = 30, near_uv=None, 
     if res is None:
         return None
     u, v, r, frac = res
-    # boundary pixels are the outermost ball pixels: the rim lies half a pixel beyond them
-    return u, v, r + 0.5, frac
+    inl = np.abs(np.hypot(pts[:, 0] - u, pts[:, 1] - v) - r) < 1.5
+    fine = _refine_rim(along, chroma, (u, v, r), pts[inl]) if refine else None
+    if fine is None:
+        # boundary pixels are the outermost ball pixels: the rim lies about half a pixel beyond them
+        return u, v, r + 0.5, frac
+    return fine[0], fine[1], fine[2], frac
 
 
 # ----------------------------------------------------------------------------- sheets
@@ -235,8 +293,8 @@ def label_tile(frame_bgr, circle, *, text: str = "", scale: int | None = None, h
     frame_bgr : ndarray, shape (H, W, 3), uint8
         Frame.
     circle : tuple (u, v, r) or None
-        Circle in full-frame pixels (drawn red, centre cross red); None: a
-        crop of the frame centre, nothing drawn.
+        Circle in full-frame pixels (drawn red, centre cross red); None: the
+        whole frame scaled to ``tile_px`` (to check that no ball is visible).
     text : str
         Caption written at the top left.
     scale : int, optional
@@ -250,7 +308,8 @@ def label_tile(frame_bgr, circle, *, text: str = "", scale: int | None = None, h
     Returns
     -------
     ndarray, shape (S, S, 3), uint8
-        ``S = (2 half + 1) scale``. Grid lines every 5 px (brighter every
+        ``S = (2 half + 1) scale`` (the scaled frame's shape when ``circle``
+        is None). Grid lines every 5 px (brighter every
         10 px, with the full-frame coordinate written at the top and left).
 
     Examples
@@ -259,10 +318,14 @@ def label_tile(frame_bgr, circle, *, text: str = "", scale: int | None = None, h
     (84, 84, 3)
     """
     h_img, w_img = frame_bgr.shape[:2]
-    if circle is None:
-        u, v, r = w_img / 2, h_img / 2, 10.0
-    else:
-        u, v, r = circle
+    if circle is None:   # nothing to zoom on: the whole frame, to check that no ball is visible
+        k = tile_px / max(w_img, h_img)
+        tile = cv2.resize(frame_bgr, (max(int(w_img * k), 1), max(int(h_img * k), 1)), interpolation=cv2.INTER_AREA)
+        if text:
+            cv2.putText(tile, text, (3, 14), cv2.FONT_HERSHEY_PLAIN, 1.0, (0, 0, 0), 3)
+            cv2.putText(tile, text, (3, 14), cv2.FONT_HERSHEY_PLAIN, 1.0, (255, 255, 255), 1)
+        return tile
+    u, v, r = circle
     half = int(half if half is not None else math.ceil(1.6 * r + 6))
     u0, v0 = int(round(u)) - half, int(round(v)) - half
     size = 2 * half + 1
