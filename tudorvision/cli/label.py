@@ -285,7 +285,7 @@ def propose_ball_circle(frame_bgr, ref_ab, *, min_area: int = 30, near_uv=None, 
 
 # ----------------------------------------------------------------------------- sheets
 def label_tile(frame_bgr, circle, *, text: str = "", scale: int | None = None, half: int | None = None,
-               tile_px: int = 400) -> np.ndarray:
+               tile_px: int = 400, draw: bool = True) -> np.ndarray:
     """A zoomed crop around a circle, with a coordinate grid and the circle drawn thin.
 
     Parameters
@@ -304,6 +304,9 @@ def label_tile(frame_bgr, circle, *, text: str = "", scale: int | None = None, h
         Crop half-size in pixels (default ``1.6 r + 6``).
     tile_px : int
         Tile size aimed at when ``scale`` is not given.
+    draw : bool
+        Draw the circle; False gives a blind crop (the grid only) for an
+        independent reading of the rim.
 
     Returns
     -------
@@ -356,7 +359,7 @@ def label_tile(frame_bgr, circle, *, text: str = "", scale: int | None = None, h
                         (255, 255, 0), 1)
         if (v0 + k) % 10 == 0:
             cv2.putText(tile, str(v0 + k), (2, pos - 2), cv2.FONT_HERSHEY_PLAIN, 0.8, (255, 255, 0), 1)
-    if circle is not None:
+    if draw:
         sh = 4   # fixed-point bits for sub-pixel drawing
         cu, cv_ = (u - u0 + 0.5) * scale, (v - v0 + 0.5) * scale
         ctr = (int(round(cu * 2 ** sh)), int(round(cv_ * 2 ** sh)))
