@@ -9,6 +9,8 @@ from the hand). Then
 * ours, tracking: ``track_mono`` over the whole video (window search around
   the prediction), scored at the labelled frames;
 * ours, full frame: ``detect_sphere`` on each labelled frame alone;
+* the same two with the luma-edge rim (``SegmentParams(edge_refine=True)``,
+  what the CLI's ``--luma-edge auto`` chooses for videos);
 * peer: ``benchmarks/peer_hsv.detect_peer`` (Gaussian blur, HSV ``cv2.inRange``,
   erode/dilate, largest contour, ``cv2.minEnclosingCircle``), once with its
   tutorial "green" range and once with a range set from the same pick
@@ -38,7 +40,10 @@ from peer_hsv import RANGES, detect_peer  # noqa: E402
 
 from tudorvision.io import open_sequence  # noqa: E402
 from tudorvision.io.labels import read_ball_labels  # noqa: E402
-from tudorvision.stereo import detect_sphere, fit_color_model, track_mono  # noqa: E402
+from tudorvision.stereo import (SegmentParams, TrackerParams, detect_sphere, fit_color_model,  # noqa: E402
+                                track_mono)
+
+LUMA = SegmentParams(edge_refine=True)   # what `tudorvision track mono --luma-edge auto` uses for videos
 
 VIDEOS = ROOT.parent / "shared" / "realdata" / "ball_videos"
 LABELS = ROOT / "tests" / "data" / "ball_labels" / "labels.csv"
@@ -102,16 +107,16 @@ def run_video(name, labels, *, tracking=True):
     peer_pick = peer_ranges_from_pick(pick_img, pick)
     frames = [lab.frame for lab in labels]
     res = {}
-    if tracking:
+    for tag, params in (("", None), (", luma edge", LUMA)) if tracking else ():
         t0 = time.perf_counter()
-        tr = track_mono(seq, model)
+        tr = track_mono(seq, model, params=None if params is None else TrackerParams(segment=params))
         dt = time.perf_counter() - t0
         pos = {int(f): i for i, f in enumerate(tr.frame)}
         uv = np.array([tr.uv[pos[f]] if f in pos else (np.nan, np.nan) for f in frames])
         rr = np.array([tr.detections[pos[f]].radius_px if f in pos and tr.detections[pos[f]].valid else np.nan
                        for f in frames])
-        res["ours, tracking"] = score(labels, uv, rr) | {"s_per_frame": dt / len(seq)}
-    uv_f, r_f, uv_p, uv_q = [], [], [], []
+        res[f"ours, tracking{tag}"] = score(labels, uv, rr) | {"s_per_frame": dt / len(seq)}
+    uv_f, r_f, uv_l, r_l, uv_p, uv_q = [], [], [], [], [], []
     t_ours = t_peer = 0.0
     for f in frames:
         img = np.asarray(seq[f].image)
@@ -120,6 +125,9 @@ def run_video(name, labels, *, tracking=True):
         t_ours += time.perf_counter() - t0
         uv_f.append(d.uv if d.valid else (np.nan, np.nan))
         r_f.append(d.radius_px if d.valid else np.nan)
+        d = detect_sphere(img, model, params=LUMA)
+        uv_l.append(d.uv if d.valid else (np.nan, np.nan))
+        r_l.append(d.radius_px if d.valid else np.nan)
         t0 = time.perf_counter()
         p = detect_peer(img, {"green": RANGES["green"]})["green"]
         t_peer += time.perf_counter() - t0
@@ -129,6 +137,7 @@ def run_video(name, labels, *, tracking=True):
     seq.close()
     n = len(frames)
     res["ours, full frame"] = score(labels, np.array(uv_f, float), np.array(r_f, float)) | {"s_per_frame": t_ours / n}
+    res["ours, full frame, luma edge"] = score(labels, np.array(uv_l, float), np.array(r_l, float))
     res["peer HSV, tutorial range"] = score(labels, np.array(uv_p, float)) | {"s_per_frame": t_peer / n}
     res["peer HSV, range from pick"] = score(labels, np.array(uv_q, float))
     return res
