@@ -156,3 +156,51 @@ def test_tracker_centre_error_on_labelled_real_frames(labels):
     assert rate >= MIN_FOUND
     assert med <= MAX_MEDIAN_PX
     assert p90 <= MAX_P90_PX
+
+
+def test_label_command_on_an_image_folder(tmp_path):
+    """``tudorvision label balls`` end to end on rendered frames: labels, review options, sheets, one-line errors."""
+    import cv2
+    from tudorvision.cli import main
+    truth = [(60.0 + 7 * i, 50.0 + 3 * i, 18.0 + i) for i in range(4)]
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i, (u, v, r) in enumerate(truth):
+        cv2.imwrite(str(folder / f"{i:03d}.png"), _disc_image(u, v, r))
+    out = tmp_path / "labels.csv"
+    args = ["label", "balls", str(folder), "--frames", "0:4", "--pick", "0=60,50", "--out", str(out),
+            "--sheet", str(tmp_path / "sheet.png"), "--set", "2=1,2,3", "--note", "2=by hand",
+            "--unclean", "3=blurred"]
+    assert main(args) == 0
+    rows = read_ball_labels(out)
+    assert [lab.frame for lab in rows] == [0, 1, 2, 3]
+    for lab, (u, v, r) in zip(rows, truth):
+        if lab.frame != 2:
+            assert math.hypot(lab.u_px - u, lab.v_px - v) < 0.2 and abs(lab.r_px - r) < 0.2
+    assert (rows[2].u_px, rows[2].method, rows[2].note) == (1.0, "hand-corrected", "by hand")
+    assert [lab.clean for lab in rows] == [True, True, True, False] and rows[3].note == "blurred"
+    assert (tmp_path / "sheet_01.png").is_file()
+    # a second run on other frames keeps the first run's rows
+    assert main(["label", "balls", str(folder), "--frames", "1", "--pick", "0=60,50", "--out", str(out),
+                 "--none", "1"]) == 0
+    rows = read_ball_labels(out)
+    assert len(rows) == 4 and rows[1].method == "none" and not rows[1].has_circle
+
+
+@pytest.mark.parametrize("extra, match", [
+    (["--pick", "9=60,50"], "--pick: frame 9 outside"),
+    (["--pick", "0=60"], "--pick: expected FRAME=X,X"),
+    (["--pick", "0=5,5"], "nearly the wall's"),
+    (["--pick", "0=60,50", "--set", "3=1,2,3"], "frame 3 is not in --frames"),
+])
+def test_label_command_errors_are_one_line(tmp_path, capsys, extra, match):
+    import cv2
+    from tudorvision.cli import main
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for i in range(2):
+        cv2.imwrite(str(folder / f"{i:03d}.png"), _disc_image(60, 50, 18))
+    code = main(["label", "balls", str(folder), "--frames", "0:2", "--out", str(tmp_path / "l.csv")] + extra)
+    err = capsys.readouterr().err
+    assert code == 2
+    assert match in err and len(err.strip().splitlines()) == 1

@@ -88,7 +88,7 @@ def _chroma_along(frame_bgr, ref_ab, blur: int, min_chroma: float):
     ref = np.asarray(ref_ab, dtype=np.float32).reshape(2) - bg
     chroma = float(np.hypot(*ref))
     if chroma < min_chroma:
-        raise TudorVisionError(f"ref_ab: the picked colour is nearly the background's (chroma offset {chroma:.1f} "
+        raise TudorVisionError(f"ref_ab: the picked colour is nearly the wall's (chroma offset {chroma:.1f} "
                                f"< {min_chroma:g}); pick a pixel on the ball")
     d = ab - bg
     along = (d @ ref) / chroma
@@ -465,6 +465,8 @@ def _run_balls(args) -> int:
     frames = parse_frames(args.frames, len(seq))
     pick = _kv([args.pick], "--pick", 2)
     (pf, (pu, pv)), = pick.items()
+    if not 0 <= pf < len(seq):
+        raise TudorVisionError(f"--pick: frame {pf} outside the video's {len(seq)} frames")
     img = np.asarray(seq[pf].image)
     h, w = img.shape[:2]
     if not (0 <= pu < w and 0 <= pv < h):
