@@ -88,19 +88,9 @@ KNOWN_IN_FILES_BEING_REWRITTEN = {
 }
 # (b) Not yet documented (issue 13's docstring pass got through robot, geometry and servo first).
 KNOWN_NOT_YET_DOCUMENTED = {
-    "tudorvision.catch.ballistic.BallisticPredictor", "tudorvision.catch.ballistic.BallisticPredictor.add",
-    "tudorvision.catch.ballistic.BallisticPredictor.predict", "tudorvision.catch.ballistic.BallisticPredictor.reset",
-    "tudorvision.catch.ballistic.fit_ballistic",
 
 
 
-    "tudorvision.catch.intercept.Intercept",
-    "tudorvision.catch.intercept.InterceptOptions", "tudorvision.catch.intercept.InterceptPlanner",
-    "tudorvision.catch.intercept.InterceptPlanner.update", "tudorvision.catch.intercept.PlaneCrossing",
-    "tudorvision.catch.intercept.net_target", "tudorvision.catch.intercept.plane_crossing",
-    "tudorvision.catch.intercept.reachable_solutions", "tudorvision.catch.intercept.working_plane_normal",
-    "tudorvision.catch.perception.CatchPerception", "tudorvision.catch.perception.CatchPerception.step",
-    "tudorvision.catch.perception.detection_to_base",
     "tudorvision.joint.cascade.JointCascade", "tudorvision.joint.cascade.JointCascade.reset",
     "tudorvision.joint.cascade.design_cascade", "tudorvision.joint.collision.CollisionMonitor",
     "tudorvision.joint.collision.CollisionMonitor.set_payload", "tudorvision.joint.collision.CollisionMonitor.step",

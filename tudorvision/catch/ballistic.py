@@ -26,7 +26,10 @@ def fit_ballistic(t, p, *, t_ref: float | None = None, sigma_m=None, gravity_m_s
     t_ref : float, optional
         Time of the returned state (default the last time).
     sigma_m : array_like, shape (N,), optional
-        Per-detection standard deviations (weights).
+        Per-detection standard deviations, metres (weights ``1 / sigma_m``);
+        default equal weights.
+    gravity_m_s2 : float, optional
+        Gravitational acceleration along ``-z``, m/s^2.
 
     Returns
     -------
@@ -63,11 +66,30 @@ def fit_ballistic(t, p, *, t_ref: float | None = None, sigma_m=None, gravity_m_s
 def ballistic_crossing(p0, v0, normal, *, point=(0.0, 0.0, 0.0), gravity_m_s2: float = 9.81):
     """Time and point where the drag-free flight from ``(p0, v0)`` crosses a vertical plane.
 
+    Parameters
+    ----------
+    p0 : array_like, shape (3,)
+        Ball position at the state time, metres, base frame (z up).
+    v0 : array_like, shape (3,)
+        Ball velocity at the state time, m/s, base frame.
+    normal : array_like, shape (3,)
+        Normal of the vertical plane, base frame (``normal . g = 0``).
+    point : array_like, shape (3,), optional
+        A point on the plane, metres, base frame (default the origin).
+    gravity_m_s2 : float, optional
+        Gravitational acceleration along ``-z``, m/s^2.
+
     Returns
     -------
     dt_s : float or None
-        Time from the state to the crossing (None if moving away or parallel).
+        Time from the state to the crossing, seconds (None if moving away or parallel).
     p_base : ndarray, shape (3,) or None
+        Crossing point, metres, base frame (None when ``dt_s`` is None).
+
+    Raises
+    ------
+    ValueError
+        If an argument does not have shape (3,).
 
     Examples
     --------
@@ -92,6 +114,18 @@ def ballistic_crossing(p0, v0, normal, *, point=(0.0, 0.0, 0.0), gravity_m_s2: f
 class BallisticPredictor:
     """Accumulates the detections of one throw and predicts the plane crossing without drag.
 
+    Parameters
+    ----------
+    normal : array_like, shape (3,)
+        Normal of the vertical working plane through the base origin, base frame.
+    gravity_m_s2 : float, optional
+        Gravitational acceleration along ``-z``, m/s^2.
+
+    Raises
+    ------
+    ValueError
+        If ``normal`` does not have shape (3,).
+
     Examples
     --------
     >>> bp = BallisticPredictor([0, 1, 0])
@@ -108,10 +142,25 @@ class BallisticPredictor:
         self.reset()
 
     def reset(self) -> None:
+        """Forget all detections (start a new throw)."""
         self._t: list = []
         self._p: list = []
 
     def add(self, t: float, p_base) -> None:
+        """Add one detection.
+
+        Parameters
+        ----------
+        t : float
+            Detection time, seconds.
+        p_base : array_like, shape (3,)
+            Ball centre, metres, base frame (z up).
+
+        Raises
+        ------
+        ValueError
+            If ``p_base`` does not have shape (3,).
+        """
         self._t.append(float(t))
         self._p.append(check_array(p_base, "p_base", (3,)))
 
@@ -119,7 +168,16 @@ class BallisticPredictor:
         return len(self._t)
 
     def predict(self):
-        """``(t_cross, p_base)`` absolute crossing time and point; ``(None, None)`` if unknown."""
+        """Fit the detections so far and predict the crossing of the working plane.
+
+        Returns
+        -------
+        t_cross : float or None
+            Absolute crossing time, seconds (None with fewer than two
+            detections or when the ball does not reach the plane).
+        p_base : ndarray, shape (3,) or None
+            Crossing point, metres, base frame.
+        """
         if len(self._t) < 2:
             return None, None
         p0, v0 = fit_ballistic(self._t, np.array(self._p), gravity_m_s2=self.gravity_m_s2)

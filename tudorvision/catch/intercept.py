@@ -31,6 +31,16 @@ __all__ = ["working_plane_normal", "PlaneCrossing", "plane_crossing", "planar_co
 def working_plane_normal(theta1: float) -> np.ndarray:
     """Unit normal ``[-sin t1, cos t1, 0]`` of the working plane at azimuth ``theta1`` (rad), base frame.
 
+    Parameters
+    ----------
+    theta1 : float
+        Azimuth of the working plane (joint 1 angle), rad.
+
+    Returns
+    -------
+    n : ndarray, shape (3,)
+        Unit normal, base frame (z up).
+
     Examples
     --------
     >>> (working_plane_normal(0.0) + 0.0).tolist()
@@ -41,6 +51,23 @@ def working_plane_normal(theta1: float) -> np.ndarray:
 
 def planar_coordinates(p_base, theta1: float) -> tuple[float, float]:
     """Signed reach ``r`` along ``[cos t1, sin t1, 0]`` and height ``z`` of a point, metres.
+
+    Parameters
+    ----------
+    p_base : array_like, shape (3,)
+        Point, metres, base frame.
+    theta1 : float
+        Azimuth of the working plane, rad.
+
+    Returns
+    -------
+    r, z : float
+        Signed in-plane reach and height, metres.
+
+    Raises
+    ------
+    ValueError
+        If ``p_base`` does not have shape (3,).
 
     Examples
     --------
@@ -55,10 +82,20 @@ def planar_coordinates(p_base, theta1: float) -> tuple[float, float]:
 class PlaneCrossing:
     """The predicted crossing of the working plane.
 
-    ``dt_s``: time from the state's time to the crossing, s; ``x`` (6,): state
-    there; ``P`` (6, 6): its covariance; ``p_base`` (3,): crossing point;
-    ``cov_base`` (3, 3): covariance of the crossing point within the plane, m^2;
-    ``sigma_m``: its largest standard deviation.
+    Attributes
+    ----------
+    dt_s : float
+        Time from the state's time to the crossing, seconds.
+    x : ndarray, shape (6,)
+        Filter state ``[x, y, z, vx, vy, vz]`` at the crossing, m and m/s, base frame.
+    P : ndarray, shape (6, 6)
+        Covariance of ``x``.
+    p_base : ndarray, shape (3,)
+        Crossing point, metres, base frame.
+    cov_base : ndarray, shape (3, 3)
+        Covariance of the crossing point within the plane, m^2, base frame.
+    sigma_m : float
+        Largest standard deviation of ``cov_base``, metres.
     """
 
     dt_s: float
@@ -77,21 +114,32 @@ def plane_crossing(x, P, normal, *, point=(0.0, 0.0, 0.0), model: BallModel = Ba
     Parameters
     ----------
     x : array_like, shape (6,)
-        ``[x, y, z, vx, vy, vz]``, base frame.
+        ``[x, y, z, vx, vy, vz]``, m and m/s, base frame (z up).
     P : array_like, shape (6, 6)
+        Covariance of ``x``.
     normal : array_like, shape (3,)
-        Plane normal (need not be unit).
+        Plane normal, base frame (need not be unit).
     point : array_like, shape (3,)
-        A point on the plane.
+        A point on the plane, metres, base frame (default the origin).
+    model : BallModel, optional
+        Flight model (gravity and drag) used to propagate the state.
+    q_m2_s3 : float, optional
+        White acceleration noise spectral density per axis, m^2/s^3, for the
+        covariance propagation.
     max_time_s : float
-        Search horizon.
+        Search horizon, seconds.
     min_height_m : float
-        The flight ends when ``z`` falls below this (the floor).
+        The flight ends when ``z`` falls below this (the floor), metres, base frame.
 
     Returns
     -------
     PlaneCrossing or None
         None if the ball moves away from the plane or does not reach it in time.
+
+    Raises
+    ------
+    ValueError
+        If ``x``, ``P``, ``normal`` or ``point`` has the wrong shape.
 
     Examples
     --------
@@ -148,10 +196,22 @@ def plane_crossing(x, P, normal, *, point=(0.0, 0.0, 0.0), model: BallModel = Ba
 def reachable_solutions(p_base, theta1: float, params=None, *, margin_rad: float = 0.0) -> np.ndarray:
     """Rigid IK solutions reaching ``p_base`` with joint 1 at ``theta1`` (within the ranges shrunk by margin).
 
+    Parameters
+    ----------
+    p_base : array_like, shape (3,)
+        Target point, metres, base frame.
+    theta1 : float
+        Required joint 1 angle (azimuth of the working plane), rad.
+    params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml``.
+    margin_rad : float, optional
+        Joint-range margin, rad: solutions closer than this to a limit are dropped.
+
     Returns
     -------
     thetas : ndarray, shape (K, 3)
-        K in 0..2 (elbow up / down); empty when not reachable in that plane.
+        Joint angles, rad, K in 0..2 (elbow up / down); empty when not
+        reachable in that plane.
 
     Examples
     --------
@@ -188,12 +248,20 @@ def net_target(p_base, theta1: float, params=None, *, reach_margin_m: float = 0.
         Crossing point in the working plane at azimuth ``theta1``, base frame, metres.
     theta1 : float
         Azimuth of the working plane, rad.
+    params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml``.
     reach_margin_m : float
         Distance kept from full stretch (link 2 + link 3), metres.
 
     Returns
     -------
-    ndarray, shape (3,)
+    p_net : ndarray, shape (3,)
+        Net target, metres, base frame.
+
+    Raises
+    ------
+    ValueError
+        If ``p_base`` does not have shape (3,).
 
     Examples
     --------
@@ -233,15 +301,23 @@ class InterceptOptions:
         deviation is below this.
     refine_tol_m : float
         After release, a new setpoint is sent when the intercept moved more than this
-        (and more than ``refine_sigma_factor`` times its current standard deviation) ...
+        (and more than ``refine_sigma_factor`` times its current standard deviation), metres ...
+    refine_sigma_factor : float
+        Multiple of the current standard deviation the intercept must move
+        before a refinement is sent (0: only ``refine_tol_m`` counts).
     min_interval_s : float
         ... and at least this long after the previous one (every new setpoint re-plans the
         joint layer's smooth point-to-point profile; re-planning at the camera rate would
-        keep the arm in the slow start of the profile).
+        keep the arm in the slow start of the profile), seconds.
     margin_rad : float
         Joint-range margin for reachability.
     min_height_m : float
-        Floor height in the base frame (the flight ends below it).
+        Floor height in the base frame (the flight ends below it), metres.
+
+    Raises
+    ------
+    ValueError
+        If ``release_sigma_m <= 0`` or ``refine_tol_m < 0``.
     """
 
     theta1_rad: float = 0.0
@@ -259,9 +335,25 @@ class InterceptOptions:
 
 @dataclass(frozen=True)
 class Intercept:
-    """One intercept estimate: absolute crossing time ``t_cross`` (s), point ``p_base`` (3,),
-    in-plane covariance ``cov_base`` (3, 3), ``sigma_m``, ``reachable`` and whether a setpoint
-    was (re)sent for it (``send``)."""
+    """One intercept estimate of :class:`InterceptPlanner`.
+
+    Attributes
+    ----------
+    t : float
+        Time of the filter state it was computed from, seconds.
+    t_cross : float
+        Absolute predicted crossing time, seconds.
+    p_base : ndarray, shape (3,)
+        Predicted crossing point, metres, base frame.
+    cov_base : ndarray, shape (3, 3)
+        In-plane covariance of ``p_base``, m^2.
+    sigma_m : float
+        Largest standard deviation of ``cov_base``, metres.
+    reachable : bool
+        Whether the arm can reach ``p_base`` in the working plane.
+    send : bool
+        Whether a setpoint was (re)sent for this estimate.
+    """
 
     t: float
     t_cross: float
@@ -278,6 +370,17 @@ class InterceptPlanner:
     Call :meth:`update` after each filter step with the filter's state;
     it returns the :class:`Intercept` (or None without a crossing), whose
     ``send`` tells whether a (new) setpoint should go out now.
+
+    Parameters
+    ----------
+    options : InterceptOptions, optional
+        Working plane and release policy.
+    model : BallModel, optional
+        Flight model used to propagate the state to the plane.
+    q_m2_s3 : float, optional
+        White acceleration noise spectral density per axis, m^2/s^3.
+    params : RobotParams, optional
+        Robot parameters for reachability; default the packaged ``tudor.yaml``.
     """
 
     def __init__(self, options: InterceptOptions = InterceptOptions(), *, model: BallModel = BallModel(),
@@ -326,7 +429,28 @@ class InterceptPlanner:
         self.history: list[Intercept] = []
 
     def update(self, t: float, x, P) -> Intercept | None:
-        """Intercept for the state ``(x, P)`` at time ``t`` (s)."""
+        """Intercept for the state ``(x, P)`` at time ``t`` (s).
+
+        Parameters
+        ----------
+        t : float
+            Time of the state, seconds.
+        x : array_like, shape (6,)
+            Filter state ``[x, y, z, vx, vy, vz]``, m and m/s, base frame.
+        P : array_like, shape (6, 6)
+            Covariance of ``x``.
+
+        Returns
+        -------
+        Intercept or None
+            The estimate (its ``send`` says whether a setpoint goes out now),
+            or None when the flight does not cross the working plane.
+
+        Raises
+        ------
+        ValueError
+            If ``x`` or ``P`` has the wrong shape.
+        """
         o = self.options
         c = plane_crossing(x, P, working_plane_normal(o.theta1_rad), model=self.model, q_m2_s3=self.q_m2_s3,
                            min_height_m=o.min_height_m)

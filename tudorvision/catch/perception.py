@@ -22,10 +22,21 @@ __all__ = ["CatchPerception", "detection_to_base"]
 def detection_to_base(p_cam, cov_cam, T_base_cam):
     """Ball centre and covariance from the camera optical frame to the base frame.
 
+    Parameters
+    ----------
+    p_cam : array_like, shape (3,)
+        Ball centre, metres, camera optical frame (x right, y down, z forward).
+    cov_cam : array_like, shape (3, 3)
+        Its covariance, m^2, camera optical frame.
+    T_base_cam : array_like, shape (4, 4)
+        Camera pose: ``p_base = T_base_cam @ p_cam`` (homogeneous).
+
     Returns
     -------
     p_base : ndarray, shape (3,)
+        Ball centre, metres, base frame.
     cov_base : ndarray, shape (3, 3)
+        Its covariance ``R cov_cam R^T``, m^2, base frame.
 
     Examples
     --------
@@ -43,14 +54,17 @@ class CatchPerception:
     Parameters
     ----------
     ekf : EKFOptions
+        Options of the ball EKF (flight model, process noise, gating).
     intercept : InterceptOptions
+        Working plane and release policy of the intercept planner.
     params : RobotParams, optional
+        Robot parameters for reachability; default the packaged ``tudor.yaml``.
     peer : bool
         Also run the drag-free ballistic peer (for comparison only).
     min_sigma_m : float
         Isotropic floor added to the detector's covariance (near the sensor it
         claims sub-millimetre depth accuracy that partial silhouettes at the
-        image border do not have).
+        image border do not have), metres.
     """
 
     def __init__(self, ekf: EKFOptions = EKFOptions(), intercept: InterceptOptions = InterceptOptions(),
@@ -66,6 +80,32 @@ class CatchPerception:
         """Fuse one detection; returns a record (status, state, intercept, peer prediction).
 
         ``rec["peer_s"]`` is the time spent on the peer (not part of the catching pipeline).
+
+        Parameters
+        ----------
+        t : float
+            Detection time, seconds.
+        p_base : array_like, shape (3,)
+            Detected ball centre, metres, base frame (z up).
+        cov_base : array_like, shape (3, 3)
+            Its covariance, m^2, base frame (``min_sigma_m ** 2`` is added on
+            the diagonal).
+
+        Returns
+        -------
+        rec : dict
+            ``"t"`` (s), ``"status"`` (the EKF status: ``"buffered"``,
+            ``"initialised"``, ``"accepted"``, ``"rejected"`` or
+            ``"restarted"``), ``"throw"`` (throw id), ``"intercept"``
+            (:class:`Intercept` or None), ``"ballistic"`` (the peer's
+            ``(t_cross, p_base)``, ``(None, None)`` when unknown),
+            ``"peer_s"`` (s) and, once the filter is initialised, ``"x"``
+            (state ``[x, y, z, vx, vy, vz]``, base frame).
+
+        Raises
+        ------
+        ValueError
+            If ``p_base`` or ``cov_base`` has the wrong shape.
         """
         cov = np.asarray(cov_base, float) + self.min_sigma_m ** 2 * np.eye(3)
         status = self.ekf.step(t, p_base, cov)
