@@ -95,6 +95,7 @@ def design_cascade(params: RobotParams, effective_inertia_kg_m2, *, t_d: float =
     Parameters
     ----------
     params : RobotParams
+        Robot parameters (actuator gains and viscous friction of appendix A.3).
     effective_inertia_kg_m2 : array_like, shape (3,)
         Inertia seen by each joint at the gear output (rotor reflected plus the
         attached bodies, e.g. in the zero configuration as in the seed).
@@ -106,6 +107,7 @@ def design_cascade(params: RobotParams, effective_inertia_kg_m2, *, t_d: float =
     Returns
     -------
     CascadeGains
+        The per-joint gains.
 
     Raises
     ------
@@ -225,6 +227,7 @@ class JointCascade:
     Parameters
     ----------
     gains : CascadeGains
+        Loop gains, e.g. from :func:`design_cascade`.
     dt : float
         Sample time, seconds (0.0005 at 2 kHz).
     theta0 : array_like, shape (3,)
@@ -237,6 +240,12 @@ class JointCascade:
         damping input) per joint, rad/s; default none. With the rated joint
         speeds, a damping input on top of a fast profile cannot ask the
         velocity loop for more than the actuator's rated speed.
+
+    Raises
+    ------
+    ValueError
+        If ``dt`` is not positive, ``theta0`` or ``max_speed_rad_s`` does not
+        have shape (3,), or a speed limit is not positive.
 
     Examples
     --------
@@ -296,7 +305,18 @@ class JointCascade:
         self._kpd = [float(self.gains.k_pd[j]) * s for j in range(3)]
 
     def reset(self, theta) -> None:
-        """Zero the controller state at encoder reading ``theta``."""
+        """Zero the controller state at encoder reading ``theta``.
+
+        Parameters
+        ----------
+        theta : array_like, shape (3,)
+            Encoder joint angles, rad.
+
+        Raises
+        ------
+        ValueError
+            If ``theta`` does not have shape (3,).
+        """
         th = check_array(theta, "theta", (3,))
         self._th_prev = [float(x) for x in th]
         self._vel = [0.0, 0.0, 0.0]

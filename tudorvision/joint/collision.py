@@ -87,12 +87,22 @@ class MomentumObserver:
     Parameters
     ----------
     model : StrainDynamicsModel
+        Identified strain-referred dynamics (10.2.8).
     payload_kg : float
+        Payload mass, kg.
     k_i : float or array_like, shape (2,), optional
         Observer gains ``K_I``, 1/s (cut-off of the residual low-pass); default
         :data:`DEFAULT_K_I`.
     dt : float
         Sample time, seconds.
+    input_lag_s : float, optional
+        Time constant of the first-order filter applied to the angle and
+        strain inputs, seconds (match the velocity filter); 0: raw inputs.
+
+    Raises
+    ------
+    ValueError
+        If ``dt`` or a gain is not positive, or ``input_lag_s`` is negative.
     """
 
     def __init__(self, model: StrainDynamicsModel, payload_kg: float, *, k_i=None, dt: float,
@@ -115,10 +125,18 @@ class MomentumObserver:
         self._started = False
 
     def set_payload(self, payload_kg: float) -> None:
+        """Use a new payload mass in the model terms.
+
+        Parameters
+        ----------
+        payload_kg : float
+            Payload mass, kg.
+        """
         self.payload_kg = float(payload_kg)
         self._chi = self.model.at_payload(payload_kg)
 
     def reset(self) -> None:
+        """Restart the observer: zero residual, ``p(0)`` taken at the next sample."""
         self._started = False
         self.r = [0.0, 0.0]
 
@@ -128,6 +146,20 @@ class MomentumObserver:
         With ``input_lag_s > 0`` the angles and strains first pass the same
         first-order filter as the (filtered encoder) velocity ``dtheta``, so
         that all inputs of the model carry the same lag.
+
+        Parameters
+        ----------
+        theta : sequence of 3 floats
+            Encoder joint angles, rad.
+        dtheta : sequence of 3 floats
+            Joint velocities (filtered encoder), rad/s.
+        eps2 : sequence of 2 floats
+            Root strains of links 2 and 3, m/m (positive: tension on top).
+
+        Returns
+        -------
+        r : list of 2 floats
+            Momentum residuals of joints 2 and 3, m/m (0 at the first sample).
         """
         a = self._alpha
         if a < 1.0:
@@ -265,6 +297,24 @@ def root_torque_per_strain(params) -> tuple:
 def reaction_config(strategy: str, *, torque_per_strain=(8000.0, 8000.0)) -> ReactionConfig:
     """Default parameters per strategy (reflex: light, low friction, k_or = 2; interaction: k_or = 1).
 
+    Parameters
+    ----------
+    strategy : {"none", "stop", "reflex", "interaction"}
+        Reaction strategy.
+    torque_per_strain : sequence of 2 floats, optional
+        ``E I / y_b`` of the root sections of links 2 and 3, N m per (m/m)
+        (:func:`root_torque_per_strain`).
+
+    Returns
+    -------
+    ReactionConfig
+        The strategy's admittance parameters.
+
+    Raises
+    ------
+    ValueError
+        If ``strategy`` is not one of :data:`STRATEGIES`.
+
     Examples
     --------
     >>> reaction_config("reflex").k_or
@@ -319,11 +369,15 @@ class CollisionMonitor:
     Parameters
     ----------
     model : StrainDynamicsModel
+        Identified strain-referred dynamics (10.2.8) the observer runs on.
     thresholds : array_like, shape (2,)
         Residual thresholds of the link-2 and link-3 root strains, m/m.
     payload_kg : float
+        Payload mass, kg.
     dt : float
+        Control sample time, seconds.
     config : ReactionConfig
+        Reaction strategy and admittance.
     k_i : float, optional
         Observer gain, 1/s (default :data:`DEFAULT_K_I`; use the gain the
         thresholds were computed with).
@@ -402,6 +456,18 @@ class CollisionMonitor:
         The model's inertia and gravity terms change at once, which steps the
         residual while the arm moves; detection pauses for ``quiet_s`` seconds
         (ten observer time constants at ``K_I = 200 /s``) while it settles.
+
+        Parameters
+        ----------
+        payload_kg : float
+            New payload mass, kg.
+        quiet_s : float, optional
+            Detection pause after the change, seconds.
+
+        Raises
+        ------
+        ValueError
+            If ``payload_kg`` is not a finite mass in the allowed range.
         """
         self.observer.set_payload(check_mass(payload_kg))
         self._armed_k = max(self._armed_k, self._k + int(round(float(quiet_s) / self.dt)))
@@ -422,7 +488,32 @@ class CollisionMonitor:
             a.reset()
 
     def step(self, theta, dtheta, strain, theta_ref, dtheta_ref, extra):
-        """One control sample; see the class docstring for the return value."""
+        """One control sample; see the class docstring for the return value.
+
+        Parameters
+        ----------
+        theta : sequence of 3 floats
+            Encoder joint angles, rad.
+        dtheta : sequence of 3 floats
+            Joint velocities (filtered encoder), rad/s.
+        strain : sequence of floats
+            Strain gauge readings, m/m; channels 0 and 2 are the roots of
+            links 2 and 3.
+        theta_ref : sequence of 3 floats
+            Position references of the cascade, rad.
+        dtheta_ref : sequence of 3 floats
+            Velocity feed-forward of the cascade, rad/s.
+        extra : sequence of 3 floats
+            Extra velocity input (damping law), rad/s.
+
+        Returns
+        -------
+        tuple of 3 lists or None
+            None while no reaction is active (cascade inputs unchanged), else
+            the replaced ``(theta_ref, dtheta_ref, extra)``: the measured
+            angles (rad), zero feed-forward and the reaction velocity plus
+            ``extra`` (rad/s).
+        """
         r_full = self.observer.step(theta, dtheta, (strain[ROOT_GAUGES[0]], strain[ROOT_GAUGES[1]]))
         r = r_full
         if self._hp_a > 0.0:

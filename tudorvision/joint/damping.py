@@ -427,6 +427,31 @@ def default_damping_config(law: str, *, two_way: bool = False, assisted: bool = 
     (the known payload mass) the one-way plant's tuned link-3 gain follows
     ``PAYLOAD_SCHEDULE`` (not for the two-way plant, the assisted gains or given ``k_eps``).
 
+    Parameters
+    ----------
+    law : {"off", "proportional", "integral", "half_integrator"}
+        Damping law.
+    two_way : bool, optional
+        Use the gains tuned for the two-way coupled plant instead of the one-way plant.
+    assisted : bool, optional
+        Proportional law with a model-assisted static strain cancellation
+        (``ASSISTED_GAINS``).
+    payload_kg : float, optional
+        Known payload mass, kg, for the one-way plant's link-3 gain schedule.
+    **overrides
+        Further :class:`DampingConfig` fields (``k_eps`` given here replaces the
+        tuned gains).
+
+    Returns
+    -------
+    DampingConfig
+        The configuration with the tuned gains.
+
+    Raises
+    ------
+    ValueError
+        If ``law`` is not one of ``LAWS`` (or an override is invalid).
+
     Examples
     --------
     >>> default_damping_config("proportional").k_eps
@@ -456,6 +481,7 @@ class StrainDamper:
     Parameters
     ----------
     config : DampingConfig
+        Damping law, gains, filter length and gauge channels.
     eps0 : array_like, shape (C,)
         Strain at start (the arm at rest).
     dt : float
@@ -475,7 +501,14 @@ class StrainDamper:
         removes whatever the model misses (offsets, drift). The channels are
         those of ``config.gauge_of_joint`` for joints 2 and 3.
     payload_kg : float
-        Payload mass for the model (the layer's known or estimated payload).
+        Payload mass for the model (the layer's known or estimated payload), kg.
+
+    Raises
+    ------
+    ValueError
+        If ``dt`` is not positive or ``payload_kg`` is not a valid mass.
+    TypeError
+        If ``strain_model`` has no ``predict`` method.
 
     Attributes
     ----------
@@ -533,6 +566,12 @@ class StrainDamper:
         Parameters
         ----------
         k_eps : array_like, shape (3,)
+            New gain per joint (units of :class:`DampingConfig`'s ``k_eps``).
+
+        Raises
+        ------
+        ValueError
+            If ``k_eps`` does not have shape (3,).
         """
         k = [float(x) for x in check_array(k_eps, "k_eps", (3,))]
         if self.config.law == "integral":
@@ -540,7 +579,18 @@ class StrainDamper:
         self._k = k
 
     def set_payload(self, payload_kg: float) -> None:
-        """Payload mass given to the ``strain_model`` from now on (kg)."""
+        """Payload mass given to the ``strain_model`` from now on (kg).
+
+        Parameters
+        ----------
+        payload_kg : float
+            Payload mass, kg.
+
+        Raises
+        ------
+        ValueError
+            If ``payload_kg`` is not a finite mass in the allowed range.
+        """
         m = check_mass(payload_kg)
         # the layer learns of a payload change after it happened: re-anchor the model at the next
         # referenced step instead of stepping its prediction by the payload's static strain now

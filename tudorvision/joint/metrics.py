@@ -85,13 +85,29 @@ def settling_time(t, x, x_ref=0.0, *, band: float, horizon_s: float | None = Non
 
     Parameters
     ----------
-    t, x : array_like, shape (N,)
+    t : array_like, shape (N,)
+        Sample times, seconds (N >= 2).
+    x : array_like, shape (N,)
+        Signal, SI units (m/m for strain, rad for joint angles).
     x_ref : float or array_like, shape (N,)
+        Reference the signal settles to, same unit as ``x``.
     band : float
-        Half-width of the band (15e-6 for strain, 0.01 deg for joint angles).
+        Half-width of the band, same unit as ``x`` (15e-6 for strain,
+        0.01 deg in rad for joint angles).
     horizon_s : float, optional
-        Cap (the seed normalises strain settling to a 10 s horizon); default
+        Cap, seconds (the seed normalises strain settling to a 10 s horizon); default
         the end of the record. A signal that never settles returns the cap.
+
+    Returns
+    -------
+    float
+        Settling time, seconds from ``t[0]`` (0 when always inside the band).
+
+    Raises
+    ------
+    ValueError
+        If ``t`` has fewer than two samples, ``x`` does not match it, or
+        ``band`` is not positive.
 
     Examples
     --------
@@ -146,7 +162,13 @@ def damping_metrics(t, eps_tilde, theta, theta_ref, *, theta_goal: float, freq_h
     theta_goal : float
         Goal angle, rad (for the joint settling time).
     freq_hz : float
-        Dominant frequency for the spectral amplitude.
+        Dominant frequency for the spectral amplitude, Hz.
+    strain_band : float, optional
+        Strain settling band, m/m (B.4: 15e-6).
+    angle_band : float, optional
+        Joint angle settling band, rad (B.4: 0.01 deg).
+    horizon_s : float, optional
+        Cap of the strain settling time, seconds.
 
     Returns
     -------
@@ -154,6 +176,11 @@ def damping_metrics(t, eps_tilde, theta, theta_ref, *, theta_goal: float, freq_h
         ``max_strain`` (m/m), ``strain_settling_s``, ``spectral_amp`` (m/m),
         ``iats`` ((m/m) s^2), ``joint_settling_s``, ``iate`` (rad s^2) and
         ``final_joint_error_rad``.
+
+    Raises
+    ------
+    ValueError
+        If ``t`` has fewer than two samples or a series does not match it.
     """
     t, e = _series(t, eps_tilde, "eps_tilde")
     _, th = _series(t, theta, "theta")

@@ -122,9 +122,15 @@ class JointMotion:
     def sample_scalar(self, t: float):
         """Fast pure-Python :meth:`sample` for one time (for 2 kHz loops).
 
+        Parameters
+        ----------
+        t : float
+            Absolute time, seconds.
+
         Returns
         -------
         theta, dtheta, ddtheta : list of J floats
+            Planned angles (rad), velocities (rad/s) and accelerations (rad/s^2).
         """
         tt = max(float(t) - self.t0, 0.0)
         th, dth, ddth = [], [], []
@@ -262,6 +268,13 @@ class OnlinePlanner:
         Angles at rest at time ``t0``.
     v_max, a_max : float or array_like, shape (J,)
         Limits, rad/s and rad/s^2.
+    t0 : float, optional
+        Start time, seconds.
+
+    Raises
+    ------
+    ValueError
+        If a limit is not positive.
 
     Examples
     --------
@@ -278,15 +291,50 @@ class OnlinePlanner:
         self.motion = plan_motion(th, th, v_max=v_max, a_max=a_max, t0=t0)
 
     def set_goal(self, theta_goal, t: float) -> None:
-        """Start a new motion toward ``theta_goal`` from the planned state at time ``t``."""
+        """Start a new motion toward ``theta_goal`` from the planned state at time ``t``.
+
+        Parameters
+        ----------
+        theta_goal : array_like, shape (J,)
+            Goal angles, rad.
+        t : float
+            Absolute time of the new goal, seconds.
+
+        Raises
+        ------
+        ValueError
+            If ``theta_goal`` does not have shape (J,).
+        """
         th, dth, _ = self.motion.sample(float(t))
         self.motion = plan_motion(th, theta_goal, v_max=self.v_max, a_max=self.a_max,
                                   dtheta_start=dth, t0=float(t))
 
     def sample(self, t):
-        """Planned ``(theta, dtheta, ddtheta)`` at time(s) ``t`` (see :meth:`JointMotion.sample`)."""
+        """Planned ``(theta, dtheta, ddtheta)`` at time(s) ``t`` (see :meth:`JointMotion.sample`).
+
+        Parameters
+        ----------
+        t : float or array_like, shape (N,)
+            Absolute times, seconds.
+
+        Returns
+        -------
+        theta, dtheta, ddtheta : ndarray, shape (J,) or (N, J)
+            Planned angles (rad), velocities (rad/s) and accelerations (rad/s^2).
+        """
         return self.motion.sample(t)
 
     def sample_scalar(self, t: float):
-        """Pure-Python sample at one time (lists of floats)."""
+        """Pure-Python sample at one time (lists of floats).
+
+        Parameters
+        ----------
+        t : float
+            Absolute time, seconds.
+
+        Returns
+        -------
+        theta, dtheta, ddtheta : list of J floats
+            Planned angles (rad), velocities (rad/s) and accelerations (rad/s^2).
+        """
         return self.motion.sample_scalar(t)

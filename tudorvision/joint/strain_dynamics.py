@@ -99,16 +99,70 @@ class StrainDynamicsModel:
         object.__setattr__(self, "chi", check_array(self.chi, "chi", (2, 2 * N_PARAMS)))
 
     def at_payload(self, payload_kg: float) -> np.ndarray:
-        """Parameters at one payload mass, shape (2, 16)."""
+        """Parameters at one payload mass, shape (2, 16).
+
+        Parameters
+        ----------
+        payload_kg : float
+            Payload mass, kg.
+
+        Returns
+        -------
+        chi_m : ndarray, shape (2, 16)
+            Parameters per output on :func:`regressor` (link-2, link-3 root strain).
+        """
         return self.chi[:, :N_PARAMS] + float(payload_kg) * self.chi[:, N_PARAMS:]
 
     def predict(self, theta, dtheta, ddtheta, payload_kg) -> np.ndarray:
-        """Predicted root strains, shape (N, 2), m/m."""
+        """Predicted root strains, shape (N, 2), m/m.
+
+        Parameters
+        ----------
+        theta : array_like, shape (N, 3)
+            Joint angles, rad.
+        dtheta : array_like, shape (N, 3)
+            Joint velocities, rad/s.
+        ddtheta : array_like, shape (N, 3)
+            Joint accelerations, rad/s^2.
+        payload_kg : float or array_like, shape (N,)
+            Payload mass, kg.
+
+        Returns
+        -------
+        eps : ndarray, shape (N, 2)
+            Predicted link-2 and link-3 root strains, m/m.
+
+        Raises
+        ------
+        ValueError
+            If the shapes do not match.
+        """
         return regressor_payload(theta, dtheta, ddtheta, payload_kg) @ self.chi.T
 
     @staticmethod
     def terms(chi_m: np.ndarray, theta3: float, theta2: float, d2: float, d3: float):
-        """``I_eps`` (2x2), ``dI_eps/dtheta3`` (2x2), Coriolis ``C_eps dtheta`` (2,), ``g_eps`` (2,)."""
+        """``I_eps`` (2x2), ``dI_eps/dtheta3`` (2x2), Coriolis ``C_eps dtheta`` (2,), ``g_eps`` (2,).
+
+        Parameters
+        ----------
+        chi_m : ndarray, shape (2, 16)
+            Parameters at one payload (:meth:`at_payload`).
+        theta3, theta2 : float
+            Joint 3 and joint 2 angles, rad.
+        d2, d3 : float
+            Joint 2 and joint 3 velocities, rad/s.
+
+        Returns
+        -------
+        I : ndarray, shape (2, 2)
+            Strain-referred inertia ``I_eps``, m/m per rad/s^2.
+        dI : ndarray, shape (2, 2)
+            Its derivative with respect to ``theta3``.
+        cor : ndarray, shape (2,)
+            Coriolis and centrifugal term ``C_eps dtheta``, m/m.
+        g : ndarray, shape (2,)
+            Gravity term ``g_eps``, m/m.
+        """
         c3, s3 = math.cos(theta3), math.sin(theta3)
         I = np.empty((2, 2))
         dI = np.empty((2, 2))
@@ -131,14 +185,21 @@ def fit_strain_dynamics(theta, dtheta, ddtheta, eps, payload_kg) -> StrainDynami
 
     Parameters
     ----------
-    theta, dtheta, ddtheta : array_like, shape (N, 3)
+    theta : array_like, shape (N, 3)
+        Joint angles, rad.
+    dtheta : array_like, shape (N, 3)
+        Joint velocities, rad/s.
+    ddtheta : array_like, shape (N, 3)
+        Joint accelerations, rad/s^2.
     eps : array_like, shape (N, 2)
         Root strains of links 2 and 3, m/m.
     payload_kg : array_like, shape (N,) or float
+        Payload mass per sample, kg.
 
     Returns
     -------
     StrainDynamicsModel
+        The fitted payload-affine model.
 
     Raises
     ------
