@@ -88,9 +88,6 @@ KNOWN_NOT_YET_DOCUMENTED = {
 
 
 
-    "tudorvision.lab.lockstep.LockstepLayer.advance_to", "tudorvision.lab.lockstep.LockstepLayer.close",
-    "tudorvision.lab.lockstep.LockstepLayer.state", "tudorvision.lab.record.RecordOptions",
-    "tudorvision.lab.record.record", "tudorvision.lab.simulation.SimCore", "tudorvision.lab.simulation.simulate_ptp",
     "tudorvision.sim.arm.ElasticArm", "tudorvision.sim.arm.ElasticArm.T_base_ee",
     "tudorvision.sim.arm.ElasticArm.design_inertia_kg_m2", "tudorvision.sim.arm.ElasticArm.ee_position",
     "tudorvision.sim.arm.ElasticArm.measured_strain", "tudorvision.sim.arm.ElasticArm.measured_theta",

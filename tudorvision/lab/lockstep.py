@@ -24,7 +24,12 @@ class LockstepLayer:
     sim : SimCore
         The simulated arm (its clock starts at ``sim.arm.t``).
     rate_hz : float
-        Control rate of the layer's loop (safety checks run every period).
+        Control rate of the layer's loop (safety checks run every period), Hz.
+
+    Raises
+    ------
+    ValueError
+        If ``rate_hz`` is not positive.
 
     Attributes
     ----------
@@ -50,15 +55,30 @@ class LockstepLayer:
         self.t = float(sim.arm.t)
 
     def advance_to(self, t: float) -> None:
-        """Run the layer (and the plant) up to simulated time ``t`` (s, on its control grid)."""
+        """Run the layer (and the plant) up to simulated time ``t`` (s, on its control grid).
+
+        Parameters
+        ----------
+        t : float
+            Target simulated time, seconds; rounded to whole control periods
+            from the current time (no step when ``t`` is not ahead).
+        """
         n = int(round((float(t) - self.t) / self.period))
         for _ in range(max(n, 0)):
             self.server.tick(self.period)
             self.t += self.period
 
     def state(self):
-        """The layer's current state message (joint angles, strains, flags)."""
+        """The layer's current state message (joint angles, strains, flags).
+
+        Returns
+        -------
+        tudorvision.joint.protocol.State
+            The state feedback message (angles in rad, strains in m/m,
+            status flags) the server would send now.
+        """
         return self.server.state()
 
     def close(self) -> None:
+        """Close the adapter (and its in-process transport)."""
         self.adapter.close()

@@ -68,6 +68,8 @@ class RecordOptions:
     rolling_shutter : bool
         Render the stereo cameras with a rolling shutter (line time
         ``line_time_s``); the calibration then records the line time.
+    line_time_s : float
+        Rolling-shutter time between successive image rows, seconds.
     payload_plates : int
         100 g plates on the end effector (stereo recordings carry the camera
         rig and spheres, 450 g, in addition).
@@ -75,6 +77,8 @@ class RecordOptions:
         Colour image format.
     jitter_rig : bool
         Randomise the stereo rig pose a little per seed.
+    show_progress : bool or None
+        Draw progress bars on stderr; ``None``: only when stderr is a terminal.
     force : bool
         Write into a non-empty output folder, deleting only the files a
         recording writes (:meth:`tudorvision.io.SequenceWriter.own_outputs`);
@@ -595,6 +599,23 @@ KINDS: dict[str, Callable] = {
 
 def record(kind: str, out, opts: RecordOptions = RecordOptions()) -> Path:
     """Write one recording of ``kind`` to directory ``out``.
+
+    Parameters
+    ----------
+    kind : str
+        Recording kind, a key of :data:`KINDS` (``"stereo-step"``,
+        ``"stereo-static"``, ``"stereo-sweep"``, ``"stereo-checkerboard"``,
+        ``"rgbd-plane"``, ``"rgbd-disc"``, ``"rgbd-throws"``, ``"servo-views"``).
+    out : str or path-like
+        Output directory (created; must be empty unless ``opts.force``).
+    opts : RecordOptions, optional
+        Seed, sizes, exposure and image format options.
+
+    Returns
+    -------
+    pathlib.Path
+        The directory written (for ``rgbd-plane``, a folder of one sequence per
+        distance).
 
     Raises
     ------

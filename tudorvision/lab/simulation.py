@@ -104,15 +104,24 @@ def simulate_ptp(theta_start, theta_goal, duration_s: float, *, payload: Payload
     duration_s : float
         Total simulated time, seconds.
     payload : Payload, optional
+        End-effector payload; default the mount with the camera rig
+        (``Payload.from_parts(params, camera=True)``).
     v_max, a_max : float or array_like, optional
-        Planner limits; default the experiment values of chapter 8 (60 deg/s,
+        Planner limits, rad/s and rad/s^2; default the experiment values of chapter 8 (60 deg/s,
         200 deg/s^2) capped by each joint's maximum speed and acceleration.
     t_move : float
         When the motion starts, seconds.
+    params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml``.
+    config : PlantConfig, optional
+        Options of the simulated arm (step, bending modes, gravity, encoder).
+    obstacles : sequence of SpringDamperObstacle, optional
+        Contact obstacles in the base frame.
 
     Returns
     -------
     SimLog
+        Every control sample of the run (angles, strains, references).
 
     Raises
     ------
@@ -179,9 +188,14 @@ class SimCore(CascadeCore):
     theta0 : array_like, shape (3,), optional
         Initial angles (rad); default the vertical posture [0, 90 deg, 0].
     payload : Payload, optional
+        End-effector payload; default the mount with the camera rig
+        (``Payload.from_parts(params, camera=True)``).
     params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml``.
     config : PlantConfig, optional
+        Options of the simulated arm (step, bending modes, gravity, encoder).
     obstacles : sequence of SpringDamperObstacle, optional
+        Contact obstacles in the base frame.
     **options
         ``settle_band``, ``collision_model``, ``collision_thresholds``,
         ``collision_coupling``, ``damping_model`` of :class:`CascadeCore`.
