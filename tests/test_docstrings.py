@@ -88,18 +88,8 @@ KNOWN_NOT_YET_DOCUMENTED = {
 
 
 
-    "tudorvision.sim.arm.ElasticArm", "tudorvision.sim.arm.ElasticArm.T_base_ee",
-    "tudorvision.sim.arm.ElasticArm.design_inertia_kg_m2", "tudorvision.sim.arm.ElasticArm.ee_position",
-    "tudorvision.sim.arm.ElasticArm.measured_strain", "tudorvision.sim.arm.ElasticArm.measured_theta",
-    "tudorvision.sim.arm.ElasticArm.reset_at_rest", "tudorvision.sim.arm.ElasticArm.set_payload",
-    "tudorvision.sim.arm.ElasticArm.sphere_positions", "tudorvision.sim.arm.ElasticArm.step",
     "tudorvision.sim.camera.intrinsic_matrix", "tudorvision.sim.camera.look_at",
     "tudorvision.sim.camera.project_points", "tudorvision.sim.camera.with_pose",
-    "tudorvision.sim.lighting.AmbientLight", "tudorvision.sim.lighting.DirectionalLight",
-    "tudorvision.sim.lighting.PointLight", "tudorvision.sim.model.Payload.from_parts",
-    "tudorvision.sim.model.SimLog", "tudorvision.sim.model.SimLog.T_base_ee",
-    "tudorvision.sim.model.SimLog.ee_position", "tudorvision.sim.model.SimLog.sphere_positions",
-    "tudorvision.sim.model.SpringDamperObstacle.force", "tudorvision.sim.model.fk_elastic",
     "tudorvision.sim.render.render_bgr", "tudorvision.sim.render.render_rgbd",
     "tudorvision.sim.roi_render.RoiRenderer", "tudorvision.sim.roi_render.RoiRenderer.render",
     "tudorvision.sim.scenes.SimSetup", "tudorvision.sim.scenes.StereoRigConfig", "tudorvision.sim.scenes_rgbd.ball_throw",

@@ -43,11 +43,22 @@ class ElasticArm:
     payload : Payload, optional
         Default: mount plus the eye-in-hand camera with the tracking spheres.
     params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml``.
     config : PlantConfig, optional
+        Options of the simulated arm (step, bending modes, gravity, friction,
+        encoder and strain noise).
     obstacles : sequence of SpringDamperObstacle, optional
+        Contact obstacles in the base frame (they switch on the two-way
+        coupling unless ``config.two_way`` says otherwise).
 
-    Attributes (read after each step; Python lists for speed)
-    --------------------------------------------------------
+    Raises
+    ------
+    ValueError
+        If ``config.dt`` is not positive, ``config.n_modes < 1`` or ``theta0``
+        is not three finite angles.
+
+    Attributes
+    ----------
     t : float
         Simulated time, seconds.
     theta, dtheta, ddtheta : list of 3 floats
@@ -60,6 +71,10 @@ class ElasticArm:
         Tip deflection (m) and slope (rad) of links 2 and 3.
     contact_force : list of 3 floats
         Total obstacle force on the arm, N, base frame.
+
+    Notes
+    -----
+    The state attributes are read after each step; they are Python lists for speed.
 
     Examples
     --------
@@ -172,7 +187,13 @@ class ElasticArm:
         return float(self.payload.mass_kg)
 
     def design_inertia_kg_m2(self) -> np.ndarray:
-        """Joint inertias at the zero configuration, kg m^2, shape (3,): the cascade's design point."""
+        """Joint inertias at the zero configuration, kg m^2, shape (3,): the cascade's design point.
+
+        Returns
+        -------
+        ndarray, shape (3,)
+            Inertia seen by each joint at the gear output, kg m^2.
+        """
         return zero_config_inertia(self)
 
     def reset_at_rest(self, theta) -> None:
@@ -180,6 +201,11 @@ class ElasticArm:
 
         Time, payload and obstacles are kept; joint velocities and modal rates are zeroed and the
         link shapes set to the static deflection of the new configuration.
+
+        Parameters
+        ----------
+        theta : array_like, shape (3,)
+            Joint angles, rad.
 
         Raises
         ------
@@ -199,6 +225,11 @@ class ElasticArm:
 
         The deflection and its rate are projected onto the new modes, so the
         links start to oscillate about the new static equilibrium.
+
+        Parameters
+        ----------
+        payload : Payload
+            New end-effector payload (mass, kg, and inertia, kg m^2).
         """
         old2, old3 = self.link2, self.link3
         shapes = []
@@ -224,13 +255,26 @@ class ElasticArm:
 
     # -- sensors --------------------------------------------------------------------------------
     def measured_theta(self) -> list:
-        """Encoder readings (quantised joint angles), radians."""
+        """Encoder readings (quantised joint angles), radians.
+
+        Returns
+        -------
+        list of 3 floats
+            Joint angles quantised to the encoder resolution (exact without
+            ``config.encoder_counts_per_rev``), rad.
+        """
         if self._quant is None:
             return list(self.theta)
         return [round(self.theta[j] / self._quant[j]) * self._quant[j] for j in range(3)]
 
     def measured_strain(self) -> list:
-        """Gauge readings: :attr:`strain` plus white noise of ``config.strain_noise_m_m``, m/m."""
+        """Gauge readings: :attr:`strain` plus white noise of ``config.strain_noise_m_m``, m/m.
+
+        Returns
+        -------
+        list of 4 floats
+            Strains at the gauges (link 2 near, far; link 3 near, far), m/m.
+        """
         sd = self.config.strain_noise_m_m
         if not sd:
             return list(self.strain)
@@ -238,20 +282,45 @@ class ElasticArm:
         return [x + g(0.0, sd) for x in self.strain]
 
     def T_base_ee(self) -> np.ndarray:
-        """Current deflected end-effector pose, shape (4, 4)."""
+        """Current deflected end-effector pose, shape (4, 4).
+
+        Returns
+        -------
+        T_base_ee : ndarray, shape (4, 4)
+            Homogeneous end-effector pose, ``p_base = T_base_ee @ p_ee``, metres.
+        """
         return fk_elastic(self.theta, self.tip2, self.tip3, self.params)
 
     def ee_position(self) -> np.ndarray:
-        """Current deflected end-effector position, metres, base frame."""
+        """Current deflected end-effector position, metres, base frame.
+
+        Returns
+        -------
+        p_base : ndarray, shape (3,)
+            End-effector position, metres, base frame.
+        """
         return self.T_base_ee()[:3, 3]
 
     def sphere_positions(self) -> dict:
-        """Current tracking-sphere centres ``{"red": (3,), "green": (3,)}``, base frame."""
+        """Current tracking-sphere centres ``{"red": (3,), "green": (3,)}``, base frame.
+
+        Returns
+        -------
+        dict of str to ndarray, shape (3,)
+            Sphere centre per colour, metres, base frame.
+        """
         return spheres_from_T(self.T_base_ee(), self.params)
 
     # -- dynamics -------------------------------------------------------------------------------
     def step(self, v_M) -> None:
-        """Advance one step ``config.dt`` with amplifier input voltages ``v_M`` (3 floats)."""
+        """Advance one step ``config.dt`` with amplifier input voltages ``v_M`` (3 floats).
+
+        Parameters
+        ----------
+        v_M : sequence of 3 floats
+            Amplifier input voltages, volts (the torque ``k_M v_M`` saturates
+            at the intermittent torque limit).
+        """
         dt = self.config.dt
         b = self.bodies
         th, dth = self.theta, self.dtheta

@@ -53,7 +53,20 @@ def _check_color(value, name):
 
 @dataclass(frozen=True, kw_only=True)
 class AmbientLight:
-    """Uniform light: radiance = albedo * color * intensity."""
+    """Uniform light: radiance = albedo * color * intensity.
+
+    Attributes
+    ----------
+    color_rgb : array_like, shape (3,)
+        Linear RGB colour, non-negative (usually in [0, 1]).
+    intensity : float or callable
+        Intensity factor, or a function of time ``t`` (s) such as :class:`Varying`.
+
+    Raises
+    ------
+    ValueError
+        If ``color_rgb`` is not three non-negative values.
+    """
 
     color_rgb: tuple = (1.0, 1.0, 1.0)
     intensity: Intensity = 0.2
@@ -64,7 +77,22 @@ class AmbientLight:
 
 @dataclass(frozen=True, kw_only=True)
 class DirectionalLight:
-    """Daylight: parallel rays travelling along ``direction_world`` (normalised on creation)."""
+    """Daylight: parallel rays travelling along ``direction_world`` (normalised on creation).
+
+    Attributes
+    ----------
+    direction_world : array_like, shape (3,)
+        Direction the rays travel, world frame (z up); normalised on creation.
+    color_rgb : array_like, shape (3,)
+        Linear RGB colour, non-negative.
+    intensity : float or callable
+        Irradiance factor, or a function of time ``t`` (s) such as :class:`Varying`.
+
+    Raises
+    ------
+    ValueError
+        If ``direction_world`` is zero or ``color_rgb`` is not three non-negative values.
+    """
 
     direction_world: tuple = (0.3, 0.2, -1.0)
     color_rgb: tuple = (1.0, 1.0, 1.0)
@@ -81,7 +109,23 @@ class DirectionalLight:
 
 @dataclass(frozen=True, kw_only=True)
 class PointLight:
-    """Ceiling lamp at ``position_world``; ``intensity`` is the irradiance factor at 1 m (inverse-square falloff)."""
+    """Ceiling lamp at ``position_world``; ``intensity`` is the irradiance factor at 1 m (inverse-square falloff).
+
+    Attributes
+    ----------
+    position_world : array_like, shape (3,)
+        Lamp position, metres, world frame.
+    color_rgb : array_like, shape (3,)
+        Linear RGB colour, non-negative.
+    intensity : float or callable
+        Irradiance factor at 1 m, or a function of time ``t`` (s) such as :class:`Varying`.
+
+    Raises
+    ------
+    ValueError
+        If ``position_world`` is not three finite values or ``color_rgb`` is
+        not three non-negative values.
+    """
 
     position_world: tuple = (0.0, 0.0, 3.0)
     color_rgb: tuple = (1.0, 1.0, 1.0)

@@ -163,6 +163,29 @@ class Payload:
                    balls: int = 0, plate_size_m: float = 0.08) -> "Payload":
         """Payload of the end-effector mount plus plates, camera rig and caught balls.
 
+        Parameters
+        ----------
+        params : RobotParams
+            Robot parameters (masses of the mount, plates, camera rig and balls).
+        plates : int, optional
+            Number of 100 g payload plates.
+        camera : bool, optional
+            Include the eye-in-hand camera with the tracking spheres.
+        balls : int, optional
+            Number of caught balls in the net.
+        plate_size_m : float, optional
+            Edge length of the square plates, metres (for their inertia).
+
+        Returns
+        -------
+        Payload
+            Total mass, kg, and inertia about the bending axis, kg m^2.
+
+        Raises
+        ------
+        ValueError
+            If ``plates`` or ``balls`` is negative.
+
         Examples
         --------
         >>> p = Payload.from_parts(load_robot_params(), plates=3)
@@ -381,6 +404,18 @@ class SpringDamperObstacle:
     def force(self, p_base, v_base) -> np.ndarray:
         """Contact force on the probe at ``p_base`` moving with ``v_base`` (N, base frame).
 
+        Parameters
+        ----------
+        p_base : array_like, shape (3,)
+            Probe sphere centre, metres, base frame.
+        v_base : array_like, shape (3,)
+            Probe velocity, m/s, base frame.
+
+        Returns
+        -------
+        F_base : ndarray, shape (3,)
+            Force on the probe, N, base frame (zero without contact).
+
         Examples
         --------
         >>> floor = SpringDamperObstacle(kind="plane", point_base=[0, 0, 0], damping_Ns_m=0.0,
@@ -413,6 +448,8 @@ def fk_elastic(theta, tip2, tip3, params: RobotParams | None = None):
         Joint angles, radians.
     tip2, tip3 : array_like, shape (2,) or (N, 2)
         ``(w(L), w'(L))`` of links 2 and 3: tip deflection (m) and slope (rad).
+    params : RobotParams, optional
+        Robot parameters; default the packaged ``tudor.yaml``.
 
     Returns
     -------
@@ -472,6 +509,8 @@ class SimLog:
         Tip deflection (m) and slope (rad) of links 2 and 3.
     contact_force : ndarray, shape (N, 3)
         N, base frame.
+    params : RobotParams
+        Robot parameters of the simulated arm (for the kinematics).
     """
 
     t: np.ndarray
@@ -488,13 +527,31 @@ class SimLog:
     params: RobotParams
 
     def T_base_ee(self) -> np.ndarray:
-        """Deflected end-effector poses, shape (N, 4, 4)."""
+        """Deflected end-effector poses, shape (N, 4, 4).
+
+        Returns
+        -------
+        T_base_ee : ndarray, shape (N, 4, 4)
+            Homogeneous poses, ``p_base = T_base_ee @ p_ee``, metres.
+        """
         return fk_elastic(self.theta, self.tip2, self.tip3, self.params)
 
     def ee_position(self) -> np.ndarray:
-        """Deflected end-effector positions, shape (N, 3), metres, base frame."""
+        """Deflected end-effector positions, shape (N, 3), metres, base frame.
+
+        Returns
+        -------
+        p_base : ndarray, shape (N, 3)
+            End-effector positions, metres, base frame.
+        """
         return self.T_base_ee()[:, :3, 3]
 
     def sphere_positions(self) -> dict:
-        """Tracking-sphere centres ``{"red": (N, 3), "green": (N, 3)}``, base frame."""
+        """Tracking-sphere centres ``{"red": (N, 3), "green": (N, 3)}``, base frame.
+
+        Returns
+        -------
+        dict of str to ndarray, shape (N, 3)
+            Sphere centres per colour, metres, base frame.
+        """
         return spheres_from_T(self.T_base_ee(), self.params)
