@@ -88,9 +88,6 @@ KNOWN_NOT_YET_DOCUMENTED = {
 
 
 
-    "tudorvision.sim.camera.intrinsic_matrix", "tudorvision.sim.camera.look_at",
-    "tudorvision.sim.camera.project_points", "tudorvision.sim.camera.with_pose",
-    "tudorvision.sim.render.render_bgr", "tudorvision.sim.render.render_rgbd",
     "tudorvision.sim.roi_render.RoiRenderer", "tudorvision.sim.roi_render.RoiRenderer.render",
     "tudorvision.sim.scenes.SimSetup", "tudorvision.sim.scenes.StereoRigConfig", "tudorvision.sim.scenes_rgbd.ball_throw",
     "tudorvision.sim.scenes.checkerboard_lab", "tudorvision.sim.scenes_rgbd.eye_in_hand",

@@ -115,6 +115,25 @@ class PinholeCamera:
 def intrinsic_matrix(f_px: float, cx: float, cy: float, *, fy_px: float | None = None) -> np.ndarray:
     """Intrinsic matrix ``[[f, 0, cx], [0, fy, cy], [0, 0, 1]]`` (pixels).
 
+    Parameters
+    ----------
+    f_px : float
+        Focal length along u, pixels (> 0).
+    cx, cy : float
+        Principal point, pixels (u right, v down).
+    fy_px : float, optional
+        Focal length along v, pixels; default ``f_px`` (square pixels).
+
+    Returns
+    -------
+    K : ndarray, shape (3, 3)
+        The intrinsic matrix.
+
+    Raises
+    ------
+    ValueError
+        If a focal length is not positive.
+
     Examples
     --------
     >>> intrinsic_matrix(700.0, 319.5, 239.5)[0].tolist()
@@ -144,11 +163,20 @@ def look_at(eye_world, target_world, *, K, dist=None, width: int = 640, height: 
     eye_world, target_world : array_like, shape (3,)
         Metres, world frame.
     K : array_like, shape (3, 3)
+        Intrinsic matrix, pixels.
     dist : array_like, shape (5,), optional
-        Zero distortion by default.
+        Brown–Conrady coefficients ``(k1, k2, p1, p2, k3)``; zero distortion by default.
     width, height : int
+        Image size, pixels.
     up_world : array_like, shape (3,)
-        Must not be parallel to the viewing direction.
+        World direction that appears up in the image; must not be parallel
+        to the viewing direction.
+
+    Returns
+    -------
+    PinholeCamera
+        The camera; its ``T_world_cam`` maps optical-frame points (x right,
+        y down, z forward) into the world frame.
 
     Raises
     ------
@@ -275,6 +303,7 @@ def project_points(camera: PinholeCamera, points_world) -> np.ndarray:
     Parameters
     ----------
     camera : PinholeCamera
+        Intrinsics, distortion and pose ``T_world_cam``.
     points_world : array_like, shape (N, 3)
         Metres, world frame.
 
@@ -283,6 +312,11 @@ def project_points(camera: PinholeCamera, points_world) -> np.ndarray:
     uv : ndarray, shape (N, 2)
         Pixels (u right, v down). Points at or behind the optical centre
         (z <= 0) give NaN.
+
+    Raises
+    ------
+    ValueError
+        If ``points_world`` does not have shape (N, 3).
 
     Examples
     --------
@@ -388,6 +422,19 @@ def with_pose(camera: PinholeCamera, T_world_cam) -> PinholeCamera:
 
     Use it for a moving camera (eye-in-hand): the per-pixel undistortion is
     not repeated.
+
+    Parameters
+    ----------
+    camera : PinholeCamera
+        The camera to copy.
+    T_world_cam : array_like, shape (4, 4)
+        New pose: ``p_world = T_world_cam @ p_cam`` (optical frame x right,
+        y down, z forward), metres.
+
+    Returns
+    -------
+    PinholeCamera
+        The copy at the new pose.
     """
     new = dataclasses.replace(camera, T_world_cam=T_world_cam)
     for key in ("rays_cam", "rays_cam_soa", "fov_box"):

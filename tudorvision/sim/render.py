@@ -150,12 +150,34 @@ def render_bgr(camera: PinholeCamera, scene: Scene, t: float, *, rng: np.random.
 
     Parameters
     ----------
+    camera : PinholeCamera
+        Intrinsics, distortion and pose ``T_world_cam`` of the camera.
+    scene : Scene
+        Shapes (world frame, metres) and lights.
+    t : float
+        Start of the exposure, seconds (scene time).
     rng : numpy.random.Generator, optional
         Sensor-noise source; None renders without noise.
+    sensor : SensorModel, optional
+        Gain, noise, ADC and gamma of the image sensor.
+    exposure_s : float, optional
+        Exposure time, seconds (>= 0; 0: one instant, no motion blur).
+    n_subframes : int, optional
+        Samples integrated over the exposure for motion blur (>= 1).
+    line_time_s : float, optional
+        Rolling-shutter delay between successive rows, seconds (0: global shutter).
+    band_rows : int, optional
+        Rows per time band of the rolling-shutter approximation (>= 1).
 
     Returns
     -------
     ndarray, shape (H, W, 3), uint8, BGR order
+        The colour image (u right, v down).
+
+    Raises
+    ------
+    ValueError
+        If a timing option is out of range.
     """
     rad = render_radiance(camera, scene, t, exposure_s=exposure_s, n_subframes=n_subframes,
                           line_time_s=line_time_s, band_rows=band_rows)
@@ -167,9 +189,29 @@ def render_rgbd(camera: PinholeCamera, scene: Scene, t: float, *, rng: np.random
                 exposure_s: float = 0.0, n_subframes: int = 1):
     """Kinect-like frame: colour and registered depth from the same viewpoint at time ``t``.
 
+    Parameters
+    ----------
+    camera : PinholeCamera
+        Intrinsics, distortion and pose ``T_world_cam`` of the RGB-D camera.
+    scene : Scene
+        Shapes (world frame, metres) and lights.
+    t : float
+        Frame time, seconds (scene time; start of the colour exposure).
+    rng : numpy.random.Generator, optional
+        Source of the sensor and depth noise; None renders without noise.
+    depth_model : DepthModel, optional
+        Depth noise, quantisation and range of the depth sensor.
+    sensor : SensorModel, optional
+        Gain, noise, ADC and gamma of the colour sensor.
+    exposure_s : float, optional
+        Colour exposure time, seconds (>= 0).
+    n_subframes : int, optional
+        Samples integrated over the colour exposure for motion blur (>= 1).
+
     Returns
     -------
     bgr : ndarray, shape (H, W, 3), uint8
+        Colour image, BGR order.
     depth : ndarray, shape (H, W), uint16
         z in ``1 / depth_model.units_per_m`` metres (millimetres by default), 0 invalid.
     gbuffer : GBuffer
