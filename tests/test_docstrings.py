@@ -88,11 +88,7 @@ KNOWN_NOT_YET_DOCUMENTED = {
 
 
 
-    "tudorvision.sim.roi_render.RoiRenderer", "tudorvision.sim.roi_render.RoiRenderer.render",
-    "tudorvision.sim.scenes.SimSetup", "tudorvision.sim.scenes.StereoRigConfig", "tudorvision.sim.scenes_rgbd.ball_throw",
-    "tudorvision.sim.scenes.checkerboard_lab", "tudorvision.sim.scenes_rgbd.eye_in_hand",
-    "tudorvision.sim.scenes_rgbd.planar_target", "tudorvision.sim.scenes.stereo_lab", "tudorvision.sim.scenes.stereo_rig",
-    "tudorvision.sim.scenes_rgbd.wall_disc", "tudorvision.sim.shapes.Box", "tudorvision.sim.shapes.Box.corners",
+    "tudorvision.sim.shapes.Box", "tudorvision.sim.shapes.Box.corners",
     "tudorvision.sim.shapes.Box.intersect", "tudorvision.sim.shapes.Box.normals", "tudorvision.sim.shapes.Capsule",
     "tudorvision.sim.shapes.Capsule.corners", "tudorvision.sim.shapes.Capsule.intersect",
     "tudorvision.sim.shapes.Capsule.normals", "tudorvision.sim.shapes.Cylinder",

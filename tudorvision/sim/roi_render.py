@@ -34,8 +34,11 @@ class RoiRenderer:
         named ``ground_name``; all other shapes (static or dynamic) are
         foreground.
     depth_model : tudorvision.sim.render.DepthModel
+        Depth noise, quantisation and range of the depth sensor.
     sensor : tudorvision.sim.lighting.SensorModel, optional
+        Colour sensor model; default ``SensorModel()``.
     ground_name : str
+        Name of the static ground rectangle rendered once and reused.
     max_fraction : float
         Fall back to the full render when the foreground box covers more than
         this fraction of the frame.
@@ -46,6 +49,11 @@ class RoiRenderer:
         area integration, as a real sensor does; edges become grey ramps with
         sub-pixel information). Depth stays point-sampled. A departure from
         the simulator's camera model, for studying its effect.
+
+    Raises
+    ------
+    ValueError
+        If ``supersample`` is not a positive integer.
 
     Examples
     --------
@@ -138,6 +146,13 @@ class RoiRenderer:
             Scene time, seconds.
         rng : numpy.random.Generator, optional
             Sensor noise; None renders noise-free.
+
+        Returns
+        -------
+        bgr : ndarray, shape (H, W, 3), uint8
+            Colour image, BGR order.
+        depth : ndarray, shape (H, W), uint16
+            z in ``1 / depth_model.units_per_m`` metres (millimetres by default), 0 invalid.
         """
         from .lighting import apply_sensor
         from .render import depth_mm_from_gbuffer, pixel_bboxes, render_gbuffer, render_radiance

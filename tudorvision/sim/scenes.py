@@ -42,7 +42,18 @@ GREEN_RGB = (0.08, 0.55, 0.12)
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class SimSetup:
-    """A scene, its cameras by name and ground-truth metadata."""
+    """A scene, its cameras by name and ground-truth metadata.
+
+    Attributes
+    ----------
+    scene : Scene
+        Static and dynamic shapes (world frame, metres) and lights.
+    cameras : dict of str to PinholeCamera
+        Cameras by name (e.g. ``"left"``, ``"right"``, ``"rgbd"``).
+    meta : dict
+        Ground truth of the set (poses, object ids, rates), documented by
+        the function that builds it.
+    """
 
     scene: Scene
     cameras: dict
@@ -305,6 +316,33 @@ class StereoRigConfig:
     are ``baseline_m`` apart along base x and look at ``aim_base`` (a point in
     the base frame, by default above the base so that the workspace is in
     view). Left camera at base −x.
+
+    Attributes
+    ----------
+    baseline_m : float
+        Distance between the two optical centres, metres (> 0).
+    height_m : float
+        World height of the cameras, metres (> 0).
+    standoff_m : float
+        Horizontal distance of the baseline midpoint in front of the base
+        (along base −y), metres.
+    aim_base : tuple of 3 floats
+        Point both cameras look at, metres, base frame.
+    f_px : float
+        Focal length, pixels (> 0).
+    width, height : int
+        Image size, pixels.
+    dist : tuple of 5 floats
+        Brown–Conrady coefficients ``(k1, k2, p1, p2, k3)`` of both cameras.
+    pose_jitter_m : float
+        Largest random offset of each camera position when jittered, metres.
+    aim_jitter_m : float
+        Largest random offset of each aim point when jittered, metres.
+
+    Raises
+    ------
+    ValueError
+        If ``baseline_m``, ``height_m`` or ``f_px`` is not positive.
     """
 
     baseline_m: float = 3.0
@@ -331,6 +369,25 @@ def stereo_rig(T_world_base, *, config: StereoRigConfig = StereoRigConfig(),
     With ``rng`` the positions and aim points are jittered by up to
     ``pose_jitter_m`` / ``aim_jitter_m`` (the true poses are in the returned
     cameras; calibration must recover them).
+
+    Parameters
+    ----------
+    T_world_base : array_like, shape (4, 4)
+        Robot base pose in the world: ``p_world = T_world_base @ p_base``.
+    config : StereoRigConfig, optional
+        Rig geometry and intrinsics.
+    rng : numpy.random.Generator, optional
+        Jitters the camera positions and aim points; None: nominal poses.
+
+    Returns
+    -------
+    left, right : PinholeCamera
+        The two cameras (left at base −x), poses in the world frame.
+
+    Raises
+    ------
+    ValueError
+        If ``T_world_base`` is not a rigid transform.
 
     Examples
     --------
@@ -396,8 +453,16 @@ def stereo_lab(rng: np.random.Generator, *, arm=None, T_world_base=np.eye(4),
     T_world_base : ndarray, shape (4, 4)
         Robot base pose in the world (floor at world z = 0).
     rig : StereoRigConfig
+        Geometry and intrinsics of the ceiling stereo rig.
     sphere_radius_m, link1_height_m : float, optional
-        Default to :func:`tudorvision.robot.load_robot_params`.
+        Tracking-sphere radius and base column height, metres; default to
+        :func:`tudorvision.robot.load_robot_params`.
+    n_clutter : int
+        Random boxes on the floor and on two tables.
+    n_distractors : int
+        Reddish and greenish distractor objects.
+    jitter_rig : bool
+        Jitter the rig poses with ``rng`` (see :func:`stereo_rig`).
     t0 : float
         A time at which ``arm`` is defined (used once to list object names).
 
@@ -407,6 +472,12 @@ def stereo_lab(rng: np.random.Generator, *, arm=None, T_world_base=np.eye(4),
         ``cameras = {"left", "right"}``; ``meta`` holds ``T_world_base``,
         ``sphere_radius_m``, ``object_ids`` (name -> id; the arm's ids are
         those of the dynamic shapes, e.g. ``"red_sphere"``), ``rate_hz``.
+
+    Raises
+    ------
+    ValueError
+        If ``T_world_base`` is not a rigid transform, ``arm`` has the wrong
+        type or ``sphere_radius_m`` is not positive.
 
     Examples
     --------
@@ -447,8 +518,20 @@ def checkerboard_lab(T_world_board, rng: np.random.Generator, *, squares=(9, 7),
         direction, y along ``squares[1]``, z the board normal. A callable
         makes the board a dynamic shape (e.g. ``lambda t: poses[int(t)]``), so
         a series of poses re-casts only the board, not the lab.
+    rng : numpy.random.Generator
+        Randomises lighting and clutter.
     squares : (int, int)
         Number of squares; OpenCV's pattern size is ``(squares[0] - 1, squares[1] - 1)``.
+    square_m : float
+        Square edge length, metres (> 0).
+    border_m : float
+        White border around the squares, metres.
+    T_world_base : array_like, shape (4, 4)
+        Robot base pose in the world (places the room and the rig).
+    rig : StereoRigConfig
+        Geometry and intrinsics of the ceiling stereo rig.
+    n_clutter : int
+        Random boxes on the floor and on two tables.
 
     Returns
     -------
@@ -457,6 +540,12 @@ def checkerboard_lab(T_world_board, rng: np.random.Generator, *, squares=(9, 7),
         (N, 3) in the row-major order of ``Rectangle.inner_corners`` (a
         function of t for a moving board), ``pattern_size``, ``square_m``,
         ``T_world_board``, ``object_ids``.
+
+    Raises
+    ------
+    ValueError
+        If a pose is not a rigid transform, ``square_m`` is not positive or
+        ``squares`` is not two integers >= 2.
 
     Examples
     --------

@@ -47,11 +47,31 @@ def planar_target(distance_m: float, rng: np.random.Generator, *, width: int = 6
     The camera sits at world (0, 0, 1.2) looking along +y; the target is
     centred on the optical axis. The back wall is beyond the Kinect range.
 
+    Parameters
+    ----------
+    distance_m : float
+        Distance of the target from the camera along the optical axis, metres (> 0).
+    rng : numpy.random.Generator
+        Randomises lighting and clutter.
+    width, height : int
+        Image size, pixels.
+    target_size_m : (float, float)
+        Target width and height, metres.
+    textured : bool
+        Checker texture (``square_m`` squares) instead of a plain grey target.
+    square_m : float
+        Checker square size, metres.
+
     Returns
     -------
     SimSetup
         ``cameras = {"rgbd"}``; ``meta``: ``target_id``, ``distance_m``,
         ``target_corners_world`` (4, 3), ``rate_hz``.
+
+    Raises
+    ------
+    ValueError
+        If ``distance_m`` is not positive or ``target_size_m`` is not two values.
     """
     if not distance_m > 0:
         raise ValueError(f"distance_m: expected > 0, got {distance_m!r}")
@@ -79,22 +99,45 @@ def wall_disc(disc_center_base, rng: np.random.Generator, *, T_world_base=np.eye
     Parameters
     ----------
     disc_center_base : array_like, shape (3,), or callable t -> (3,)
-        Disc centre in the base frame (the net at the end effector).
+        Disc centre in the base frame (the net at the end effector), metres.
+    rng : numpy.random.Generator
+        Randomises lighting and clutter.
+    T_world_base : array_like, shape (4, 4)
+        Robot base pose in the world (floor at world z = 0).
     arm : ArmGeometry or callable t -> ArmGeometry, optional
         Drawn as in :func:`stereo_lab`; the tracking spheres only with
         ``draw_spheres`` (the net holds the disc, as in the seed's set-up).
     disc_radius_m : float
         7.5 cm: a 15 cm disc in the 18 cm net.
-
-    The camera is ``camera_standoff_m`` in front of the base (base −y) at
-    world height ``camera_height_m``, looking at the point 0.6 m above the base.
-    The disc faces the camera.
+    camera_standoff_m : float
+        Horizontal distance of the camera in front of the base (base −y), metres.
+    camera_height_m : float
+        World height of the camera, metres.
+    draw_spheres : bool
+        Also draw the arm's tracking spheres.
+    width, height : int
+        Image size, pixels.
+    t0 : float
+        A time at which ``disc_center_base`` and ``arm`` are defined (used
+        once to list object names).
 
     Returns
     -------
     SimSetup
         ``cameras = {"rgbd"}``; ``meta``: ``object_ids`` (``"disc"``),
         ``T_world_base``, ``disc_center_world(t)`` (a function), ``rate_hz``.
+
+    Raises
+    ------
+    ValueError
+        If ``T_world_base`` is not a rigid transform, ``disc_radius_m`` is not
+        positive or ``arm`` has the wrong type.
+
+    Notes
+    -----
+    The camera is ``camera_standoff_m`` in front of the base (base −y) at
+    world height ``camera_height_m``, looking at the point 0.6 m above the base.
+    The disc faces the camera.
     """
     T = check_transform(T_world_base, "T_world_base")
     radius = positive_float(disc_radius_m, "disc_radius_m")
@@ -155,11 +198,37 @@ def ball_throw(ball_center_world: Callable[[float], np.ndarray], rng: np.random.
     if drawn, stands about 6.8 m away). ``ball_center_world(t)`` gives the
     ball centre (see :func:`ballistic`).
 
+    Parameters
+    ----------
+    ball_center_world : callable t -> ndarray, shape (3,)
+        Ball centre at time ``t`` (s), metres, world frame.
+    rng : numpy.random.Generator
+        Randomises lighting, clutter and the ball colour.
+    T_world_base : array_like, shape (4, 4)
+        Robot base pose in the world (floor at world z = 0).
+    arm : ArmGeometry or callable t -> ArmGeometry, optional
+        Drawn as in :func:`stereo_lab`; None draws no arm.
+    ball_radius_m : float
+        Ball radius, metres (> 0).
+    camera_position_world : array_like, shape (3,)
+        Camera position, metres, world frame; it looks at the point 1 m above the base.
+    width, height : int
+        Image size, pixels.
+    t0 : float
+        A time at which the ball and ``arm`` are defined (used once to list
+        object names).
+
     Returns
     -------
     SimSetup
         ``cameras = {"rgbd"}``; ``meta``: ``object_ids`` (``"ball"``),
         ``ball_center_world`` (the function), ``ball_radius_m``, ``T_world_base``, ``rate_hz``.
+
+    Raises
+    ------
+    ValueError
+        If ``ball_center_world`` is not callable, ``T_world_base`` is not a
+        rigid transform or ``ball_radius_m`` is not positive.
     """
     if not callable(ball_center_world):
         raise ValueError("ball_center_world: expected a callable t -> (3,) centre")
@@ -198,11 +267,33 @@ def eye_in_hand(T_world_cam, rng: np.random.Generator, *, square_center_world=(0
     lies 1 mm above it. For a moving camera re-pose the returned camera with
     :func:`tudorvision.sim.camera.with_pose` and render the same scene.
 
+    Parameters
+    ----------
+    T_world_cam : array_like, shape (4, 4)
+        Camera pose: ``p_world = T_world_cam @ p_cam`` (optical frame x right,
+        y down, z forward).
+    rng : numpy.random.Generator
+        Randomises the ground shade and the lighting.
+    square_center_world : array_like, shape (3,)
+        Square centre on the ground, metres, world frame.
+    square_size_m : float
+        Square edge length, metres (> 0).
+    square_yaw_rad : float
+        Rotation of the square about world z, rad.
+    width, height : int
+        Image size, pixels.
+
     Returns
     -------
     SimSetup
         ``cameras = {"rgbd"}``; ``meta``: ``object_ids`` (``"square"``),
         ``square_corners_world`` (4, 3), ``rate_hz``.
+
+    Raises
+    ------
+    ValueError
+        If ``square_center_world`` is not three finite values or
+        ``square_size_m`` is not positive.
     """
     c = check_vector(square_center_world, "square_center_world", 3)
     s = positive_float(square_size_m, "square_size_m")
