@@ -88,18 +88,6 @@ KNOWN_NOT_YET_DOCUMENTED = {
 
 
 
-    "tudorvision.sim.shapes.Box", "tudorvision.sim.shapes.Box.corners",
-    "tudorvision.sim.shapes.Box.intersect", "tudorvision.sim.shapes.Box.normals", "tudorvision.sim.shapes.Capsule",
-    "tudorvision.sim.shapes.Capsule.corners", "tudorvision.sim.shapes.Capsule.intersect",
-    "tudorvision.sim.shapes.Capsule.normals", "tudorvision.sim.shapes.Cylinder",
-    "tudorvision.sim.shapes.Cylinder.intersect", "tudorvision.sim.shapes.Cylinder.normals",
-    "tudorvision.sim.shapes.Disc", "tudorvision.sim.shapes.Disc.corners", "tudorvision.sim.shapes.Disc.intersect",
-    "tudorvision.sim.shapes.Disc.normals", "tudorvision.sim.shapes.Rectangle",
-    "tudorvision.sim.shapes.Rectangle.albedo", "tudorvision.sim.shapes.Rectangle.corners",
-    "tudorvision.sim.shapes.Rectangle.inner_corners", "tudorvision.sim.shapes.Rectangle.intersect",
-    "tudorvision.sim.shapes.Rectangle.normals", "tudorvision.sim.shapes.Scene.object_ids",
-    "tudorvision.sim.shapes.Sphere", "tudorvision.sim.shapes.Sphere.corners",
-    "tudorvision.sim.shapes.Sphere.intersect", "tudorvision.sim.shapes.Sphere.normals",
 }
 KNOWN_UNDOCUMENTED = KNOWN_IN_FILES_BEING_REWRITTEN | KNOWN_NOT_YET_DOCUMENTED
 

@@ -90,6 +90,22 @@ class _Shape:
 class Sphere(_Shape):
     """Sphere of ``radius`` (m) centred at ``center`` (world, m).
 
+    Parameters
+    ----------
+    center : array_like, shape (3,)
+        Centre, metres, world frame.
+    radius : float
+        Radius, metres (> 0).
+    color_rgb : array_like, shape (3,)
+        Linear RGB albedo in [0, 1].
+    name : str
+        Object name; named shapes get an id in :meth:`Scene.object_ids`.
+
+    Raises
+    ------
+    ValueError
+        On a non-finite centre, a non-positive radius or a colour outside [0, 1].
+
     Examples
     --------
     >>> s = Sphere(center=(0, 0, 2), radius=0.5)
@@ -106,10 +122,31 @@ class Sphere(_Shape):
         object.__setattr__(self, "radius", _positive(self.radius, "radius"))
 
     def corners(self):
+        """Corners of a box that bounds the shape (for pixel bounding boxes).
+
+        Returns
+        -------
+        ndarray, shape (8, 3)
+            Box corners, metres, world frame.
+        """
         r = self.radius
         return self.center + r * _CUBE
 
     def intersect(self, o, d):
+        """Distance along each ray to the first hit.
+
+        Parameters
+        ----------
+        o : ndarray, shape (3,)
+            Common ray origin, metres, world frame.
+        d : ndarray, shape (3, ...)
+            Unit ray directions, component-first, world frame.
+
+        Returns
+        -------
+        t : ndarray, shape (...)
+            Hit distance in front of the origin, metres; ``inf`` on a miss.
+        """
         oc = o - self.center
         b = _dot(d, oc)
         disc = b * b - (oc @ oc - self.radius ** 2)
@@ -119,6 +156,18 @@ class Sphere(_Shape):
         return np.where((disc >= 0) & (t > _EPS), t, _INF)
 
     def normals(self, p):
+        """Unit surface normals at hit points.
+
+        Parameters
+        ----------
+        p : ndarray, shape (N, 3)
+            Points on the surface, metres, world frame.
+
+        Returns
+        -------
+        n : ndarray, shape (N, 3)
+            Outward unit normals, world frame.
+        """
         return (p - self.center) / self.radius
 
 
@@ -142,6 +191,18 @@ class Rectangle(_Shape):
         area the surface is ``color_rgb`` (a board's white border). Without it
         the checker tiles the whole rectangle. The square touching the corner
         at ``-u, -v`` has ``color2_rgb``.
+    color2_rgb : array_like, shape (3,)
+        Linear RGB albedo of the dark checker squares, in [0, 1].
+    color_rgb : array_like, shape (3,)
+        Linear RGB albedo in [0, 1].
+    name : str
+        Object name; named shapes get an id in :meth:`Scene.object_ids`.
+
+    Raises
+    ------
+    ValueError
+        On non-orthogonal or zero axes, non-positive sizes, an invalid
+        checker specification or a colour outside [0, 1].
     """
 
     center: tuple = (0.0, 0.0, 0.0)
@@ -179,6 +240,14 @@ class Rectangle(_Shape):
         return np.cross(self.axis_u, self.axis_v)
 
     def corners(self):
+        """The four corners of the rectangle.
+
+        Returns
+        -------
+        ndarray, shape (4, 3) or None
+            Corners at ``(-u, -v), (+u, -v), (+u, +v), (-u, +v)``, metres,
+            world frame; None for an infinite plane.
+        """
         if not np.all(np.isfinite(self.half_size)):
             return None
         hu, hv = self.half_size
@@ -186,6 +255,20 @@ class Rectangle(_Shape):
         return self.center + (s[:, :1] * hu) * self.axis_u + (s[:, 1:] * hv) * self.axis_v
 
     def intersect(self, o, d):
+        """Distance along each ray to the first hit.
+
+        Parameters
+        ----------
+        o : ndarray, shape (3,)
+            Common ray origin, metres, world frame.
+        d : ndarray, shape (3, ...)
+            Unit ray directions, component-first, world frame.
+
+        Returns
+        -------
+        t : ndarray, shape (...)
+            Hit distance in front of the origin, metres; ``inf`` on a miss.
+        """
         rel = o - self.center
         dn, du, dv = _dot(d, self.normal), _dot(d, self.axis_u), _dot(d, self.axis_v)
         on, ou, ov = rel @ self.normal, rel @ self.axis_u, rel @ self.axis_v
@@ -195,9 +278,34 @@ class Rectangle(_Shape):
         return np.where(ok, t, _INF)
 
     def normals(self, p):
+        """Unit surface normals at hit points.
+
+        Parameters
+        ----------
+        p : ndarray, shape (N, 3)
+            Points on the surface, metres, world frame.
+
+        Returns
+        -------
+        n : ndarray, shape (N, 3)
+            The plane normal ``axis_u x axis_v`` for every point (two-sided: not flipped
+            toward the viewer), world frame; a read-only broadcast view.
+        """
         return np.broadcast_to(self.normal, p.shape)
 
     def albedo(self, p):
+        """Surface colour at points on the rectangle (checker texture if any).
+
+        Parameters
+        ----------
+        p : ndarray, shape (N, 3)
+            Points on the rectangle, metres, world frame.
+
+        Returns
+        -------
+        ndarray, shape (N, 3)
+            Linear RGB albedo in [0, 1] per point.
+        """
         if self.checker_square_m is None:
             return np.broadcast_to(self.color_rgb, p.shape)
         rel = p - self.center
@@ -217,6 +325,16 @@ class Rectangle(_Shape):
 
         Only for a board with ``checker_squares``; this is the grid OpenCV's
         ``findChessboardCorners`` detects (pattern size ``(nu-1, nv-1)``).
+
+        Returns
+        -------
+        ndarray, shape ((nu-1)*(nv-1), 3)
+            Inner corners, metres, world frame; u varies fastest.
+
+        Raises
+        ------
+        ValueError
+            If the rectangle has no ``checker_squares``.
         """
         if self.checker_squares is None:
             raise ValueError("checker_squares: the rectangle is not a finite checkerboard")
@@ -230,7 +348,27 @@ class Rectangle(_Shape):
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class Disc(_Shape):
-    """Flat two-sided disc of ``radius`` at ``center`` with unit ``normal``."""
+    """Flat two-sided disc of ``radius`` at ``center`` with unit ``normal``.
+
+    Parameters
+    ----------
+    center : array_like, shape (3,)
+        Centre, metres, world frame.
+    normal : array_like, shape (3,)
+        Normal, world frame (made unit; non-zero).
+    radius : float
+        Radius, metres (> 0).
+    color_rgb : array_like, shape (3,)
+        Linear RGB albedo in [0, 1].
+    name : str
+        Object name; named shapes get an id in :meth:`Scene.object_ids`.
+
+    Raises
+    ------
+    ValueError
+        On a non-finite centre, a zero normal, a non-positive radius or a
+        colour outside [0, 1].
+    """
 
     center: tuple = (0.0, 0.0, 0.0)
     normal: tuple = (0.0, 0.0, 1.0)
@@ -243,9 +381,30 @@ class Disc(_Shape):
         object.__setattr__(self, "radius", _positive(self.radius, "radius"))
 
     def corners(self):
+        """Corners of a box that bounds the shape (for pixel bounding boxes).
+
+        Returns
+        -------
+        ndarray, shape (8, 3)
+            Box corners, metres, world frame.
+        """
         return self.center + self.radius * _CUBE
 
     def intersect(self, o, d):
+        """Distance along each ray to the first hit.
+
+        Parameters
+        ----------
+        o : ndarray, shape (3,)
+            Common ray origin, metres, world frame.
+        d : ndarray, shape (3, ...)
+            Unit ray directions, component-first, world frame.
+
+        Returns
+        -------
+        t : ndarray, shape (...)
+            Hit distance in front of the origin, metres; ``inf`` on a miss.
+        """
         with np.errstate(divide="ignore", invalid="ignore"):
             t = ((self.center - o) @ self.normal) / _dot(d, self.normal)
         oc = o - self.center
@@ -254,12 +413,45 @@ class Disc(_Shape):
         return np.where(ok, t, _INF)
 
     def normals(self, p):
+        """Unit surface normals at hit points.
+
+        Parameters
+        ----------
+        p : ndarray, shape (N, 3)
+            Points on the surface, metres, world frame.
+
+        Returns
+        -------
+        n : ndarray, shape (N, 3)
+            The disc normal for every point (two-sided: not flipped toward the
+            viewer), world frame; a read-only broadcast view.
+        """
         return np.broadcast_to(self.normal, p.shape)
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class Box(_Shape):
-    """Oriented box: ``R_world_box`` columns are its axes, ``half_extents`` (3,) in metres."""
+    """Oriented box: ``R_world_box`` columns are its axes, ``half_extents`` (3,) in metres.
+
+    Parameters
+    ----------
+    center : array_like, shape (3,)
+        Centre, metres, world frame.
+    half_extents : array_like, shape (3,)
+        Half side lengths along the box axes, metres (> 0).
+    R_world_box : array_like, shape (3, 3)
+        Rotation whose columns are the box axes in the world frame.
+    color_rgb : array_like, shape (3,)
+        Linear RGB albedo in [0, 1].
+    name : str
+        Object name; named shapes get an id in :meth:`Scene.object_ids`.
+
+    Raises
+    ------
+    ValueError
+        On a non-finite centre, non-positive half extents, an improper
+        rotation or a colour outside [0, 1].
+    """
 
     center: tuple = (0.0, 0.0, 0.0)
     half_extents: tuple = (0.1, 0.1, 0.1)
@@ -278,9 +470,30 @@ class Box(_Shape):
         object.__setattr__(self, "R_world_box", R)
 
     def corners(self):
+        """The eight corners of the box.
+
+        Returns
+        -------
+        ndarray, shape (8, 3)
+            Corners, metres, world frame.
+        """
         return self.center + (_CUBE * self.half_extents) @ self.R_world_box.T
 
     def intersect(self, o, d):
+        """Distance along each ray to the first hit.
+
+        Parameters
+        ----------
+        o : ndarray, shape (3,)
+            Common ray origin, metres, world frame.
+        d : ndarray, shape (3, ...)
+            Unit ray directions, component-first, world frame.
+
+        Returns
+        -------
+        t : ndarray, shape (...)
+            Hit distance in front of the origin, metres; ``inf`` on a miss.
+        """
         R, h = self.R_world_box, self.half_extents
         ol = (o - self.center) @ R
         tmin, tmax = -_INF, _INF
@@ -295,6 +508,18 @@ class Box(_Shape):
         return np.where((tmax >= tmin) & (t > _EPS), t, _INF)
 
     def normals(self, p):
+        """Unit surface normals at hit points.
+
+        Parameters
+        ----------
+        p : ndarray, shape (N, 3)
+            Points on the surface, metres, world frame.
+
+        Returns
+        -------
+        n : ndarray, shape (N, 3)
+            Outward unit normals of the face each point lies on, world frame.
+        """
         pl = _rowmat(p - self.center, self.R_world_box) / self.half_extents
         k = np.argmax(np.abs(pl), axis=1)
         sign = np.sign(pl[np.arange(len(pl)), k])
@@ -303,7 +528,24 @@ class Box(_Shape):
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class Capsule(_Shape):
-    """Segment ``p0``–``p1`` (world, m) swept by a sphere of ``radius``: a link of the arm."""
+    """Segment ``p0``–``p1`` (world, m) swept by a sphere of ``radius``: a link of the arm.
+
+    Parameters
+    ----------
+    p0, p1 : array_like, shape (3,)
+        End points of the axis segment, metres, world frame.
+    radius : float
+        Radius, metres (> 0).
+    color_rgb : array_like, shape (3,)
+        Linear RGB albedo in [0, 1].
+    name : str
+        Object name; named shapes get an id in :meth:`Scene.object_ids`.
+
+    Raises
+    ------
+    ValueError
+        On non-finite end points, a non-positive radius or a colour outside [0, 1].
+    """
 
     p0: tuple = (0.0, 0.0, 0.0)
     p1: tuple = (0.0, 0.0, 1.0)
@@ -316,6 +558,13 @@ class Capsule(_Shape):
         object.__setattr__(self, "radius", _positive(self.radius, "radius"))
 
     def corners(self):
+        """Corners of a box that bounds the shape (for pixel bounding boxes).
+
+        Returns
+        -------
+        ndarray, shape (8, 3)
+            Box corners, metres, world frame.
+        """
         lo = np.minimum(self.p0, self.p1) - self.radius
         hi = np.maximum(self.p0, self.p1) + self.radius
         return _box_corners(lo, hi)
@@ -336,12 +585,38 @@ class Capsule(_Shape):
         return np.where(ok, t, _INF)
 
     def intersect(self, o, d):
+        """Distance along each ray to the first hit.
+
+        Parameters
+        ----------
+        o : ndarray, shape (3,)
+            Common ray origin, metres, world frame.
+        d : ndarray, shape (3, ...)
+            Unit ray directions, component-first, world frame.
+
+        Returns
+        -------
+        t : ndarray, shape (...)
+            Hit distance in front of the origin, metres; ``inf`` on a miss.
+        """
         t = self._body(o, d)
         for cap in (self.p0, self.p1):
             t = np.minimum(t, Sphere(center=cap, radius=self.radius).intersect(o, d))
         return t
 
     def normals(self, p):
+        """Unit surface normals at hit points.
+
+        Parameters
+        ----------
+        p : ndarray, shape (N, 3)
+            Points on the surface, metres, world frame.
+
+        Returns
+        -------
+        n : ndarray, shape (N, 3)
+            Outward unit normals (from the nearest axis point), world frame.
+        """
         ba = self.p1 - self.p0
         s = np.clip(_rowdot(p - self.p0, ba) / max(ba @ ba, 1e-300), 0.0, 1.0)
         return (p - self.p0 - s[:, None] * ba) / self.radius
@@ -349,9 +624,40 @@ class Capsule(_Shape):
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class Cylinder(Capsule):
-    """Capped solid cylinder with axis ``p0``–``p1`` and ``radius`` (the robot base)."""
+    """Capped solid cylinder with axis ``p0``–``p1`` and ``radius`` (the robot base).
+
+    Parameters
+    ----------
+    p0, p1 : array_like, shape (3,)
+        Centres of the two end caps, metres, world frame.
+    radius : float
+        Radius, metres (> 0).
+    color_rgb : array_like, shape (3,)
+        Linear RGB albedo in [0, 1].
+    name : str
+        Object name; named shapes get an id in :meth:`Scene.object_ids`.
+
+    Raises
+    ------
+    ValueError
+        On non-finite end points, a non-positive radius or a colour outside [0, 1].
+    """
 
     def intersect(self, o, d):
+        """Distance along each ray to the first hit.
+
+        Parameters
+        ----------
+        o : ndarray, shape (3,)
+            Common ray origin, metres, world frame.
+        d : ndarray, shape (3, ...)
+            Unit ray directions, component-first, world frame.
+
+        Returns
+        -------
+        t : ndarray, shape (...)
+            Hit distance in front of the origin, metres; ``inf`` on a miss.
+        """
         t = self._body(o, d)
         axis = _unit(self.p1 - self.p0, "p1")
         for cap in (self.p0, self.p1):
@@ -359,6 +665,19 @@ class Cylinder(Capsule):
         return t
 
     def normals(self, p):
+        """Unit surface normals at hit points.
+
+        Parameters
+        ----------
+        p : ndarray, shape (N, 3)
+            Points on the surface, metres, world frame.
+
+        Returns
+        -------
+        n : ndarray, shape (N, 3)
+            Outward unit normals: the axis direction on the caps, radial on
+            the side, world frame.
+        """
         ba = self.p1 - self.p0
         L = np.linalg.norm(ba)
         axis = ba / L
@@ -433,7 +752,19 @@ class Scene:
         return value
 
     def object_ids(self, t: float = 0.0) -> dict:
-        """Map shape name -> object id for every named shape (dynamic ones evaluated at ``t``)."""
+        """Map shape name -> object id for every named shape (dynamic ones evaluated at ``t``).
+
+        Parameters
+        ----------
+        t : float, optional
+            Time at which the dynamic shapes are evaluated, seconds.
+
+        Returns
+        -------
+        dict of str to int
+            Object id per name: static shapes ``1 .. n_static`` in order, then
+            the dynamic ones (0 means no hit in a ``GBuffer``).
+        """
         out = {}
         for i, s in enumerate(self.static):
             if s.name:
