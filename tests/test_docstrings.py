@@ -84,11 +84,7 @@ KNOWN_IN_FILES_BEING_REWRITTEN = {
     "tudorvision.joint.transport.UdpTransport.send", "tudorvision.joint.transport.UdpTransport.server",
 }
 # (b) Not yet documented (issue 13's docstring pass got through robot, geometry and servo first).
-KNOWN_NOT_YET_DOCUMENTED = {
-
-
-
-}
+KNOWN_NOT_YET_DOCUMENTED: set = set()
 KNOWN_UNDOCUMENTED = KNOWN_IN_FILES_BEING_REWRITTEN | KNOWN_NOT_YET_DOCUMENTED
 
 # Modules allowed to switch the matplotlib backend: none.
