@@ -15,7 +15,8 @@ What varies (uniform unless said):
   3.2 m ceiling), azimuth ±35° about the front, focal length 600–1400 px
   (640×480, the lab's mild barrel distortion), aim offset up to ±20 % of the
   field of view;
-- glossy spheres: Blinn–Phong specular strength 0–0.6, exponent 20–200;
+- glossy spheres: Blinn–Phong specular strength 0–2 (the upper part saturates a
+  white spot), exponent 20–200;
 - floor and back-wall textures: crops of real photographs
   (``../shared/realdata/rgbd_kinect_room/color/*.png`` and
   ``../shared/realdata/rgbd_tum_desk/*.png`` relative to the repository
@@ -62,7 +63,7 @@ RANGES = {
     "azimuth_rad": (np.radians(-35.0), np.radians(35.0)),
     "f_px": (600.0, 1400.0),
     "aim_offset_fov": (-0.2, 0.2),
-    "specular_strength": (0.0, 0.6),
+    "specular_strength": (0.0, 2.0),
     "shininess": (20.0, 200.0),
     "wb_gain": (0.8, 1.2),
     "exposure_gain": (0.6, 1.6),

@@ -1,0 +1,228 @@
+"""Stereo sphere accuracy over the randomised scene family (issue 15), per apparent-radius bin.
+
+For each of N seeded static stereo set-ups of :mod:`tudorvision.lab.scene_family`
+(sphere radius 15-50 mm, camera distance 1.5-5 m, focal length 600-1400 px,
+highlights, photo textures, white balance, exposure, sensor noise, JPEG,
+link occlusion) this
+
+- simulates a user's picks on the pick frames (the same view, independent
+  noise): centre pixel and an edge pixel at 80 % of the apparent radius in a
+  random direction, each with ~1 px of pick error (Gaussian, sigma 0.7 px
+  per axis, then rounded to an integer pixel as a click is);
+- fits one colour model per pick (``fit_color_model``); a refused pick leaves
+  that sphere untracked in that set-up (counted as not found);
+- runs ``StereoPipeline`` (one frame, full-frame search; luma-edge rim
+  refinement on for JPEG set-ups, as ``tudorvision track stereo`` does) and,
+  as the seed's method, the same with ``SegmentParams(centroid="moment")``;
+- runs the named peer ``peer_hsv.detect_peer`` (HSV inRange +
+  minEnclosingCircle, hand-set ranges) through the same triangulation;
+- scores image centres against the exact silhouette centroid of the whole
+  sphere and 3D centres (left camera frame) against the true centres.
+
+Results per apparent-radius bin (pixels; image errors binned by the radius in
+that camera, 3D errors by the mean of the two views): image centre error
+median / p95 and found rate; 3D sphere-centre error RMS / median / p95 over
+the found ones. A detection more than 10 px off (image) or 50 mm off (3D) is
+a gross error: it counts in the statistics (they are over found ones) and
+is also reported as a rate.
+
+Run (about 2 s per set-up on one core)::
+
+    .venv/bin/python benchmarks/bench_sphere_family.py --n 80 --seed 0
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.join(HERE, ".."))
+
+from _machine import cpu_model  # noqa: E402
+from peer_hsv import detect_peer  # noqa: E402
+from tudorvision._checks import TudorVisionError  # noqa: E402
+from tudorvision.io.frames import StereoFrame  # noqa: E402
+from tudorvision.lab.record import calibration_from_cameras  # noqa: E402
+from tudorvision.lab.scene_family import SPHERES, render_family_scene, sample_family  # noqa: E402
+from tudorvision.stereo import (ColorModelSet, PipelineOptions, SegmentParams, StereoPipeline,  # noqa: E402
+                                TrackerParams, fit_color_model, triangulate_spheres)
+
+BINS = [(3, 5), (5, 8), (8, 15), (15, 30), (30, 80)]
+METHODS = ("ours", "seed centroid", "peer HSV")
+PICK_SIGMA_PX = 0.7
+GROSS_PX, GROSS_MM = 10.0, 50.0
+TARGET_MM, TARGET_PX = 1.0, 0.25
+
+
+def simulated_picks(scene, rng):
+    """``(camera, sphere, centre, edge)`` picks a user would click on the pick frames."""
+    picks = []
+    for cam in ("left", "right"):
+        for s in SPHERES:
+            uv = scene.uv_true[cam][s]
+            r = scene.radius_px[cam][s]
+            a = rng.uniform(0, 2 * np.pi)
+            c = np.rint(uv + rng.normal(0, PICK_SIGMA_PX, 2))
+            e = np.rint(uv + 0.8 * r * np.array([np.cos(a), np.sin(a)]) + rng.normal(0, PICK_SIGMA_PX, 2))
+            if np.all(e == c):
+                e = c + [1.0, 0.0]
+            picks.append((cam, s, c, e))
+    return picks
+
+
+def fit_models(scene, picks):
+    """ColorModelSet of the spheres whose picks were accepted in both cameras, and the refusals."""
+    models = {"left": {}, "right": {}}
+    refused = []
+    for cam, s, c, e in picks:
+        try:
+            models[cam][s] = fit_color_model(scene.pick_frames[cam], c, e)
+        except TudorVisionError as exc:
+            refused.append(f"{cam}:{s}: {exc}")
+    both = [s for s in SPHERES if s in models["left"] and s in models["right"]]
+    if not both:
+        return None, refused
+    return ColorModelSet({cam: {s: models[cam][s] for s in both} for cam in models}), refused
+
+
+def run_ours(scene, cal, models, centroid):
+    """{cam: {sphere: uv}}, {sphere: p_left} from one pipeline frame (NaN where not found)."""
+    nan2, nan3 = np.full(2, np.nan), np.full(3, np.nan)
+    uv = {cam: {s: nan2 for s in SPHERES} for cam in ("left", "right")}
+    p = {s: nan3 for s in SPHERES}
+    if models is None:
+        return uv, p
+    seg = SegmentParams(centroid=centroid, edge_refine=scene.params.jpeg_quality is not None)
+    opts = PipelineOptions(tracking=False, tracker=TrackerParams(segment=seg))
+    res = StereoPipeline(cal, models, options=opts).process(
+        StereoFrame(t=0.0, index=0, left=scene.frames["left"], right=scene.frames["right"]))
+    for s in res.spheres:
+        p[s] = np.asarray(res.spheres[s], float)
+        for cam in ("left", "right"):
+            uv[cam][s] = np.asarray(res.uv(cam, s), float)
+    return uv, p
+
+
+def run_peer(scene, cal):
+    uv = {}
+    for cam in ("left", "right"):
+        found = detect_peer(scene.frames[cam])
+        uv[cam] = {s: np.asarray(found[s], float) if found[s] is not None else np.full(2, np.nan) for s in SPHERES}
+    tri = triangulate_spheres({s: uv["left"][s][None] for s in SPHERES}, {s: uv["right"][s][None] for s in SPHERES},
+                              cal)
+    return uv, {s: np.asarray(tri.spheres[s][0], float) for s in SPHERES}
+
+
+def evaluate(scene):
+    """Rows ``(kind, method, radius_px, error)``: kind "uv" (px) or "3d" (mm); error NaN when not found."""
+    cal = calibration_from_cameras(scene.cameras, stereo=("left", "right"))
+    rng = np.random.default_rng(scene.params.seed + 1)
+    models, refused = fit_models(scene, simulated_picks(scene, rng))
+    t0 = time.perf_counter()
+    results = {"ours": run_ours(scene, cal, models, "shape")}
+    t_ours = time.perf_counter() - t0
+    results["seed centroid"] = run_ours(scene, cal, models, "moment")
+    t0 = time.perf_counter()
+    results["peer HSV"] = run_peer(scene, cal)
+    t_peer = time.perf_counter() - t0
+    rows = []
+    for method, (uv, p) in results.items():
+        for s in SPHERES:
+            for cam in ("left", "right"):
+                rows.append(("uv", method, scene.radius_px[cam][s],
+                             float(np.linalg.norm(uv[cam][s] - scene.uv_true[cam][s]))))
+            r_mean = 0.5 * (scene.radius_px["left"][s] + scene.radius_px["right"][s])
+            rows.append(("3d", method, r_mean, 1e3 * float(np.linalg.norm(p[s] - scene.centers_left[s]))))
+    return rows, refused, t_ours, t_peer
+
+
+def summarise(rows):
+    """{method: {bin: stats}} over the rows."""
+    out = {}
+    for method in METHODS:
+        out[method] = {}
+        for lo, hi in BINS:
+            sel = lambda kind: np.array([e for k, m, r, e in rows  # noqa: E731
+                                         if k == kind and m == method and lo <= r < hi], float)
+            uv, p3 = sel("uv"), sel("3d")
+            fu, f3 = uv[np.isfinite(uv)], p3[np.isfinite(p3)]
+            q = lambda x, pct: float(np.percentile(x, pct)) if x.size else float("nan")  # noqa: E731
+            out[method][f"{lo}-{hi}"] = {
+                "n_views": int(uv.size), "found": float(fu.size / uv.size) if uv.size else float("nan"),
+                "uv_median_px": q(fu, 50), "uv_p95_px": q(fu, 95),
+                "uv_gross": float(np.mean(fu > GROSS_PX)) if fu.size else float("nan"),
+                "n_spheres": int(p3.size), "found_3d": float(f3.size / p3.size) if p3.size else float("nan"),
+                "rms_3d_mm": float(np.sqrt(np.mean(f3 ** 2))) if f3.size else float("nan"),
+                "median_3d_mm": q(f3, 50), "p95_3d_mm": q(f3, 95),
+                "gross_3d": float(np.mean(f3 > GROSS_MM)) if f3.size else float("nan"),
+                "rms_3d_inlier_mm": float(np.sqrt(np.mean(f3[f3 <= GROSS_MM] ** 2))) if np.any(f3 <= GROSS_MM)
+                else float("nan"),
+            }
+    return out
+
+
+def print_table(summary):
+    print(f"\n{'method':14s} {'bin px':>7s} {'views':>5s} {'found':>6s} {'uv med':>7s} {'uv p95':>7s} "
+          f"{'spheres':>7s} {'3D found':>8s} {'3D RMS':>8s} {'3D med':>7s} {'3D p95':>7s} {'gross':>6s} "
+          f"{'RMS inl.':>8s} target")
+    for method, bins in summary.items():
+        for b, s in bins.items():
+            meets = (s["rms_3d_mm"] <= TARGET_MM and s["uv_median_px"] <= TARGET_PX)
+            tgt = "-" if int(b.split("-")[0]) < 4 or not s["n_views"] else ("met" if meets else "not met")
+            print(f"{method:14s} {b:>7s} {s['n_views']:5d} {100 * s['found']:5.1f}% {s['uv_median_px']:7.3f} "
+                  f"{s['uv_p95_px']:7.2f} {s['n_spheres']:7d} {100 * s['found_3d']:7.1f}% {s['rms_3d_mm']:8.2f} "
+                  f"{s['median_3d_mm']:7.2f} {s['p95_3d_mm']:7.2f} {100 * s['gross_3d']:5.1f}% "
+                  f"{s['rms_3d_inlier_mm']:8.2f} {tgt}")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--n", type=int, default=80, help="number of set-ups")
+    ap.add_argument("--seed", type=int, default=0, help="family seed")
+    ap.add_argument("--json", help="also write the summary to this file")
+    args = ap.parse_args(argv)
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                            cwd=os.path.join(HERE, "..")).stdout.strip()
+    dirty = subprocess.run(["git", "status", "--porcelain", "--", "tudorvision"], capture_output=True, text=True,
+                           cwd=os.path.join(HERE, "..")).stdout.strip()
+    print(f"machine: {cpu_model()}, nproc {os.cpu_count()}, Python {platform.python_version()}; commit {commit}"
+          f"{' (tudorvision/ has uncommitted changes)' if dirty else ''}; family seed {args.seed}, n {args.n}")
+    rows, notes, refusals = [], set(), []
+    t_render = t_ours = t_peer = 0.0
+    for params in sample_family(args.seed, args.n):
+        t0 = time.perf_counter()
+        scene = render_family_scene(params)
+        t_render += time.perf_counter() - t0
+        if scene.note:
+            notes.add(scene.note)
+        r, refused, to, tp = evaluate(scene)
+        rows += r
+        t_ours += to
+        t_peer += tp
+        refusals += [f"set-up {params.index}: {x}" for x in refused]
+    for n in sorted(notes):
+        print("NOTE:", n)
+    print(f"render {t_render:.0f} s; ours {1e3 * t_ours / args.n:.1f} ms/pair, peer {1e3 * t_peer / args.n:.1f} "
+          f"ms/pair (incl. model set-up)")
+    print(f"picks refused by fit_color_model: {len(refusals)} of {4 * args.n}")
+    for line in refusals[:12]:
+        print("  ", line[:160])
+    summary = summarise(rows)
+    print_table(summary)
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump({"commit": commit, "n": args.n, "seed": args.seed, "summary": summary,
+                       "refused": refusals}, fh, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
