@@ -11,7 +11,7 @@ What varies (uniform unless said):
 - sphere radius 15–50 mm (both spheres the same, 0.16 m apart on the end
   effector bar), arm pose (joint angles in the workspace);
 - camera distance 1.5–5 m (baseline midpoint to the end effector), baseline
-  0.3–0.8 of the distance (at most 3 m), elevation 8–60° (cameras below a
+  0.5–1.0 of the distance (at most 3 m), elevation 8–60° (cameras below a
   3.2 m ceiling), azimuth ±35° about the front, focal length 600–1400 px
   (640×480, the lab's mild barrel distortion), aim offset up to ±20 % of the
   field of view;
@@ -58,7 +58,7 @@ SPHERES = ("red", "green")
 RANGES = {
     "sphere_radius_m": (0.015, 0.050),
     "distance_m": (1.5, 5.0),
-    "baseline_ratio": (0.3, 0.8),
+    "baseline_ratio": (0.5, 1.0),
     "elevation_rad": (np.radians(8.0), np.radians(60.0)),
     "azimuth_rad": (np.radians(-35.0), np.radians(35.0)),
     "f_px": (600.0, 1400.0),
