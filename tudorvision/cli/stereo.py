@@ -29,6 +29,7 @@ def register(subparsers) -> None:
                    help="camera (left, right or mono), sphere name, centre pixel and edge pixel (u right, "
                         "v down); repeat for every camera and sphere, e.g. left:red:320,240:331,240")
     c.add_argument("--out", help="colour model file to write (.yaml or .json)")
+    add_centre_argument(c)
     c.add_argument("--save-frame", metavar="PNG",
                    help="write the pick frame (stereo: left | right side by side, right starting at u = width)")
     c.set_defaults(func=run_colormodel)
@@ -70,6 +71,7 @@ def register(subparsers) -> None:
     s.add_argument("--strict", action="store_true", help="stop at the first corrupt frame instead of skipping it")
     add_sequence_options(s)
     add_luma_edge_argument(s)
+    add_centre_argument(s)
     s.set_defaults(func=run_track_stereo)
 
     m = tsub.add_parser(
@@ -85,6 +87,7 @@ def register(subparsers) -> None:
     m.add_argument("--strict", action="store_true", help="stop at the first undecodable frame")
     add_sequence_options(m)
     add_luma_edge_argument(m)
+    add_centre_argument(m)
     m.set_defaults(func=run_track_mono)
 
 
@@ -96,7 +99,30 @@ def add_luma_edge_argument(parser, help_text: str = "locate the sphere rims on t
     parser.add_argument("--luma-edge", choices=("auto", "on", "off"), default="auto", help=help_text)
 
 
-def luma_edge_params(choice: str, source):
+def add_centre_argument(parser) -> None:
+    """The ``--centre circle|centroid`` option: how a sphere's image centre is measured.
+
+    ``circle`` (default) fits a robust circle to the region's rim, so a
+    highlight or a shadowed side does not pull the centre; ``centroid`` is the
+    seed's first moment, kept for comparison.
+    """
+    parser.add_argument("--centre", choices=("circle", "centroid"), default="circle",
+                        help="sphere image centre: circle = robust circle fit to the rim (default), "
+                             "centroid = first moment of the coloured region (the seed's method)")
+
+
+def centroid_mode(centre: str) -> str:
+    """``SegmentParams.centroid`` for a ``--centre`` choice.
+
+    Examples
+    --------
+    >>> centroid_mode("centroid")
+    'moment'
+    """
+    return {"circle": "shape", "centroid": "moment"}[centre]
+
+
+def luma_edge_params(choice: str, source, centre: str = "circle"):
     """``TrackerParams`` for ``--luma-edge`` (auto: on for JPEG frames and video) and a line saying which.
 
     Examples
@@ -113,7 +139,8 @@ def luma_edge_params(choice: str, source):
         why = f"{Path(source).name} is {'' if on else 'not '}JPEG frames or a video"
     else:
         on, why = choice == "on", "--luma-edge"
-    return TrackerParams(segment=SegmentParams(edge_refine=on)), f"luma edge: {'on' if on else 'off'} ({why})"
+    seg = SegmentParams(edge_refine=on, centroid=centroid_mode(centre))
+    return TrackerParams(segment=seg), f"luma edge: {'on' if on else 'off'} ({why})"
 
 def _open(path, *, strict: bool = False, args=None):
     from ..io import open_sequence
@@ -177,7 +204,10 @@ def run_colormodel(args) -> int:
         print(f"wrote {args.save_frame} (frame {args.frame}, cameras {' | '.join(frames)})")
     if not args.pick:
         return 0
-    models = fit_color_model_set(frames, args.pick)
+    from ..stereo.detection import SegmentParams
+
+    verify = SegmentParams(centroid=centroid_mode(getattr(args, "centre", "circle")))
+    models = fit_color_model_set(frames, args.pick, verify_params=verify)
     for cam in models.cameras:
         for name in models.spheres(cam):
             mdl = models.get(cam, name)
@@ -257,7 +287,7 @@ def run_track_stereo(args) -> int:
     sep = _sphere_separation(models) if args.sphere_separation is None else args.sphere_separation
     if sep is not None and sep < 0:
         raise TudorVisionError(f"--sphere-separation: must be a non-negative distance in metres, got {sep}")
-    tracker, edge_note = luma_edge_params(args.luma_edge, args.seq)
+    tracker, edge_note = luma_edge_params(args.luma_edge, args.seq, getattr(args, "centre", "circle"))
     print(edge_note)
     options = PipelineOptions(tracking=not args.full_frame, method=args.method, tracker=tracker,
                               rolling_shutter=not args.no_rolling_shutter, sphere_separation_m=sep or None)
@@ -314,7 +344,7 @@ def run_track_mono(args) -> int:
     models = _load_models(args.colormodel)
     model = models.get(args.camera, args.sphere)
     try:
-        tracker, edge_note = luma_edge_params(args.luma_edge, args.video)
+        tracker, edge_note = luma_edge_params(args.luma_edge, args.video, getattr(args, "centre", "circle"))
         print(edge_note)
         res = track_mono(seq, model, tracking=not args.full_frame, params=tracker, show_progress=None,
                          keep_partial=True)

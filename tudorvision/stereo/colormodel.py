@@ -35,6 +35,7 @@ from tudorvision._checks import TudorVisionError
 from tudorvision.io.atomic import atomic_write
 from tudorvision.stereo._colortables import CHANNEL_LEVELS, CHANNELS, HUE_INDEX, HUE_LEVELS, ColorModel
 from tudorvision.stereo._frame import check_frame
+from tudorvision.stereo.detection import segment_params_for_radius
 from tudorvision.stereo.segment import detect_sphere
 
 __all__ = [
@@ -116,6 +117,23 @@ def _smooth_pmf(counts: np.ndarray, sigma: float, circular: bool, floor: float) 
     return (1.0 - floor) * pmf + floor / levels
 
 
+def _trim_highlights(fg: np.ndarray, min_pixels: int) -> np.ndarray:
+    """Drop pick pixels far from the median colour (a washed-out highlight, a shadowed edge).
+
+    Kept: pixels within 3.5 robust sigmas (1.4826 MAD, at least 6 levels) of
+    the median in R, G, B, S and V; the trim is skipped when it would keep
+    fewer than half the pixels or fewer than ``min_pixels``.
+    """
+    cols = [0, 1, 2, 4, 5]
+    med = np.median(fg[:, cols], axis=0)
+    sigma = np.maximum(1.4826 * np.median(np.abs(fg[:, cols] - med), axis=0), 6.0)
+    keep = np.all(np.abs(fg[:, cols] - med) <= 3.5 * sigma, axis=1)
+    n_keep = int(keep.sum())
+    if n_keep < max(min_pixels, fg.shape[0] // 2):
+        return fg
+    return fg[keep]
+
+
 def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_pixels: int = 12,
                     max_std: float = 45.0, max_hue_std: float = 20.0, min_saturation: float = 30.0,
                     background_margin: float = 1.5, llr_clip: float = 8.0, prior: float | None = None,
@@ -191,10 +209,12 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
     if min_std.shape != (6,) or not np.all(min_std > 0):
         raise TudorVisionError(f"min_std: expected 6 positive values (R, G, B, H, S, V), got {min_std.tolist()}")
     radius = float(np.hypot(*(e - c)))
-    if radius < 1.0:
+    if radius < 1.5:
         raise TudorVisionError(
-            f"edge_uv: ({e[0]:g}, {e[1]:g}) is {radius:.2f} px from center_uv; pick a pixel on the sphere's rim")
-    r_in = shrink * radius
+            f"center_uv, edge_uv: the picked circle is {2 * radius:.0f} px across (edge pixel {radius:.1f} px "
+            f"from the centre); pick the edge pixel on the sphere's rim, not next to the centre")
+    # small picks: keep at least a 2.5 px core (a 3 px sphere picked at 80 % has r_in 1.6 px otherwise)
+    r_in = max(shrink * radius, min(radius, 2.5))
     # pixels inside the shrunken circle (clipped to the image)
     x0, x1 = max(int(math.floor(c[0] - r_in)), 0), min(int(math.ceil(c[0] + r_in)), w - 1)
     y0, y1 = max(int(math.floor(c[1] - r_in)), 0), min(int(math.ceil(c[1] + r_in)), h - 1)
@@ -205,9 +225,11 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
     if n < min_pixels:
         raise TudorVisionError(
             f"center_uv, edge_uv: the circle (radius {radius:.1f} px, shrunk to {r_in:.1f}) holds {n} "
-            f"pixels, fewer than min_pixels={min_pixels}; pick the rim of a larger sphere image")
+            f"pixels, fewer than min_pixels={min_pixels}; the picked circle is {2 * radius:.0f} px across: "
+            f"pick the edge pixel on the rim (or a larger sphere image)")
     hsv_patch = cv2.cvtColor(np.ascontiguousarray(patch), cv2.COLOR_BGR2HSV)
     fg = np.concatenate([patch[inside][:, ::-1], hsv_patch[inside]], axis=1).astype(np.float64)  # R G B H S V
+    fg = _trim_highlights(fg, min_pixels)
     mean = fg.mean(axis=0)
     std = fg.std(axis=0)
     mean[HUE_INDEX], std[HUE_INDEX] = circular_hue_stats(fg[:, HUE_INDEX])
@@ -244,7 +266,7 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
                        llr_clip=llr_clip, center_uv=(float(c[0]), float(c[1])), radius_px=radius,
                        n_pixels=n, image_size=(w, h))
     if verify:
-        det = detect_sphere(img, model, params=verify_params)
+        det = detect_sphere(img, model, params=segment_params_for_radius(verify_params, radius))
         if not det.valid or np.hypot(det.uv[0] - c[0], det.uv[1] - c[1]) > radius:
             why = det.reason if not det.valid else (
                 f"the best region lies at ({det.uv[0]:.1f}, {det.uv[1]:.1f}), not at the pick")

@@ -5,11 +5,11 @@ The segmentation itself is :mod:`tudorvision.stereo.segment`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from tudorvision._checks import TudorVisionError
 
-__all__ = ["SegmentParams", "SphereDetection"]
+__all__ = ["SegmentParams", "SphereDetection", "segment_params_for_radius"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -141,6 +141,54 @@ class SegmentParams:
             raise TudorVisionError(f"edge_min_contrast: must be >= 0 grey levels, got {self.edge_min_contrast}")
         if self.weighting not in ("probability", "binary"):
             raise TudorVisionError(f"weighting: must be 'probability' or 'binary', got {self.weighting!r}")
+
+
+def segment_params_for_radius(params: SegmentParams | None, radius_px: float) -> SegmentParams:
+    """Segmentation parameters scaled to a sphere of a given apparent radius.
+
+    The fixed defaults of :class:`SegmentParams` suit spheres of about
+    8-40 px radius. For a picked or tracked radius ``r`` this returns a copy
+    in which the seed erosion is ``clamp(round(r / 8), 1, max(erode, 3))`` px
+    for ``r >= 4`` and none below (a 1 px erosion erases a 3 px sphere's
+    seeds), the area limits bracket the sphere (``min_area_px`` at most half
+    the disc, ``max_area_px`` at least eight times it) and the full-frame
+    search runs at full resolution below 4 px (the decimated coarse pass
+    would miss the sphere).
+
+    Parameters
+    ----------
+    params : SegmentParams or None
+        Parameters to scale (``None``: ``SegmentParams()``).
+    radius_px : float
+        Apparent sphere radius in pixels (e.g. the distance from a picked
+        centre to a picked rim pixel).
+
+    Returns
+    -------
+    SegmentParams
+
+    Raises
+    ------
+    TudorVisionError
+        ``radius_px`` not a positive finite number.
+
+    Examples
+    --------
+    >>> segment_params_for_radius(None, 3.0).erode_radius_px
+    0
+    >>> segment_params_for_radius(None, 80.0).erode_radius_px
+    3
+    """
+    params = SegmentParams() if params is None else params
+    r = float(radius_px)
+    if not (math.isfinite(r) and r > 0.0):
+        raise TudorVisionError(f"radius_px: must be a positive number of pixels, got {radius_px!r}")
+    erode = 0 if r < 4.0 else min(max(int(round(r / 8.0)), 1), max(int(params.erode_radius_px), 3))
+    disc = math.pi * r * r
+    min_area = min(params.min_area_px, max(3.0, 0.5 * disc))
+    max_area = max(params.max_area_px, 8.0 * disc)
+    coarse = 1 if r < 4.0 else params.coarse_step
+    return replace(params, erode_radius_px=erode, min_area_px=min_area, max_area_px=max_area, coarse_step=coarse)
 
 
 @dataclass(frozen=True)
