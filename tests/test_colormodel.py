@@ -120,7 +120,7 @@ def test_fit_errors(pick_frame):
     with pytest.raises(TudorVisionError, match="edge_uv: .* 0.00 px from center_uv"):
         fit_color_model(pick_frame, (200, 151), (200, 151))
     with pytest.raises(TudorVisionError, match="fewer than min_pixels"):
-        fit_color_model(pick_frame, (200, 151), (202, 151))
+        fit_color_model(pick_frame, (200, 151), (202, 151), min_pixels=20)  # a 2 px pick keeps 13 px
     # a circle reaching far beyond the sphere mixes colours
     with pytest.raises(TudorVisionError, match="not one colour .* is the pick on the sphere"):
         fit_color_model(pick_frame, (200, 151), (240, 151))

@@ -119,5 +119,19 @@ def test_segment_params_for_radius_scales():
 
 def test_pick_too_close_to_centre_is_refused_in_plain_words():
     img = render_sphere(10, (100.2, 80.4))
-    with pytest.raises(TudorVisionError, match="px across .*pick the edge pixel on the sphere.s rim"):
+    with pytest.raises(TudorVisionError, match="px across.*pick the edge pixel on the sphere.s rim"):
         fit_color_model(img, (100, 80), (101, 80))
+
+
+@pytest.mark.parametrize("radius", [3, 5])
+def test_tracker_follows_a_small_sphere(radius):
+    from tudorvision.stereo.tracker2d import SphereTracker
+
+    centres = [(100.3 + 2.7 * k, 90.6 + 1.1 * k) for k in range(8)]
+    frames = [render_sphere(radius, c, seed=k) for k, c in enumerate(centres)]
+    trk = SphereTracker(fit_color_model(frames[0], *_pick(centres[0], radius)))
+    for frame, c in zip(frames, centres):
+        det = trk.update(frame)
+        assert det.valid, det.reason
+        assert np.hypot(det.uv[0] - c[0], det.uv[1] - c[1]) < 0.75
+    assert trk.n_full == 1

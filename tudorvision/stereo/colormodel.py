@@ -117,19 +117,21 @@ def _smooth_pmf(counts: np.ndarray, sigma: float, circular: bool, floor: float) 
     return (1.0 - floor) * pmf + floor / levels
 
 
-def _trim_highlights(fg: np.ndarray, min_pixels: int) -> np.ndarray:
-    """Drop pick pixels far from the median colour (a washed-out highlight, a shadowed edge).
+def _trim_highlights(fg: np.ndarray, core: np.ndarray, min_pixels: int) -> np.ndarray:
+    """Drop the washed-out highlight from the pick's pixels (R G B H S V rows).
 
-    Kept: pixels within 3.5 robust sigmas (1.4826 MAD, at least 6 levels) of
-    the median in R, G, B, S and V; the trim is skipped when it would keep
-    fewer than half the pixels or fewer than ``min_pixels``.
+    A highlight pixel is at least as bright (V) as the core's median and less
+    saturated than its median by more than 3.5 robust sigmas (1.4826 MAD of
+    the core, at least 6 levels); ``core`` marks the inner half of the circle.
+    Shading (darker, same saturation) is kept. The trim is skipped when it
+    would keep fewer than half the pixels or fewer than ``min_pixels``.
     """
-    cols = [0, 1, 2, 4, 5]
-    med = np.median(fg[:, cols], axis=0)
-    sigma = np.maximum(1.4826 * np.median(np.abs(fg[:, cols] - med), axis=0), 6.0)
-    keep = np.all(np.abs(fg[:, cols] - med) <= 3.5 * sigma, axis=1)
+    s_core, v_core = fg[core][:, 4], fg[core][:, 5]
+    s_med, v_med = float(np.median(s_core)), float(np.median(v_core))
+    sigma = max(1.4826 * float(np.median(np.abs(s_core - s_med))), 6.0)
+    keep = ~((fg[:, 4] < s_med - 3.5 * sigma) & (fg[:, 5] >= v_med))
     n_keep = int(keep.sum())
-    if n_keep < max(min_pixels, fg.shape[0] // 2):
+    if n_keep < max(min_pixels, fg.shape[0] // 2) or n_keep == fg.shape[0]:
         return fg
     return fg[keep]
 
@@ -211,8 +213,8 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
     radius = float(np.hypot(*(e - c)))
     if radius < 1.5:
         raise TudorVisionError(
-            f"center_uv, edge_uv: the picked circle is {2 * radius:.0f} px across (edge pixel {radius:.1f} px "
-            f"from the centre); pick the edge pixel on the sphere's rim, not next to the centre")
+            f"edge_uv: ({e[0]:g}, {e[1]:g}) is {radius:.2f} px from center_uv: the picked circle is "
+            f"{2 * radius:.0f} px across, too small to fit; pick the edge pixel on the sphere's rim")
     # small picks: keep at least a 2.5 px core (a 3 px sphere picked at 80 % has r_in 1.6 px otherwise)
     r_in = max(shrink * radius, min(radius, 2.5))
     # pixels inside the shrunken circle (clipped to the image)
@@ -229,7 +231,8 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
             f"pick the edge pixel on the rim (or a larger sphere image)")
     hsv_patch = cv2.cvtColor(np.ascontiguousarray(patch), cv2.COLOR_BGR2HSV)
     fg = np.concatenate([patch[inside][:, ::-1], hsv_patch[inside]], axis=1).astype(np.float64)  # R G B H S V
-    fg = _trim_highlights(fg, min_pixels)
+    d2_in = ((xx - c[0]) ** 2 + (yy - c[1]) ** 2)[inside]
+    fg = _trim_highlights(fg, d2_in <= max(0.25 * r_in ** 2, 1.0), min_pixels)
     mean = fg.mean(axis=0)
     std = fg.std(axis=0)
     mean[HUE_INDEX], std[HUE_INDEX] = circular_hue_stats(fg[:, HUE_INDEX])

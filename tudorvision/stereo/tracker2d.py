@@ -44,6 +44,7 @@ import numpy as np
 from tudorvision._checks import TudorVisionError
 from tudorvision.stereo._frame import FramePlanes
 from tudorvision.stereo.colormodel import ColorModel
+from tudorvision.stereo.detection import segment_params_for_radius
 from tudorvision.stereo.segment import SegmentParams, SphereDetection, detect_on_planes, regions_in_window
 
 __all__ = ["TrackerParams", "SphereTracker", "FrameTracker"]
@@ -149,6 +150,11 @@ class SphereTracker:
         if not isinstance(self.params, TrackerParams):
             raise TudorVisionError(f"params: expected TrackerParams, got {type(self.params).__name__}")
         seg = self.params.segment
+        r_pick = float(getattr(model, "radius_px", float("nan")))
+        if math.isfinite(r_pick) and 0.0 < r_pick < 5.0:
+            # a small sphere (issue 15): no seed erosion, full-resolution search (segment_params_for_radius)
+            seg = segment_params_for_radius(seg, r_pick)
+            self.params = replace(self.params, segment=seg)
         self._seg_moving = seg if seg.centroid == "moment" else replace(seg, centroid="rim_moment")
         self.reset()
 
