@@ -11,7 +11,8 @@ link occlusion) this
   per axis, then rounded to an integer pixel as a click is);
 - fits one colour model per pick (``fit_color_model``); a refused pick leaves
   that sphere untracked in that set-up (counted as not found);
-- runs ``StereoPipeline`` (one frame, full-frame search; luma-edge rim
+- runs ``StereoPipeline`` (one frame, tracking mode as the CLI, so the first
+  and only frame is a full-frame search with the per-radius segmentation; luma-edge rim
   refinement on for JPEG set-ups, as ``tudorvision track stereo`` does) and,
   as the seed's method, the same with ``SegmentParams(centroid="moment")``;
 - runs the named peer ``peer_hsv.detect_peer`` (HSV inRange +
@@ -104,7 +105,7 @@ def run_ours(scene, cal, models, centroid):
     if models is None:
         return uv, p
     seg = SegmentParams(centroid=centroid, edge_refine=scene.params.jpeg_quality is not None)
-    opts = PipelineOptions(tracking=False, tracker=TrackerParams(segment=seg))
+    opts = PipelineOptions(tracker=TrackerParams(segment=seg))   # tracking mode, as the CLI: first frame full search
     res = StereoPipeline(cal, models, options=opts).process(
         StereoFrame(t=0.0, index=0, left=scene.frames["left"], right=scene.frames["right"]))
     for s in res.spheres:
