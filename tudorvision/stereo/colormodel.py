@@ -140,7 +140,7 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
                     max_std: float = 45.0, max_hue_std: float = 20.0, min_saturation: float = 30.0,
                     background_margin: float = 1.5, llr_clip: float = 8.0, prior: float | None = None,
                     min_std=(6.0, 6.0, 6.0, 2.0, 8.0, 6.0), verify: bool = True,
-                    verify_params=None) -> ColorModel:
+                    verify_params=None, trim_highlights: bool = False) -> ColorModel:
     """Fit a sphere's colour model from a picked centre and edge pixel.
 
     Parameters
@@ -180,6 +180,11 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
     verify_params : SegmentParams, optional
         Segmentation parameters for that check (default ``SegmentParams()``);
         pass the ones the sequence will be tracked with.
+    trim_highlights : bool
+        Leave bright, desaturated pixels (a washed-out highlight) out of the
+        statistics. Off by default: on the real ball video of
+        ``tests/test_stereo_cli.py`` the narrower model finds a false ball
+        before the ball enters the view.
 
     Returns
     -------
@@ -232,7 +237,8 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
     hsv_patch = cv2.cvtColor(np.ascontiguousarray(patch), cv2.COLOR_BGR2HSV)
     fg = np.concatenate([patch[inside][:, ::-1], hsv_patch[inside]], axis=1).astype(np.float64)  # R G B H S V
     d2_in = ((xx - c[0]) ** 2 + (yy - c[1]) ** 2)[inside]
-    fg = _trim_highlights(fg, d2_in <= max(0.25 * r_in ** 2, 1.0), min_pixels)
+    if trim_highlights:
+        fg = _trim_highlights(fg, d2_in <= max(0.25 * r_in ** 2, 1.0), min_pixels)
     mean = fg.mean(axis=0)
     std = fg.std(axis=0)
     mean[HUE_INDEX], std[HUE_INDEX] = circular_hue_stats(fg[:, HUE_INDEX])
