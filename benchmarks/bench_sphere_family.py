@@ -200,6 +200,8 @@ def main(argv=None) -> int:
     ap.add_argument("--n", type=int, default=80, help="number of set-ups")
     ap.add_argument("--seed", type=int, default=0, help="family seed")
     ap.add_argument("--json", help="also write the summary to this file")
+    ap.add_argument("--procedural", action="store_true",
+                    help="procedural textures instead of the real photographs (for comparison)")
     args = ap.parse_args(argv)
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
                             cwd=os.path.join(HERE, "..")).stdout.strip()
@@ -209,7 +211,7 @@ def main(argv=None) -> int:
           f"{' (tudorvision/ has uncommitted changes)' if dirty else ''}; family seed {args.seed}, n {args.n}")
     rows, notes, refusals = [], set(), []
     t_render = t_ours = t_peer = 0.0
-    for params in sample_family(args.seed, args.n):
+    for params in sample_family(args.seed, args.n, textures=[] if args.procedural else None):
         t0 = time.perf_counter()
         scene = render_family_scene(params)
         t_render += time.perf_counter() - t0
