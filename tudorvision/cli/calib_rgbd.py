@@ -155,7 +155,7 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
 
     tol = np.radians(joint_tol_deg)
     thetas = None
-    if "joints" in seq.streams:
+    if seq.joints_path is not None:     # joints.txt wherever present, listed in streams or not
         thetas = seq.joints().at(seq.timestamps)
     if thetas is None and vertical_frame is None:
         raise TudorVisionError(f"{seq.path}: no joints.txt to find the vertical posture; pass --vertical-frame I")

@@ -566,6 +566,8 @@ def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
             spec.depth_scale = 5000.0
         else:
             spec = spec_image_folder(path, rate_hz=folder_rate)
+        if spec.joints_path is None and (path / "joints.txt").is_file():
+            spec.joints_path = path / "joints.txt"      # found wherever present, in every layout
         if layout != "tudorvision":
             _apply_sidecar(spec, data, line_of, path / "sequence.yaml")
             if side_rate is not None:
