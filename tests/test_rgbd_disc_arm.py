@@ -58,3 +58,48 @@ def test_calib_sweep_reads_joints_txt_not_listed_in_streams(tmp_path):
     # the joints are read (random angles: never vertical), not "no joints.txt"
     with pytest.raises(TudorVisionError, match="never reaches the vertical posture"):
         observe_sweep(seq, K, (5, 4), DiscOptions())
+
+
+@pytest.mark.parametrize("radius, rmse, expect", [
+    (0.84, 0.01, ""), (0.80, 0.01, ""), (0.48, 0.01, "circle radius 0.480"), (0.84, 0.09, "circle RMSE 9.00"),
+    (float("nan"), 0.01, "circle radius nan")])
+def test_check_sweep_fit_against_arm_geometry(radius, rmse, expect):
+    from tudorvision.cli.calib_rgbd import check_sweep_fit
+    from tudorvision.robot import load_robot_params
+
+    p = load_robot_params()
+    reason = check_sweep_fit(radius, rmse, params=p, max_rmse_m=0.06)
+    assert reason.startswith(expect) and (reason == "") == (expect == "")
+    assert "\n" not in reason
+    if expect.startswith("circle radius 0.48"):
+        assert f"{p.link2_length_m + p.link3_length_m:.3f} m" in reason
+
+
+def test_calib_rgbd_base_bad_fit_warns_and_exits_non_zero(tmp_path, capsys):
+    """A set-up whose circle cannot fit the arm (the lab's sweep checked against a 2 m arm) fails loudly."""
+    from tudorvision.cli import main
+    from tudorvision.io import open_sequence
+    from tudorvision.lab.record import RecordOptions, record
+
+    path = record("rgbd-disc", tmp_path / "disc", RecordOptions(small=True, show_progress=False, seed=3))
+    seq = open_sequence(path)
+    gt = seq.groundtruth("disc")
+    c = np.array([gt["disc_x_cam_m"][0], gt["disc_y_cam_m"][0], gt["disc_z_cam_m"][0]])
+    K = seq.calibration.camera("rgbd").K
+    seed_uv = f"{K[0, 0] * c[0] / c[2] + K[0, 2]:.0f},{K[1, 1] * c[1] / c[2] + K[1, 2]:.0f}"
+    args = ["calib", "rgbd-base", str(path), "--seed", seed_uv, "--max-rmse", "1.0"]
+    assert main(args) == 0                              # the right arm: no warning
+    assert "warning" not in capsys.readouterr().err
+    # wrong set-up: the lab's sweep checked against an arm 0.5 m longer is rejected by the library check,
+    # and the CLI with a tolerance below the sag turns the same warning into exit code 3
+    from dataclasses import replace
+    from tudorvision.cli.calib_rgbd import check_sweep_fit
+    from tudorvision.robot import load_robot_params
+    p = load_robot_params()
+    assert check_sweep_fit(0.84, 0.01, params=replace(p, link2_length_m=p.link2_length_m + 0.5)).startswith(
+        "circle radius 0.840 m")
+    assert main(args + ["--radius-tol", "0.0001"]) == 3
+    err = capsys.readouterr().err
+    assert "warning: circle radius" in err and len(err.strip().splitlines()) == 1
+    assert main(args + ["--radius-tol", "0.0001", "--accept-bad-fit"]) == 0
+    assert "accepted" in capsys.readouterr().err

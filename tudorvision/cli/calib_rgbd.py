@@ -13,7 +13,7 @@ import numpy as np
 
 from .._checks import TudorVisionError
 
-__all__ = ["register", "observe_sweep"]
+__all__ = ["register", "observe_sweep", "check_sweep_fit"]
 
 
 def _parse_floats(text: str, name: str, n: int | None = None) -> list[float]:
@@ -235,6 +235,12 @@ def _cmd_base(args) -> int:
           f"({len(rep['rejected'])} rejected), radius {rep['circle_radius_m']:.3f} m, "
           f"{len(vidx)} vertical frames")
     print("T_base_cam =\n" + np.array2string(T_base_cam, precision=4, suppress_small=True))
+    bad = check_sweep_fit(rep["circle_radius_m"], rep["circle_rmse_m"], radius_tol_m=args.radius_tol,
+                          max_rmse_m=args.max_rmse)
+    rep["fit_warning"] = bad
+    if bad:
+        import sys
+        print(f"warning: {bad}" + (" (accepted: --accept-bad-fit)" if args.accept_bad_fit else ""), file=sys.stderr)
     if args.out:
         written = _save(args.out, cal0, cam, transforms={"T_base_cam": T_base_cam}, circle_rmse_m=rep["circle_rmse_m"])
         print(f"wrote {written}")
@@ -242,7 +248,48 @@ def _cmd_base(args) -> int:
         from ..io.atomic import write_text_atomic
         write_text_atomic(args.report, json.dumps(rep, indent=2))
         print(f"wrote {args.report}")
-    return 0
+    return 3 if bad and not args.accept_bad_fit else 0
+
+
+def check_sweep_fit(radius_m: float, rmse_m: float, *, params=None, radius_tol_m: float = 0.05,
+                    max_rmse_m: float = 0.03) -> str:
+    """Check a theta2-sweep circle against the arm's geometry.
+
+    In the sweep (theta1 = theta3 = 0) the disc moves about joint 2 at the
+    distance link2 + link3 (``tudorvision.robot`` parameters), less the
+    gravity sag, which stays well under ``radius_tol_m`` for the real arm.
+
+    Parameters
+    ----------
+    radius_m, rmse_m : float
+        Fitted circle radius and RMSE, metres.
+    params : RobotParams, optional
+        Robot parameters (default: ``load_robot_params()``).
+    radius_tol_m, max_rmse_m : float
+        Largest accepted radius deviation and circle RMSE, metres.
+
+    Returns
+    -------
+    str
+        A one-line reason when the fit does not fit the arm, else ``""``.
+
+    Examples
+    --------
+    >>> check_sweep_fit(0.84, 0.005)
+    ''
+    >>> check_sweep_fit(0.48, 0.005)[:33]
+    'circle radius 0.480 m, but the ar'
+    """
+    from ..robot import load_robot_params
+
+    p = params or load_robot_params()
+    expected = float(p.link2_length_m + p.link3_length_m)
+    if not np.isfinite(radius_m) or abs(radius_m - expected) > radius_tol_m:
+        return (f"circle radius {radius_m:.3f} m, but the arm's disc moves on {expected:.3f} m about joint 2 "
+                f"(tolerance {radius_tol_m:.3f} m): the disc was probably lost or mistaken for another object")
+    if not np.isfinite(rmse_m) or rmse_m > max_rmse_m:
+        return f"circle RMSE {rmse_m * 100:.2f} cm exceeds {max_rmse_m * 100:.2f} cm: the disc track is unreliable"
+    return ""
 
 
 def register(calib_sub) -> None:
@@ -288,4 +335,10 @@ def register(calib_sub) -> None:
     b.add_argument("--joint-tol-deg", type=float, default=0.5, help="joint tolerance for sweep/vertical frames")
     b.add_argument("--out", help="calibration file to write or update (transforms: T_base_cam)")
     b.add_argument("--report", help="JSON report")
+    b.add_argument("--radius-tol", type=float, default=0.05,
+                   help="largest accepted |circle radius - (link2 + link3)| in metres (default 0.05)")
+    b.add_argument("--max-rmse", type=float, default=0.06,
+                   help="largest accepted circle RMSE in metres (default 0.06; the seed reports 0.048)")
+    b.add_argument("--accept-bad-fit", action="store_true",
+                   help="exit 0 even when the circle does not fit the arm's geometry (the warning stays)")
     b.set_defaults(func=_cmd_base)
