@@ -315,7 +315,9 @@ def register(calib_sub) -> None:
                     "(theta1 = theta3 = 0), fit the circle of its centroids and build the base frame as the "
                     "seed does: origin = circle centre (shifted to the base plate by link1_height with "
                     "--origin base), z towards the end effector at [0, 90, 0] deg, y from the circle normal, "
-                    "x = y x z, y = z x x.")
+                    "x = y x z, y = z x x. The circle is checked against the arm: a radius more than "
+                    "--radius-tol from link2 + link3 or an RMSE above --max-rmse prints a one-line warning "
+                    "and exits 3 unless --accept-bad-fit.")
     b.add_argument("seq", metavar="SEQ", help="RGB-D sequence of the sweep (with joints.txt, or --vertical-frame)")
     b.add_argument("--seed", required=True, help="pixel U,V on the disc in the first frame")
     b.add_argument("--vertical-frame", type=int, help="frame index of the vertical posture (default: from joints.txt)")
