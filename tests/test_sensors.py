@@ -3,26 +3,30 @@ import numpy as np
 import pytest
 
 from tudorvision._checks import TudorVisionError
-from tudorvision.sensors import (KINECT_DEPTH_NOISE, KINECT_SIGMA_UNIT, KINECT_SIGMA_Z_COEFFS, SIGMA_UNITS_PER_M,
-                                 DepthNoiseModel, depth_m_from_raw, raw_from_depth_m)
+from tudorvision.sensors import (DEFAULT_SIGMA_FLOOR_M, KINECT_DEPTH_NOISE, KINECT_SIGMA_UNIT,
+                                 KINECT_SIGMA_Z_COEFFS, SIGMA_UNITS_PER_M, DepthNoiseModel, depth_m_from_raw,
+                                 raw_from_depth_m)
 
 
-def seed_sigma_cm(z):
-    """The seed's Kinect fit written out independently (z in m; sigma in cm, the lab's reading today)."""
+def seed_sigma_mm(z):
+    """The seed's Kinect fit written out independently (z in m; sigma in mm, the lab's reading since issue 18)."""
     return 0.51 * z ** 3 - 2.1 * z ** 2 + 5.12 * z - 2.18
 
 
 def test_kinect_polynomial_values_at_1_2_5_m():
     # hand-evaluated: 0.51 - 2.1 + 5.12 - 2.18; 4.08 - 8.4 + 10.24 - 2.18; 63.75 - 52.5 + 25.6 - 2.18
-    expected_cm = np.array([1.35, 3.74, 34.67])
+    expected_mm = np.array([1.35, 3.74, 34.67])
     z = np.array([1.0, 2.0, 5.0])
-    np.testing.assert_allclose(seed_sigma_cm(z), expected_cm, rtol=1e-12)
-    np.testing.assert_allclose(KINECT_DEPTH_NOISE.sigma_m(z), expected_cm / 100.0, rtol=1e-12)
-    assert KINECT_SIGMA_UNIT == "cm" and SIGMA_UNITS_PER_M[KINECT_SIGMA_UNIT] == 100.0
+    np.testing.assert_allclose(seed_sigma_mm(z), expected_mm, rtol=1e-12)
+    np.testing.assert_allclose(KINECT_DEPTH_NOISE.sigma_m(z), expected_mm / 1000.0, rtol=1e-12)
+    assert KINECT_SIGMA_UNIT == "mm" and SIGMA_UNITS_PER_M[KINECT_SIGMA_UNIT] == 1000.0
     assert DepthNoiseModel() == KINECT_DEPTH_NOISE
-    # the lab's model is the seed's coefficients read in cm, converted to metres (bit for bit)
-    assert KINECT_DEPTH_NOISE.coeffs == (0.0051, -0.021, 0.0512, -0.0218)
-    assert KINECT_DEPTH_NOISE.coeffs == tuple(c / 100.0 for c in KINECT_SIGMA_Z_COEFFS)
+    # the lab's model is the seed's coefficients read in mm, converted to metres (bit for bit)
+    np.testing.assert_allclose(KINECT_DEPTH_NOISE.coeffs, (0.00051, -0.0021, 0.00512, -0.00218), rtol=1e-15)
+    assert KINECT_DEPTH_NOISE.coeffs == tuple(c / 1000.0 for c in KINECT_SIGMA_Z_COEFFS)
+    # published Kinect noise (Khoshelham and Elberink 2012; Nguyen et al. 2012): about 1.5-2 mm at 1 m
+    # and up to about 4 cm at 5 m; the model is within a factor 1.5 of both, the cm reading 7-9 times above
+    assert 1e-3 < KINECT_DEPTH_NOISE.sigma_m(1.0) < 3e-3 and 0.025 < KINECT_DEPTH_NOISE.sigma_m(5.0) < 0.045
 
 
 def test_noise_model_floor_and_shape():
@@ -31,7 +35,9 @@ def test_noise_model_floor_and_shape():
     s = m.sigma_m(z)
     assert s.shape == z.shape and s.dtype == np.float64
     assert np.all(np.diff(s.ravel()) > 0)                    # the cubic increases over the range
-    assert m.sigma_m(0.3) == m.floor_m == 1e-3               # cubic negative there
+    assert m.sigma_m(0.3) == m.floor_m == DEFAULT_SIGMA_FLOOR_M == 2e-4     # cubic negative there
+    assert np.all(s > m.floor_m)                             # the floor never bites inside 0.6-6 m
+    np.testing.assert_allclose(s, seed_sigma_mm(z) / 1000.0, rtol=1e-12)
     assert float(DepthNoiseModel(floor_m=0.0).sigma_m(0.3)) == 0.0
     assert DepthNoiseModel.from_dict(m.as_dict()) == m
 
@@ -40,7 +46,7 @@ def test_noise_model_floor_and_shape():
 def test_noise_model_statistics_on_a_seeded_sample(z):
     n = 200_000
     d = KINECT_DEPTH_NOISE.noisy_depth_m(np.full(n, z), np.random.default_rng(7))
-    sigma = seed_sigma_cm(z) / 100.0
+    sigma = seed_sigma_mm(z) / 1000.0
     # mean within 4 standard errors, std within 4 standard errors of the std (sigma / sqrt(2 n))
     assert abs(d.mean() - z) < 4 * sigma / np.sqrt(n)
     assert abs(d.std(ddof=1) / sigma - 1) < 4 / np.sqrt(2 * n)
@@ -49,7 +55,7 @@ def test_noise_model_statistics_on_a_seeded_sample(z):
 def test_noisy_depth_draws_one_standard_normal_per_pixel():
     depth = np.full((4, 5), 2.0)
     d = KINECT_DEPTH_NOISE.noisy_depth_m(depth, np.random.default_rng(3))
-    expected = depth + 0.0374 * np.random.default_rng(3).standard_normal((4, 5))
+    expected = depth + 0.00374 * np.random.default_rng(3).standard_normal((4, 5))
     np.testing.assert_allclose(d, expected, rtol=1e-12)
 
 

@@ -12,11 +12,12 @@ millimetres, 5000 for TUM).
 
 The Kinect noise fit of the seed (figure 2.5) is
 ``sigma_z(z) = 0.51 z^3 - 2.1 z^2 + 5.12 z - 2.18`` with z in metres. The
-unit of sigma is not stated next to the fit: the project decided to read it
-in millimetres (BRIEF), but the lab (simulated sensor, RGB-D perception)
-reads it in **centimetres** today (1.35 cm at 1 m). :data:`KINECT_SIGMA_UNIT`
-names that reading; switching the lab to millimetres (issue 18) is the one
-line ``KINECT_SIGMA_UNIT = "mm"``.
+unit of sigma is not stated next to the fit; the lab reads it in
+**millimetres** (BRIEF, issue 18): 1.35 mm at 1 m, 3.7 mm at 2 m, 35 mm at
+5 m, as published Kinect noise studies (Khoshelham and Elberink 2012,
+Nguyen et al. 2012); read in centimetres it would be 7-9 times larger than
+those. :data:`KINECT_SIGMA_UNIT` names that reading (until issue 18 the lab
+read it in centimetres).
 """
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ import numpy as np
 from ._checks import TudorVisionError
 
 __all__ = [
-    "KINECT_SIGMA_Z_COEFFS", "KINECT_SIGMA_UNIT", "KINECT_RANGE_M", "SIGMA_UNITS_PER_M",
+    "KINECT_SIGMA_Z_COEFFS", "KINECT_SIGMA_UNIT", "KINECT_RANGE_M", "SIGMA_UNITS_PER_M", "DEFAULT_SIGMA_FLOOR_M",
     "PLAUSIBLE_DEPTH_RANGE_M", "DepthNoiseModel", "KINECT_DEPTH_NOISE",
     "depth_m_from_raw", "raw_from_depth_m",
 ]
@@ -41,9 +42,13 @@ KINECT_SIGMA_Z_COEFFS = (0.51, -2.1, 5.12, -2.18)
 #: Units of sigma per metre, by unit name.
 SIGMA_UNITS_PER_M = {"m": 1.0, "cm": 100.0, "mm": 1000.0}
 
-#: How the lab reads the fit's sigma today: centimetres. The project decided
-#: on millimetres (BRIEF); issue 18 changes this line to ``"mm"``.
-KINECT_SIGMA_UNIT = "cm"
+#: How the lab reads the fit's sigma: millimetres (BRIEF; centimetres before issue 18).
+KINECT_SIGMA_UNIT = "mm"
+
+#: Default lower bound of sigma, metres: below the cubic's value at the near end
+#: of its range (0.25 mm at 0.6 m), so the model is the seed's fit over 0.6-6 m;
+#: it only guards the depths below about 0.59 m (the cubic turns negative below 0.52 m).
+DEFAULT_SIGMA_FLOOR_M = 2e-4
 
 #: Depth range of the Kinect fit and of the simulated sensor, metres.
 KINECT_RANGE_M = (0.6, 6.0)
@@ -70,9 +75,10 @@ class DepthNoiseModel:
         is not clipped).
     floor_m : float
         Lower bound of the returned sigma, metres, >= 0 (the Kinect cubic
-        turns negative below about 0.52 m). Read in cm, the Kinect model
-        stays above the default floor inside :data:`KINECT_RANGE_M` (its
-        minimum there is 2.5 mm at 0.6 m); read in mm it would not.
+        turns negative below about 0.52 m). Default
+        :data:`DEFAULT_SIGMA_FLOOR_M` (0.2 mm): the Kinect model stays above
+        it inside :data:`KINECT_RANGE_M` (its minimum there is 0.25 mm at
+        0.6 m, below the sensor's 1 mm output step).
     extra : dict
         Further entries read from a file and kept for writing it back
         (not compared, not used in evaluation).
@@ -84,16 +90,16 @@ class DepthNoiseModel:
 
     Examples
     --------
-    >>> m = DepthNoiseModel()          # the seed's fit, read in cm today
-    >>> round(float(m.sigma_m(1.0)), 4)
-    0.0135
-    >>> m.sigma_m([0.3, 2.0]).round(4).tolist()     # floored below the fit's range
-    [0.001, 0.0374]
+    >>> m = DepthNoiseModel()          # the seed's fit, read in mm
+    >>> round(float(m.sigma_m(1.0)), 5)
+    0.00135
+    >>> m.sigma_m([0.3, 2.0, 5.0]).round(5).tolist()     # floored below the fit's range
+    [0.0002, 0.00374, 0.03467]
     """
 
     coeffs: tuple = tuple(c / SIGMA_UNITS_PER_M[KINECT_SIGMA_UNIT] for c in KINECT_SIGMA_Z_COEFFS)
     z_range_m: tuple = KINECT_RANGE_M
-    floor_m: float = 1e-3
+    floor_m: float = DEFAULT_SIGMA_FLOOR_M
     extra: dict = field(default_factory=dict, compare=False, repr=False)
 
     def __post_init__(self):
@@ -148,7 +154,7 @@ class DepthNoiseModel:
         Examples
         --------
         >>> d = DepthNoiseModel().noisy_depth_m(np.full(10000, 2.0), np.random.default_rng(0))
-        >>> abs(float(d.std()) / 0.0374 - 1) < 0.03
+        >>> abs(float(d.std()) / 0.00374 - 1) < 0.03
         True
         """
         d = np.asarray(depth_m, dtype=np.float64)
@@ -196,12 +202,12 @@ class DepthNoiseModel:
         try:
             return cls(coeffs=tuple(doc["sigma_z_coeffs_m"]),
                        z_range_m=tuple(doc.get("z_range_m", KINECT_RANGE_M)),
-                       floor_m=float(doc.get("floor_m", 1e-3)))
+                       floor_m=float(doc.get("floor_m", DEFAULT_SIGMA_FLOOR_M)))
         except (KeyError, TypeError) as exc:
             raise TudorVisionError(f"depth model: missing or invalid entry {exc}") from None
 
 
-#: The seed's Kinect fit (sigma read in :data:`KINECT_SIGMA_UNIT`), in metres.
+#: The seed's Kinect fit (sigma read in :data:`KINECT_SIGMA_UNIT`, millimetres), in metres.
 KINECT_DEPTH_NOISE = DepthNoiseModel()
 
 

@@ -319,7 +319,7 @@ def read_depth_table_csv(path) -> list[DepthStepStats]:
 
 def plot_depth_model(path, table, model: DepthNoiseModel, *,
                      reference: DepthNoiseModel | None = KINECT_DEPTH_NOISE) -> Path:
-    """PNG plot of measured sigma per distance and the fitted ``sigma_z(z)`` (centimetres).
+    """PNG plot of measured sigma per distance and the fitted ``sigma_z(z)`` (millimetres).
 
     Draws on its own :class:`matplotlib.figure.Figure` (the global backend is not touched).
 
@@ -348,15 +348,15 @@ def plot_depth_model(path, table, model: DepthNoiseModel, *,
     z = np.linspace(lo, hi, 200)
     fig = Figure(figsize=(6, 4))
     ax = fig.add_subplot()
-    ax.plot(d, s * 100, "o", label="measured (mean per-pixel std)")
+    ax.plot(d, s * 1000, "o", label="measured (mean per-pixel std)")
     c = model.coeffs
-    ax.plot(z, model.sigma_m(z) * 100, "-", label="fit: " + " ".join(f"{100 * a:+.3g}" for a in c) + " (cm, z in m)")
+    ax.plot(z, model.sigma_m(z) * 1000, "-", label="fit: " + " ".join(f"{1000 * a:+.3g}" for a in c) + " (mm, z in m)")
     if reference is not None:
         seed = "".join(f"{c:+g}{'z' if k else ''}{'²³'[k - 2] if k > 1 else ''}"
                        for c, k in zip(KINECT_SIGMA_Z_COEFFS, range(len(KINECT_SIGMA_Z_COEFFS) - 1, -1, -1)))
-        ax.plot(z, reference.sigma_m(z) * 100, "--", label=f"seed: {seed.lstrip('+')} ({KINECT_SIGMA_UNIT})")
+        ax.plot(z, reference.sigma_m(z) * 1000, "--", label=f"seed: {seed.lstrip('+')} ({KINECT_SIGMA_UNIT})")
     ax.set_xlabel("distance z [m]")
-    ax.set_ylabel("σz [cm]")
+    ax.set_ylabel("σz [mm]")
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()

@@ -1,7 +1,10 @@
 """Kinect-like depth sensor model: range limits, sigma_z(z) noise, invalid edges and dark surfaces.
 
 The noise is a :class:`tudorvision.sensors.DepthNoiseModel` (SI units); by
-default the seed's Kinect fit :data:`tudorvision.sensors.KINECT_DEPTH_NOISE`.
+default the seed's Kinect fit :data:`tudorvision.sensors.KINECT_DEPTH_NOISE`
+(sigma read in millimetres: 1.35 mm at 1 m, 35 mm at 5 m). The output is
+rounded to ``1 / units_per_m`` (1 mm), which adds ``1 mm / sqrt(12)`` of
+quantisation spread where sigma is of that order (below about 1.5 m).
 """
 from __future__ import annotations
 
@@ -46,8 +49,8 @@ class DepthSensorModel:
     Examples
     --------
     >>> m = DepthSensorModel()
-    >>> (m.min_depth_m, m.max_depth_m, round(float(m.noise.sigma_m(1.0)), 4))
-    (0.6, 6.0, 0.0135)
+    >>> (m.min_depth_m, m.max_depth_m, round(float(m.noise.sigma_m(1.0)), 5))    # 1.35 mm at 1 m
+    (0.6, 6.0, 0.00135)
     """
 
     min_depth_m: float = KINECT_RANGE_M[0]
