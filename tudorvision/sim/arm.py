@@ -24,7 +24,8 @@ from ..robot.params import RobotParams, load_robot_params
 from .beam import cantilever_static, modal_basis
 from .link_modes import LinkModes
 from .model import (ASSUMPTIONS, ArmBodies, Payload, PlantConfig, SimLog, SpringDamperObstacle, arm_bodies,
-                    bias_torques, fk_elastic, link_static_loads, mass_matrix, rigid_energy, spheres_from_T)
+                    bias_torques, coupled_mass_matrix, fk_elastic, link_static_loads, mass_matrix, rigid_energy,
+                    spheres_from_T, zero_config_inertia)
 
 __all__ = [
     "ASSUMPTIONS", "PlantConfig", "Payload", "ArmBodies", "arm_bodies", "mass_matrix",
@@ -440,7 +441,7 @@ class ElasticArm:
         key = (self._build_id, h, round(self.theta[2] * 1e4))
         cache = self._mass_cache
         if cache is None or cache[0] != key:
-            M = self._coupled_mass(m22, m23, m33, coupling)
+            M = coupled_mass_matrix(m22, m23, m33, coupling, b, k2, k3, self._c3)
             for k, lm in ((0, k2), (1, k3)):
                 off = 2 + (0 if k == 0 else n2)
                 for i in range(lm.n):
@@ -464,29 +465,6 @@ class ElasticArm:
         self._coupled_system = (M, r_)
         return sol[:2], (sol[2:2 + n2], sol[2 + n2:])
 
-    def _coupled_mass(self, m22, m23, m33, coupling) -> np.ndarray:
-        """Assumed-modes mass matrix over (theta2, theta3, eta2, eta3)."""
-        b, k2, k3 = self.bodies, self.link2, self.link3
-        n2, n3 = k2.n, k3.n
-        c2_t2, c2_t3, c3_t2, c3_t3, E = coupling
-        sc = b.s3 * self._c3
-        N = 2 + n2 + n3
-        M = np.zeros((N, N))
-        M[0, 0], M[0, 1], M[1, 0], M[1, 1] = m22, m23, m23, m33
-        for r in range(n2):
-            M[0, 2 + r] = M[2 + r, 0] = c2_t2[r] + sc * (b.l2 * k2.dphiL[r] + k2.phiL[r])
-            M[1, 2 + r] = M[2 + r, 1] = c2_t3[r]
-            for q in range(n2):
-                M[2 + r, 2 + q] = (1.0 if r == q else 0.0) + sc * (k2.phiL[r] * k2.dphiL[q]
-                                                                   + k2.dphiL[r] * k2.phiL[q])
-            for q in range(n3):
-                M[2 + r, 2 + n2 + q] = M[2 + n2 + q, 2 + r] = E[r][q]
-        for q in range(n3):
-            M[0, 2 + n2 + q] = M[2 + n2 + q, 0] = c3_t2[q]
-            M[1, 2 + n2 + q] = M[2 + n2 + q, 1] = c3_t3[q]
-            M[2 + n2 + q, 2 + n2 + q] = 1.0
-        return M
-
     def coupled_frequencies_hz(self) -> np.ndarray:
         """Natural frequencies of the coupled links with the joints held, at the current pose.
 
@@ -503,11 +481,9 @@ class ElasticArm:
         from scipy.linalg import eigh
         b = self.bodies
         c3 = math.cos(self.theta[2])
-        saved = getattr(self, "_c3", c3)
-        self._c3 = c3
-        M = self._coupled_mass(b.J2 + b.J3 + 2 * b.l2 * b.s3 * c3 + b.rotor[1],
-                               b.J3 + b.l2 * b.s3 * c3, b.J3 + b.rotor[2], self._coupling(c3))
-        self._c3 = saved
+        M = coupled_mass_matrix(b.J2 + b.J3 + 2 * b.l2 * b.s3 * c3 + b.rotor[1],
+                                b.J3 + b.l2 * b.s3 * c3, b.J3 + b.rotor[2], self._coupling(c3),
+                                b, self.link2, self.link3, c3)
         K = np.diag(self.link2.om2 + self.link3.om2)
         w2 = eigh(K, M[2:, 2:], eigvals_only=True)
         return np.sqrt(np.maximum(w2, 0.0)) / (2 * np.pi)
@@ -648,7 +624,3 @@ class ElasticArm:
         self._contact_tau = [float(v) for v in tau]
         self._contact_q = ([float(v) for v in q2], [float(v) for v in q3])
 
-
-def zero_config_inertia(arm: ElasticArm) -> np.ndarray:
-    """Diagonal of the mass matrix at the zero configuration (the seed's design point)."""
-    return np.diag(mass_matrix(np.zeros(3), arm.bodies)).copy()

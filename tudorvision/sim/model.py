@@ -46,6 +46,7 @@ from ..robot.params import RobotParams, load_robot_params
 from .beam import link_rho
 
 __all__ = [
+    "coupled_mass_matrix", "zero_config_inertia",
     "ASSUMPTIONS", "PlantConfig", "Payload", "ArmBodies", "arm_bodies", "mass_matrix",
     "bias_torques", "rigid_energy", "link_static_loads", "SpringDamperObstacle",
     "SimLog", "fk_elastic", "spheres_from_T",
@@ -437,6 +438,65 @@ class SpringDamperObstacle:
             return np.zeros(3)
         mag = self.stiffness_N_m * depth - self.damping_Ns_m * float(n @ v)
         return max(mag, 0.0) * n
+
+
+def coupled_mass_matrix(m22, m23, m33, coupling, bodies: ArmBodies, link2, link3, c3: float) -> np.ndarray:
+    """Assumed-modes mass matrix of the two-way model over (theta2, theta3, eta2, eta3).
+
+    Parameters
+    ----------
+    m22, m23, m33 : float
+        Rigid joint-2/3 block of the mass matrix, kg m^2.
+    coupling : tuple
+        ``(c2_t2, c2_t3, c3_t2, c3_t3, E)`` mode/joint couplings at the current elbow angle.
+    bodies : ArmBodies
+        Lumped bodies (uses ``s3``, the first moment of the distal body, and ``l2``).
+    link2, link3 : LinkModes
+        Modes of the elastic links (``n``, tip values ``phiL`` and slopes ``dphiL``).
+    c3 : float
+        cos(theta3).
+
+    Returns
+    -------
+    ndarray, shape (2 + n2 + n3, 2 + n2 + n3)
+        Symmetric mass matrix.
+    """
+    b, k2, k3 = bodies, link2, link3
+    n2, n3 = k2.n, k3.n
+    c2_t2, c2_t3, c3_t2, c3_t3, E = coupling
+    sc = b.s3 * c3
+    N = 2 + n2 + n3
+    M = np.zeros((N, N))
+    M[0, 0], M[0, 1], M[1, 0], M[1, 1] = m22, m23, m23, m33
+    for r in range(n2):
+        M[0, 2 + r] = M[2 + r, 0] = c2_t2[r] + sc * (b.l2 * k2.dphiL[r] + k2.phiL[r])
+        M[1, 2 + r] = M[2 + r, 1] = c2_t3[r]
+        for q in range(n2):
+            M[2 + r, 2 + q] = (1.0 if r == q else 0.0) + sc * (k2.phiL[r] * k2.dphiL[q]
+                                                               + k2.dphiL[r] * k2.phiL[q])
+        for q in range(n3):
+            M[2 + r, 2 + n2 + q] = M[2 + n2 + q, 2 + r] = E[r][q]
+    for q in range(n3):
+        M[0, 2 + n2 + q] = M[2 + n2 + q, 0] = c3_t2[q]
+        M[1, 2 + n2 + q] = M[2 + n2 + q, 1] = c3_t3[q]
+        M[2 + n2 + q, 2 + n2 + q] = 1.0
+    return M
+
+
+def zero_config_inertia(arm) -> np.ndarray:
+    """Diagonal of the mass matrix at the zero configuration (the seed's design point).
+
+    Parameters
+    ----------
+    arm : ElasticArm
+        The arm (uses its ``bodies``).
+
+    Returns
+    -------
+    ndarray, shape (3,)
+        kg m^2.
+    """
+    return np.diag(mass_matrix(np.zeros(3), arm.bodies)).copy()
 
 
 def fk_elastic(theta, tip2, tip3, params: RobotParams | None = None):
