@@ -18,7 +18,7 @@ RAYS = np.stack([(UU - K.cx) / K.fx, (VV - K.cy) / K.fy, np.ones(K.shape)], axis
 
 
 def seed_sigma_m(z):
-    return np.maximum(0.51 * z ** 3 - 2.1 * z ** 2 + 5.12 * z - 2.18, 0.0) / 100.0
+    return np.maximum(0.51 * z ** 3 - 2.1 * z ** 2 + 5.12 * z - 2.18, 0.0) / 1000.0       # mm (issue 18)
 
 
 def static_scene():
@@ -95,7 +95,8 @@ def test_ball_3d_error_against_analytic_spheres(background):
         assert np.hypot(*(d.uv - [K.fx * c[0] / c[2] + K.cx, K.fy * c[1] / c[2] + K.cy])) < 1.5
     assert found >= 0.95 * n
     errs = np.array(errs)
-    assert np.median(errs) < 0.02 and np.max(errs) < 0.08
+    # millimetre depth noise (issue 18) and the exact perspective centre: 0.6 mm median, 3.7 mm worst here
+    assert np.median(errs) < 0.002 and np.max(errs) < 0.01
     # covariance: along the ray consistent with the errors (sigma_z(z)^2 / n, mean near 1);
     # across the ray conservative (1 px centroid sigma) but never over-confident
     nees = np.array(nees)
@@ -126,7 +127,7 @@ def test_stateful_detector_learns_background_then_detects():
     assert det.background is not None and det.background.n_frames == 5
     c = np.array([0.3, -0.2, 2.5])
     d = det.update(sense(rng, add_sphere(static, c)))
-    assert d is not None and np.linalg.norm(d.p_cam - c) < 0.05
+    assert d is not None and np.linalg.norm(d.p_cam - c) < 0.01
     # larger ball radius option: the 9 cm ball now looks too small
     det_big = BallDetector(K, BallDetectorOptions(ball_radius_m=0.15), n_background=1)
     det_big.update(sense(rng, static))
