@@ -29,7 +29,7 @@ from .atomic import write_text_atomic
 from .calibration import RECTIFICATION_SHAPES, Calibration, CameraModel, StereoExtrinsics
 
 __all__ = ["CameraInfo", "load_ros_camera_info", "save_ros_camera_info", "calibration_from_ros",
-           "load_opencv_stereo", "save_opencv_stereo"]
+           "load_ros_stereo", "save_ros_stereo", "load_opencv_stereo", "save_opencv_stereo"]
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -190,6 +190,119 @@ def calibration_from_ros(paths) -> Calibration:
         If a file is absent or malformed (see :func:`load_ros_camera_info`).
     """
     return Calibration(cameras={name: load_ros_camera_info(p).camera for name, p in paths.items()})
+
+
+def load_ros_stereo(left_path, right_path, *, left: str = "left", right: str = "right") -> Calibration:
+    """Read a stereo pair from two ROS ``camera_info`` files, extrinsics included.
+
+    ROS stores the pair's geometry in the rectification rotations ``R1``,
+    ``R2`` and the projection matrices ``P1 = K' [I | t1]``, ``P2 = K' [I | t2]``
+    (``P2[0, 3] = -fx' * baseline``): the rectified frames differ by the
+    translation ``t2 - t1``, so ``x_right = R2^T (R1 x_left + t2 - t1)``.
+
+    Parameters
+    ----------
+    left_path, right_path : str or Path
+        The left and right ``camera_info`` files.
+    left, right : str
+        Camera names in the result.
+
+    Returns
+    -------
+    Calibration
+        Both cameras, and the stereo extrinsics with the files' rectification
+        (``R1``, ``R2``, ``P1``, ``P2`` and ``Q`` derived from them) when the
+        projection matrices hold a baseline; the cameras only when they do not
+        (two independently calibrated cameras).
+
+    Raises
+    ------
+    TudorVisionError
+        A file absent or malformed, or a rectification matrix that is not a
+        rotation (the message names the file).
+    """
+    infos = {name: load_ros_camera_info(p) for name, p in ((left, left_path), (right, right_path))}
+    cams = {name: info.camera for name, info in infos.items()}
+    il, ir = infos[left], infos[right]
+    t1 = np.linalg.solve(il.P[:, :3], il.P[:, 3])
+    t2 = np.linalg.solve(ir.P[:, :3], ir.P[:, 3])
+    if not np.any(t2 - t1):
+        return Calibration(cameras=cams)
+    R = ir.R_rect.T @ il.R_rect
+    T = ir.R_rect.T @ (t2 - t1)
+    rect = {"R1": il.R_rect, "R2": ir.R_rect, "P1": il.P, "P2": ir.P}
+    Q = rectified_q(il.P, ir.P)
+    if Q is not None:
+        rect["Q"] = Q
+    try:
+        stereo = StereoExtrinsics(R=R, T=T, left=left, right=right, **rect)
+    except ValueError as exc:
+        raise TudorVisionError(f"{right_path}: rectification_matrix: {exc}") from None
+    return Calibration(cameras=cams, stereo=stereo)
+
+
+def rectified_q(P1, P2):
+    """OpenCV's disparity-to-depth matrix ``Q`` from the rectified projection matrices.
+
+    Parameters
+    ----------
+    P1, P2 : array_like, shape (3, 4)
+        Rectified projection matrices of the left and right camera (pixels;
+        ``P2[0, 3]`` or ``P2[1, 3]`` is ``f' * t`` with ``t`` in metres).
+
+    Returns
+    -------
+    ndarray, shape (4, 4) or None
+        ``Q`` as ``cv2.stereoRectify`` builds it (horizontal or vertical
+        pair), None when ``P2`` holds no baseline.
+    """
+    P1, P2 = np.asarray(P1, float), np.asarray(P2, float)
+    idx = 0 if abs(P2[0, 3]) >= abs(P2[1, 3]) else 1
+    f = P2[idx, idx]
+    t = (P2[idx, 3] - P1[idx, 3]) / f
+    if t == 0 or f == 0:
+        return None
+    return np.array([[1.0, 0, 0, -P1[0, 2]], [0, 1.0, 0, -P1[1, 2]], [0, 0, 0, P1[0, 0]],
+                     [0, 0, -1.0 / t, (P1[idx, 2] - P2[idx, 2]) / t]])
+
+
+def save_ros_stereo(calibration: Calibration, left_path, right_path, *, alpha: float = -1.0) -> tuple[Path, Path]:
+    """Write the stereo pair of ``calibration`` as two ROS ``camera_info`` files.
+
+    Parameters
+    ----------
+    calibration : Calibration
+        Calibration with a stereo part. Its rectification is written when
+        present; otherwise it is computed with ``cv2.stereoRectify``.
+    left_path, right_path : str or Path
+        Output files (``camera_name`` is the camera's name); written
+        atomically.
+    alpha : float
+        ``cv2.stereoRectify`` free scaling when the rectification is
+        computed here (-1: OpenCV's default).
+
+    Returns
+    -------
+    left_path, right_path : Path
+        The written files.
+
+    Raises
+    ------
+    TudorVisionError
+        If ``calibration`` has no stereo part, or a file cannot be written.
+    """
+    st = calibration.stereo
+    if st is None:
+        raise TudorVisionError("calibration has no stereo extrinsics to write")
+    cl, cr = calibration.camera(st.left), calibration.camera(st.right)
+    if all(getattr(st, n) is not None for n in ("R1", "R2", "P1", "P2")):
+        R1, R2, P1, P2 = st.R1, st.R2, st.P1, st.P2
+    else:
+        R1, R2, P1, P2, *_ = cv2.stereoRectify(cl.K, cl.dist, cr.K, cr.dist, cl.size, st.R,
+                                               st.T.reshape(3, 1), alpha=alpha)
+    out = (save_ros_camera_info(left_path, cl, name=st.left, R_rect=R1, P=P1),
+           save_ros_camera_info(right_path, cr, name=st.right, R_rect=R2, P=P2))
+    return out
 
 
 # ----------------------------------------------------------------------------- OpenCV FileStorage
