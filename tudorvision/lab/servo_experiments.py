@@ -19,20 +19,20 @@ from __future__ import annotations
 
 import csv
 import json
-import os
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from ..io.atomic import atomic_write
 from ..robot import T_base_ee, load_robot_params
 from ..servo.laws import LawConfig
 from ..servo.loop import DEFAULT_SMOOTHING_FRAMES, VisualServo
 from .servo_lab import LabConfig, ServoLab, run_closed_loop, teach_goal
 
-__all__ = ["start_poses", "RunSpec", "run_one", "repeatability", "summarize", "track_moving_square",
-           "PAYLOADS_G"]
+__all__ = ["start_poses", "RunSpec", "run_one", "repeatability", "plan_repeatability", "repeatability_task",
+           "write_repeatability", "summarize", "track_moving_square", "PAYLOADS_G", "RUN_COLUMNS"]
 
 PAYLOADS_G = (0, 200, 400)
 
@@ -123,8 +123,35 @@ def run_one(spec: RunSpec, cfg: LabConfig, goal, p_goal, scene_seed: int) -> dic
             "wall_s": time.perf_counter() - t0}
 
 
-def _run_star(args):
-    return run_one(*args)
+def repeatability_task(spec: RunSpec, cfg: LabConfig, goal, p_goal, scene_seed: int) -> dict:
+    """One run of the repeatability study as a runner task: :func:`run_one` without its wall time.
+
+    Parameters
+    ----------
+    spec : RunSpec
+        The run.
+    cfg : LabConfig
+        The lab.
+    goal : GoalFeatures
+        The goal taught as an image.
+    p_goal : ndarray, shape (3,)
+        True goal camera position, world frame, m.
+    scene_seed : int
+        Seed of the scene.
+
+    Returns
+    -------
+    dict
+        The ``runs.csv`` row (:data:`RUN_COLUMNS`); it depends on the spec only, not on the machine.
+    """
+    row = run_one(spec, cfg, goal, p_goal, scene_seed)
+    row.pop("wall_s")
+    return row
+
+
+#: Columns of ``runs.csv``.
+RUN_COLUMNS = ("law", "payload_g", "pose", "start", "repetition", "converged", "end", "settling_time_s", "error_m",
+               "dx_m", "dy_m", "dz_m", "start_error_m", "frames", "stopped_frames")
 
 
 def summarize(rows: list[dict]) -> dict:
@@ -156,40 +183,42 @@ def summarize(rows: list[dict]) -> dict:
     }
 
 
-def repeatability(out, *, repetitions: int = 20, seed: int = 0, laws=("hybrid", "ibvs"), interaction: str = "current",
-                  payloads_g=PAYLOADS_G, cfg: LabConfig | None = None, workers: int | None = None,
-                  progress=None, compare_repetitions: int | None = None) -> dict:
-    """Run the repeatability experiment and write ``summary.json`` and ``runs.csv`` to ``out``.
+def plan_repeatability(*, repetitions: int = 20, seed: int = 0, laws=("hybrid", "ibvs"),
+                       interaction: str = "current", payloads_g=PAYLOADS_G, cfg: LabConfig | None = None,
+                       compare_repetitions: int | None = None) -> tuple[list, dict]:
+    """The runs of the repeatability experiment as runner tasks (the goal is taught here, once).
 
     Parameters
     ----------
-    out : path
     repetitions : int
-        Runs per (law, payload, start pose), each with its own sensor noise.
+        Runs per (law, payload, start pose) for the first law.
     seed : int
+        Seed of the experiment (scene, goal image; each run's noise comes from it and the run's key).
     laws : sequence of {"hybrid", "ibvs"}
+        The laws; the first one is the main one.
     interaction : str
         IBVS interaction matrix.
     payloads_g : sequence of int
-        Multiples of 100 g (plates) in addition to the camera.
+        Multiples of 100 g in addition to the camera.
     cfg : LabConfig, optional
-    workers : int, optional
-        Parallel processes (default: all CPUs).
-    progress : callable, optional
-        ``f(done, total)``.
+        The lab.
     compare_repetitions : int, optional
-        Repetitions for the laws after the first (default: ``repetitions``).
-
-    Notes
-    -----
-    ``runs.csv`` is written row by row as runs finish, so an interrupted
-    experiment keeps the runs it completed.
+        Repetitions for the laws after the first (default ``repetitions``).
 
     Returns
     -------
-    dict
-        The summary (also written).
+    tasks : list of Task
+        Repetition-major (an interrupted run holds whole repetitions of every condition).
+    context : dict
+        ``poses`` (ndarray, shape (8, 3), rad), ``p_goal`` (ndarray, shape (3,), m), ``repetitions``,
+        ``compare_repetitions``, ``laws``, ``payloads_g``, ``interaction``, ``seed``.
+
+    Raises
+    ------
+    ValueError
+        On repetitions < 1 or payloads that are not multiples of 100 g.
     """
+    from .runner import Task, config_digest
     compare_repetitions = repetitions if compare_repetitions is None else int(compare_repetitions)
     for name, n in (("repetitions", repetitions), ("compare_repetitions", compare_repetitions)):
         if n < 1:
@@ -197,63 +226,155 @@ def repeatability(out, *, repetitions: int = 20, seed: int = 0, laws=("hybrid", 
     for g in payloads_g:
         if g % 100 or g < 0:
             raise ValueError(f"payloads_g: expected multiples of 100 g, got {g}")
+    laws = tuple(laws)
     cfg = cfg or LabConfig()
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
     scene_seed = int(seed)
     goal, p_goal, _ = teach_goal(cfg, np.random.default_rng([seed, 999]), scene_seed=scene_seed)
     lab0 = ServoLab(cfg, cfg.theta_goal, rng=np.random.default_rng(0), scene_seed=scene_seed)
     poses = start_poses(cfg, lab0.square_center_world)
-    # repetition-major order: an interrupted experiment holds complete repetitions of every condition
+    config = config_digest(cfg)
     specs = [RunSpec(law=law, interaction=interaction, payload_g=int(g), pose=i, repetition=k,
                      theta_start=tuple(poses[i]), seed=int(seed))
              for k in range(max(repetitions, compare_repetitions)) for law in laws
              if k < (repetitions if law == laws[0] else compare_repetitions)
              for g in payloads_g for i in range(len(poses))]
-    jobs = [(s, cfg, goal, p_goal, scene_seed) for s in specs]
-    rows = []
-    n_workers = workers or os.cpu_count() or 1
-    with open(out / "runs.csv", "w", newline="") as fh:
-        wr = None
+    tasks = [Task("servo-repeatability", {"law": s.law, "interaction": s.interaction, "payload_g": s.payload_g,
+                                          "pose": s.pose, "repetition": s.repetition, "config": config},
+                  int(seed), repeatability_task, (s, cfg, goal, p_goal, scene_seed)) for s in specs]
+    context = {"poses": poses, "p_goal": np.asarray(p_goal), "repetitions": int(repetitions),
+               "compare_repetitions": compare_repetitions, "laws": laws, "payloads_g": [int(g) for g in payloads_g],
+               "interaction": interaction, "seed": int(seed)}
+    return tasks, context
 
-        def done(row):
-            nonlocal wr
-            rows.append(row)
-            if wr is None:
-                wr = csv.DictWriter(fh, fieldnames=list(row))
-                wr.writeheader()
+
+def repeatability(out, *, repetitions: int = 20, seed: int = 0, laws=("hybrid", "ibvs"), interaction: str = "current",
+                  payloads_g=PAYLOADS_G, cfg: LabConfig | None = None, workers: int | None = None,
+                  progress=None, compare_repetitions: int | None = None, scheduler: str | None = None,
+                  processes: bool = True, show_progress: bool | None = False,
+                  dashboard_address: str | None = ":8787") -> dict:
+    """Run the repeatability experiment and write ``summary.json``, ``runs.csv`` and ``runner.json`` to ``out``.
+
+    The runs go through :func:`~tudorvision.lab.runner.run_tasks`: each finished
+    run is kept in ``out/runs/`` as it arrives, so running the same command
+    again skips what is done; ``runs.csv`` and ``summary.json`` are the same
+    bytes whatever the scheduler, the number of workers or the order the runs
+    finished in. Timing and the scheduler go to ``runner.json``.
+
+    Parameters
+    ----------
+    out : path
+        Output folder.
+    repetitions : int
+        Runs per (law, payload, start pose), each with its own sensor noise.
+    seed : int
+        Seed of the experiment.
+    laws : sequence of {"hybrid", "ibvs"}
+        The laws; the first one is the main one.
+    interaction : str
+        IBVS interaction matrix.
+    payloads_g : sequence of int
+        Multiples of 100 g (plates) in addition to the camera.
+    cfg : LabConfig, optional
+        The lab.
+    workers : int, optional
+        Local worker processes (default: all CPUs); with ``workers=1`` and no ``scheduler`` the runs go serially.
+    progress : callable, optional
+        ``f(done, total)`` after each run finished now (runs found done are not counted).
+    compare_repetitions : int, optional
+        Repetitions for the laws after the first (default: ``repetitions``).
+    scheduler : str, optional
+        ``"serial"``, ``"local"`` or a Dask scheduler address; default ``"serial"`` for ``workers=1``,
+        else ``"local"``.
+    processes : bool
+        Local cluster of processes (else threads).
+    show_progress : bool or None
+        Runner progress on stderr (``None``: on a terminal a live bar, else plain lines).
+    dashboard_address : str or None
+        Local cluster's dashboard (``None``: none).
+
+    Returns
+    -------
+    dict
+        The summary as written, plus ``wall_s``, ``workers`` and ``runner`` (the runner's counts and timing).
+        ``complete`` is false when runs failed or the run was interrupted (``interrupted``).
+    """
+    from .runner import run_tasks
+    t0 = time.perf_counter()
+    tasks, ctx = plan_repeatability(repetitions=repetitions, seed=seed, laws=laws, interaction=interaction,
+                                    payloads_g=payloads_g, cfg=cfg, compare_repetitions=compare_repetitions)
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    if scheduler is None:
+        scheduler = "serial" if workers == 1 else "local"
+    n_done = [0]
+
+    def on_record(rec):
+        n_done[0] += 1
+        if progress:
+            progress(n_done[0], len(tasks))
+
+    report = run_tasks(tasks, out, scheduler=scheduler, workers=workers, processes=processes,
+                       dashboard_address=dashboard_address, show_progress=show_progress,
+                       label="servo repeatability", on_record=on_record)
+    return write_repeatability(out, ctx, report, wall_s=time.perf_counter() - t0)
+
+
+def write_repeatability(out, context: dict, report, *, wall_s: float | None = None) -> dict:
+    """Write ``runs.csv``, ``summary.json`` and ``runner.json`` of a repeatability run.
+
+    Parameters
+    ----------
+    out : path
+        Output folder.
+    context : dict
+        From :func:`plan_repeatability`.
+    report : RunReport
+        From :func:`~tudorvision.lab.runner.run_tasks` on the planned tasks.
+    wall_s : float, optional
+        Wall time of the whole experiment, s (default: the runner's).
+
+    Returns
+    -------
+    dict
+        The summary as written, plus ``wall_s``, ``workers`` and ``runner``.
+    """
+    from ..io.atomic import write_text_atomic
+    out = Path(out)
+    ctx = context
+    interaction, seed = ctx["interaction"], ctx["seed"]
+    rows = [r["result"] for r in report.done]
+    with atomic_write(out / "runs.csv", "w", newline="") as fh:
+        wr = csv.DictWriter(fh, fieldnames=list(RUN_COLUMNS))
+        wr.writeheader()
+        for row in rows:
             wr.writerow(row)
-            fh.flush()
-            if progress:
-                progress(len(rows), len(jobs))
+    laws = ctx["laws"]
+    payloads = ctx["payloads_g"]
 
-        if n_workers > 1 and len(jobs) > 1:
-            from concurrent.futures import ProcessPoolExecutor
-            with ProcessPoolExecutor(max_workers=n_workers) as ex:
-                for row in ex.map(_run_star, jobs, chunksize=1):
-                    done(row)
-        else:
-            for j in jobs:
-                done(_run_star(j))
-    wall = time.perf_counter() - t0
-    per_law = {law: summarize([r for r in rows if r["law"] == law]) for law in laws}
-    per_payload = {law: {str(g): summarize([r for r in rows if r["law"] == law and r["payload_g"] == g])
-                         for g in payloads_g} for law in laws}
-    main = per_law[laws[0]]
-    summary = {**{k: main[k] for k in ("mean_error_m", "p90_error_m", "radius_m", "convergence_rate",
-                                       "settling_time_s")},
-               "law": laws[0], "laws": per_law, "per_payload": per_payload, "repetitions": int(repetitions),
-               "compare_repetitions": int(compare_repetitions), "interaction": interaction,
-               "seed": int(seed), "payloads_g": list(payloads_g), "start_poses_rad": poses.tolist(),
-               "goal_camera_world_m": np.asarray(p_goal).tolist(), "wall_s": wall, "workers": n_workers,
+    def stats(sel):
+        return summarize(sel) if sel else None
+
+    per_law = {law: stats([r for r in rows if r["law"] == law]) for law in laws}
+    per_payload = {law: {str(g): stats([r for r in rows if r["law"] == law and r["payload_g"] == g])
+                         for g in payloads} for law in laws}
+    main = per_law[laws[0]] or {}
+    summary = {**{k: main.get(k) for k in ("mean_error_m", "p90_error_m", "radius_m", "convergence_rate",
+                                           "settling_time_s")},
+               "law": laws[0], "laws": per_law, "per_payload": per_payload, "repetitions": ctx["repetitions"],
+               "compare_repetitions": ctx["compare_repetitions"], "interaction": interaction,
+               "seed": int(seed), "payloads_g": payloads, "start_poses_rad": ctx["poses"].tolist(),
+               "goal_camera_world_m": ctx["p_goal"].tolist(),
+               "complete": report.complete, "interrupted": report.interrupted, "runs_planned": len(report.records),
+               "runs_done": len(rows), "runs_failed": len(report.failed),
+               "failures": [{k: r[k] for k in ("key", "seed", "params", "error")} for r in report.failed],
                "seed_result_m": {"mean": 0.004, "p90": 0.008, "radius": 0.014},
                "goal_m": {"mean": 0.002, "p90": 0.004, "radius": 0.007, "convergence_rate": 1.0},
                "error_definition": "distance of the true camera position at the end of a run from the true "
                                    "camera position of the goal image (camera payload only)"}
-    from ..io.atomic import write_text_atomic
     write_text_atomic(out / "summary.json", json.dumps(summary, indent=2))
-    return summary
+    info = {**report.info(), "total_wall_s": report.wall_s if wall_s is None else wall_s}
+    write_text_atomic(out / "runner.json", json.dumps(info, indent=2))
+    return {**summary, "wall_s": info["total_wall_s"], "workers": report.workers, "runner": info}
 
 
 def track_moving_square(*, speed_m_s: float = 0.01, duration_s: float = 8.0, seed: int = 0,
