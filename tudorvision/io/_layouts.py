@@ -22,7 +22,11 @@ KINDS = ("stereo", "rgbd", "mono")
 FRAME_STREAMS = {"stereo": ("left", "right"), "rgbd": ("rgb", "depth"), "mono": ("image",)}
 VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv", ".webm", ".mpg", ".mpeg", ".m4v", ".wmv"}
 IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".pgm", ".ppm", ".bmp", ".tif", ".tiff"}
-LAYOUTS = ("tudorvision", "tum", "kinect_folders", "numbered_pairs", "image_folder", "video")
+LAYOUTS = ("tudorvision", "tum", "kinect_folders", "numbered_pairs", "image_folder", "stereo_folders",
+           "rgbd_folders", "video")
+#: Kind of each folder layout (the sidecar's ``kind`` must agree).
+LAYOUT_KIND = {"tum": "rgbd", "kinect_folders": "rgbd", "numbered_pairs": "rgbd", "image_folder": "mono",
+               "stereo_folders": "stereo", "rgbd_folders": "rgbd"}
 #: Marker file of a recording that has not completed (written first, removed by a successful close).
 INCOMPLETE_MARKER = "INCOMPLETE"
 
@@ -64,6 +68,8 @@ class Spec:
     problems: list[Problem] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     meta: dict = field(default_factory=dict)
+    source: object = None                    # frame source of a bag or a live stream (count, read, close)
+    calibration: object = None               # Calibration found in the source itself (bag CameraInfo)
 
 
 def _err(path, line_of, keys, msg):
@@ -270,6 +276,94 @@ def spec_image_folder(root: Path, *, rate_hz: float) -> Spec:
     return spec
 
 
+def _keyed(folder: Path, depth: bool = False) -> dict:
+    """Image files of ``folder`` by pairing key: the last number in the name, else the stem."""
+    suffixes = {".png", ".pgm"} if depth else IMAGE_SUFFIXES
+    files = sorted((p for p in folder.iterdir() if p.suffix.lower() in suffixes and p.is_file()), key=_natural_key)
+    out = {}
+    for p in files:
+        nums = re.findall(r"\d+", p.stem)
+        out.setdefault(int(nums[-1]) if nums else p.stem, p)
+    return out
+
+
+def spec_paired_folders(root: Path, *, kind: str, rate_hz: float) -> Spec:
+    """``left/`` + ``right/`` (stereo) or ``rgb/`` + ``depth/`` (rgbd) image folders.
+
+    Files pair by the last number in their names (``left/000001.png`` with
+    ``right/000001.png`` or ``right/img1.png``); when no key is shared and
+    both folders hold as many images, by natural name order. Frame k is at
+    ``k / rate_hz``.
+    """
+    a_name, b_name = FRAME_STREAMS[kind]
+    a, b = _keyed(root / a_name), _keyed(root / b_name, depth=kind == "rgbd")
+    spec = Spec(path=root, layout=f"{kind}_folders", kind=kind, rate_hz=rate_hz, streams=(a_name, b_name),
+                depth_scale=1000.0 if kind == "rgbd" else None)
+    if a and len(a) == len(b) and not set(a) & set(b):
+        a, b = dict(enumerate(a.values())), dict(enumerate(b.values()))
+    records, k = [], 0
+    for key in sorted(set(a) | set(b), key=lambda x: (isinstance(x, str), x)):
+        pa, pb = a.get(key), b.get(key)
+        if pa is None or pb is None:
+            spec.problems.append(Problem(str(pa or pb), f"no {b_name if pb is None else a_name} image "
+                                                        f"with the same number"))
+            continue
+        t = k / rate_hz
+        records.append(Record(t, (Slot(a_name, pa, str(pa), t), Slot(b_name, pb, str(pb), t))))
+        k += 1
+    spec.records = records
+    return spec
+
+
+def apply_sidecar(spec: Spec, data: dict, line_of, ypath: Path) -> None:
+    """Sidecar ``sequence.yaml`` of a folder layout: depth scale, calibration, intrinsics, size, description."""
+    if not data:
+        return
+    ds = positive_entry(data, "depth_scale", ypath, line_of, required=False)
+    if ds is not None:
+        spec.depth_scale = ds
+    if data.get("calibration") is not None:
+        spec.calibration_path = ypath.parent / str(data["calibration"])
+    spec.size = parse_size(data.get("size"), FRAME_STREAMS[spec.kind], ypath, line_of) or spec.size
+    intr = data.get("intrinsics")
+    if intr is not None:
+        if not isinstance(intr, dict) or not all(k in intr for k in ("fx", "fy", "cx", "cy")):
+            raise TudorVisionError(f"{ypath}:{line_of(('intrinsics',))}: intrinsics: expected "
+                                   "{fx, fy, cx, cy} in pixels")
+        try:
+            fx, fy, cx, cy = (float(intr[k]) for k in ("fx", "fy", "cx", "cy"))
+        except (TypeError, ValueError):
+            raise TudorVisionError(f"{ypath}:{line_of(('intrinsics',))}: intrinsics: values must be "
+                                   "numbers") from None
+        spec.intrinsics = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
+    spec.description = str(data.get("description", "") or "")
+    spec.meta = dict(data)
+
+
+def sidecar_layout(root: Path, data: dict, line_of) -> str:
+    """The folder layout a sidecar ``sequence.yaml`` names, checked against its ``kind``.
+
+    ``layout: image_folder`` with ``kind: stereo`` (or ``rgbd``) means the
+    plain ``left/`` + ``right/`` (``rgb/`` + ``depth/``) folders when they
+    exist; otherwise the contradiction is an error naming the line.
+    """
+    ypath = root / "sequence.yaml"
+    layout = data.get("layout", "tudorvision")
+    if layout not in LAYOUTS or layout == "video":
+        raise TudorVisionError(f"{ypath}:{line_of(('layout',))}: layout: expected one of "
+                               f"{', '.join(x for x in LAYOUTS if x != 'video')}, got {layout!r}")
+    kind = data.get("kind")
+    if layout == "tudorvision" or kind is None or kind == LAYOUT_KIND[layout]:
+        return layout
+    folders = FRAME_STREAMS.get(kind, ())
+    if layout == "image_folder" and kind in ("stereo", "rgbd") and all((root / f).is_dir() for f in folders):
+        return f"{kind}_folders"
+    hint = f"; for plain {' + '.join(f + '/' for f in folders)} folders use layout: {kind}_folders" \
+        if kind in ("stereo", "rgbd") else ""
+    raise TudorVisionError(f"{ypath}:{line_of(('kind',))}: kind: {kind!r} contradicts layout {layout!r} "
+                           f"(a {LAYOUT_KIND[layout]} layout){hint}")
+
+
 def detect_layout(root: Path) -> str:
     """Name of the layout of directory ``root`` (see :data:`LAYOUTS`)."""
     if (root / "sequence.yaml").is_file():
@@ -280,6 +374,10 @@ def detect_layout(root: Path) -> str:
         return "tum"
     if (root / "color").is_dir() and (root / "depth").is_dir():
         return "kinect_folders"
+    if (root / "left").is_dir() and (root / "right").is_dir():
+        return "stereo_folders"
+    if (root / "rgb").is_dir() and (root / "depth").is_dir():
+        return "rgbd_folders"
     names = [p.name for p in root.iterdir()]
     if any(re.match(r"^\d+_depth\.png$", n, re.I) for n in names):
         return "numbered_pairs"
@@ -287,4 +385,5 @@ def detect_layout(root: Path) -> str:
         return "image_folder"
     raise TudorVisionError(
         f"{root}: not a recognised sequence (expected sequence.yaml, a TUM rgb.txt + depth.txt, "
-        "color/ + depth/ folders, N.png + N_depth.png pairs, or a folder of images)")
+        "color/ + depth/ folders, left/ + right/ or rgb/ + depth/ folders, N.png + N_depth.png pairs, a folder "
+        "of images, a ROS bag, a rosbag2 folder or .mcap file)")

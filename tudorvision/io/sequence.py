@@ -31,10 +31,19 @@ quarter frame period). Other keys are kept in :attr:`Sequence.meta`.
 * ``color/N.png`` + ``depth/N.pgm`` folders (Kinect, default depth scale
   1000) and ``N.png`` + ``N_depth.png`` folders (default 5000); frames in the
   order of N at ``rate_hz`` (default 30 Hz);
-* a plain folder of images (mono).
+* ``left/`` + ``right/`` image folders (stereo) and ``rgb/`` + ``depth/``
+  folders (rgbd, default depth scale 1000), paired by the number in the
+  file names, at ``rate_hz`` (default 30 Hz);
+* a plain folder of images (mono);
+* a ROS 1 ``.bag``, a ROS 2 bag folder or an ``.mcap`` file
+  (:mod:`tudorvision.io.bags`; image topics chosen with ``topics=``);
+* a live device or stream, ``/dev/videoN``, ``rtsp://``, ``http://``
+  (:mod:`tudorvision.io.live`; ``"DEV1,DEV2"`` for a stereo pair).
 
 For folder layouts a sidecar ``sequence.yaml`` with ``layout:``
-(``tum``, ``kinect_folders``, ``numbered_pairs``, ``image_folder``) and any
+(``tum``, ``kinect_folders``, ``numbered_pairs``, ``image_folder``,
+``stereo_folders``, ``rgbd_folders``), optionally ``kind`` (which must agree
+with the layout), and any
 of ``rate_hz``, ``depth_scale``, ``calibration``, ``intrinsics`` (``{fx, fy,
 cx, cy}``), ``size`` supplies what the folder lacks; keyword arguments of
 :func:`open_sequence` override both.
@@ -61,11 +70,13 @@ import numpy as np
 from .._checks import TudorVisionError, check_array
 from ._imageheader import DEFAULT_MAX_PIXELS
 from ._index import ImageProblem, Problem, parse_table, read_columns, read_image
-from ._layouts import (FRAME_STREAMS, LAYOUTS, VIDEO_SUFFIXES, Record, Spec, detect_layout, parse_sequence_yaml,
-                       parse_size, positive_entry, spec_image_folder, spec_kinect_folders, spec_numbered_pairs,
-                       spec_tudorvision, spec_tum)
+from ._layouts import (FRAME_STREAMS, VIDEO_SUFFIXES, Record, Spec, apply_sidecar, detect_layout,
+                       parse_sequence_yaml, positive_entry, sidecar_layout, spec_image_folder, spec_kinect_folders,
+                       spec_numbered_pairs, spec_paired_folders, spec_tudorvision, spec_tum)
 from ._video import VideoSource
+from .bags import bag_spec, is_bag
 from .calibration import Calibration, CameraModel, load_calibration
+from .live import is_live_source, live_spec
 from .frames import (JointLog, MonoFrame, RGBDFrame, StereoFrame, depth_m_from_raw,
                      raw_from_depth_m)
 
@@ -150,6 +161,7 @@ class Sequence:
         self._calibration = calibration
         self._calibration_done = False
         self._video = VideoSource(spec.video) if spec.video is not None else None
+        self._source = spec.source       # bag or live stream: count, timestamps, read(i), close()
         if self._video is not None and self.rate_hz is None:
             self.rate_hz = self._video.fps
         for p in spec.problems:
@@ -166,6 +178,8 @@ class Sequence:
     def __len__(self) -> int:
         if self._video is not None:
             return self._video.count
+        if self._source is not None:
+            return self._source.count
         return len(self._spec.records)
 
     def __enter__(self):
@@ -175,15 +189,19 @@ class Sequence:
         self.close()
 
     def close(self) -> None:
-        """Release the video capture, if any."""
+        """Release the video capture, bag reader or live stream, if any."""
         if self._video is not None:
             self._video.close()
+        if self._source is not None:
+            self._source.close()
 
     @property
     def timestamps(self) -> np.ndarray:
         """(N,) frame timestamps in seconds (videos: index / fps)."""
         if self._video is not None:
             return np.array([self._video.nominal_t(i) for i in range(len(self))])
+        if self._source is not None:     # live streams: the frames captured so far
+            return np.asarray(self._source.timestamps, dtype=np.float64)
         return np.array([r.t for r in self._spec.records], dtype=np.float64)
 
     @property
@@ -288,30 +306,39 @@ class Sequence:
                 raise _FrameProblem(Problem(f"{self._video.path} frame {i}", str(exc), i)) from None
             self._check_size(img, "image", f"{self._video.path} frame {i}", i)
             return MonoFrame(t=t, index=i, image=img)
-        rec: Record = self._spec.records[i]
-        imgs = {}
-        for slot in rec.slots:
-            depth = slot.stream == "depth"
-            where = slot.where if slot.where == str(slot.path) else f"{slot.where} ({slot.path.name})"
+        imgs, where, t_second = {}, {}, None
+        if self._source is not None:     # decoded by the source; its errors name the file and message
             try:
-                img = read_image(slot.path, depth=depth, max_pixels=self.max_pixels)
+                t, imgs, t_second = self._source.read(i)
             except ImageProblem as exc:
-                raise _FrameProblem(Problem(where, str(exc), i)) from None
-            self._check_size(img, slot.stream, where, i)
-            imgs[slot.stream] = (img, slot)
+                raise _FrameProblem(Problem(f"{self.path} frame {i}", str(exc), i)) from None
+            where = {s: f"{self.path} frame {i} ({s})" for s in imgs}
+            for s, img in imgs.items():
+                self._check_size(img, s, where[s], i)
+        else:
+            rec: Record = self._spec.records[i]
+            t = rec.t
+            for slot in rec.slots:
+                w = slot.where if slot.where == str(slot.path) else f"{slot.where} ({slot.path.name})"
+                try:
+                    img = read_image(slot.path, depth=slot.stream == "depth", max_pixels=self.max_pixels)
+                except ImageProblem as exc:
+                    raise _FrameProblem(Problem(w, str(exc), i)) from None
+                self._check_size(img, slot.stream, w, i)
+                imgs[slot.stream], where[slot.stream] = img, w
+                t_second = slot.t
         if self.kind == "stereo":
-            return StereoFrame(t=rec.t, index=i, left=imgs["left"][0], right=imgs["right"][0])
+            return StereoFrame(t=t, index=i, left=imgs["left"], right=imgs["right"])
         if self.kind == "mono":
-            return MonoFrame(t=rec.t, index=i, image=imgs["image"][0])
-        rgb, rslot = imgs["rgb"]
-        raw, dslot = imgs["depth"]
+            return MonoFrame(t=t, index=i, image=imgs["image"])
+        rgb, raw = imgs["rgb"], imgs["depth"]
         if rgb.ndim == 2:
             rgb = cv2.cvtColor(rgb, cv2.COLOR_GRAY2BGR)
         if rgb.shape[:2] != raw.shape:
-            raise _FrameProblem(Problem(rslot.where, f"colour {rgb.shape[1]}x{rgb.shape[0]} and depth "
-                                                     f"{raw.shape[1]}x{raw.shape[0]} sizes differ", i))
-        return RGBDFrame(t=rec.t, index=i, rgb=rgb, depth_raw=raw,
-                         depth_m=depth_m_from_raw(raw, self.depth_scale), t_depth=dslot.t)
+            raise _FrameProblem(Problem(where["rgb"], f"colour {rgb.shape[1]}x{rgb.shape[0]} and depth "
+                                                      f"{raw.shape[1]}x{raw.shape[0]} sizes differ", i))
+        return RGBDFrame(t=t, index=i, rgb=rgb, depth_raw=raw,
+                         depth_m=depth_m_from_raw(raw, self.depth_scale), t_depth=t_second)
 
     # -------------------------------------------------------------- side data
     @property
@@ -334,6 +361,8 @@ class Sequence:
             w, h = self.size[stream]
         elif self._video is not None:
             w, h = self._video.size
+        elif self._source is not None and len(self):
+            h, w = getattr(self[0], FRAME_STREAMS[self.kind][0]).shape[:2]
         elif len(self):
             try:
                 shape = read_image(self._spec.records[0].slots[0].path).shape
@@ -474,14 +503,17 @@ def _camera_name(kind: str) -> str:
 def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
                   depth_scale: float | None = None, K=None, calibration=None, size=None,
                   max_dt_s: float | None = None, allow_outside: bool = False,
-                  max_pixels: int | None = DEFAULT_MAX_PIXELS) -> Sequence:
-    """Open a recorded sequence (directory, sequence.yaml, or video file).
+                  max_pixels: int | None = DEFAULT_MAX_PIXELS, topics=None,
+                  max_frames: int | None = None, timeout_s: float = 5.0) -> Sequence:
+    """Open a recorded sequence (directory, sequence.yaml, video file, ROS bag, live stream).
 
     Parameters
     ----------
     path : str or Path
         Sequence directory (any layout in the module docstring), its
-        ``sequence.yaml``, or a video file.
+        ``sequence.yaml``, a video file, a ROS 1 ``.bag``, a ROS 2 bag
+        folder, an ``.mcap`` file, or a live source (``/dev/videoN``,
+        ``rtsp://...``, ``http://...``; two joined by a comma for stereo).
     strict : bool
         Raise on the first defect (default) or skip and report.
     rate_hz : float, optional
@@ -505,6 +537,15 @@ def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
     max_pixels : int or None
         Largest image accepted, checked from the file header before
         decoding (default 100 megapixels); None: no limit.
+    topics : str or dict, optional
+        Bags: the image topics, ``"left=/a,right=/b"``, ``"rgb=/c,depth=/d"``
+        or ``"image=/e"`` (or the same as a dict); found automatically when
+        unambiguous. Live stereo: ``"left=DEV1,right=DEV2"`` as the path.
+    max_frames : int, optional
+        Live sources: stop after this many frames (default: until the
+        stream ends, fails to deliver a frame within ``timeout_s``, or Ctrl-C).
+    timeout_s : float
+        Live sources: longest wait for a frame, seconds.
 
     Returns
     -------
@@ -528,14 +569,23 @@ def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
     >>> len(seq), seq.kind, [round(f.t, 2) for f in seq]
     (2, 'mono', [0.0, 0.1])
     """
+    for name, v in (("rate_hz", rate_hz), ("depth_scale", depth_scale)):
+        if v is not None and not (isinstance(v, (int, float)) and not isinstance(v, bool) and v > 0):
+            raise ValueError(f"{name}: expected a positive number, got {v!r}")
+    if max_pixels is not None and (isinstance(max_pixels, bool) or not isinstance(max_pixels, (int, np.integer))
+                                   or max_pixels < 1):
+        raise ValueError(f"max_pixels: expected a positive integer or None, got {max_pixels!r}")
+    text, live = str(path), is_live_source(path)
     path = Path(path)
-    if not path.exists():
+    if not live and not path.exists():
         raise TudorVisionError(f"{path}: no such file or directory")
     if path.is_file() and path.name == "sequence.yaml":
         path = path.parent
-    if rate_hz is not None and not (isinstance(rate_hz, (int, float)) and rate_hz > 0):
-        raise ValueError(f"rate_hz: expected a positive number, got {rate_hz!r}")
-    if path.is_file():
+    if live:
+        spec = live_spec(text, max_frames=max_frames, timeout_s=timeout_s, max_dt_s=max_dt_s)
+    elif is_bag(path):
+        spec = bag_spec(path, topics=topics, max_dt_s=max_dt_s, depth_scale=depth_scale)
+    elif path.is_file():
         if path.suffix.lower() not in VIDEO_SUFFIXES:
             raise TudorVisionError(f"{path}: not a sequence directory or a video file "
                                    f"({', '.join(sorted(VIDEO_SUFFIXES))})")
@@ -546,10 +596,7 @@ def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
         data, line_of = ({}, None)
         if layout == "tudorvision":
             data, line_of = parse_sequence_yaml(path / "sequence.yaml")
-            layout = data.get("layout", "tudorvision")
-            if layout not in LAYOUTS or layout == "video":
-                raise TudorVisionError(f"{path / 'sequence.yaml'}:{line_of(('layout',))}: layout: expected one "
-                                       f"of {', '.join(x for x in LAYOUTS if x != 'video')}, got {layout!r}")
+            layout = sidecar_layout(path, data, line_of)
         side_rate = None
         if layout != "tudorvision":
             side_rate = positive_entry(data, "rate_hz", path / "sequence.yaml", line_of, required=False)
@@ -564,12 +611,14 @@ def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
         elif layout == "numbered_pairs":
             spec = spec_numbered_pairs(path, rate_hz=folder_rate)
             spec.depth_scale = 5000.0
+        elif layout in ("stereo_folders", "rgbd_folders"):
+            spec = spec_paired_folders(path, kind=layout.split("_")[0], rate_hz=folder_rate)
         else:
             spec = spec_image_folder(path, rate_hz=folder_rate)
         if spec.joints_path is None and (path / "joints.txt").is_file():
             spec.joints_path = path / "joints.txt"      # found wherever present, in every layout
         if layout != "tudorvision":
-            _apply_sidecar(spec, data, line_of, path / "sequence.yaml")
+            apply_sidecar(spec, data, line_of, path / "sequence.yaml")
             if side_rate is not None:
                 spec.rate_hz = side_rate
             if spec.kind == "rgbd" and depth_scale is None and "depth_scale" not in data \
@@ -579,8 +628,6 @@ def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
     if rate_hz is not None:
         spec.rate_hz = float(rate_hz)
     if depth_scale is not None:
-        if not (isinstance(depth_scale, (int, float)) and depth_scale > 0):
-            raise ValueError(f"depth_scale: expected a positive number, got {depth_scale!r}")
         spec.depth_scale = float(depth_scale)
     if size is not None:
         w, h = (int(v) for v in size)
@@ -589,36 +636,8 @@ def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
         if spec.kind == "stereo":
             raise ValueError("K: stereo sequences take a calibration file, not a single K")
         spec.intrinsics = check_array(K, "K", (3, 3))
-    cal = None
+    cal = spec.calibration
     if calibration is not None:
         cal = calibration if isinstance(calibration, Calibration) else load_calibration(calibration)
         spec.calibration_path = None
-    if max_pixels is not None and (isinstance(max_pixels, bool) or not isinstance(max_pixels, (int, np.integer))
-                                   or max_pixels < 1):
-        raise ValueError(f"max_pixels: expected a positive integer or None, got {max_pixels!r}")
     return Sequence(spec, strict=strict, calibration=cal, max_pixels=max_pixels)
-
-
-def _apply_sidecar(spec: Spec, data: dict, line_of, ypath: Path) -> None:
-    """Sidecar sequence.yaml of a folder layout: rate, depth scale, calibration, intrinsics, size."""
-    if not data:
-        return
-    ds = positive_entry(data, "depth_scale", ypath, line_of, required=False)
-    if ds is not None:
-        spec.depth_scale = ds
-    if data.get("calibration") is not None:
-        spec.calibration_path = ypath.parent / str(data["calibration"])
-    spec.size = parse_size(data.get("size"), FRAME_STREAMS[spec.kind], ypath, line_of) or spec.size
-    intr = data.get("intrinsics")
-    if intr is not None:
-        if not isinstance(intr, dict) or not all(k in intr for k in ("fx", "fy", "cx", "cy")):
-            raise TudorVisionError(f"{ypath}:{line_of(('intrinsics',))}: intrinsics: expected "
-                                   "{fx, fy, cx, cy} in pixels")
-        try:
-            fx, fy, cx, cy = (float(intr[k]) for k in ("fx", "fy", "cx", "cy"))
-        except (TypeError, ValueError):
-            raise TudorVisionError(f"{ypath}:{line_of(('intrinsics',))}: intrinsics: values must be "
-                                   "numbers") from None
-        spec.intrinsics = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
-    spec.description = str(data.get("description", "") or "")
-    spec.meta = dict(data)

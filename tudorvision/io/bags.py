@@ -1,0 +1,655 @@
+"""ROS bags as sequences: ROS 1 ``.bag``, ROS 2 bag folders (sqlite3 or mcap) and bare ``.mcap`` files.
+
+Read with the `rosbags <https://gitlab.com/ternaris/rosbags>`_ library (no
+ROS installation needed). Image topics are ``sensor_msgs/Image`` (``rgb8``,
+``bgr8``, ``rgba8``, ``bgra8``, ``mono8``, ``mono16``, ``16UC1``, ``32FC1``)
+or ``sensor_msgs/CompressedImage`` (JPEG, PNG, ``compressedDepth`` PNG).
+Depth in ``16UC1`` / ``mono16`` is millimetres (REP 118) and is kept raw
+(depth scale 1000); ``32FC1`` is metres and is stored as millimetres
+(NaN, inf and values <= 0 become 0 = invalid). ``mono16`` colour images are
+reduced to 8 bits (the high byte).
+
+Frame times are the messages' ``header.stamp`` (the log time when the stamp
+is zero). Two image streams (``left``/``right`` or ``rgb``/``depth``) are
+paired by nearest stamp within half the median frame period (``max_dt_s``
+overrides); messages without a partner are counted in the notes.
+``sensor_msgs/CameraInfo`` topics next to the image topics become the
+sequence's calibration: cameras ``left``/``right`` (with the stereo
+extrinsics from the rectification and projection matrices), ``rgbd`` or
+``camera``.
+
+The bag is scanned once when opened (only the header stamps are parsed);
+frames are decoded on demand by one reader per stream that streams forward,
+so iterating in order reads the bag once more.
+"""
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from .._checks import TudorVisionError
+from ._index import ImageProblem, associate
+from ._layouts import FRAME_STREAMS, Spec
+from .calibration import Calibration, CameraModel, StereoExtrinsics
+from .frames import raw_from_depth_m
+
+__all__ = ["BagTopic", "is_bag", "bag_topics", "parse_topics", "choose_topics", "decode_image", "camera_from_info",
+           "stereo_from_infos", "bag_spec", "BagFrames", "IMAGE_TYPES", "INFO_TYPE"]
+
+#: Message types read as image streams.
+IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
+#: Message type read as calibration.
+INFO_TYPE = "sensor_msgs/msg/CameraInfo"
+_STREAM_KEYS = ("left", "right", "rgb", "depth", "image")
+
+
+@dataclass(frozen=True)
+class BagTopic:
+    """One topic of a bag.
+
+    Attributes
+    ----------
+    name : str
+        Topic name, e.g. ``/camera/color/image_raw``.
+    msgtype : str
+        Message type, e.g. ``sensor_msgs/msg/Image``.
+    count : int
+        Number of messages.
+    """
+
+    name: str
+    msgtype: str
+    count: int
+
+
+def is_bag(path) -> bool:
+    """Whether ``path`` looks like a bag: a ``.bag`` or ``.mcap`` file, or a folder with ``metadata.yaml``.
+
+    Parameters
+    ----------
+    path : str or Path
+        Candidate file or folder.
+
+    Returns
+    -------
+    bool
+        True for a ROS 1 bag file, an mcap file, or a ROS 2 bag folder
+        (``metadata.yaml``, or ``.db3`` / ``.mcap`` files without a
+        ``sequence.yaml``).
+    """
+    p = Path(path)
+    if p.is_file():
+        return p.suffix.lower() in (".bag", ".mcap")
+    if p.is_dir() and not (p / "sequence.yaml").is_file():
+        return (p / "metadata.yaml").is_file() or any(p.glob("*.db3")) or any(p.glob("*.mcap"))
+    return False
+
+
+def _why(exc: BaseException) -> str:
+    text = str(exc).splitlines()[0] if str(exc) else ""
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+def _open_reader(path: Path):
+    """An open ``rosbags`` AnyReader; every failure becomes one line naming the bag."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    try:
+        reader = AnyReader([Path(path)], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+        reader.open()
+    except Exception as exc:   # the library raises many types for damaged files
+        raise TudorVisionError(f"{path}: cannot read bag ({_why(exc)})") from None
+    return reader
+
+
+def bag_topics(path) -> list[BagTopic]:
+    """All topics of a bag with their types and message counts.
+
+    Parameters
+    ----------
+    path : str or Path
+        ROS 1 ``.bag``, ROS 2 bag folder or ``.mcap`` file.
+
+    Returns
+    -------
+    list of BagTopic
+        Sorted by topic name.
+
+    Raises
+    ------
+    TudorVisionError
+        If the bag is absent, truncated or corrupt (one line naming it).
+    """
+    reader = _open_reader(Path(path))
+    try:
+        return [BagTopic(name, info.msgtype or "?", int(info.msgcount))
+                for name, info in sorted(reader.topics.items())]
+    finally:
+        reader.close()
+
+
+def parse_topics(text) -> dict[str, str]:
+    """Parse a ``--topics`` value: ``left=/a,right=/b``, ``rgb=/c,depth=/d`` or ``image=/e``.
+
+    Keys ``left_info=``, ``right_info=``, ``rgb_info=``, ``image_info=``
+    name the ``CameraInfo`` topic of a stream when it is not found next to
+    the image topic.
+
+    Parameters
+    ----------
+    text : str or dict or None
+        The option's value (a dict is checked and returned).
+
+    Returns
+    -------
+    dict of str to str
+        Stream name to topic; empty for None.
+
+    Raises
+    ------
+    TudorVisionError
+        Malformed item or unknown stream name.
+
+    Examples
+    --------
+    >>> parse_topics("left=/cam0/image_raw, right=/cam1/image_raw")
+    {'left': '/cam0/image_raw', 'right': '/cam1/image_raw'}
+    """
+    if text is None:
+        return {}
+    items = dict(text).items() if isinstance(text, dict) else \
+        [tuple(p.split("=", 1)) if "=" in p else (p, "") for p in str(text).split(",") if p.strip()]
+    out = {}
+    allowed = _STREAM_KEYS + tuple(f"{k}_info" for k in _STREAM_KEYS)
+    for key, topic in items:
+        key, topic = str(key).strip(), str(topic).strip()
+        if key not in allowed or not topic:
+            raise TudorVisionError(f"--topics: expected STREAM=TOPIC items with STREAM one of "
+                                   f"{', '.join(_STREAM_KEYS)} (or STREAM_info), got {key + '=' + topic!r}")
+        out[key] = topic
+    return out
+
+
+def _kind_of(streams) -> str | None:
+    return next((k for k, names in FRAME_STREAMS.items() if set(names) == set(streams)), None)
+
+
+def _info_for(topic: str, infos: list[str]) -> str | None:
+    """The CameraInfo topic sharing the longest namespace with image ``topic`` (unique best, or None)."""
+    parts = [p for p in topic.split("/") if p]
+    if parts and parts[-1] in ("compressed", "compressedDepth"):
+        parts = parts[:-1]
+    ns = parts[:-1]
+
+    def shared(info):
+        ip = [p for p in info.split("/") if p][:-1]
+        n = 0
+        while n < min(len(ip), len(ns)) and ip[n] == ns[n]:
+            n += 1
+        return n if n == len(ip) else 0      # the info's namespace must contain the image topic
+
+    scored = sorted(((shared(i), i) for i in infos), reverse=True)
+    if not scored or scored[0][0] == 0 or (len(scored) > 1 and scored[1][0] == scored[0][0]):
+        return None
+    return scored[0][1]
+
+
+def choose_topics(topics: list[BagTopic], requested=None, *, where: str = "bag"
+                  ) -> tuple[str, dict[str, str], dict[str, str]]:
+    """Pick the image topics (and their CameraInfo topics) of a bag.
+
+    Parameters
+    ----------
+    topics : list of BagTopic
+        The bag's topics (:func:`bag_topics`).
+    requested : str or dict, optional
+        ``--topics`` value (see :func:`parse_topics`); by default the topics
+        are found when unambiguous: one image topic (mono), one plus one
+        whose name contains ``depth`` (rgbd), or two whose names contain
+        ``left`` and ``right`` (stereo). ``X/compressed`` is ignored when
+        the raw topic ``X`` is present.
+    where : str
+        Name of the bag for messages.
+
+    Returns
+    -------
+    kind : str
+        ``stereo``, ``rgbd`` or ``mono``.
+    streams : dict of str to str
+        Stream (``left``, ``rgb``, ``image``, ...) to image topic.
+    infos : dict of str to str
+        Stream to its CameraInfo topic, where one was found.
+
+    Raises
+    ------
+    TudorVisionError
+        No image topic, an ambiguous choice (one line listing the
+        candidates), or a requested topic that is absent or not an image.
+    """
+    by_name = {t.name: t for t in topics}
+    images = [t.name for t in topics if t.msgtype in IMAGE_TYPES]
+    infos = [t.name for t in topics if t.msgtype == INFO_TYPE]
+    req = parse_topics(requested)
+    streams = {k: v for k, v in req.items() if not k.endswith("_info")}
+    if streams:
+        kind = _kind_of(streams)
+        if kind is None:
+            raise TudorVisionError(f"--topics: give left= and right=, rgb= and depth=, or image=; got "
+                                   f"{', '.join(streams)}")
+        for k, t in list(streams.items()) + [(k, t) for k, t in req.items() if k.endswith("_info")]:
+            want = INFO_TYPE if k.endswith("_info") else "an image"
+            ok = t in by_name and (by_name[t].msgtype == INFO_TYPE if k.endswith("_info") else t in images)
+            if not ok:
+                have = f"type {by_name[t].msgtype}" if t in by_name else "not in the bag"
+                raise TudorVisionError(f"--topics: {k}={t}: expected {want} topic, {have} "
+                                       f"(image topics: {', '.join(images) or 'none'})")
+    else:
+        if not images:
+            raise TudorVisionError(f"{where}: no image topics (sensor_msgs/Image or CompressedImage); topics: "
+                                   f"{', '.join(f'{t.name} ({t.msgtype})' for t in topics) or 'none'}")
+        cands = [t for t in images if not (t.rsplit("/", 1)[0] in images and t.rsplit("/", 1)[-1]
+                                           in ("compressed", "compressedDepth"))]
+        depth = [t for t in cands if "depth" in t.lower()]
+        colour = [t for t in cands if t not in depth]
+        left = [t for t in colour if "left" in t.lower()]
+        right = [t for t in colour if "right" in t.lower()]
+        if len(colour) == 1 and len(depth) == 1:
+            streams = {"rgb": colour[0], "depth": depth[0]}
+        elif not depth and len(colour) == 2 and len(left) == 1 and len(right) == 1 and left != right:
+            streams = {"left": left[0], "right": right[0]}
+        elif len(cands) == 1:
+            streams = {"image": cands[0]}
+        else:
+            raise TudorVisionError(f"{where}: cannot choose the image topics ({', '.join(cands)}); pass --topics "
+                                   "left=/a,right=/b or rgb=/c,depth=/d or image=/e")
+        kind = _kind_of(streams)
+    found = {}
+    for s, t in streams.items():
+        info = req.get(f"{s}_info") or _info_for(t, infos)
+        if info is not None and s != "depth":
+            found[s] = info
+    return kind, streams, found
+
+
+def decode_image(msg) -> np.ndarray:
+    """Pixels of a deserialised ``sensor_msgs/Image`` or ``CompressedImage``.
+
+    Parameters
+    ----------
+    msg : object
+        The message from ``rosbags`` (attributes ``encoding``, ``height``,
+        ``width``, ``step``, ``is_bigendian``, ``data``; or ``format``,
+        ``data``).
+
+    Returns
+    -------
+    ndarray
+        ``(H, W, 3)`` uint8 BGR, ``(H, W)`` uint8 grey, ``(H, W)`` uint16
+        (``mono16`` / ``16UC1``) or ``(H, W)`` float32 (``32FC1``), in the
+        message's units.
+
+    Raises
+    ------
+    ImageProblem
+        Unsupported encoding, or data too short or undecodable.
+    """
+    data = np.frombuffer(memoryview(np.ascontiguousarray(msg.data, dtype=np.uint8)), dtype=np.uint8)
+    if hasattr(msg, "format"):
+        fmt = str(msg.format).lower()
+        if "compresseddepth" in fmt:       # 12-byte config header before the PNG
+            start = data.tobytes().find(b"\x89PNG")
+            data = data[start:] if start >= 0 else data[:0]
+        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+        if img is None:
+            raise ImageProblem(f"cannot decode compressed image (format {msg.format!r})")
+        if img.ndim == 3 and img.shape[2] == 4:
+            img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
+        if "rgb8" in fmt and "bgr8" not in fmt and img.ndim == 3:
+            img = np.ascontiguousarray(img[:, :, ::-1])
+        return img
+    enc, h, w, step = str(msg.encoding).lower(), int(msg.height), int(msg.width), int(msg.step)
+    layouts = {"rgb8": ("u1", 3), "bgr8": ("u1", 3), "8uc3": ("u1", 3), "rgba8": ("u1", 4), "bgra8": ("u1", 4),
+               "8uc4": ("u1", 4), "mono8": ("u1", 1), "8uc1": ("u1", 1), "mono16": ("u2", 1),
+               "16uc1": ("u2", 1), "32fc1": ("f4", 1)}
+    if enc not in layouts:
+        raise ImageProblem(f"unsupported image encoding {msg.encoding!r} (supported: {', '.join(layouts)})")
+    typ, ch = layouts[enc]
+    dt = np.dtype(typ).newbyteorder(">" if msg.is_bigendian else "<")
+    row = w * ch * dt.itemsize
+    if h <= 0 or w <= 0 or step < row or data.size < step * h:
+        raise ImageProblem(f"image data of {data.size} bytes does not hold {w}x{h} {msg.encoding} "
+                           f"(step {step})")
+    rows = data[:step * h].reshape(h, step)[:, :row]
+    img = np.ascontiguousarray(rows).view(dt).reshape((h, w, ch) if ch > 1 else (h, w)).astype(dt.newbyteorder("="))
+    if ch == 4:
+        img = img[:, :, :3]
+    if enc.startswith("rgb"):
+        img = img[:, :, ::-1]
+    return np.ascontiguousarray(img)
+
+
+def _field(msg, name):
+    return getattr(msg, name) if hasattr(msg, name) else getattr(msg, name.upper())
+
+
+def camera_from_info(msg) -> tuple[CameraModel, np.ndarray, np.ndarray]:
+    """Camera model from a deserialised ``sensor_msgs/CameraInfo`` (ROS 1 or ROS 2 field names).
+
+    Parameters
+    ----------
+    msg : object
+        The message (``width``, ``height``, ``distortion_model``, ``k``/``K``,
+        ``d``/``D``, ``r``/``R``, ``p``/``P``).
+
+    Returns
+    -------
+    camera : CameraModel
+        Intrinsics (pixels), plumb_bob distortion and image size.
+    R_rect : ndarray, shape (3, 3)
+        Rectification rotation.
+    P : ndarray, shape (3, 4)
+        Rectified projection matrix, pixels (``P[0, 3] = -fx' * baseline_m``
+        for the right camera).
+
+    Raises
+    ------
+    ValueError
+        Uncalibrated (zero) ``K``, or a distortion model this project cannot
+        represent (non-zero coefficients beyond the five of plumb_bob).
+    """
+    K = np.asarray(_field(msg, "k"), dtype=np.float64).reshape(3, 3)
+    d = np.asarray(_field(msg, "d"), dtype=np.float64).ravel()
+    model = str(msg.distortion_model or "plumb_bob")
+    if model not in ("plumb_bob", "rational_polynomial", "radtan", "") or np.any(d[5:] != 0):
+        raise ValueError(f"distortion model {model!r} with {d.size} coefficients cannot be represented "
+                         "(plumb_bob, 5 coefficients)")
+    dist = np.zeros(5)
+    dist[:min(5, d.size)] = d[:5]
+    cam = CameraModel(K=K, dist=dist, width=int(msg.width), height=int(msg.height))
+    R = np.asarray(_field(msg, "r"), dtype=np.float64).reshape(3, 3)
+    P = np.asarray(_field(msg, "p"), dtype=np.float64).reshape(3, 4)
+    if not np.any(R):
+        R = np.eye(3)
+    return cam, R, P
+
+
+def stereo_from_infos(left, right) -> StereoExtrinsics | None:
+    """Stereo extrinsics from the left and right ``(camera, R_rect, P)`` of :func:`camera_from_info`.
+
+    ROS rectification: ``R1 @ x_left`` and ``R2 @ x_right`` are parallel
+    frames, offset along x by ``Tx = P2[0, 3] / P2[0, 0]``, so
+    ``R = R2.T @ R1`` and ``T = R2.T @ (Tx, 0, 0)`` (OpenCV convention,
+    ``x_right = R @ x_left + T``).
+
+    Parameters
+    ----------
+    left, right : tuple
+        ``(CameraModel, R_rect (3, 3), P (3, 4))`` of each camera.
+
+    Returns
+    -------
+    StereoExtrinsics or None
+        None when ``P2[0, 3]`` is zero (no baseline recorded).
+    """
+    (_, R1, P1), (_, R2, P2) = left, right
+    if P2[0, 0] == 0 or P2[0, 3] == 0:
+        return None
+    tx = P2[0, 3] / P2[0, 0]
+    f, cx, cy, cx2 = P1[0, 0], P1[0, 2], P1[1, 2], P2[0, 2]
+    Q = np.array([[1, 0, 0, -cx], [0, 1, 0, -cy], [0, 0, 0, f], [0, 0, -1 / tx, (cx - cx2) / tx]])
+    return StereoExtrinsics(R=R2.T @ R1, T=R2.T @ np.array([tx, 0.0, 0.0]), R1=R1, R2=R2, P1=P1, P2=P2, Q=Q)
+
+
+def _stamp(raw, is2: bool) -> float | None:
+    """``header.stamp`` in seconds, read straight from the serialised bytes (None if too short)."""
+    try:
+        if is2:
+            order = "<" if raw[1] == 1 else ">"
+            sec, nsec = struct.unpack_from(order + "iI", raw, 4)
+        else:
+            sec, nsec = struct.unpack_from("<II", raw, 4)
+    except (struct.error, IndexError):
+        return None
+    return sec + nsec * 1e-9
+
+
+class _Cursor:
+    """Streams one topic's messages forward with its own reader; restarts for an out-of-order request."""
+
+    def __init__(self, path: Path, topic: str, logtimes_ns: np.ndarray):
+        self.path, self.topic, self.logtimes_ns = path, topic, logtimes_ns
+        self.reader, self.conns, self.gen, self.pos = None, [], None, -1
+
+    def get(self, k: int):
+        try:
+            if self.reader is None:
+                self.reader = _open_reader(self.path)
+                self.conns = [c for c in self.reader.connections if c.topic == self.topic]
+            if self.gen is None or self.pos != k:
+                t = int(self.logtimes_ns[k])
+                self.gen = self.reader.messages(connections=self.conns, start=t)
+                self.pos = int(np.searchsorted(self.logtimes_ns, t))
+            while True:
+                conn, _, raw = next(self.gen)
+                self.pos += 1
+                if self.pos - 1 == k:
+                    return self.reader.deserialize(raw, conn.msgtype)
+        except Exception as exc:   # truncated chunk, corrupt message, vanished file
+            self.gen = None
+            why = "message missing" if isinstance(exc, StopIteration) else _why(exc)
+            raise ImageProblem(f"cannot read message {k} of {self.topic} ({why})") from None
+
+    def close(self):
+        self.gen = None
+        if self.reader is not None:
+            try:
+                self.reader.close()
+            except Exception:    # already closed or broken: nothing left to release
+                pass
+            self.reader = None
+
+
+class BagFrames:
+    """Frame source of a bag for :class:`~tudorvision.io.sequence.Sequence` (built by :func:`bag_spec`).
+
+    Parameters
+    ----------
+    path : Path
+        The bag.
+    streams : dict of str to str
+        Stream to image topic.
+    logtimes_ns : dict of str to ndarray, shape (M,), int64
+        Log time of every message of each stream's topic, in bag order.
+    frames : list of tuple
+        ``(t_s, {stream: message number}, t_second_s)`` per frame.
+    depth_scale : float
+        Raw depth units per metre for ``32FC1`` depth.
+
+    Attributes
+    ----------
+    count : int
+        Number of frames.
+    timestamps : ndarray, shape (count,)
+        Frame times, seconds (``header.stamp`` of the first stream).
+    """
+
+    def __init__(self, path: Path, streams: dict, logtimes_ns: dict, frames: list, depth_scale: float):
+        self.path = Path(path)
+        self.streams = dict(streams)
+        self._frames = frames
+        self.depth_scale = float(depth_scale)
+        self._cursors = {s: _Cursor(self.path, t, logtimes_ns[s]) for s, t in streams.items()}
+        self.count = len(frames)
+        self.timestamps = np.array([f[0] for f in frames], dtype=np.float64)
+
+    def read(self, i: int):
+        """Frame ``i`` decoded.
+
+        Parameters
+        ----------
+        i : int
+            Frame index, ``0 <= i < count``.
+
+        Returns
+        -------
+        t_s : float
+            Frame time, seconds.
+        images : dict of str to ndarray
+            Per stream: ``(H, W, 3)`` uint8 BGR or ``(H, W)`` uint8 grey;
+            depth ``(H, W)`` uint16 raw units.
+        t_second_s : float or None
+            Time of the second stream's message, seconds.
+
+        Raises
+        ------
+        ImageProblem
+            Unreadable message, unsupported encoding or undecodable data.
+        """
+        t, ks, t2 = self._frames[i]
+        out = {}
+        for s, k in ks.items():
+            img = decode_image(self._cursors[s].get(k))
+            if s == "depth":
+                if img.dtype == np.float32:
+                    img = raw_from_depth_m(img, self.depth_scale)
+                elif img.dtype != np.uint16 or img.ndim != 2:
+                    raise ImageProblem(f"depth message {k} of {self.streams[s]} is {img.dtype} with shape "
+                                       f"{img.shape}; expected 16UC1/mono16 (mm) or 32FC1 (m)")
+            elif img.dtype == np.uint16:
+                img = (img >> 8).astype(np.uint8)
+            elif img.dtype != np.uint8:
+                raise ImageProblem(f"message {k} of {self.streams[s]} has {img.dtype} pixels; expected an "
+                                   "8-bit colour or grey image")
+            out[s] = img
+        return t, out, t2
+
+    def close(self) -> None:
+        """Close the readers."""
+        for c in self._cursors.values():
+            c.close()
+
+
+def _increasing(t: np.ndarray) -> np.ndarray:
+    """Indices of the entries that are later than every earlier one."""
+    keep, last = [], -np.inf
+    for i, v in enumerate(t):
+        if v > last:
+            keep.append(i)
+            last = v
+    return np.asarray(keep, dtype=np.int64)
+
+
+def _calibration(kind, infos, msgs, path, notes) -> Calibration | None:
+    names = {"left": "left", "right": "right", "rgb": "rgbd", "image": "camera"}
+    models = {}
+    for s, msg in msgs.items():
+        try:
+            models[s] = camera_from_info(msg)
+        except ValueError as exc:
+            notes.append(f"CameraInfo {infos[s]} not used: {exc}")
+    if not models:
+        return None
+    stereo = None
+    if kind == "stereo" and len(models) == 2:
+        stereo = stereo_from_infos(models["left"], models["right"])
+        if stereo is None:
+            notes.append("stereo extrinsics not in the CameraInfo (P[0, 3] of the right camera is 0)")
+    return Calibration(cameras={names[s]: m[0] for s, m in models.items()}, stereo=stereo,
+                       metadata={"source": f"CameraInfo in {path.name}: "
+                                           + ", ".join(infos[s] for s in models)})
+
+
+def bag_spec(path, *, topics=None, max_dt_s: float | None = None, depth_scale: float | None = None) -> Spec:
+    """Open a bag as a sequence layout (the reader of :func:`tudorvision.io.open_sequence` for bags).
+
+    Parameters
+    ----------
+    path : str or Path
+        ROS 1 ``.bag``, ROS 2 bag folder or ``.mcap`` file.
+    topics : str or dict, optional
+        Image topics (:func:`parse_topics`); found automatically when
+        unambiguous (:func:`choose_topics`).
+    max_dt_s : float, optional
+        Pairing tolerance of two image streams, seconds (default half the
+        median frame period of the first stream).
+    depth_scale : float, optional
+        Raw depth units per metre (default 1000: ``16UC1`` millimetres;
+        ``32FC1`` metres are converted with it).
+
+    Returns
+    -------
+    Spec
+        Layout ``rosbag1``, ``rosbag2`` or ``mcap`` with a :class:`BagFrames`
+        source and the CameraInfo calibration, if any.
+
+    Raises
+    ------
+    TudorVisionError
+        Unreadable, truncated or corrupt bag (one line naming it), no or
+        ambiguous image topics, or no frames.
+    """
+    path = Path(path)
+    reader = _open_reader(path)
+    try:
+        tops = [BagTopic(n, i.msgtype or "?", int(i.msgcount)) for n, i in sorted(reader.topics.items())]
+        kind, streams, infos = choose_topics(tops, topics, where=str(path))
+        topic_stream = {t: s for s, t in streams.items()}
+        stamps = {s: [] for s in streams}
+        logt = {s: [] for s in streams}
+        conns = [c for c in reader.connections if c.topic in topic_stream]
+        for conn, ts, raw in reader.messages(connections=conns):
+            s = topic_stream[conn.topic]
+            st = _stamp(raw, reader.is2)
+            logt[s].append(ts)
+            stamps[s].append(st if st else ts * 1e-9)
+        msgs = {}
+        for s, t in infos.items():
+            for conn, _, raw in reader.messages(connections=[c for c in reader.connections if c.topic == t]):
+                msgs[s] = reader.deserialize(raw, conn.msgtype)
+                break
+    except TudorVisionError:
+        raise
+    except Exception as exc:   # the library raises many types for damaged files
+        raise TudorVisionError(f"{path}: cannot read bag ({_why(exc)})") from None
+    finally:
+        try:
+            reader.close()
+        except Exception:      # a reader broken by the error above
+            pass
+    notes = [f"topics: {', '.join(f'{s}={t}' for s, t in streams.items())}"]
+    names = list(streams)
+    t = {s: np.asarray(stamps[s], dtype=np.float64) for s in names}
+    keep = {s: _increasing(t[s]) for s in names}
+    for s in names:
+        if len(keep[s]) < len(t[s]):
+            notes.append(f"{len(t[s]) - len(keep[s])} {streams[s]} message(s) left out: stamp not after "
+                         "the previous one")
+    ta = t[names[0]][keep[names[0]]]
+    period = float(np.median(np.diff(ta))) if ta.size > 1 else None
+    if len(names) == 1:
+        frames = [(float(ta[j]), {names[0]: int(k)}, None) for j, k in enumerate(keep[names[0]])]
+    else:
+        tb = t[names[1]][keep[names[1]]]
+        tol = float(max_dt_s) if max_dt_s is not None else (0.5 * period if period else 0.02)
+        pairs = associate(ta, tb, tol)
+        frames = [(float(ta[i]), {names[0]: int(keep[names[0]][i]), names[1]: int(keep[names[1]][j])},
+                   float(tb[j])) for i, j in pairs]
+        if len(pairs) < max(ta.size, tb.size):
+            notes.append(f"{ta.size - len(pairs)} {names[0]} and {tb.size - len(pairs)} {names[1]} message(s) "
+                         f"without a partner within {tol:.4g} s left out")
+    if not frames:
+        raise TudorVisionError(f"{path}: no frames on {', '.join(streams.values())}")
+    scale = float(depth_scale) if depth_scale is not None else 1000.0
+    cal = _calibration(kind, infos, msgs, path, notes)
+    layout = {".bag": "rosbag1", ".mcap": "mcap"}.get(path.suffix.lower(), "rosbag2") if path.is_file() \
+        else "rosbag2"
+    rate = 1.0 / period if period else None
+    src = BagFrames(path, streams, {s: np.asarray(logt[s], dtype=np.int64) for s in names}, frames, scale)
+    return Spec(path=path, layout=layout, kind=kind, rate_hz=rate, depth_scale=scale if kind == "rgbd" else None,
+                streams=tuple(names), source=src, calibration=cal, notes=notes,
+                description=f"ROS bag {path.name}", meta={"topics": dict(streams)})
