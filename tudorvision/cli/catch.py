@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import csv
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -102,12 +103,16 @@ def _write(path, cols, rows):
 
 
 def _cmd_catch(args) -> int:
+    if args.target != "demo" and (args.scheduler or args.workers or args.session_throws):
+        raise TudorVisionError("--scheduler, --workers, --session-throws: only with 'catch demo'")
     if args.target == "demo":
         from ..lab.catch_demo import DemoOptions, run_demo
 
         opts = DemoOptions(throws=args.throws, seed=args.seed, render=not args.no_render, damping=args.damping,
                            compensate=not args.rigid, rerun=not args.no_rerun)
         out = Path(args.out or "out/catch/demo")
+        if args.scheduler or args.workers or args.session_throws:
+            return _demo_sessions(args, opts, out)
         s = run_demo(out, opts)
         rate = "n/a" if s["success_rate"] is None else f"{100 * s['success_rate']:.0f} %"
         print(f"{s['throws']} throws, {s['crossing_workspace']} cross the reachable workspace, "
@@ -130,6 +135,27 @@ def _cmd_catch(args) -> int:
     return 0
 
 
+def _demo_sessions(args, opts, out) -> int:
+    from ..lab.catch.sessions import run_sessions
+    from ..lab.runner import parse_scheduler
+    if args.workers is not None and args.workers < 1:
+        raise TudorVisionError(f"--workers: expected >= 1, got {args.workers}")
+    scheduler = parse_scheduler(args.scheduler or "local")
+    s = run_sessions(out, opts, session_throws=args.session_throws or 30, scheduler=scheduler,
+                     workers=args.workers, show_progress=None)
+    rate = "n/a" if s["success_rate"] is None else f"{100 * s['success_rate']:.0f} %"
+    print(f"{s['throws_done']} of {s['throws']} throws in {s['sessions']} sessions, {s['crossing_workspace']} cross "
+          f"the reachable workspace, {s['caught_in_workspace']} of them caught (success rate {rate}); "
+          f"{s['caught']} caught in all")
+    for f in s["failures"]:
+        print(f"failed: session {f['params']['session']} (seed {f['seed']}): {f['error']}", file=sys.stderr)
+    note = "" if s["complete"] else " (incomplete: run the same command again to finish)"
+    print(f"wrote {out / 'summary.json'}, throws.csv, runner.json{note}")
+    if s["interrupted"]:
+        return 130
+    return 0 if s["complete"] else 1
+
+
 def register(subparsers) -> None:
     """Add ``catch demo`` and ``catch SEQ``."""
     p = subparsers.add_parser(
@@ -150,6 +176,15 @@ def register(subparsers) -> None:
                    help="demo: damping law of the joint layer (default proportional)")
     p.add_argument("--rigid", action="store_true", help="demo: rigid inverse kinematics (no deflection compensation)")
     p.add_argument("--no-rerun", action="store_true", help="demo: do not write the rerun recording")
+    p.add_argument("--scheduler", default=None, metavar="serial|local|ADDRESS",
+                   help="demo: run the throws as independent sessions (fresh arm, seed S*1000+session) on the "
+                        "experiment runner: 'serial', 'local' (a Dask cluster of --workers processes) or a "
+                        "running Dask scheduler's address (tcp://host:8786); resumable; writes throws.csv, "
+                        "summary.json and runner.json, no plots or recording")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="demo with --scheduler local: worker processes (default: the machine's cores)")
+    p.add_argument("--session-throws", type=int, default=None, metavar="K",
+                   help="demo on the runner: throws per session (default 30)")
     p.add_argument("--calib", help="SEQ: calibration with intrinsics and T_base_cam")
     p.add_argument("--background", type=int, default=10, help="SEQ: frames for the background (default 10)")
     p.set_defaults(func=_cmd_catch)

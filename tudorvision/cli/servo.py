@@ -5,8 +5,9 @@
   damping on) from a start posture around the goal; the goal is taught as an
   image. Writes ``errors.csv``, ``servo.rrd`` (rerun) and ``errors.png``
   (workspace and image-space error, the seed's figure 9.3).
-* ``tudorvision servo --sim --experiment repeatability --repetitions N --seed S --out DIR``:
-  ``DIR/summary.json`` and ``DIR/runs.csv``.
+* ``tudorvision servo --sim --experiment repeatability --repetitions N --seed S --out DIR
+  [--scheduler serial|local|tcp://host:8786] [--workers W]``: ``DIR/summary.json``, ``DIR/runs.csv``,
+  ``DIR/runner.json`` and one record per run in ``DIR/runs/`` (resumable; see docs/experiments.md).
 * ``tudorvision servo --sim --experiment tracking --out DIR``: steady error on a slowly moving square.
 * ``tudorvision servo SEQ --goal IMAGE``: open loop on a recorded RGB-D
   sequence, one command line per frame.
@@ -54,7 +55,11 @@ def register(sub) -> None:
     p.add_argument("--supersample", type=int, default=1, metavar="K",
                    help="--sim: K x K colour samples per pixel around the square (pixel-area integration; "
                         "1 = the simulator's point sampling)")
-    p.add_argument("--workers", type=int, default=None, help="repeatability: parallel processes")
+    p.add_argument("--workers", type=int, default=None,
+                   help="repeatability: local worker processes (default: the machine's cores; 1: serial)")
+    p.add_argument("--scheduler", default=None, metavar="serial|local|ADDRESS",
+                   help="repeatability: 'serial', 'local' (a Dask cluster of --workers processes; the default "
+                        "unless --workers 1) or a running Dask scheduler's address, e.g. tcp://host:8786")
     p.add_argument("--compare-repetitions", type=int, default=None,
                    help="repeatability: runs per payload and pose for the compared law (default --repetitions)")
     p.add_argument("--seed", type=int, default=0)
@@ -228,29 +233,34 @@ class _RerunServoLog:
 
 
 def _repeatability(args) -> int:
+    from ..lab.runner import parse_scheduler
     from ..lab.servo_experiments import repeatability
     if args.repetitions < 1:
         raise TudorVisionError(f"--repetitions: expected >= 1, got {args.repetitions}")
     if args.compare_repetitions is not None and args.compare_repetitions < 1:
         raise TudorVisionError(f"--compare-repetitions: expected >= 1, got {args.compare_repetitions}")
+    if args.workers is not None and args.workers < 1:
+        raise TudorVisionError(f"--workers: expected >= 1, got {args.workers}")
+    scheduler = None if args.scheduler is None else parse_scheduler(args.scheduler)
     laws = ("hybrid", "ibvs") if args.law == "hybrid" else ("ibvs", "hybrid")
-
-    def prog(done, total):
-        if sys.stderr.isatty():
-            print(f"\rservo repeatability: {done}/{total} runs", end="" if done < total else "\n",
-                  file=sys.stderr, flush=True)
-        elif done % 24 == 0 or done == total:
-            print(f"servo repeatability: {done}/{total} runs", file=sys.stderr, flush=True)
-
     s = repeatability(args.out, repetitions=args.repetitions, seed=args.seed, laws=laws,
-                      interaction=args.interaction, cfg=_lab_config(args), workers=args.workers, progress=prog,
-                      compare_repetitions=args.compare_repetitions)
+                      interaction=args.interaction, cfg=_lab_config(args), workers=args.workers,
+                      compare_repetitions=args.compare_repetitions, scheduler=scheduler, show_progress=None)
     for law, r in s["laws"].items():
+        if r is None:
+            print(f"{law:6s}: no run finished")
+            continue
         print(f"{law:6s}: mean {r['mean_error_m'] * 1e3:.1f} mm, p90 {r['p90_error_m'] * 1e3:.1f} mm, "
               f"radius {r['radius_m'] * 1e3:.1f} mm, converged {100 * r['convergence_rate']:.0f} %, "
               f"settling {r['settling_time_s']:.2f} s ({r['n_runs']} runs)")
-    print(f"wrote {Path(args.out) / 'summary.json'} ({s['wall_s']:.0f} s)")
-    return 0
+    for f in s["failures"]:
+        print(f"failed: {f['params']} seed {f['seed']}: {f['error']}", file=sys.stderr)
+    note = "" if s["complete"] else (f" (incomplete: {s['runs_done']} of {s['runs_planned']} runs; "
+                                     "run the same command again to finish)")
+    print(f"wrote {Path(args.out) / 'summary.json'} ({s['wall_s']:.0f} s){note}")
+    if s["interrupted"]:
+        return 130
+    return 0 if s["complete"] else 1
 
 
 def _tracking(args) -> int:

@@ -12,14 +12,16 @@
   ``summary.json``, ``catch.png`` and ``catch.rrd``;
 
 :func:`~.run.run_demo` wires them (``tudorvision catch demo``); its options are
-:class:`~.options.DemoOptions`.
+:class:`~.options.DemoOptions`. :mod:`.sessions` splits many throws into
+independent sessions on the experiment runner (``catch demo --scheduler ...``).
 """
 from .agent import WEIGH_REST_SPEED_RAD_S, CatchAgent, CatchIK, pause_and_weigh
 from .options import DemoOptions, trained_payload_range_kg
 from .run import demo_kinematics, run_demo
 from .scenario import CatchScenario, simulated_detection, true_crossing
 from .score import PER_THROW_COLUMNS, ThrowResult, summarize_throws
+from .sessions import plan_sessions, run_sessions
 
 __all__ = ["DemoOptions", "run_demo", "demo_kinematics", "simulated_detection", "PER_THROW_COLUMNS", "ThrowResult",
            "summarize_throws", "trained_payload_range_kg", "CatchScenario", "CatchAgent", "CatchIK",
-           "pause_and_weigh", "true_crossing", "WEIGH_REST_SPEED_RAD_S"]
+           "pause_and_weigh", "true_crossing", "WEIGH_REST_SPEED_RAD_S", "plan_sessions", "run_sessions"]
