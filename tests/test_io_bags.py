@@ -181,3 +181,178 @@ def test_bare_mcap_file_and_compressed_images(tmp_path):
     with open_sequence(path) as seq:
         assert seq.layout == "mcap" and seq.kind == "stereo" and len(seq) == N
         assert all(np.array_equal(f.left, left[f.index]) and np.array_equal(f.right, right[f.index]) for f in seq)
+
+
+@pytest.mark.parametrize("flavour,float_depth", [("ros1", False), ("sqlite3", True), ("mcap", False)])
+def test_rgbd_bag_depth_in_mm_and_metres(tmp_path, flavour, float_depth):
+    path = _bag_path(tmp_path, flavour, "rgbd")
+    rgb, depth = write_rgbd_bag(path, flavour, float_depth=float_depth)
+    with open_sequence(path) as seq:
+        assert seq.kind == "rgbd" and len(seq) == N and seq.depth_scale == 1000.0
+        for k, f in enumerate(seq):
+            assert np.array_equal(f.rgb, rgb[k])
+            assert f.depth_raw.dtype == np.uint16 and np.array_equal(f.depth_raw, depth[k])
+            assert np.isnan(f.depth_m[0, 0]) and f.depth_m[5, 5] == pytest.approx(depth[k][5, 5] / 1000.0)
+            assert f.t_depth - f.t == pytest.approx(0.002, abs=1e-6)
+        assert seq.calibration.camera("rgbd").K[0, 0] == 400.0
+
+
+@pytest.mark.parametrize("flavour", FLAVOURS)
+def test_seq_import_round_trip(tmp_path, flavour, capsys):
+    src = _bag_path(tmp_path, flavour, "stereo")
+    left, right = write_stereo_bag(src, flavour)
+    out = tmp_path / "imported"
+    assert main(["seq", "import", str(src), "--out", str(out)]) == 0
+    assert "wrote" in capsys.readouterr().out
+    assert not (out / "INCOMPLETE").exists()
+    with open_sequence(out) as seq:                    # our own layout now, read strictly
+        assert seq.layout == "tudorvision" and seq.kind == "stereo" and len(seq) == N
+        np.testing.assert_allclose(seq.timestamps, T0 + np.arange(N) * DT_NS * 1e-9, atol=1e-6)
+        for k, f in enumerate(seq):
+            assert np.array_equal(f.left, left[k]) and np.array_equal(f.right, right[k])
+        cal = seq.calibration
+        np.testing.assert_allclose(cal.camera("left").K, K_LEFT)
+        np.testing.assert_allclose(cal.stereo.T, [-BASELINE_M, 0, 0], atol=1e-9)
+        assert seq.meta["source_topics"]["left"] == "/stereo/left/image_raw"
+    assert main(["seq", "check", str(out)]) == 0
+
+
+def test_seq_import_rgbd_keeps_raw_depth(tmp_path):
+    src = _bag_path(tmp_path, "mcap", "rgbd")
+    rgb, depth = write_rgbd_bag(src, "mcap")
+    out = tmp_path / "imported"
+    assert main(["seq", "import", str(src), "--out", str(out)]) == 0
+    with open_sequence(out) as seq:
+        assert seq.depth_scale == 1000.0
+        assert all(np.array_equal(f.depth_raw, depth[f.index]) and np.array_equal(f.rgb, rgb[f.index]) for f in seq)
+        assert seq.calibration.camera("rgbd").size == (W, H)
+
+
+def test_seq_info_lists_topics_types_and_counts(tmp_path, capsys):
+    src = _bag_path(tmp_path, "ros1", "rgbd")
+    write_rgbd_bag(src, "ros1")
+    assert main(["seq", "info", str(src)]) == 0
+    out = capsys.readouterr().out
+    rows = {ln.split()[0]: ln.split()[1:] for ln in out.splitlines() if ln.startswith("/")}
+    assert rows["/camera/color/image_raw"] == ["sensor_msgs/msg/Image", "5"]
+    assert rows["/camera/color/camera_info"] == ["sensor_msgs/msg/CameraInfo", "1"]
+    assert rows["/joint_states_dummy"] == ["std_msgs/msg/String", "1"]
+    assert "kind         rgbd" in out and "frames       5 (5 readable)" in out
+
+
+# ----------------------------------------------------------------------------- choosing topics
+def _three_camera_bag(path):
+    bag = _Bag(path, "ros1")
+    imgs = _images(7, 3)
+    for k in range(3):
+        t = T0 * 10**9 + k * DT_NS
+        for cam in ("cam_a", "cam_b", "cam_c"):
+            bag.image(f"/{cam}/image", t, imgs[k], "bgr8")
+    bag.close()
+    return imgs
+
+
+def test_ambiguous_topics_one_line_error_and_explicit_choice(tmp_path, capsys):
+    path = tmp_path / "three.bag"
+    imgs = _three_camera_bag(path)
+    with pytest.raises(TudorVisionError, match=r"cannot choose the image topics \(/cam_a/image, /cam_b/image, "
+                                               r"/cam_c/image\); pass --topics"):
+        open_sequence(path)
+    assert main(["seq", "check", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--topics" in err and "Traceback" not in err
+    with open_sequence(path, topics="left=/cam_a/image,right=/cam_c/image") as seq:
+        assert seq.kind == "stereo" and np.array_equal(seq[1].right, imgs[1])
+    with open_sequence(path, topics={"image": "/cam_b/image"}) as seq:
+        assert seq.kind == "mono" and len(seq) == 3
+    out = tmp_path / "mono"
+    assert main(["seq", "import", str(path), "--out", str(out), "--topics", "image=/cam_b/image"]) == 0
+    assert main(["seq", "info", str(path)]) == 0     # ambiguity is not a defect: the table answers it
+    assert "pass --topics" in capsys.readouterr().out
+
+
+def test_topic_choice_rules():
+    img, cimg, info = "sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage", "sensor_msgs/msg/CameraInfo"
+    tops = [BagTopic("/cam/image_raw", img, 3), BagTopic("/cam/image_raw/compressed", cimg, 3),
+            BagTopic("/cam/camera_info", info, 3), BagTopic("/tf", "tf2_msgs/msg/TFMessage", 9)]
+    assert choose_topics(tops) == ("mono", {"image": "/cam/image_raw"}, {"image": "/cam/camera_info"})
+    with pytest.raises(TudorVisionError, match="left=/nope: expected an image topic, not in the bag"):
+        choose_topics(tops, "left=/nope,right=/cam/image_raw")
+    with pytest.raises(TudorVisionError, match="give left= and right="):
+        choose_topics(tops, "left=/cam/image_raw")
+    with pytest.raises(TudorVisionError, match="no image topics"):
+        choose_topics(tops[3:])
+    with pytest.raises(TudorVisionError, match="STREAM=TOPIC"):
+        parse_topics("colour=/x")
+
+
+# ----------------------------------------------------------------------------- decoding
+class _Msg:
+    def __init__(self, **kw):
+        self.__dict__.update(kw)
+
+
+def test_decode_image_encodings_padding_and_byte_order():
+    rng = np.random.default_rng(3)
+    g16 = rng.integers(0, 65536, (3, 4)).astype(np.uint16)
+    padded = np.zeros((3, 10), np.uint8)                       # step 10 > 8 bytes per row
+    padded[:, :8] = g16.astype(">u2").view(np.uint8).reshape(3, 8)
+    out = decode_image(_Msg(encoding="mono16", height=3, width=4, step=10, is_bigendian=1, data=padded.ravel()))
+    assert out.dtype == np.uint16 and np.array_equal(out, g16)
+    rgba = rng.integers(0, 256, (2, 3, 4), dtype=np.uint8)
+    out = decode_image(_Msg(encoding="rgba8", height=2, width=3, step=12, is_bigendian=0, data=rgba.ravel()))
+    assert np.array_equal(out, rgba[:, :, 2::-1])
+    with pytest.raises(Exception, match="unsupported image encoding 'yuv422'"):
+        decode_image(_Msg(encoding="yuv422", height=2, width=2, step=4, is_bigendian=0, data=np.zeros(8, np.uint8)))
+    with pytest.raises(Exception, match="does not hold 4x3 mono8"):
+        decode_image(_Msg(encoding="mono8", height=3, width=4, step=4, is_bigendian=0, data=np.zeros(5, np.uint8)))
+
+
+def test_camera_info_to_calibration_and_stereo_geometry():
+    K = np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]])
+    ang = 0.05
+    Rl = np.array([[np.cos(ang), 0, np.sin(ang)], [0, 1, 0], [-np.sin(ang), 0, np.cos(ang)]])
+    Rr = Rl.T
+    P2 = np.hstack([K, [[-500.0 * 0.2], [0], [0]]])
+    msg = _Msg(k=K.ravel(), d=np.zeros(0), r=Rl.ravel(), p=np.hstack([K, np.zeros((3, 1))]).ravel(), width=640,
+               height=480, distortion_model="plumb_bob")
+    cam, R1, P1 = camera_from_info(msg)
+    assert cam.size == (640, 480) and np.allclose(cam.K, K) and not np.any(cam.dist)
+    st = stereo_from_infos((cam, R1, P1), (cam, Rr, P2))
+    assert st.baseline_m == pytest.approx(0.2)
+    # a point seen by both rectified cameras at the same row: x_right = R x_left + T
+    x_left = np.array([0.3, -0.1, 2.0])
+    x_right = st.R @ x_left + st.T
+    assert np.allclose(Rr @ x_right, Rl @ x_left + [-0.2, 0, 0])
+    bad = _Msg(**{**msg.__dict__, "d": np.array([0.1, 0, 0, 0, 0, 0.3, 0, 0]),
+                  "distortion_model": "rational_polynomial"})
+    with pytest.raises(ValueError, match="cannot be represented"):
+        camera_from_info(bad)
+
+
+# ----------------------------------------------------------------------------- damaged files
+@pytest.mark.parametrize("flavour", FLAVOURS)
+def test_truncated_or_corrupt_bag_one_line_error(tmp_path, flavour, capsys):
+    path = _bag_path(tmp_path, flavour, "stereo")
+    write_stereo_bag(path, flavour)
+    target = path if flavour == "ros1" else next(p for p in path.iterdir() if p.suffix in (".db3", ".mcap"))
+    data = target.read_bytes()
+    target.write_bytes(data[: len(data) // 2])
+    for argv in (["seq", "info", str(path)], ["seq", "import", str(path), "--out", str(tmp_path / "o")]):
+        rc = main(argv)
+        err = capsys.readouterr().err
+        assert rc == 2, err
+        assert "Traceback" not in err and err.strip().count("\n") == 0
+        assert str(path) in err
+
+
+def test_garbage_bag_and_mcap_files(tmp_path, capsys):
+    for name in ("junk.bag", "junk.mcap"):
+        p = tmp_path / name
+        p.write_bytes(b"\x00not a bag at all" * 10)
+        with pytest.raises(TudorVisionError, match=f"{name}: cannot read bag"):
+            open_sequence(p)
+        assert main(["seq", "import", str(p), "--out", str(tmp_path / "o")]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("tudorvision seq: error: ") and name in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists()

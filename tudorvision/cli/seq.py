@@ -1,4 +1,10 @@
-"""``tudorvision seq info|check``: inspect and validate recorded sequences."""
+"""``tudorvision seq info|check|import``: inspect, validate and import recorded sequences.
+
+``seq import SRC --out DIR`` turns anything :func:`tudorvision.io.open_sequence`
+reads (a ROS bag, a live stream, a TUM folder, ``left/`` + ``right/``
+folders, ...) into the project's sequence layout; ``seq info`` on a bag
+also lists its topics, types and message counts.
+"""
 from __future__ import annotations
 
 import argparse
@@ -24,7 +30,10 @@ def _pixels(text: str) -> int:
 
 
 def add_sequence_options(parser) -> None:
-    """Add ``--allow-outside`` and ``--max-pixels`` to a command that reads a sequence.
+    """Add ``--allow-outside``, ``--max-pixels``, ``--topics``, ``--max-frames`` and ``--timeout`` to a command.
+
+    Every command that reads a sequence takes these, so bags (``--topics``)
+    and live sources (``--max-frames``, ``--timeout``) work everywhere.
 
     Parameters
     ----------
@@ -37,6 +46,24 @@ def add_sequence_options(parser) -> None:
     parser.add_argument("--max-pixels", type=_pixels, default=DEFAULT_MAX_PIXELS, metavar="N",
                         help=f"refuse images whose header declares more than N pixels, before decoding "
                              f"(default {DEFAULT_MAX_PIXELS}; 0 = no limit)")
+    parser.add_argument("--topics", metavar="STREAM=TOPIC,...",
+                        help="ROS bags: image topics, left=/a,right=/b or rgb=/c,depth=/d or image=/e "
+                             "(default: found automatically when unambiguous; 'seq info BAG' lists them)")
+    parser.add_argument("--max-frames", type=_count, default=None, metavar="N",
+                        help="live sources (/dev/videoN, rtsp://, http://): stop after N frames "
+                             "(default: until the stream ends or Ctrl-C)")
+    parser.add_argument("--timeout", type=float, default=5.0, metavar="S",
+                        help="live sources: longest wait for a frame, seconds (default 5)")
+
+
+def _count(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive whole number, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive whole number, got {text!r}")
+    return value
 
 
 def sequence_options(args) -> dict:
@@ -50,10 +77,13 @@ def sequence_options(args) -> dict:
     Returns
     -------
     dict
-        ``allow_outside`` and ``max_pixels`` (None for no limit).
+        ``allow_outside``, ``max_pixels`` (None for no limit), ``topics``,
+        ``max_frames`` and ``timeout_s``.
     """
     mp = getattr(args, "max_pixels", DEFAULT_MAX_PIXELS)
-    return {"allow_outside": bool(getattr(args, "allow_outside", False)), "max_pixels": mp or None}
+    return {"allow_outside": bool(getattr(args, "allow_outside", False)), "max_pixels": mp or None,
+            "topics": getattr(args, "topics", None), "max_frames": getattr(args, "max_frames", None),
+            "timeout_s": getattr(args, "timeout", None) or 5.0}
 
 
 def problem_lines(seq) -> list[str]:
@@ -113,17 +143,20 @@ def partial_flags(n_done: int, interrupted: str | None, problems: list[str], *, 
 
 
 def register(subparsers) -> None:
-    """Add the ``seq`` command with ``info`` and ``check`` to ``subparsers``."""
-    p = subparsers.add_parser("seq", help="inspect and validate recorded sequences",
-                              description="Inspect (info) or strictly validate (check) a recorded "
-                                          "sequence: a sequence directory, a TUM RGB-D directory, an "
-                                          "image folder or a video file.")
+    """Add the ``seq`` command with ``info``, ``check`` and ``import`` to ``subparsers``."""
+    p = subparsers.add_parser("seq", help="inspect, validate and import recorded sequences",
+                              description="Inspect (info), strictly validate (check) or import (import) a "
+                                          "sequence: a sequence directory, a TUM RGB-D directory, left/ + "
+                                          "right/ or rgb/ + depth/ folders, an image folder, a video file, a "
+                                          "ROS 1 bag, a ROS 2 bag folder or .mcap file, or a live source "
+                                          "(/dev/videoN, rtsp://, http://; two joined by a comma for stereo).")
     sub = p.add_subparsers(dest="seq_command", metavar="ACTION")
     for name, func, text in (
             ("info", _info, "summary and a lenient scan listing every problem (exit 2 if any)"),
             ("check", _check, "strict validation: exit 2 with the first error as one line")):
         q = sub.add_parser(name, help=text, description=text)
-        q.add_argument("sequence", metavar="SEQ", help="sequence directory, sequence.yaml or video file")
+        q.add_argument("sequence", metavar="SEQ", help="sequence directory, sequence.yaml, video file, bag "
+                                                        "or live source")
         q.add_argument("--depth-scale", type=float, default=None,
                        help="raw depth units per metre (overrides the sequence)")
         q.add_argument("--rate-hz", type=float, default=None,
@@ -132,6 +165,22 @@ def register(subparsers) -> None:
                        help="check the index files only, do not decode images")
         add_sequence_options(q)
         q.set_defaults(func=func)
+    q = sub.add_parser("import", help="convert a bag, live stream or foreign folder to a sequence directory",
+                       description="Write SRC (anything 'seq info' reads) as a sequence directory in the "
+                                   "project's layout: lossless PNG images by default (pixel-exact), the "
+                                   "source's timestamps, and its calibration (e.g. a bag's CameraInfo). Frames "
+                                   "that cannot be decoded are skipped and listed (exit 2); on Ctrl-C or an "
+                                   "error the directory is flagged incomplete (INCOMPLETE marker).")
+    q.add_argument("sequence", metavar="SRC", help="bag, .mcap, sequence folder, video or live source")
+    q.add_argument("--out", required=True, metavar="DIR", help="sequence directory to write (empty or absent)")
+    q.add_argument("--overwrite", action="store_true", help="replace a previous recording in --out")
+    q.add_argument("--image-ext", choices=(".png", ".jpg"), default=".png",
+                   help="colour image format (default .png: lossless)")
+    q.add_argument("--depth-scale", type=float, default=None, help="raw depth units per metre of the source")
+    q.add_argument("--rate-hz", type=float, default=None, help="frame rate for sources without timestamps")
+    q.add_argument("--strict", action="store_true", help="stop at the first undecodable frame")
+    add_sequence_options(q)
+    q.set_defaults(func=_import)
 
     def _help(args) -> int:
         p.print_help()
@@ -167,12 +216,40 @@ def scan_sequence(seq: Sequence, *, decode: bool = True, show_progress: bool | N
 
 
 def _open(args, strict):
+    opts = sequence_options(args)
+    if args.func is _info and opts["max_frames"] is None:
+        opts["max_frames"] = 30                  # a live source has no end: look at 30 frames
     return open_sequence(args.sequence, strict=strict, depth_scale=args.depth_scale, rate_hz=args.rate_hz,
-                         **sequence_options(args))
+                         **opts)
+
+
+def _topic_table(path) -> None:
+    from ..io.bags import bag_topics
+
+    tops = bag_topics(path)
+    width = max([len(t.name) for t in tops] + [5])
+    twidth = max([len(t.msgtype) for t in tops] + [4])
+    print(f"{'topic':<{width}}  {'type':<{twidth}}  count")
+    for t in tops:
+        print(f"{t.name:<{width}}  {t.msgtype:<{twidth}}  {t.count}")
 
 
 def _info(args) -> int:
-    with _open(args, strict=False) as seq:
+    from ..io.bags import is_bag
+
+    if is_bag(args.sequence):
+        _topic_table(args.sequence)
+        try:
+            seq = _open(args, strict=False)
+        except TudorVisionError as exc:
+            if "--topics" not in str(exc):
+                raise
+            print(f"\n{exc}")                   # ambiguous topics: the table is the answer
+            return 0
+        print()
+    else:
+        seq = _open(args, strict=False)
+    with seq:
         good = scan_sequence(seq, decode=not args.index_only)
         out = sys.stdout
         size = ", ".join(f"{s} {w}x{h}" for s, (w, h) in (seq.size or {}).items()) or "not declared"
@@ -200,6 +277,51 @@ def _info(args) -> int:
         for p in seq.report:
             print(f"  {p}", file=out)
         return 2 if seq.report else 0
+
+
+def _import(args) -> int:
+    from ..io.live import StreamEnded
+    from ..io.writer import SequenceWriter
+
+    seq = _open(args, strict=args.strict)
+    live = seq.layout == "live"
+    with seq:
+        meta = {"source": str(args.sequence), "source_layout": seq.layout}
+        if seq.meta.get("topics"):
+            meta["source_topics"] = dict(seq.meta["topics"])
+        writer = SequenceWriter(args.out, kind=seq.kind, rate_hz=seq.rate_hz or 30.0,
+                                depth_scale=seq.depth_scale or 1000.0, calibration=seq.calibration,
+                                image_ext=args.image_ext, description=f"imported from {args.sequence}",
+                                meta=meta, overwrite=args.overwrite)
+        ended = None
+        with writer:
+            frames = range(len(seq))
+            for i in progress(frames, total=None if live else len(seq), desc="importing"):
+                try:
+                    f = seq.load_or_report(i)
+                except StreamEnded as exc:
+                    ended = str(exc)
+                    break
+                if f is None:
+                    continue
+                if seq.kind == "stereo":
+                    writer.add_stereo(f.t, f.left, f.right)
+                elif seq.kind == "rgbd":
+                    writer.add_rgbd(f.t, f.rgb, f.depth_raw)
+                else:
+                    writer.add_mono(f.t, f.image)
+            if seq.report:
+                writer.meta["skipped_frames"] = problem_lines(seq)[:50]
+            if seq.joints_path is not None:
+                log = seq.joints()
+                for t, th in zip(log.t, log.theta_rad):
+                    writer.add_joints(t, th)
+        flags = partial_flags(writer.frame_count, None, problem_lines(seq))
+    if ended:
+        print(ended)
+    print(f"wrote {args.out} ({seq.kind}, {writer.frame_count} frames, {seq.layout} source"
+          f"{', calibration.yaml' if seq.calibration is not None else ''})")
+    return 2 if flags else 0
 
 
 def _check(args) -> int:
