@@ -356,3 +356,56 @@ def test_garbage_bag_and_mcap_files(tmp_path, capsys):
         err = capsys.readouterr().err
         assert err.startswith("tudorvision seq: error: ") and name in err and "Traceback" not in err
     assert not (tmp_path / "o").exists()
+
+
+# ----------------------------------------------------------------------------- plain folders (the same opener)
+def _write_png(path: Path, img) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    assert cv2.imwrite(str(path), img)
+
+
+def test_left_right_folders_are_a_stereo_sequence(tmp_path, capsys):
+    left, right = _images(11, 4), _images(12, 4)
+    for k in range(4):
+        _write_png(tmp_path / "s" / "left" / f"left{k:02d}.png", left[k])
+        _write_png(tmp_path / "s" / "right" / f"right{k:02d}.png", right[k])
+    with open_sequence(tmp_path / "s", rate_hz=10.0) as seq:
+        assert (seq.layout, seq.kind, len(seq)) == ("stereo_folders", "stereo", 4)
+        assert all(np.array_equal(f.left, left[f.index]) and np.array_equal(f.right, right[f.index]) for f in seq)
+        assert seq[3].t == pytest.approx(0.3)
+    out = tmp_path / "imported"
+    assert main(["seq", "import", str(tmp_path / "s"), "--out", str(out)]) == 0
+    with open_sequence(out) as seq:
+        assert seq.kind == "stereo" and np.array_equal(seq[2].right, right[2])
+    (tmp_path / "s" / "right" / "right03.png").unlink()        # a left image without its partner
+    with pytest.raises(TudorVisionError, match="left03.png: no right image with the same number"):
+        open_sequence(tmp_path / "s")
+    with open_sequence(tmp_path / "s", strict=False) as seq:
+        assert len(seq) == 3 and len(seq.report) == 1
+
+
+def test_rgb_depth_folders_are_an_rgbd_sequence(tmp_path):
+    rgb, depth = _images(13, 3), _depths_mm(14, 3)
+    for k in range(3):
+        _write_png(tmp_path / "r" / "rgb" / f"{k:06d}.png", rgb[k])
+        _write_png(tmp_path / "r" / "depth" / f"{k:06d}.png", depth[k])
+    with open_sequence(tmp_path / "r") as seq:
+        assert (seq.layout, seq.kind, len(seq), seq.depth_scale) == ("rgbd_folders", "rgbd", 3, 1000.0)
+        assert all(np.array_equal(f.depth_raw, depth[f.index]) and np.array_equal(f.rgb, rgb[f.index]) for f in seq)
+        assert any("depth_scale not given" in n for n in seq.notes)
+
+
+def test_sidecar_image_folder_with_kind_stereo_is_stereo_or_an_error(tmp_path):
+    root = tmp_path / "s"
+    for side in ("left", "right"):
+        for k in range(2):
+            _write_png(root / side / f"{k}.png", _images(5, 1)[0])
+    (root / "sequence.yaml").write_text("layout: image_folder\nkind: stereo\nrate_hz: 15\n")
+    with open_sequence(root) as seq:       # the folders exist: the stereo pair, not 0 mono frames
+        assert (seq.kind, len(seq), seq.rate_hz) == ("stereo", 2, 15.0)
+    flat = tmp_path / "flat"
+    _write_png(flat / "a.png", _images(5, 1)[0])
+    (flat / "sequence.yaml").write_text("layout: image_folder\nkind: stereo\n")
+    with pytest.raises(TudorVisionError, match=r"sequence.yaml:2: kind: 'stereo' contradicts layout "
+                                               r"'image_folder'.*left/ \+ right/"):
+        open_sequence(flat)
