@@ -9,11 +9,14 @@ from __future__ import annotations
 
 import argparse
 import sys
+from typing import TYPE_CHECKING
 
 from .._checks import TudorVisionError
 from .._progress import progress
 from ..io import DEFAULT_MAX_PIXELS
-from ..io.sequence import Sequence, open_sequence
+
+if TYPE_CHECKING:
+    from ..io.sequence import Sequence
 
 __all__ = ["register", "scan_sequence", "add_sequence_options", "sequence_options", "problem_lines",
            "partial_flags"]
@@ -216,6 +219,7 @@ def scan_sequence(seq: Sequence, *, decode: bool = True, show_progress: bool | N
 
 
 def _open(args, strict):
+    from ..io.sequence import open_sequence
     opts = sequence_options(args)
     if args.func is _info and opts["max_frames"] is None:
         opts["max_frames"] = 30                  # a live source has no end: look at 30 frames

@@ -7,17 +7,42 @@ playback. Writing: :class:`SequenceWriter`. Calibration: :class:`Calibration`
 with :func:`load_calibration` / :func:`save_calibration`, ROS camera_info and
 OpenCV stereo files in :mod:`tudorvision.io.formats`. Output files are written
 atomically with :mod:`tudorvision.io.atomic`.
+
+The names below are imported on first use (PEP 562): importing
+``tudorvision.io.atomic`` or reading :data:`DEFAULT_MAX_PIXELS` does not load
+OpenCV; ``from tudorvision.io import X`` works as usual.
 """
-from ._imageheader import DEFAULT_MAX_PIXELS
-from .atomic import atomic_path, atomic_write, write_bytes_atomic, write_text_atomic
-from .calibration import (Calibration, CameraModel, DepthModel, StereoExtrinsics, load_calibration,
-                          save_calibration)
-from .formats import (CameraInfo, calibration_from_ros, load_opencv_stereo, load_ros_camera_info,
-                      save_opencv_stereo, save_ros_camera_info)
-from .playback import Playback, Played
-from .frames import JointLog, MonoFrame, RGBDFrame, StereoFrame
-from .sequence import Sequence, load_joint_log, open_sequence
-from .writer import SequenceWriter
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the same names, for type checkers and the import-layer checks
+    from ._imageheader import DEFAULT_MAX_PIXELS
+    from .atomic import atomic_path, atomic_write, write_bytes_atomic, write_text_atomic
+    from .calibration import (Calibration, CameraModel, DepthModel, StereoExtrinsics, load_calibration,
+                              save_calibration)
+    from .formats import (CameraInfo, calibration_from_ros, load_opencv_stereo, load_ros_camera_info,
+                          save_opencv_stereo, save_ros_camera_info)
+    from .playback import Playback, Played
+    from .frames import JointLog, MonoFrame, RGBDFrame, StereoFrame
+    from .sequence import Sequence, load_joint_log, open_sequence
+    from .writer import SequenceWriter
+
+# submodule -> the names it provides here
+_PROVIDERS = {
+    "_imageheader": ("DEFAULT_MAX_PIXELS",),
+    "atomic": ("atomic_path", "atomic_write", "write_bytes_atomic", "write_text_atomic"),
+    "calibration": ("Calibration", "CameraModel", "DepthModel", "StereoExtrinsics", "load_calibration",
+                    "save_calibration"),
+    "formats": ("CameraInfo", "calibration_from_ros", "load_opencv_stereo", "load_ros_camera_info",
+                "save_opencv_stereo", "save_ros_camera_info"),
+    "playback": ("Playback", "Played"),
+    "frames": ("JointLog", "MonoFrame", "RGBDFrame", "StereoFrame"),
+    "sequence": ("Sequence", "load_joint_log", "open_sequence"),
+    "writer": ("SequenceWriter",),
+}
+_WHERE = {name: module for module, names in _PROVIDERS.items() for name in names}
 
 __all__ = [
     "open_sequence", "Sequence", "load_joint_log", "StereoFrame", "RGBDFrame", "MonoFrame", "JointLog",
@@ -27,3 +52,19 @@ __all__ = [
     "calibration_from_ros", "load_opencv_stereo", "save_opencv_stereo",
     "DEFAULT_MAX_PIXELS", "atomic_write", "atomic_path", "write_text_atomic", "write_bytes_atomic",
 ]
+
+
+def __getattr__(name: str):
+    """Import the submodule that provides ``name`` on first use (module-level, PEP 562)."""
+    try:
+        module = _WHERE[name]
+    except KeyError:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    """Module attributes including the lazily imported names."""
+    return sorted(set(globals()) | set(__all__))

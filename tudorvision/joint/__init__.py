@@ -3,22 +3,54 @@
 Perception code uses :class:`JointAdapter` only (over UDP or in-process);
 the layer (:class:`JointLayerServer` around a core such as the simulated
 arm) owns safety, damping and collision handling.
+
+The names below are imported on first use (PEP 562), so importing one
+submodule (``tudorvision.joint.cores``) does not load scipy for the damping
+filters; ``from tudorvision.joint import X`` works as usual.
 """
-from .adapter import AdapterStats, JointAdapter
-from .cascade import CascadeGains, JointCascade, design_cascade
-from .collision import CollisionMonitor, MomentumObserver, ReactionConfig, reaction_config
-from .strain_dynamics import StrainDynamicsModel, fit_strain_dynamics
-from .damping import DampingConfig, StrainDamper, default_damping_config
-from .metrics import damping_metrics, settling_time
-from .planner import JointMotion, OnlinePlanner, plan_motion
-from .protocol import (Ack, CollisionStrategy, Damping, JointSetpoint, JointVelocityCommand, Mode, ModeSwitch,
-                       PayloadUpdate, ProtocolError, Reason, Refusal, State, StateFlags, StateRequest, decode, encode)
-from .proxy import FaultModel, LossyUdpProxy
-from .safety import SafetyLimits, SafetyPolicy
-from .cores import CoreState, JointCore, KinematicCore, core_names, make_core, register_core
-from .server import JointLayerServer
-from .server_config import ServerConfig
-from .transport import InProcessTransport, LockstepClientTransport, Transport, TransportClosed, UdpTransport
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the same names, for type checkers and the import-layer checks
+    from .adapter import AdapterStats, JointAdapter
+    from .cascade import CascadeGains, JointCascade, design_cascade
+    from .collision import CollisionMonitor, MomentumObserver, ReactionConfig, reaction_config
+    from .strain_dynamics import StrainDynamicsModel, fit_strain_dynamics
+    from .damping import DampingConfig, StrainDamper, default_damping_config
+    from .metrics import damping_metrics, settling_time
+    from .planner import JointMotion, OnlinePlanner, plan_motion
+    from .protocol import (Ack, CollisionStrategy, Damping, JointSetpoint, JointVelocityCommand, Mode, ModeSwitch,
+                           PayloadUpdate, ProtocolError, Reason, Refusal, State, StateFlags, StateRequest, decode,
+                           encode)
+    from .proxy import FaultModel, LossyUdpProxy
+    from .safety import SafetyLimits, SafetyPolicy
+    from .cores import CoreState, JointCore, KinematicCore, core_names, make_core, register_core
+    from .server import JointLayerServer
+    from .server_config import ServerConfig
+    from .transport import InProcessTransport, LockstepClientTransport, Transport, TransportClosed, UdpTransport
+
+# submodule -> the names it provides here
+_PROVIDERS = {
+    "adapter": ("AdapterStats", "JointAdapter"),
+    "cascade": ("CascadeGains", "JointCascade", "design_cascade"),
+    "collision": ("CollisionMonitor", "MomentumObserver", "ReactionConfig", "reaction_config"),
+    "strain_dynamics": ("StrainDynamicsModel", "fit_strain_dynamics"),
+    "damping": ("DampingConfig", "StrainDamper", "default_damping_config"),
+    "metrics": ("damping_metrics", "settling_time"),
+    "planner": ("JointMotion", "OnlinePlanner", "plan_motion"),
+    "protocol": ("Ack", "CollisionStrategy", "Damping", "JointSetpoint", "JointVelocityCommand", "Mode", "ModeSwitch",
+                 "PayloadUpdate", "ProtocolError", "Reason", "Refusal", "State", "StateFlags", "StateRequest",
+                 "decode", "encode"),
+    "proxy": ("FaultModel", "LossyUdpProxy"),
+    "safety": ("SafetyLimits", "SafetyPolicy"),
+    "cores": ("CoreState", "JointCore", "KinematicCore", "core_names", "make_core", "register_core"),
+    "server": ("JointLayerServer",),
+    "server_config": ("ServerConfig",),
+    "transport": ("InProcessTransport", "LockstepClientTransport", "Transport", "TransportClosed", "UdpTransport"),
+}
+_WHERE = {name: module for module, names in _PROVIDERS.items() for name in names}
 
 __all__ = [
     # what perception talks to
@@ -38,3 +70,19 @@ __all__ = [
     "CollisionMonitor", "MomentumObserver", "ReactionConfig", "reaction_config", "StrainDynamicsModel",
     "fit_strain_dynamics", "damping_metrics", "settling_time",
 ]
+
+
+def __getattr__(name: str):
+    """Import the submodule that provides ``name`` on first use (module-level, PEP 562)."""
+    try:
+        module = _WHERE[name]
+    except KeyError:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    """Module attributes including the lazily imported names."""
+    return sorted(set(globals()) | set(__all__))
