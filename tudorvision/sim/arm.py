@@ -22,6 +22,8 @@ from .._checks import check_vector
 from ..robot.actuators import motor_gain
 from ..robot.params import RobotParams, load_robot_params
 from .beam import cantilever_static, modal_basis
+from .joint_compliance import HubCompliance
+from .mode_analysis import held_joint_modes
 from .link_modes import LinkModes
 from .model import (ASSUMPTIONS, ArmBodies, Payload, PlantConfig, SimLog, SpringDamperObstacle, arm_bodies,
                     bias_torques, coupled_mass_matrix, fk_elastic, link_static_loads, mass_matrix, rigid_energy,
@@ -105,6 +107,8 @@ class ElasticArm:
         else:
             self._quant = None
         self._noise = random.Random(config.noise_seed)
+        self.hub = HubCompliance(config.hub_stiffness_Nm_rad, config.hub_damping_Nms_rad, config.backlash_rad)
+        self._hub_m = [0.0, 0.0]     # backlash/damper moment on the link roots (explicit, previous step)
         self.obstacles = tuple(obstacles)
         self._two_way = bool(self.obstacles) if config.two_way is None else bool(config.two_way)
         th = check_vector(theta0, "theta0", 3)
@@ -137,8 +141,8 @@ class ElasticArm:
         zeta = cfg.modal_damping_ratio or tuple(float(z) for z in p.modal_damping_ratio)
         mL2 = b.mA + b.m3 + b.mP
         IL2 = b.IA + b.J3                         # distal inertia about the link-2 tip axis
-        basis2 = modal_basis(p.link2, mL2, IL2, cfg.n_modes)
-        basis3 = modal_basis(p.link3, b.mP, b.IP, cfg.n_modes)
+        basis2 = modal_basis(p.link2, mL2, IL2, cfg.n_modes, cfg.hub_stiffness_Nm_rad[0])
+        basis3 = modal_basis(p.link3, b.mP, b.IP, cfg.n_modes, cfg.hub_stiffness_Nm_rad[1])
         g2 = p.gauge_positions_m["link2"]
         g3 = p.gauge_positions_m["link3"]
         self.link2 = k2 = LinkModes(basis2, g2, zeta, cfg.dt)
@@ -156,15 +160,21 @@ class ElasticArm:
     def _loads(self):
         th, b, g = self.theta, self.bodies, self.g
         ca, cb = math.cos(th[1]), math.cos(th[1] + th[2])
-        l2 = (-(b.m2 / b.l2) * g * ca, -(b.mA + b.m3 + b.mP) * g * ca, -g * b.s3 * cb)
-        l3 = (-(b.m3 / b.l3) * g * cb, -b.mP * g * cb, 0.0)
+        hm = self._hub_m
+        l2 = (-(b.m2 / b.l2) * g * ca, -(b.mA + b.m3 + b.mP) * g * ca, -g * b.s3 * cb, hm[0])
+        l3 = (-(b.m3 / b.l3) * g * cb, -b.mP * g * cb, 0.0, hm[1])
         return l2, l3
 
     def _settle(self) -> None:
         """Put the modal coordinates at the static equilibrium of the current configuration."""
         if not self.config.elastic:
             return
+        self._hub_m = [0.0, 0.0]
         l2, l3 = self._loads()
+        if self.hub.nonlinear:      # at rest against the side of the gap the load pushes to
+            self._hub_m = [self.hub.static_moment(j, ld[0] * lm.L**2 / 2 + ld[1] * lm.L + ld[2])
+                           for j, (ld, lm) in enumerate(((l2, self.link2), (l3, self.link3)))]
+            l2, l3 = self._loads()
         for lm, eta, deta, loads in ((self.link2, self.eta2, self.deta2, l2),
                                      (self.link3, self.eta3, self.deta3, l3)):
             f = lm.generalised_force(*loads)
@@ -469,24 +479,17 @@ class ElasticArm:
         """Natural frequencies of the coupled links with the joints held, at the current pose.
 
         Generalised eigenvalues of the modal block of the assumed-modes mass
-        matrix (two-way model) and the modal stiffness ``diag(omega_r^2)``.
-        Unlike the BVP values they depend on theta3 (first moment of the
-        distal bodies) and include the flexibility of link 3.
+        matrix (two-way model) and the modal stiffness ``diag(omega_r^2)``
+        (:func:`tudorvision.sim.mode_analysis.held_joint_modes`; hub springs
+        engaged). Unlike the BVP values they depend on theta3 (first moment of
+        the distal bodies) and include the flexibility of link 3.
 
         Returns
         -------
         ndarray, shape (2 n_modes,)
             Increasing, Hz.
         """
-        from scipy.linalg import eigh
-        b = self.bodies
-        c3 = math.cos(self.theta[2])
-        M = coupled_mass_matrix(b.J2 + b.J3 + 2 * b.l2 * b.s3 * c3 + b.rotor[1],
-                                b.J3 + b.l2 * b.s3 * c3, b.J3 + b.rotor[2], self._coupling(c3),
-                                b, self.link2, self.link3, c3)
-        K = np.diag(self.link2.om2 + self.link3.om2)
-        w2 = eigh(K, M[2:, 2:], eigvals_only=True)
-        return np.sqrt(np.maximum(w2, 0.0)) / (2 * np.pi)
+        return held_joint_modes(self)[0]
 
     def _modal_accelerations(self, a2: float, a3: float):
         """Modal accelerations for given joint accelerations (after friction sticking)."""
@@ -539,12 +542,21 @@ class ElasticArm:
             forces = (self.link2.generalised_force(*loads[0]), self.link3.generalised_force(*loads[1]))
         strain = []
         tips = []
-        for lm, eta, (q, P, M), f in ((self.link2, self.eta2, loads[0], forces[0]),
-                                      (self.link3, self.eta3, loads[1], forces[1])):
+        hub = self.hub
+        for j, (lm, eta, (q, P, M, Mh), f) in enumerate(((self.link2, self.eta2, loads[0], forces[0]),
+                                                         (self.link3, self.eta3, loads[1], forces[1]))):
             L, EI = lm.L, lm.EI
             wL = (q * L**4 / 8.0 + P * L**3 / 3.0 + M * L**2 / 2.0) / EI
             sL = (q * L**3 / 6.0 + P * L**2 / 2.0 + M * L) / EI
             nu = [eta[r] - f[r] / lm.om2[r] for r in range(lm.n)]
+            if hub.active:          # rigid rotation on the hub spring; backlash/damper moment for the next step
+                ph = (q * L * L / 2.0 + P * L + M + Mh) * lm.kinv
+                wL += L * ph
+                sL += ph
+                if hub.nonlinear:
+                    deta = self.deta2 if j == 0 else self.deta3
+                    phi = ph + sum(lm.dphi0[r] * nu[r] for r in range(lm.n))
+                    self._hub_m[j] = hub.moment(j, phi, sum(lm.dphi0[r] * deta[r] for r in range(lm.n)))
             for k, x in enumerate(lm.gauges):
                 c = (q * (L - x) ** 2 / 2.0 + P * (L - x) + M) / EI
                 row = lm.ddphi_g[k]
@@ -565,6 +577,7 @@ class ElasticArm:
         loads = self._loads()[0 if link == 2 else 1]
         ws, _, _ = cantilever_static(x, lm.L, lm.EI, q_N_m=loads[0], tip_force_N=loads[1],
                                      tip_moment_Nm=loads[2])
+        ws = ws + x * lm.static_hub_angle(*loads)
         eta = self.eta2 if link == 2 else self.eta3
         nu = np.asarray(eta) - lm.basis.static_coordinates(*loads)
         w = float(ws) + float(nu @ lm.basis.shape([x])[:, 0]) if self.config.elastic else 0.0

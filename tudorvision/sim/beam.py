@@ -39,7 +39,7 @@ from ..robot.params import LinkParams
 
 __all__ = [
     "cantilever_static", "surface_strain", "characteristic_tip_load",
-    "tip_load_roots", "ModalBasis", "modal_basis", "link_rho", "link_rigidity",
+    "tip_load_roots", "spring_hinged_roots", "characteristic_spring_hinged", "ModalBasis", "modal_basis", "link_rho", "link_rigidity",
 ]
 
 
@@ -176,9 +176,12 @@ def tip_load_roots(n_roots: int, mass_ratio: float, inertia_ratio: float) -> np.
 class ModalBasis:
     """Mass-normalised bending modes of one link with its current tip load.
 
-    A mode shape is ``Phi_r(x) = a_r (sinh k x - sin k x) + b_r (cosh k x - cos k x)``
-    (rigid clamping, B.3.3 with ``K_r -> inf``), normalised so that
+    A mode shape is ``Phi_r(x) = a_r (sinh k x - sin k x) + b_r (cosh k x - cos k x)
+    + c_r (sinh k x + sin k x)`` with ``c_r = b_r k EI / K_r`` (the rotary
+    spring support of (4.4.2): ``Phi'(0) = (EI / K_r) Phi''(0)``; ``c_r = 0``
+    for rigid clamping, ``K_r -> inf``), normalised so that
     ``int rho Phi_r^2 dx + m_L Phi_r(L)^2 + I_L Phi_r'(L)^2 = 1`` (4.4.9).
+    The modal stiffness is then ``omega_r^2 = int EI Phi_r''^2 dx + K_r Phi_r'(0)^2``.
 
     Attributes
     ----------
@@ -190,8 +193,10 @@ class ModalBasis:
         Roots of (4.4.6).
     omega_rad_s : ndarray, shape (n,)
         Natural frequencies (4.4.7), rad/s.
-    coef : ndarray, shape (n, 2)
-        ``(a_r, b_r)`` of each normalised shape.
+    coef : ndarray, shape (n, 3)
+        ``(a_r, b_r, c_r)`` of each normalised shape.
+    hub_stiffness_Nm_rad : float
+        Rotary clamping stiffness ``K_r`` at the hub, N m/rad (``inf``: rigid clamping).
     rotation_participation : ndarray, shape (n,)
         ``Gamma_r = int rho x Phi_r + m_L L Phi_r(L) + I_L Phi_r'(L)``: modal
         force per unit hub angular acceleration is ``-Gamma_r``.
@@ -211,6 +216,7 @@ class ModalBasis:
     coef: np.ndarray
     rotation_participation: np.ndarray
     translation_participation: np.ndarray
+    hub_stiffness_Nm_rad: float = float("inf")
 
     @property
     def n_modes(self) -> int:
@@ -239,16 +245,39 @@ class ModalBasis:
         return _shape(self.beta / self.length_m, self.coef, np.atleast_1d(np.asarray(x, float)),
                       derivative)
 
-    def static_coordinates(self, q_N_m: float, tip_force_N: float, tip_moment_Nm: float) -> np.ndarray:
+    def static_coordinates(self, q_N_m: float, tip_force_N: float, tip_moment_Nm: float,
+                           hub_moment_Nm: float = 0.0) -> np.ndarray:
         """Modal coordinates of the static deflection under the given loads.
 
         For exact eigenfunctions the mass-weighted projection of the static
         shape equals the generalised force over ``omega_r^2``::
 
-            eta_r = (q int Phi_r dx + P Phi_r(L) + M Phi_r'(L)) / omega_r^2
+            eta_r = (q int Phi_r dx + P Phi_r(L) + M Phi_r'(L) + M_hub Phi_r'(0)) / omega_r^2
+
+        ``hub_moment_Nm`` is a moment on the link at its root (turning it like
+        a positive joint angle), e.g. the backlash correction of
+        :mod:`tudorvision.sim.joint_compliance`; it only matters for a finite ``K_r``.
         """
-        return (q_N_m * self._int_phi + tip_force_N * self._phi_tip + tip_moment_Nm * self._dphi_tip) \
-            / self.omega_rad_s**2
+        return (q_N_m * self._int_phi + tip_force_N * self._phi_tip + tip_moment_Nm * self._dphi_tip
+                + hub_moment_Nm * self.hub_slope) / self.omega_rad_s**2
+
+    def static_hub_angle(self, q_N_m: float, tip_force_N: float, tip_moment_Nm: float,
+                         hub_moment_Nm: float = 0.0) -> float:
+        """Rotation of the link root on its spring under static loads, rad (0 for rigid clamping).
+
+        The spring carries the root moment of the loads,
+        ``q L^2 / 2 + P L + M`` plus ``hub_moment_Nm``, so the root turns by that over ``K_r``.
+        """
+        if not np.isfinite(self.hub_stiffness_Nm_rad):
+            return 0.0
+        L = self.length_m
+        return float((q_N_m * L * L / 2.0 + tip_force_N * L + tip_moment_Nm + hub_moment_Nm)
+                     / self.hub_stiffness_Nm_rad)
+
+    @functools.cached_property
+    def hub_slope(self) -> np.ndarray:
+        """``Phi_r'(0)`` per mode, 1/sqrt(kg) (zero for rigid clamping), shape (n,)."""
+        return self.shape([0.0], 1)[:, 0]
 
     @functools.cached_property
     def _phi_tip(self) -> np.ndarray:
@@ -283,15 +312,18 @@ def _shape(k: np.ndarray, coef: np.ndarray, x: np.ndarray, derivative: int) -> n
     sh, ch, s, c = np.sinh(kx), np.cosh(kx), np.sin(kx), np.cos(kx)
     # derivatives of (sinh - sin) and (cosh - cos), divided by k^j
     table = {
-        0: (sh - s, ch - c),
-        1: (ch - c, sh + s),
-        2: (sh + s, ch + c),
-        3: (ch + c, sh - s),
+        0: (sh - s, ch - c, sh + s),
+        1: (ch - c, sh + s, ch + c),
+        2: (sh + s, ch + c, sh - s),
+        3: (ch + c, sh - s, ch - c),
     }
     if derivative not in table:
         raise ValueError(f"derivative: expected 0..3, got {derivative}")
-    f1, f2 = table[derivative]
-    return (k[:, None] ** derivative) * (coef[:, :1] * f1 + coef[:, 1:] * f2)
+    f1, f2, f3 = table[derivative]
+    out = coef[:, :1] * f1 + coef[:, 1:2] * f2
+    if coef.shape[1] > 2:
+        out = out + coef[:, 2:3] * f3
+    return (k[:, None] ** derivative) * out
 
 
 def gauss_points(length: float, n: int = 64):
@@ -299,9 +331,98 @@ def gauss_points(length: float, n: int = 64):
     return 0.5 * length * (xg + 1.0), 0.5 * length * wg
 
 
+def _tip_rows(beta, mass_ratio, inertia_ratio, compliance):
+    """Tip conditions (4.4.3), (4.4.4) on ``(a, b)`` for the spring-supported shape (L = rho = 1), / cosh."""
+    b = np.asarray(beta, dtype=np.float64)
+    t, sech = np.tanh(b), 1.0 / np.cosh(b)
+    s, c = np.sin(b) * sech, np.cos(b) * sech
+    # sinh, cosh divided by cosh
+    sh, ch = t, np.ones_like(b)
+    kap = compliance * b              # c = kap * b_coef (k EI / K_r with L = 1)
+    g = b**3 * inertia_ratio
+    e = b * mass_ratio
+    S1 = (sh - s, ch - c, sh + s, ch + c)
+    S2 = tuple(u + kap * v for u, v in zip((ch - c, sh + s, ch + c, sh - s), (sh + s, ch + c, sh - s, ch - c)))
+    m1, m2 = S1[2] - g * S1[1], S2[2] - g * S2[1]
+    f1, f2 = S1[3] + e * S1[0], S2[3] + e * S2[0]
+    return m1, m2, f1, f2
+
+
+def characteristic_spring_hinged(beta, mass_ratio: float, inertia_ratio: float, compliance: float):
+    """Characteristic function (4.4.5) of a beam on a rotary spring with tip mass and inertia.
+
+    Written as the determinant of the two tip conditions on the shapes that
+    satisfy the hub conditions (4.4.1), (4.4.2); its roots are those of (4.4.5).
+
+    Parameters
+    ----------
+    beta : array_like
+        Dimensionless wave numbers ``k_w L``.
+    mass_ratio, inertia_ratio : float
+        ``m_L / (rho_b L)`` and ``I_L / (rho_b L^3)``, both >= 0.
+    compliance : float
+        ``EI / (K_r L)`` (0: rigid clamping, then the roots are those of (4.4.6)).
+
+    Returns
+    -------
+    ndarray
+        Same shape as ``beta``; bounded (divided by ``cosh^2 beta``).
+    """
+    m1, m2, f1, f2 = _tip_rows(beta, mass_ratio, inertia_ratio, compliance)
+    return m1 * f2 - m2 * f1
+
+
+def spring_hinged_roots(n_roots: int, mass_ratio: float, inertia_ratio: float, compliance: float) -> np.ndarray:
+    """First ``n_roots`` positive roots ``beta_r`` of (4.4.5) by bracketing and Brent's method.
+
+    Parameters
+    ----------
+    n_roots : int
+        Number of roots wanted (>= 1).
+    mass_ratio, inertia_ratio : float
+        ``m_L / (rho_b L)`` and ``I_L / (rho_b L^3)``.
+    compliance : float
+        ``EI / (K_r L)`` >= 0 (the seed's ``EI_z / K_r`` over the length).
+
+    Returns
+    -------
+    beta : ndarray, shape (n_roots,)
+        Increasing roots; ``omega_r = beta_r^2 sqrt(EI / (rho_b L^4))`` (4.4.7).
+
+    Raises
+    ------
+    ValueError
+        If a ratio or the compliance is negative or ``n_roots < 1``.
+
+    Examples
+    --------
+    >>> bool(np.allclose(spring_hinged_roots(2, 0.5, 0.1, 0.0), tip_load_roots(2, 0.5, 0.1)))
+    True
+    """
+    if n_roots < 1:
+        raise ValueError(f"n_roots: expected >= 1, got {n_roots}")
+    if mass_ratio < 0 or inertia_ratio < 0 or compliance < 0:
+        raise ValueError(f"mass_ratio, inertia_ratio, compliance: expected >= 0, got "
+                         f"{mass_ratio}, {inertia_ratio}, {compliance}")
+    f = functools.partial(characteristic_spring_hinged, mass_ratio=mass_ratio, inertia_ratio=inertia_ratio,
+                          compliance=compliance)
+    roots: list[float] = []
+    lo, step = 1e-4, 0.005
+    while len(roots) < n_roots:
+        pts = lo + step * np.arange(0, 2001)
+        vals = f(pts)
+        idx = np.nonzero(np.sign(vals[:-1]) * np.sign(vals[1:]) < 0)[0]
+        for i in idx:
+            roots.append(brentq(f, pts[i], pts[i + 1], xtol=1e-13, rtol=1e-13))
+            if len(roots) == n_roots:
+                break
+        lo = pts[-1]
+    return np.asarray(roots[:n_roots])
+
+
 def modal_basis(link: LinkParams, tip_mass_kg: float, tip_inertia_kg_m2: float,
-                n_modes: int = 2) -> ModalBasis:
-    """Solve the boundary-value problem (4.4.6) for one link and build its modes.
+                n_modes: int = 2, hub_stiffness_Nm_rad: float = float("inf")) -> ModalBasis:
+    """Solve the boundary-value problem (4.4.6), or (4.4.5) with a hub spring, for one link and build its modes.
 
     Parameters
     ----------
@@ -311,6 +432,9 @@ def modal_basis(link: LinkParams, tip_mass_kg: float, tip_inertia_kg_m2: float,
         Aggregated load at the tip; the inertia is about the tip bending axis.
     n_modes : int
         Number of modes (>= 1).
+    hub_stiffness_Nm_rad : float, optional
+        Rotary clamping stiffness ``K_r`` at the hub, N m/rad; ``inf`` (default) is
+        the rigid clamping of (4.4.6).
 
     Returns
     -------
@@ -319,7 +443,7 @@ def modal_basis(link: LinkParams, tip_mass_kg: float, tip_inertia_kg_m2: float,
     Raises
     ------
     ValueError
-        If the tip load is negative or ``n_modes < 1``.
+        If the tip load is negative, ``n_modes < 1`` or ``hub_stiffness_Nm_rad`` is not positive.
 
     Examples
     --------
@@ -330,34 +454,32 @@ def modal_basis(link: LinkParams, tip_mass_kg: float, tip_inertia_kg_m2: float,
     """
     if tip_mass_kg < 0 or tip_inertia_kg_m2 < 0:
         raise ValueError(f"tip load: expected mass and inertia >= 0, got {tip_mass_kg}, {tip_inertia_kg_m2}")
+    if not hub_stiffness_Nm_rad > 0:
+        raise ValueError(f"hub_stiffness_Nm_rad: expected > 0 (inf for rigid clamping), got {hub_stiffness_Nm_rad}")
     return _modal_basis_cached(float(link.length_m), link_rho(link), link_rigidity(link),
                                float(link.height_m), float(tip_mass_kg), float(tip_inertia_kg_m2),
-                               int(n_modes))
+                               int(n_modes), float(hub_stiffness_Nm_rad))
 
 
 @functools.lru_cache(maxsize=256)
-def _modal_basis_cached(L, rho, EI, h, mL, IL, n_modes) -> ModalBasis:
-    beta = tip_load_roots(n_modes, mL / (rho * L), IL / (rho * L**3))
+def _modal_basis_cached(L, rho, EI, h, mL, IL, n_modes, Kr=float("inf")) -> ModalBasis:
+    rigid = not np.isfinite(Kr)
+    comp = 0.0 if rigid else EI / (Kr * L)
+    if rigid:
+        beta = tip_load_roots(n_modes, mL / (rho * L), IL / (rho * L**3))
+    else:
+        beta = spring_hinged_roots(n_modes, mL / (rho * L), IL / (rho * L**3), comp)
     k = beta / L
     omega = beta**2 * np.sqrt(EI / (rho * L**4))
-    coef = np.zeros((n_modes, 2))
+    coef = np.zeros((n_modes, 3))
     for r, kr in enumerate(k):
-        # tip moment condition (4.4.3): Phi''(L) - k^4 I_L / rho Phi'(L) = 0  ->  row [m1, m2] . [a, b] = 0
-        bl = kr * L
-        sh, ch, s, c = np.sinh(bl), np.cosh(bl), np.sin(bl), np.cos(bl)
-        g = kr**3 * IL / rho
-        m1 = (sh + s) - g * (ch - c)
-        m2 = (ch + c) - g * (sh + s)
-        # tip force condition (4.4.4): Phi'''(L) + k^4 m_L / rho Phi(L) = 0
-        e = kr * mL / rho
-        f1 = (ch + c) + e * (sh - s)
-        f2 = (sh - s) + e * (ch - c)
+        m1, m2, f1, f2 = (float(v) for v in _tip_rows(kr * L, mL / (rho * L), IL / (rho * L**3), comp))
         # pick the better-conditioned row to fix the ratio a : b
         if abs(m1) + abs(m2) >= abs(f1) + abs(f2):
             a, b = m2, -m1
         else:
             a, b = f2, -f1
-        coef[r] = (a, b)
+        coef[r] = (a, b, b * kr * EI / Kr if not rigid else 0.0)
     if not np.all(np.isfinite(coef)):
         raise TudorVisionError("modal_basis: mode shape computation failed (non-finite coefficients)")
     xg, wg = gauss_points(L)
@@ -376,4 +498,4 @@ def _modal_basis_cached(L, rho, EI, h, mL, IL, n_modes) -> ModalBasis:
         arr.setflags(write=False)
     return ModalBasis(length_m=L, rho_kg_m=rho, flexural_rigidity_Nm2=EI, height_m=h,
                       tip_mass_kg=mL, tip_inertia_kg_m2=IL, beta=beta, omega_rad_s=omega, coef=coef,
-                      rotation_participation=gamma, translation_participation=pi_)
+                      rotation_participation=gamma, translation_participation=pi_, hub_stiffness_Nm_rad=Kr)

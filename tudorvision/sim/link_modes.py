@@ -36,6 +36,9 @@ class LinkModes:
         self.phiL = [float(x) for x in basis.shape([self.L])[:, 0]]
         self.dphiL = [float(x) for x in basis.shape([self.L], 1)[:, 0]]
         self.iphi = [float(x) for x in basis.static_coordinates(1.0, 0.0, 0.0) * om**2]
+        self.dphi0 = [float(x) for x in basis.hub_slope]     # Phi_r'(0): hub rotation per mode
+        K = float(basis.hub_stiffness_Nm_rad)
+        self.kinv = 0.0 if not np.isfinite(K) else 1.0 / K
         d2 = basis.shape(self.gauges, 2)
         self.ddphi_g = [[float(d2[r, k]) for r in range(n)] for k in range(len(self.gauges))]
         self.zoh = []
@@ -47,9 +50,14 @@ class LinkModes:
             self.zoh.append(tuple(float(v) for v in A.ravel()))
         self.n = n
 
-    def generalised_force(self, q: float, P: float, M: float) -> list:
-        """Modal forces of a distributed load ``q`` (N/m), tip force ``P`` (N) and tip moment ``M`` (N m)."""
-        return [self.iphi[r] * q + self.phiL[r] * P + self.dphiL[r] * M for r in range(self.n)]
+    def generalised_force(self, q: float, P: float, M: float, Mh: float = 0.0) -> list:
+        """Modal forces of a distributed load ``q`` (N/m), tip force ``P`` (N), tip moment ``M`` and root moment ``Mh`` (N m)."""
+        return [self.iphi[r] * q + self.phiL[r] * P + self.dphiL[r] * M + self.dphi0[r] * Mh for r in range(self.n)]
+
+    def static_hub_angle(self, q: float, P: float, M: float, Mh: float = 0.0) -> float:
+        """Rotation of the root on the hub spring under static loads, rad (0 for rigid clamping)."""
+        L = self.L
+        return (q * L * L / 2.0 + P * L + M + Mh) * self.kinv
 
     def zoh_step(self, r: int, eta: list, deta: list, u: float, dt: float) -> float:
         """Exact step of ``eta'' + c eta' + w^2 eta = u`` for mode ``r`` (in place); returns the mean acceleration."""
@@ -76,6 +84,8 @@ class LinkModes:
                                       tip_force_N=loads[1], tip_moment_Nm=loads[2])
         wsL, ssL, _ = cantilever_static(B.length_m, B.length_m, B.flexural_rigidity_Nm2, q_N_m=loads[0],
                                         tip_force_N=loads[1], tip_moment_Nm=loads[2])
+        ph = self.static_hub_angle(*loads)          # rigid rotation on the hub spring
+        ws, wsL, ssL = ws + xg * ph, wsL + B.length_m * ph, ssL + ph
         nu = np.asarray(eta) - B.static_coordinates(*loads)
         phi = B.shape(xg)
         w = ws + nu @ phi

@@ -127,6 +127,11 @@ class PlantConfig:
     coulomb_friction : bool
         Apply the joints' Coulomb friction with sticking (3.1.3); ``False``
         keeps only the viscous part (a diagnostic of the damping benchmark).
+    hub_stiffness_Nm_rad, hub_damping_Nms_rad, backlash_rad : tuple of 2 floats
+        Joint-side compliance of links 2 and 3 (:mod:`tudorvision.sim.joint_compliance`):
+        rotary clamping stiffness ``K_r`` of (4.4.5) (``inf``: rigid clamping, the default),
+        a damper beside it and the full width of the gear backlash, a dead zone of the
+        spring and damper. :meth:`seed_measured` gives the values identified on the seed.
     """
 
     dt: float = 0.0005
@@ -142,6 +147,26 @@ class PlantConfig:
     strain_noise_m_m: float = 0.0
     noise_seed: int = 0
     coulomb_friction: bool = True
+    hub_stiffness_Nm_rad: tuple = (float("inf"), float("inf"))
+    hub_damping_Nms_rad: tuple = (0.0, 0.0)
+    backlash_rad: tuple = (0.0, 0.0)
+
+    @classmethod
+    def seed_measured(cls, **overrides) -> "PlantConfig":
+        """The plant identified on the seed's measured modes (sections 4.7, 4.8; docs/simulation.md).
+
+        Parameters
+        ----------
+        **overrides
+            Other fields, as for the constructor.
+
+        Returns
+        -------
+        PlantConfig
+            Hub springs, dampers and backlash of :data:`tudorvision.sim.joint_compliance.SEED_MEASURED`.
+        """
+        from .joint_compliance import SEED_MEASURED
+        return cls(**{**SEED_MEASURED, **overrides})
 
 
 @dataclass(frozen=True, kw_only=True)
