@@ -11,6 +11,7 @@ __all__ = ["register"]
 CALIB_MODULES = (
     "tudorvision.cli.calib_stereo",
     "tudorvision.cli.calib_rgbd",
+    "tudorvision.cli.calib_convert",
 )
 
 

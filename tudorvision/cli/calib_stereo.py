@@ -7,6 +7,7 @@ Thin shells over :mod:`tudorvision.stereo.calibrate` and
 from __future__ import annotations
 
 import re
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +30,9 @@ def register(calib_sub) -> None:
                     "where the board is not found in both images are skipped and counted.")
     p.add_argument("--left", help="comma-separated left images")
     p.add_argument("--right", help="comma-separated right images (same order as --left)")
-    p.add_argument("--dir", help="directory with left*/right* images, paired in natural sort order")
+    p.add_argument("--dir", help="directory with left/ and right/ image folders (a stereo recording such as "
+                                 "sample_data/stereo-checkerboard), left*/right* image folders, or left*/right* "
+                                 "images side by side; paired in natural sort order")
     p.add_argument("--board", default="9x6", help="inner corners COLSxROWS (default 9x6)")
     p.add_argument("--square", type=float, default=0.025, help="square edge length in metres (default 0.025)")
     p.add_argument("--out", help="calibration file to write (project YAML format)")
@@ -47,6 +50,8 @@ def register(calib_sub) -> None:
     p.add_argument("--line-time", type=float, default=None, metavar="S",
                    help="rolling-shutter row time in seconds, stored with both cameras")
     p.add_argument("--min-views", type=int, default=3, help="fewest usable pairs (default 3)")
+    p.add_argument("--allow-swapped", action="store_true",
+                   help="exit 0 even when left and right look swapped (T_x > 0); the warning is still printed")
     p.set_defaults(func=run_stereo)
 
     b = calib_sub.add_parser(
@@ -80,20 +85,45 @@ def _natural_key(p: Path):
     return [int(s) if s.isdigit() else s.lower() for s in re.split(r"(\d+)", p.name)]
 
 
+def _images_in(d: Path) -> list[Path]:
+    return sorted((f for f in d.iterdir() if f.is_file() and f.suffix.lower() in _IMAGE_SUFFIXES), key=_natural_key)
+
+
+def _side_folders(d: Path, side: str) -> list[Path]:
+    return [f for f in d.iterdir() if f.is_dir() and f.name.lower().startswith(side) and _images_in(f)]
+
+
+def _dir_lists(d: Path) -> tuple[list[Path], list[Path]]:
+    """Left and right images of ``--dir``: ``left/`` + ``right/`` (or one ``left*`` + one ``right*``) folders,
+    else ``left*`` / ``right*`` files side by side."""
+    if not d.is_dir():
+        raise TudorVisionError(f"{d}: not a directory")
+    lf, rf = _side_folders(d, "left"), _side_folders(d, "right")
+    if lf or rf:
+        exact = [d / "left", d / "right"]
+        if all(f.is_dir() for f in exact):
+            lf, rf = [exact[0]], [exact[1]]
+        if len(lf) != 1 or len(rf) != 1:
+            raise TudorVisionError(f"{d}: expected one left* and one right* image folder, found "
+                                   f"{', '.join(f.name for f in lf + rf) or 'one side only'}")
+        left, right = _images_in(lf[0]), _images_in(rf[0])
+        where = f"{lf[0].name}/ and {rf[0].name}/"
+    else:
+        files = _images_in(d)
+        left = [f for f in files if f.name.lower().startswith("left")]
+        right = [f for f in files if f.name.lower().startswith("right")]
+        where = "left* and right* files"
+    if not left or len(left) != len(right):
+        raise TudorVisionError(f"{d}: found {len(left)} left and {len(right)} right images ({where}); "
+                               "need the same nonzero number")
+    return left, right
+
+
 def _image_lists(args) -> tuple[list[Path], list[Path]]:
     if args.dir:
         if args.left or args.right:
             raise TudorVisionError("give either --dir or --left/--right, not both")
-        d = Path(args.dir)
-        if not d.is_dir():
-            raise TudorVisionError(f"{d}: not a directory")
-        files = [f for f in d.iterdir() if f.suffix.lower() in _IMAGE_SUFFIXES]
-        left = sorted((f for f in files if f.name.lower().startswith("left")), key=_natural_key)
-        right = sorted((f for f in files if f.name.lower().startswith("right")), key=_natural_key)
-        if not left or len(left) != len(right):
-            raise TudorVisionError(f"{d}: found {len(left)} left* and {len(right)} right* images; "
-                                   "need the same nonzero number")
-        return left, right
+        return _dir_lists(Path(args.dir))
     if not (args.left and args.right):
         raise TudorVisionError("give --dir DIR or both --left and --right image lists")
     left = [Path(s.strip()) for s in args.left.split(",") if s.strip()]
@@ -107,6 +137,7 @@ def _image_lists(args) -> tuple[list[Path], list[Path]]:
 
 
 def run_stereo(args) -> int:
+    from ..io.calib_formats import swapped_stereo_reason
     from ..io.calibration import save_calibration
     from ..io.formats import save_opencv_stereo, save_ros_camera_info
     from ..stereo.calibrate import calibrate_stereo_from_images, parse_board, plot_view_errors
@@ -123,8 +154,14 @@ def run_stereo(args) -> int:
     print(f"board {board[0]}x{board[1]} inner corners, square {args.square} m")
     print(res.summary())
     cal = res.calibration
+    swapped = swapped_stereo_reason(cal)
+    header = f"stereo calibration from {len(res.views)} checkerboard pairs"
+    if swapped:
+        print(f"warning: {swapped}" + (" (accepted: --allow-swapped)" if args.allow_swapped else ""),
+              file=sys.stderr)
+        header += f"\nWARNING: {swapped}"
     if args.out:
-        print(f"wrote {save_calibration(cal, args.out, header='stereo calibration from ' f'{len(res.views)} checkerboard pairs')}")
+        print(f"wrote {save_calibration(cal, args.out, header=header)}")
     if args.plot:
         print(f"wrote {plot_view_errors(res, args.plot)}")
     st = cal.stereo
@@ -138,7 +175,7 @@ def run_stereo(args) -> int:
             print(f"wrote {f}")
     if not (args.out or args.export_ros or args.export_opencv):
         print("note: nothing written (use --out, --export-ros or --export-opencv)")
-    return 0
+    return 3 if swapped and not args.allow_swapped else 0
 
 
 # ----------------------------------------------------------------------------- calib base-stereo
@@ -166,8 +203,8 @@ def _joint_log(args):
 
 def _track_sweep(args):
     """Track SEQ in the left camera frame: (Trajectory, Calibration used)."""
-    from ..io import load_calibration
     from ..io.sequence import open_sequence
+    from .calib_convert import load_calibration_arg
     from .stereo import luma_edge_params
     from ..stereo.colormodel import load_color_models
     from ..stereo.pipeline import PipelineOptions
@@ -182,9 +219,7 @@ def _track_sweep(args):
     seq = open_sequence(args.seq, strict=False)
     try:
         if args.calib:
-            if not Path(args.calib).is_file():
-                raise TudorVisionError(f"{args.calib}: calibration file not found")
-            cal = load_calibration(args.calib)
+            cal = load_calibration_arg(args.calib, size=tuple((seq.size or {}).get("left", ())) or None)
         else:
             cal = seq.calibration
             if cal is None:

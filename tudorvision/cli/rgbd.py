@@ -21,21 +21,10 @@ BALL_CSV_COLUMNS = ("frame", "t", "u", "v", "x", "y", "z", "valid")
 
 
 def camera_from_file(path):
-    """A CameraModel from a project calibration file or a ROS camera_info YAML."""
-    import yaml
+    """A CameraModel and its Calibration from a calibration in any format (``--calib``; see calib_convert)."""
+    from .calib_convert import load_calibration_arg
 
-    from ..io import load_calibration, load_ros_camera_info
-
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(2, "no such calibration file", str(path))
-    try:
-        doc = yaml.safe_load(path.read_text())
-    except yaml.YAMLError:
-        doc = None
-    if isinstance(doc, dict) and "camera_matrix" in doc:
-        return load_ros_camera_info(path).camera, None
-    cal = load_calibration(path)
+    cal = load_calibration_arg(path)
     return pick_camera(cal, path), cal
 
 

@@ -6,6 +6,7 @@ frames are skipped, counted and listed, and the partial result is written.
 """
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,9 @@ from .._checks import TudorVisionError
 from .seq import add_sequence_options, partial_flags, problem_lines, sequence_options
 
 __all__ = ["register"]
+
+#: Exit code of a tracking run that finished but has no valid frame (the trajectory is still written).
+NO_VALID_EXIT = 3
 
 
 def register(subparsers) -> None:
@@ -223,12 +227,12 @@ def run_colormodel(args) -> int:
 
 # ----------------------------------------------------------------------------- track stereo
 def _calibrations(args, seq):
-    from ..io import load_calibration
+    from .calib_convert import load_calibration_arg
 
+    size = (seq.size or {})
     if args.calib:
-        if not Path(args.calib).is_file():
-            raise TudorVisionError(f"{args.calib}: calibration file not found")
-        cal = load_calibration(args.calib)
+        left_size = tuple(size["left"]) if "left" in size else None
+        cal = load_calibration_arg(args.calib, size=left_size)
         cal_name = args.calib
     else:
         cal = seq.calibration
@@ -239,9 +243,7 @@ def _calibrations(args, seq):
         raise TudorVisionError(f"{cal_name}: has no stereo extrinsics (run 'tudorvision calib stereo')")
     T, source = None, None
     if args.base_calib:
-        if not Path(args.base_calib).is_file():
-            raise TudorVisionError(f"{args.base_calib}: calibration file not found")
-        base = load_calibration(args.base_calib)
+        base = load_calibration_arg(args.base_calib, option="--base-calib")
         if "T_base_left" not in base.transforms:
             raise TudorVisionError(f"{args.base_calib}: has no transforms.T_base_left "
                                    "(run 'tudorvision calib base-stereo')")
@@ -251,7 +253,6 @@ def _calibrations(args, seq):
     if args.no_base:
         T, source = None, None
     # image size check against the recording's declared size, before any frame is decoded
-    size = (seq.size or {})
     for cam in ("left", "right"):
         cm = cal.camera(getattr(cal.stereo, cam))
         if cam in size and tuple(size[cam]) != (cm.width, cm.height):
@@ -270,6 +271,43 @@ def _sphere_separation(models):
     if len(names) != 2 or not all(n in offsets for n in names):
         return None
     return float(np.linalg.norm(np.subtract(offsets[names[0]], offsets[names[1]])))
+
+
+class _ValidityDiagnosis:
+    """Counts, per processed frame, where the spheres were lost, to explain a run with no valid frame."""
+
+    _GEOMETRY = ("stereo-inconsistent", "sphere separation")
+
+    def __init__(self):
+        self.frames = 0
+        self.geometry = 0
+        self.found = {"left": 0, "right": 0}
+
+    def __call__(self, res, frame=None) -> None:
+        self.frames += 1
+        dets = res.detections
+        seen = {cam: all(d.valid or any(g in (d.reason or "") for g in self._GEOMETRY) for d in dets[cam].values())
+                for cam in ("left", "right")}
+        for cam in seen:
+            self.found[cam] += int(seen[cam])
+        if not res.valid and seen["left"] and seen["right"]:
+            self.geometry += 1
+
+    def cause(self, cal) -> str:
+        """The likely cause of 0 % valid frames, one line."""
+        from ..io.calib_formats import swapped_stereo_reason
+
+        n = self.frames
+        swapped = swapped_stereo_reason(cal)
+        if swapped:
+            return f"the calibration's {swapped}"
+        if self.geometry * 2 >= n:
+            return (f"both spheres were found in both images in {self.geometry} of {n} frames but do not fit the "
+                    "calibration's epipolar geometry: the calibration is likely not this rig's, or the left and "
+                    "right images are exchanged (check --calib and the sequence's left/right streams)")
+        missing = [f"{cam} {self.found[cam]} of {n}" for cam in ("left", "right")]
+        return (f"the spheres were found in too few frames (all spheres seen: {', '.join(missing)} frames): check "
+                "the colour models (tudorvision colormodel --save-frame, then --pick) for that camera")
 
 
 def run_track_stereo(args) -> int:
@@ -295,10 +333,17 @@ def run_track_stereo(args) -> int:
     if args.rerun:
         from ..stereo.rerun_log import RerunStereoLog
         log = RerunStereoLog(args.rerun, image_every=args.rerun_image_every)
+    diag = _ValidityDiagnosis()
+
+    def on_result(r, frame):
+        diag(r, frame)
+        if log is not None:
+            log.log_frame(r, frame)
+
     try:
         res = track_stereo(seq, cal, models, T_base_left=T_base_left, options=options, live=args.live,
                            speed=args.speed, show_progress=None if not args.live else False,
-                           on_result=log.log_frame if log is not None else None, keep_partial=True)
+                           on_result=on_result, keep_partial=True)
     except BaseException:
         if log is not None:
             log.close()
@@ -326,13 +371,13 @@ def run_track_stereo(args) -> int:
         log.log_trajectory(traj, res.index)
         log.close()
         print(f"wrote {args.rerun}")
-    if res.stats.processed and res.stats.valid == 0:
-        print("warning: no frame has both spheres in both cameras: check the colour models "
-              "(tudorvision colormodel) and the calibration")
     speed = traj.speed
     if np.isfinite(speed).any():
         print(f"peak speed {np.nanmax(speed):.2f} m/s, peak acceleration {np.nanmax(traj.accel_norm):.1f} m/s^2")
     print(res.stats.summary())
+    if res.stats.processed and res.stats.valid == 0:
+        print(f"warning: 0 % valid: no frame has both spheres in both cameras: {diag.cause(cal)}", file=sys.stderr)
+        return _exit_code(res.stats.interrupted) or NO_VALID_EXIT
     return _exit_code(res.stats.interrupted)
 
 
@@ -354,8 +399,10 @@ def run_track_mono(args) -> int:
     out = write_mono_track_csv(args.out, res, comment="\n".join(
         flags + [f"video: {args.video}", f"sphere: {args.sphere} ({args.camera}) from {args.colormodel}"]))
     print(f"wrote {out} ({len(res.t)} rows)")
-    if len(res.t) and not np.any(res.valid):
-        print(f"warning: sphere {args.sphere!r} found in no frame: check the colour model "
-              "(tudorvision colormodel --pick mono:...)")
     print(res.stats.summary())
+    if len(res.t) and not np.any(res.valid):
+        print(f"warning: 0 % valid: sphere {args.sphere!r} found in no frame: the colour model likely does not "
+              f"fit this video (camera {args.camera!r}; re-pick with tudorvision colormodel --pick "
+              f"{args.camera}:...)", file=sys.stderr)
+        return _exit_code(res.stats.interrupted) or NO_VALID_EXIT
     return _exit_code(res.stats.interrupted)

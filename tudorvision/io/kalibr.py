@@ -115,7 +115,7 @@ def _undistorted_corner_radius(camera: CameraModel) -> float:
     v = np.array([-0.5, -0.5, camera.height - 0.5, camera.height - 0.5, -0.5, camera.height / 2])
     pts = np.stack([u, v], axis=1).reshape(-1, 1, 2)
     crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
-    xy = cv2.undistortPointsIter(pts, camera.K, camera.dist, None, None, crit).reshape(-1, 2)
+    xy = cv2.undistortPoints(pts, camera.K, camera.dist, R=None, P=None, criteria=crit).reshape(-1, 2)
     return float(np.max(np.hypot(xy[:, 0], xy[:, 1])))
 
 
