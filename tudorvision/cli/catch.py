@@ -37,7 +37,7 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
         Counts: frames, detections, throws, setpoints.
     """
     from .._progress import progress
-    from ..io import load_calibration, open_sequence
+    from ..io import open_sequence
     from ..rgbd.ball import BallDetector, BallDetectorOptions
     from .rgbd import intrinsics_for, noise_model_from_calibration
     from ..robot import load_robot_params
@@ -48,7 +48,7 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
     if seq.kind != "rgbd":
         raise TudorVisionError(f"{seq_path}: expected an RGB-D sequence, got kind {seq.kind!r}")
     K, cal = intrinsics_for(seq, calib)
-    cal_T = load_calibration(calib) if calib is not None else seq.calibration
+    cal_T = cal if calib is not None else seq.calibration   # --calib read once, any format (intrinsics_for)
     T_base_cam = _base_transform(cal_T, calib or seq_path)
     params = load_robot_params()
     km, ikm = demo_kinematics(DemoOptions(), params)

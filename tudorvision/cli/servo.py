@@ -292,7 +292,8 @@ def run_sequence(args) -> int:
     """Open loop on a recorded sequence: print one command line per frame."""
     import cv2
 
-    from ..io import load_calibration, open_sequence
+    from ..io import open_sequence
+    from .calib_convert import load_calibration_arg
     from ..servo.laws import LawConfig
     from ..servo.loop import VisualServo, default_T_ee_cam
     goal_path = Path(args.goal)
@@ -315,7 +316,7 @@ def run_sequence(args) -> int:
     if goal_depth.shape != bgr.shape[:2]:
         raise TudorVisionError(f"--goal-depth: size {goal_depth.shape[::-1]} differs from the goal image "
                                f"{bgr.shape[1::-1]}")
-    cal = load_calibration(args.calib) if args.calib else seq.calibration
+    cal = load_calibration_arg(args.calib) if args.calib else seq.calibration
     if cal is None:
         raise TudorVisionError(f"{args.seq}: no calibration; pass --calib")
     cams = dict(cal.cameras)
