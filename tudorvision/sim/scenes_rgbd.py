@@ -14,11 +14,11 @@ import numpy as np
 from .._checks import check_transform, check_vector
 from .camera import PinholeCamera, intrinsic_matrix, look_at
 from .lighting import AmbientLight, DirectionalLight
-from .render import Disc, Rectangle, Scene, Sphere
+from .render import Capsule, Disc, Rectangle, Scene, Sphere
 from .scenes import (KINECT_RATE_HZ, SimSetup, arm_at_time, arm_shapes, default_robot_params, lab_room, positive_float,
                      robot_base_shapes, sphere_radius_at_time, to_world, yaw_matrix)
 
-__all__ = ["kinect_camera", "planar_target", "wall_disc", "ballistic", "ball_throw", "eye_in_hand"]
+__all__ = ["kinect_camera", "planar_target", "wall_disc", "disc_on_arm", "ballistic", "ball_throw", "eye_in_hand"]
 
 
 def kinect_camera(T_world_cam, *, width: int = 640, height: int = 480, f_px: float = 525.0,
@@ -168,6 +168,135 @@ def wall_disc(disc_center_base, rng: np.random.Generator, *, T_world_base=np.eye
     return SimSetup(scene=scene, cameras={"rgbd": cam},
                     meta={"object_ids": scene.object_ids(t0), "T_world_base": T, "disc_center_world": disc_world,
                           "disc_radius_m": radius, "rate_hz": KINECT_RATE_HZ})
+
+
+def _ring_and_arm(arm, T_world_base, T_base_disc, disc_radius_m, ring_tube_m, n_ring):
+    """Arm capsules with link 3 ending on a net ring (capsule polygon) around the disc, world frame."""
+    T = T_world_base
+    c = T_base_disc[:3, 3]
+    n = T_base_disc[:3, 2]
+    shapes = [s for s in arm_shapes(arm, T, sphere_radius_m=0.01, spheres=False)]
+    r_ring = disc_radius_m + ring_tube_m
+    pts3 = arm.link_points_base[-1]
+    last = f"link3_{len(pts3) - 2}"
+    toward = pts3[-2] - c                                  # from the disc toward the elbow, in the disc plane
+    toward = toward - (toward @ n) * n
+    toward /= max(np.linalg.norm(toward), 1e-12)
+    attach = c + r_ring * toward
+    out = []
+    for sh in shapes:
+        if sh.name == last:
+            sh = Capsule(p0=sh.p0, p1=to_world(T, attach), radius=sh.radius, color_rgb=sh.color_rgb, name=last)
+        out.append(sh)
+    e1 = toward
+    e2 = np.cross(n, e1)
+    a = np.linspace(0.0, 2 * np.pi, n_ring + 1)
+    ring = [c + r_ring * (np.cos(x) * e1 + np.sin(x) * e2) for x in a]
+    for i in range(n_ring):
+        out.append(Capsule(p0=to_world(T, ring[i]), p1=to_world(T, ring[i + 1]), radius=ring_tube_m,
+                           color_rgb=(0.15, 0.15, 0.16), name=f"ring_{i}"))
+    return out
+
+
+def disc_on_arm(T_base_disc_at, arm_at, rng: np.random.Generator, *, T_world_base=np.eye(4),
+                disc_radius_m: float = 0.09, ring_tube_m: float = 0.006, n_ring: int = 16,
+                camera_distance_m: float = 5.0, camera_height_m: float = 1.6, camera_azimuth_rad: float = 0.0,
+                camera_roll_rad: float = 0.0, aim_offset_m=(0.0, 0.0, 0.0), background: str = "invalid",
+                near_gap_m: float = 0.3, width: int = 640, height: int = 480, t0: float = 0.0) -> SimSetup:
+    """Wall RGB-D camera and the calibration disc in a net ring at the end of the arm's thin links.
+
+    The disc (radius ``disc_radius_m``) sits in a ring of capsules (tube
+    radius ``ring_tube_m``) that touches it all round; link 3 ends on the ring,
+    so in depth the disc, the ring and the links are one connected surface.
+    The disc's pose follows the end effector (its normal is not made to face
+    the camera).
+
+    Parameters
+    ----------
+    T_base_disc_at : callable t -> ndarray, shape (4, 4)
+        Disc pose in the base frame at time ``t``: origin at the disc centre,
+        z axis along the disc normal.
+    arm_at : callable t -> ArmGeometry
+        The arm's links in the base frame (drawn without tracking spheres).
+    rng : numpy.random.Generator
+        Randomises lighting and clutter.
+    T_world_base : array_like, shape (4, 4)
+        Robot base pose in the world (floor at world z = 0).
+    disc_radius_m, ring_tube_m : float
+        Disc radius and ring tube radius, metres.
+    n_ring : int
+        Capsules forming the ring.
+    camera_distance_m : float
+        Distance from the camera to the joint-2 axis point above the base, metres.
+    camera_height_m : float
+        World height of the camera, metres.
+    camera_azimuth_rad : float
+        Camera direction about the base z axis, 0 = straight in front (base -y).
+    camera_roll_rad : float
+        Roll of the camera about its optical axis, rad.
+    aim_offset_m : array_like, shape (3,)
+        The optical axis passes this far (world) from the joint-2 axis point.
+    background : {"invalid", "near"}
+        ``"invalid"``: the room's back wall lies beyond the sensor's range;
+        ``"near"``: a wall ``near_gap_m`` behind the arm plane (base +y).
+    near_gap_m : float
+        Gap between the arm plane and the near wall, metres.
+    width, height : int
+        Image size, pixels.
+    t0 : float
+        A time at which the callables are defined (object names are listed once).
+
+    Returns
+    -------
+    SimSetup
+        ``cameras = {"rgbd"}``; ``meta``: ``object_ids``, ``T_world_base``,
+        ``T_base_cam`` (true camera pose in the base frame), ``disc_radius_m``,
+        ``background``, ``rate_hz``.
+
+    Raises
+    ------
+    ValueError
+        On a bad transform, a non-positive radius or distance, an unknown
+        ``background`` or a camera distance shorter than its height offset.
+    """
+    T = check_transform(T_world_base, "T_world_base")
+    radius = positive_float(disc_radius_m, "disc_radius_m")
+    tube = positive_float(ring_tube_m, "ring_tube_m")
+    dist = positive_float(camera_distance_m, "camera_distance_m")
+    if background not in ("invalid", "near"):
+        raise ValueError(f"background: expected 'invalid' or 'near', got {background!r}")
+    h1 = default_robot_params().link1_height_m
+    pivot = to_world(T, np.array([0.0, 0.0, h1]))
+    dz = camera_height_m - pivot[2]
+    if dist <= abs(dz):
+        raise ValueError(f"camera_distance_m: {dist} m is shorter than the camera's height offset {abs(dz):.2f} m")
+    horiz = np.sqrt(dist ** 2 - dz ** 2)
+    eye = to_world(T, np.array([-horiz * np.sin(camera_azimuth_rad), -horiz * np.cos(camera_azimuth_rad), 0.0]))
+    eye[2] = camera_height_m
+    T_wc = look_at(eye, pivot + check_vector(aim_offset_m, "aim_offset_m", 3), K=np.eye(3)).T_world_cam.copy()
+    c, s = np.cos(camera_roll_rad), np.sin(camera_roll_rad)
+    T_wc[:3, :3] = T_wc[:3, :3] @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    cam = kinect_camera(T_wc, width=width, height=height)
+    shapes, lights = _room_for_rgbd(rng, size_m=(8.0, 2 * horiz + 4.0, 3.0), center_xy=T[:2, 3],
+                                    keepout_xy=T[:2, 3], keepout_radius_m=1.4, n_clutter=6, n_distractors=2,
+                                    region_y=(T[1, 3] - 0.5, T[1, 3] + horiz))
+    shapes += robot_base_shapes(T, h1)
+    if background == "near":
+        shapes.append(Rectangle(center=to_world(T, np.array([0.0, near_gap_m, 1.4])), axis_u=T[:3, 0],
+                                axis_v=T[:3, 2], half_size=(3.0, 1.4), color_rgb=(0.7, 0.7, 0.68), name="near_wall"))
+
+    def dynamic(t):
+        Tbd = np.asarray(T_base_disc_at(t), float)
+        c_w = to_world(T, Tbd[:3, 3])
+        out = [Disc(center=c_w, normal=T[:3, :3] @ Tbd[:3, 2], radius=radius, color_rgb=(0.9, 0.85, 0.2),
+                    name="disc")]
+        return out + _ring_and_arm(arm_at(t), T, Tbd, radius, tube, int(n_ring))
+
+    scene = Scene(static=shapes, lights=lights, dynamic=dynamic)
+    T_base_cam = np.linalg.inv(T) @ T_wc
+    return SimSetup(scene=scene, cameras={"rgbd": cam},
+                    meta={"object_ids": scene.object_ids(t0), "T_world_base": T, "T_base_cam": T_base_cam,
+                          "disc_radius_m": radius, "background": background, "rate_hz": KINECT_RATE_HZ})
 
 
 def ballistic(p0_world, v0_world, *, t0: float = 0.0, gravity_m_s2: float = 9.81) -> Callable[[float], np.ndarray]:

@@ -1,0 +1,652 @@
+"""The calibration disc found as what it is: a planar disc of known radius, in 3D on the depth points.
+
+Issue 15. The seed segments the disc as "a region of uniform depth" grown from
+a seed pixel (:mod:`tudorvision.rgbd.disc`). On a real arm the disc sits in a
+net ring at the end of thin links, so in depth it is joined to the ring and
+the links (the region leaks along them), and behind it there is either no
+depth at all (a background out of range) or a wall a few decimetres away.
+Here the disc is measured in 3D near where it is expected:
+
+1. **Search window in 3D.** The valid pixels whose back-projected points lie
+   within ``disc_radius_m + margin`` of the predicted centre laterally (across
+   the viewing ray) and within that plus three depth-noise sigmas along it.
+2. **Plane.** RANSAC on those points (triples drawn from the core, the points
+   within one disc radius of the prediction), inlier band ``3 sigma_z``, then
+   a least-squares refit. When depth noise leaves the plane's tilt undetermined
+   (its standard error above ``max_normal_std_deg``), the normal of the
+   previous frames is used, else the one facing the camera.
+3. **Disc in the plane.** The inlier pixels form a mask; a closing fills noise
+   holes and an opening with a kernel of ``opening_fraction`` of the disc's
+   smaller image radius removes the thin links and anything else narrower than
+   the disc. Every pixel of the component under the prediction is then
+   intersected with the plane (its ray, not its noisy depth), so the disc's
+   points are metric positions in the plane.
+4. **Circle of known radius.** The centre is the area-weighted centroid of the
+   in-plane points inside a circle of the disc's radius about the current
+   centre, iterated to its fixed point (a mean shift with a flat kernel of the
+   disc's radius): the ring, link stubs and anything outside the disc do not
+   pull it. The disc area found inside 1.5 radii (the equivalent radius) must
+   fit the known radius, else the frame is skipped.
+
+:class:`DiscSweepTracker` predicts the centre from the previous frames: with
+joint angles, a circle fitted to the centres so far, parametrised by theta2
+(the disc turns about the joint-2 axis), otherwise a constant-velocity step.
+A frame where the disc cannot be measured (edge-on, out of range, occluded,
+off the image) is skipped and counted with its reason, never fatal.
+
+Only depth images, intrinsics and joint angles are used; no scene knowledge.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._checks import TudorVisionError, check_array
+from ..geometry import fit_circle_3d
+from ..sensors import KINECT_DEPTH_NOISE, DepthNoiseModel
+from .frames import Intrinsics, check_depth
+
+__all__ = ["Disc3DOptions", "DiscMeasurement", "measure_disc_3d", "DiscSweepTracker", "track_disc_sweep"]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Disc3DOptions:
+    """Options of the 3D disc measurement and of the sweep tracker.
+
+    Parameters
+    ----------
+    disc_radius_m : float
+        Radius of the calibration disc, metres (default 0.09: the 18 cm disc).
+    acquire_margin_m : float
+        Search margin around the prediction (beyond the disc radius) until the
+        disc has been found twice, metres.
+    min_margin_m, max_margin_m : float
+        Bounds of the search margin while tracking, metres.
+    plane_tol_sigma : float
+        Plane inlier band, in depth-noise sigmas at the predicted depth.
+    min_plane_tol_m : float
+        Smallest plane inlier band, metres.
+    ransac_iterations : int
+        Plane hypotheses per plane.
+
+    opening_fraction : float
+        Radius of the opening kernel as a fraction of the disc's smaller image
+        radius (the links are removed when thinner than twice that).
+    area_ratio : tuple of float
+        ``(low, high)`` accepted bounds of (disc area found within 1.5 radii of
+        the centre) / (pi R^2); a ring around the disc adds to it.
+    min_points : int
+        Fewest valid depth points in the search window.
+    min_minor_px : float
+        The disc is skipped when its smaller image radius is below this (seen
+        edge-on or too far), pixels.
+    max_normal_std_deg : float
+        Above this standard error of the fitted plane's normal, the plane keeps
+        the previous frames' normal (or faces the camera), degrees.
+    depth_model : tudorvision.sensors.DepthNoiseModel
+        ``sigma_z(z)`` in metres.
+    random_seed : int
+        Seed of the RANSAC sampling (results are reproducible).
+
+    Raises
+    ------
+    ValueError
+        On a non-positive radius or margin, inverted bounds or a bad fraction.
+    """
+
+    disc_radius_m: float = 0.09
+    acquire_margin_m: float = 0.15
+    min_margin_m: float = 0.04
+    max_margin_m: float = 0.2
+    plane_tol_sigma: float = 3.0
+    min_plane_tol_m: float = 0.01
+    ransac_iterations: int = 96
+    opening_fraction: float = 0.4
+    area_ratio: tuple = (0.45, 1.95)
+    min_points: int = 20
+    min_minor_px: float = 2.5
+    max_normal_std_deg: float = 10.0
+    depth_model: DepthNoiseModel = field(default=KINECT_DEPTH_NOISE)
+    random_seed: int = 0
+
+    def __post_init__(self):
+        if not self.disc_radius_m > 0:
+            raise ValueError(f"disc_radius_m: expected > 0, got {self.disc_radius_m}")
+        if not 0 < self.min_margin_m <= self.max_margin_m or not self.acquire_margin_m > 0:
+            raise ValueError("min_margin_m, max_margin_m, acquire_margin_m: expected 0 < min <= max and acquire > 0")
+        if not 0 < self.opening_fraction < 1:
+            raise ValueError(f"opening_fraction: expected in (0, 1), got {self.opening_fraction}")
+        if not 0 <= self.area_ratio[0] < self.area_ratio[1]:
+            raise ValueError(f"area_ratio: expected 0 <= low < high, got {self.area_ratio}")
+        if self.ransac_iterations < 1 or self.min_points < 3:
+            raise ValueError("ransac_iterations >= 1 and min_points >= 3 expected")
+
+
+@dataclass(frozen=True)
+class DiscMeasurement:
+    """The disc in one depth frame.
+
+    Parameters
+    ----------
+    valid : bool
+        False when the disc could not be measured (``reason`` says why).
+    centre_cam : ndarray, shape (3,)
+        Disc centre, metres, camera optical frame (x right, y down, z
+        forward); NaN when not valid.
+    normal_cam : ndarray, shape (3,)
+        Unit normal of the disc plane, facing the camera; NaN when not valid.
+    radius_m : float
+        Equivalent radius of the disc area found (``sqrt(A / pi)``), metres.
+    n_points : int
+        Disc pixels used for the centre.
+    plane_rmse_m : float
+        RMS distance of the plane inliers to the plane, metres.
+    normal_from : str
+        ``"fit"``, ``"prior"`` (previous frames) or ``"camera"`` (facing it).
+    reason : str
+        Why the frame was skipped; empty when ``valid``.
+    """
+
+    valid: bool
+    centre_cam: np.ndarray
+    normal_cam: np.ndarray
+    radius_m: float = float("nan")
+    n_points: int = 0
+    plane_rmse_m: float = float("nan")
+    normal_from: str = ""
+    reason: str = ""
+
+
+def _skip(reason: str, n: int = 0) -> DiscMeasurement:
+    nan3 = np.full(3, np.nan)
+    return DiscMeasurement(False, nan3, nan3.copy(), n_points=n, reason=reason)
+
+
+def _unit(v):
+    return v / np.linalg.norm(v)
+
+
+def _ransac_plane(P, core, tol, iterations, rng, view, min_cos_view):
+    """Plane (normal, offset) with the most inliers; triples drawn from the ``core`` points."""
+    idx = np.nonzero(core)[0] if core.sum() >= 3 else np.arange(len(P))
+    tri = idx[rng.integers(0, len(idx), size=(iterations, 3))]
+    a, b, c = P[tri[:, 0]], P[tri[:, 1]], P[tri[:, 2]]
+    n = np.cross(b - a, c - a)
+    norm = np.linalg.norm(n, axis=1)
+    ok = norm > 1e-12
+    if not ok.any():
+        return None
+    n = n[ok] / norm[ok, None]
+    a = a[ok]
+    if min_cos_view > 0:                      # planes seen too edge-on cannot show the disc
+        face = np.abs(n @ view) >= min_cos_view
+        if not face.any():
+            return None
+        n, a = n[face], a[face]
+    h = np.einsum("ij,ij->i", n, a)
+    r = np.abs(P @ n.T - h)
+    score = np.sum(np.minimum(r / tol, 1.0) ** 2, axis=0)       # MSAC: truncated squared residuals
+    k = int(np.argmin(score))
+    return n[k], float(h[k])
+
+
+def _refit(P, normal, h, tol):
+    """Least-squares plane of the inliers of (normal, h); returns normal, h, inlier mask, rmse, normal std (rad)."""
+    for _ in range(2):
+        inl = np.abs(P @ normal - h) <= tol
+        if inl.sum() < 3:
+            break
+        Q = P[inl]
+        c = Q.mean(axis=0)
+        _, s, vt = np.linalg.svd(Q - c, full_matrices=False)
+        normal, h = vt[2], float(vt[2] @ c)
+    inl = np.abs(P @ normal - h) <= tol
+    Q = P[inl]
+    if len(Q) < 3:
+        return normal, h, inl, float("nan"), float("inf")
+    c = Q.mean(axis=0)
+    s = np.linalg.svd(Q - c, compute_uv=False)
+    rmse = float(s[2] / np.sqrt(len(Q)))
+    spread = float(s[1] / np.sqrt(len(Q)))       # std of the points along the plane's narrower axis
+    std = rmse / (spread * np.sqrt(len(Q))) if spread > 0 else float("inf")
+    return normal, h, inl, rmse, float(std)
+
+
+def _mean_shift(Q, w, centre, R, edge):
+    """Fixed point of: centre = area-weighted mean of the points within ``R`` (soft edge of +-``edge``)."""
+    for _ in range(30):
+        dist = np.linalg.norm(Q - centre, axis=1)
+        wk = w * np.clip((R + edge - dist) / (2 * edge), 0.0, 1.0)
+        if wk.sum() <= 0:
+            return None
+        new = np.average(Q, axis=0, weights=wk)
+        moved = float(np.linalg.norm(new - centre))
+        centre = new
+        if moved < 1e-5:
+            break
+    return centre
+
+
+def _disc_kernel(r):
+    import cv2
+
+    r = max(int(round(r)), 1)
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+
+
+def measure_disc_3d(depth_m, intrinsics: Intrinsics, predicted_cam, margin_m: float,
+                    options: Disc3DOptions = Disc3DOptions(), *, normal_prior=None,
+                    rng: np.random.Generator | None = None) -> DiscMeasurement:
+    """Measure the disc near its predicted centre (plane fit and circle of known radius in 3D).
+
+    Parameters
+    ----------
+    depth_m : array_like, shape (H, W)
+        Depth (z) in metres; NaN or 0 = invalid.
+    intrinsics : Intrinsics
+        Pinhole intrinsics of the depth image (pixels).
+    predicted_cam : array_like, shape (3,)
+        Predicted disc centre, metres, camera optical frame.
+    margin_m : float
+        How far the true centre may be from the prediction, metres; the search
+        window reaches ``disc_radius_m + margin_m`` around it.
+    options : Disc3DOptions
+        Radius, tolerances and checks.
+    normal_prior : array_like, shape (3,), optional
+        Disc normal of the previous frames (camera frame), used when the plane
+        tilt is undetermined by the depth noise.
+    rng : numpy.random.Generator, optional
+        RANSAC sampling (default: seeded from ``options.random_seed``).
+
+    Returns
+    -------
+    DiscMeasurement
+        ``valid=False`` with the reason when the disc is not measurable in
+        this frame.
+
+    Raises
+    ------
+    ValueError
+        If the depth image does not have the intrinsics' shape or the
+        prediction is not three finite values.
+    """
+    import cv2
+
+    d = check_depth(depth_m, intrinsics=intrinsics, require_valid=False)
+    pred = check_array(predicted_cam, "predicted_cam", (3,))
+    rng = rng if rng is not None else np.random.default_rng(options.random_seed)
+    K, R = intrinsics, options.disc_radius_m
+    zp = float(pred[2])
+    if not zp > 0.1:
+        return _skip(f"predicted disc depth {zp:.2f} m is behind the camera")
+    f = float(np.sqrt(K.fx * K.fy))
+    reach = R + float(margin_m)
+    up, vp = K.fx * pred[0] / zp + K.cx, K.fy * pred[1] / zp + K.cy
+    half = int(np.ceil(f * reach / zp)) + 2
+    u0, u1 = max(0, int(np.floor(up)) - half), min(K.width, int(np.ceil(up)) + half + 1)
+    v0, v1 = max(0, int(np.floor(vp)) - half), min(K.height, int(np.ceil(vp)) + half + 1)
+    if u0 >= u1 or v0 >= v1:
+        return _skip(f"predicted disc at pixel ({up:.0f}, {vp:.0f}) is outside the image")
+    z = d[v0:v1, u0:u1]
+    gu, gv = np.meshgrid((np.arange(u0, u1) - K.cx) / K.fx, (np.arange(v0, v1) - K.cy) / K.fy)
+    lat = np.hypot(gu - pred[0] / zp, gv - pred[1] / zp) * zp          # lateral offset at the predicted depth
+    sigma = float(options.depth_model.sigma_m(zp))
+    with np.errstate(invalid="ignore"):
+        sel = np.isfinite(z) & (lat <= reach) & (np.abs(z - zp) <= reach + 3.0 * sigma)
+    n_sel = int(sel.sum())
+    if n_sel < options.min_points:
+        return _skip(f"only {n_sel} valid depth points within {reach:.2f} m of the predicted disc", n_sel)
+    P = np.column_stack([gu[sel] * z[sel], gv[sel] * z[sel], z[sel]])
+    tol = max(options.min_plane_tol_m, options.plane_tol_sigma * sigma)
+    geo = _Window(K, f, R, zp, pred, gu, gv, lat, sel, z.shape)
+    # the disc is the front surface near the prediction: a wall behind it would give RANSAC a plane slanted
+    # across both. Front = within the disc's depth extent (from the previous normal, else up to 60 deg of
+    # tilt) plus 3 sigma behind the 10th percentile depth of the points within one radius of the prediction.
+    zs, core = P[:, 2], lat[sel] <= R
+    z_front = float(np.quantile(zs[core] if core.sum() >= options.min_points else zs, 0.1))
+    tilt = np.radians(60.0)
+    if normal_prior is not None and np.all(np.isfinite(normal_prior)):
+        tilt = min(np.arccos(min(1.0, abs(float(_unit(np.asarray(normal_prior, float)) @ _unit(pred))))) +
+                   np.radians(15.0), np.radians(75.0))
+    front = zs <= z_front + 2.0 * R * np.sin(tilt) + 3.0 * sigma
+    found, first_reason = [], ""
+    for subset in (front, np.ones(len(P), bool)):
+        idx = np.nonzero(subset)[0]
+        if len(idx) < options.min_points:
+            continue
+        hyp = _ransac_plane(P[idx], core[idx], tol, options.ransac_iterations, rng, _unit(pred),
+                            min(0.9, options.min_minor_px * zp / (f * R)))
+        if hyp is None:
+            continue
+        normal, h, inl_sub, rmse, nstd = _refit(P[idx], *hyp, tol)
+        inl = np.zeros(len(P), bool)
+        inl[idx[inl_sub]] = True
+        if inl.sum() < options.min_points:
+            continue
+        m = _disc_in_plane(geo, P, inl, normal, h, rmse, nstd, tol, options, normal_prior)
+        if m.valid:
+            return m
+        first_reason = first_reason or m.reason
+        if subset.all():
+            break
+    return _skip(first_reason or "no plane through the points near the predicted disc", n_sel)
+
+
+@dataclass(frozen=True)
+class _Window:
+    K: Intrinsics
+    f: float
+    R: float
+    zp: float
+    pred: np.ndarray
+    gu: np.ndarray
+    gv: np.ndarray
+    lat: np.ndarray
+    sel: np.ndarray
+    shape: tuple
+
+
+def _patch(g, P, inl, minor_px, options):
+    """Pixels of the in-plane component under the prediction, after closing and opening (None if none)."""
+    import cv2
+
+    mask = np.zeros(g.shape, np.uint8)
+    vv, uu = np.nonzero(g.sel)
+    mask[vv[inl], uu[inl]] = 1
+    mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, _disc_kernel(1))
+    mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, _disc_kernel(options.opening_fraction * minor_px))
+    n_lab, labels = cv2.connectedComponents(mask, connectivity=8)
+    core = (g.lat <= g.R) & (labels > 0)
+    counts = np.bincount(labels[core], minlength=n_lab) if core.any() else np.zeros(n_lab, int)
+    if n_lab < 2 or counts[1:].max(initial=0) == 0:
+        return None
+    return labels == int(np.argmax(counts[1:]) + 1)
+
+
+def _disc_in_plane(g, P, inl, normal, h, rmse, nstd, tol, options, normal_prior) -> DiscMeasurement:
+    """The disc of known radius among the inliers of one plane (see the module notes, steps 3 and 4).
+
+    Two passes: the second takes the plane again from the depth points of the
+    disc found in the first only (a RANSAC plane may cut across the disc and a
+    surface behind it), with its own inliers, patch and centre.
+    """
+    K, f, R, zp, pred = g.K, g.f, g.R, g.zp, g.pred
+    index = np.full(g.shape, -1)
+    index[g.sel] = np.arange(len(P))
+    normal_from = "fit"
+    centre = None
+    for it in range(2):
+        if not np.degrees(nstd) <= options.max_normal_std_deg or normal_from != "fit":
+            # the depth noise leaves the tilt undetermined: keep the previous frames' normal, or face the camera
+            if normal_prior is not None and np.all(np.isfinite(normal_prior)):
+                normal, normal_from = _unit(np.asarray(normal_prior, float)), "prior"
+            else:
+                normal, normal_from = -_unit(pred), "camera"
+            h = float(np.median(P[inl] @ normal))
+            inl = np.abs(P @ normal - h) <= tol
+        if normal @ pred > 0:
+            normal, h = -normal, -h
+        cos_view = abs(float(normal @ _unit(pred)))
+        minor_px = f * R / zp * cos_view                       # the disc's smaller image radius
+        if minor_px < options.min_minor_px:
+            return _skip(f"disc seen edge-on: smaller image radius {minor_px:.1f} px (plane "
+                         f"{np.degrees(np.arccos(cos_view)):.0f} deg from the view)")
+        comp = _patch(g, P, inl, minor_px, options)
+        if comp is None:
+            return _skip("nothing as wide as the disc in the plane under the prediction (links only?)")
+        # every pixel of the patch on the plane: its ray, not its noisy depth
+        ru, rv = g.gu[comp], g.gv[comp]
+        ndotr = normal[0] * ru + normal[1] * rv + normal[2]
+        if np.min(np.abs(ndotr)) < 1e-6:
+            return _skip("disc plane parallel to a viewing ray")
+        t = h / ndotr
+        Q = np.column_stack([ru * t, rv * t, t])
+        w = t * t / (K.fx * K.fy * np.abs(ndotr))          # pixel footprint on the plane, m^2
+        start = np.average(Q, axis=0, weights=w) if centre is None else centre
+        centre = _mean_shift(Q, w, start, R, 0.5 * zp / f)
+        if centre is None:
+            return _skip("the disc patch lies outside one radius of its own centre")
+        if it == 1:
+            break
+        pidx = index[comp]
+        on = (np.linalg.norm(Q - centre, axis=1) <= R) & (pidx >= 0)
+        if on.sum() < options.min_points:
+            break
+        if normal_from == "fit":
+            normal, h, _, rmse, nstd = _refit(P[pidx[on]], normal, h, tol)
+        else:
+            h = float(np.median(P[pidx[on]] @ normal))
+        if normal @ pred > 0:
+            normal, h = -normal, -h
+        inl = np.abs(P @ normal - h) <= tol
+    area = float(w[np.linalg.norm(Q - centre, axis=1) <= 1.5 * R].sum())
+    ratio = area / (np.pi * R * R)
+    r_eq = float(np.sqrt(area / np.pi))
+    if not options.area_ratio[0] <= ratio <= options.area_ratio[1]:
+        return _skip(f"disc patch of equivalent radius {r_eq:.3f} m does not fit the {R:.3f} m disc "
+                     f"(area ratio {ratio:.2f} outside {options.area_ratio[0]}..{options.area_ratio[1]})")
+    reach = float(np.max(g.lat[g.sel])) if g.sel.any() else R
+    if np.linalg.norm(centre - pred) > reach:
+        return _skip(f"disc found {np.linalg.norm(centre - pred):.2f} m from the prediction")
+    return DiscMeasurement(True, centre, normal.copy(), r_eq, int(comp.sum()), rmse, normal_from)
+
+
+class DiscSweepTracker:
+    """Follow the disc through a theta2 sweep, predicting each centre from the previous frames.
+
+    Before the first measurement the prediction is the seed pixel at the
+    median depth around it. With joint angles, from three measurements spread
+    over at least ``circle_min_span_deg`` of theta2 on, the prediction is the
+    circle fitted to the centres so far at the frame's theta2 (the disc turns
+    about the joint-2 axis, so the jump back to the vertical posture is
+    predicted too); before that a linear step in theta2. Without joint angles a
+    constant-velocity step per frame. The search margin follows the
+    prediction's recent errors, within the options' bounds.
+
+    Parameters
+    ----------
+    intrinsics : Intrinsics
+        Pinhole intrinsics of the depth camera (pixels).
+    seed_uv : array_like, shape (2,)
+        A pixel on the disc in the first frame (u right, v down).
+    options : Disc3DOptions
+        Disc radius, tolerances, margins.
+    circle_min_span_deg : float
+        theta2 span of the measurements before the circle prediction is used.
+
+    Raises
+    ------
+    TudorVisionError
+        If ``seed_uv`` lies outside the image.
+
+    Examples
+    --------
+    >>> K = Intrinsics(525.0, 525.0, 40.0, 30.0, 80, 60)
+    >>> d = np.zeros((60, 80)); vv, uu = np.mgrid[:60, :80]
+    >>> d[(uu - 40) ** 2 + (vv - 30) ** 2 <= 15 ** 2] = 3.0       # a 9 cm disc 3 m away, nothing behind
+    >>> m = DiscSweepTracker(K, (44, 28)).update(d)
+    >>> m.valid, (np.round(m.centre_cam, 3) + 0.0).tolist()
+    (True, [0.0, 0.0, 3.0])
+    """
+
+    def __init__(self, intrinsics: Intrinsics, seed_uv, options: Disc3DOptions = Disc3DOptions(), *,
+                 circle_min_span_deg: float = 15.0):
+        self.intrinsics = intrinsics
+        self.options = options
+        s = check_array(seed_uv, "seed_uv", (2,))
+        if not (0 <= s[0] < intrinsics.width and 0 <= s[1] < intrinsics.height):
+            raise TudorVisionError(f"seed_uv: ({s[0]:.0f}, {s[1]:.0f}) lies outside the "
+                                   f"{intrinsics.width}x{intrinsics.height} image")
+        self.seed_uv = (float(s[0]), float(s[1]))
+        self.circle_min_span_rad = np.radians(circle_min_span_deg)
+        self.centres: list = []
+        self.theta2: list = []
+        self.normals: list = []
+        self.errors: list = []          # |measured - predicted| of recent frames
+        self.n_frames = 0
+        self.skipped: dict = {}         # frame number -> reason
+        self._rng = np.random.default_rng(options.random_seed)
+        self._circle = None
+        self._circle_n = 0
+
+    def _seed_prediction(self, d):
+        u, v = int(round(self.seed_uv[0])), int(round(self.seed_uv[1]))
+        for r in (2, 4, 8, 16, 32):
+            patch = d[max(0, v - r):v + r + 1, max(0, u - r):u + r + 1]
+            zs = patch[np.isfinite(patch)]
+            if len(zs) >= 5:
+                z = float(np.median(zs))
+                K = self.intrinsics
+                return np.array([(self.seed_uv[0] - K.cx) / K.fx * z, (self.seed_uv[1] - K.cy) / K.fy * z, z])
+        return None
+
+    def _fit_circle(self):
+        n = len(self.centres)
+        if self._circle is not None and n - self._circle_n < max(3, n // 10):
+            return self._circle
+        th = np.array(self.theta2)
+        if n < 3 or np.ptp(th) < self.circle_min_span_rad:
+            return None
+        pts = np.array(self.centres)
+        try:
+            fit = fit_circle_3d(pts, loss="soft_l1")
+        except ValueError:
+            return None
+        e1 = _unit(pts[0] - fit.centre - ((pts[0] - fit.centre) @ fit.normal) * fit.normal)
+        e2 = np.cross(fit.normal, e1)
+        a = np.arctan2((pts - fit.centre) @ e2, (pts - fit.centre) @ e1)
+        best = None
+        for s in (1.0, -1.0):
+            phi = float(np.angle(np.mean(np.exp(1j * (a - s * th)))))
+            res = float(np.mean(np.abs(np.angle(np.exp(1j * (a - s * th - phi))))))
+            if best is None or res < best[0]:
+                best = (res, s, phi)
+        self._circle = (fit.centre, fit.radius, e1, e2, best[1], best[2])
+        self._circle_n = n
+        return self._circle
+
+    def predict(self, theta2_rad=None):
+        """Predicted disc centre (camera frame, metres) and search margin (metres), or None before any measurement.
+
+        Parameters
+        ----------
+        theta2_rad : float, optional
+            Joint-2 angle of the frame to predict, rad.
+
+        Returns
+        -------
+        tuple of (ndarray, shape (3,), float) or None
+            Predicted centre and the margin to search around it.
+        """
+        o = self.options
+        if not self.centres:
+            return None
+        recent = float(np.max(self.errors[-5:])) if self.errors else o.acquire_margin_m
+        margin = float(np.clip(3.0 * recent + 0.02, o.min_margin_m, o.max_margin_m))
+        if theta2_rad is not None and self.theta2 and self.theta2[-1] is not None:
+            circ = self._fit_circle()
+            if circ is not None:
+                c, r, e1, e2, s, phi = circ
+                a = s * theta2_rad + phi
+                return c + r * (np.cos(a) * e1 + np.sin(a) * e2), margin
+            th = np.array(self.theta2)
+            pts = np.array(self.centres)
+            same = np.abs(th - theta2_rad) < np.radians(0.5)
+            if same.any():                                   # the same pose again
+                return pts[same].mean(axis=0), 2 * o.min_margin_m
+            far = np.nonzero(np.abs(th - th[-1]) > np.radians(0.5))[0]
+            if len(far):
+                k = far[-1]
+                v = (pts[-1] - pts[k]) / (th[-1] - th[k])
+                step = float(np.linalg.norm(v) * abs(theta2_rad - th[-1]))
+                return pts[-1] + v * (theta2_rad - th[-1]), float(np.clip(0.3 * step + 2 * o.min_margin_m,
+                                                                          o.min_margin_m, o.max_margin_m))
+            return pts[-1], o.acquire_margin_m
+        if len(self.centres) < 2:
+            return self.centres[-1], o.acquire_margin_m
+        return 2 * self.centres[-1] - self.centres[-2], max(margin, 0.5 * o.acquire_margin_m)
+
+    def update(self, depth_m, theta2_rad: float | None = None) -> DiscMeasurement:
+        """Measure the disc in the next frame.
+
+        Parameters
+        ----------
+        depth_m : array_like, shape (H, W)
+            Depth (z) in metres, NaN or 0 = invalid; the intrinsics' shape.
+        theta2_rad : float, optional
+            Joint-2 angle of this frame, rad (enables the circle prediction).
+
+        Returns
+        -------
+        DiscMeasurement
+            The disc centre (metres, camera frame); when it cannot be measured,
+            ``valid=False`` with the reason (also kept in ``skipped``).
+
+        Raises
+        ------
+        ValueError
+            If ``depth_m`` does not have the intrinsics' shape.
+        """
+        d = check_depth(depth_m, intrinsics=self.intrinsics, require_valid=False)
+        frame = self.n_frames
+        self.n_frames += 1
+        pred = self.predict(theta2_rad)
+        if pred is None:
+            p0 = self._seed_prediction(d)
+            if p0 is None:
+                m = _skip("no valid depth around the seed pixel")
+                self.skipped[frame] = m.reason
+                return m
+            pred = (p0, self.options.acquire_margin_m)
+        prior = np.median(np.array(self.normals[-10:]), axis=0) if self.normals else None
+        m = measure_disc_3d(d, self.intrinsics, pred[0], pred[1], self.options, normal_prior=prior, rng=self._rng)
+        if not m.valid:
+            self.skipped[frame] = m.reason
+            return m
+        if self.centres:
+            self.errors.append(float(np.linalg.norm(m.centre_cam - pred[0])))
+        self.centres.append(m.centre_cam)
+        self.theta2.append(None if theta2_rad is None else float(theta2_rad))
+        if m.normal_from == "fit":
+            self.normals.append(m.normal_cam)
+        if theta2_rad is None:
+            self.theta2 = [None] * len(self.centres)
+        return m
+
+
+def track_disc_sweep(depth_frames, intrinsics: Intrinsics, seed_uv, theta2_rad=None,
+                     options: Disc3DOptions = Disc3DOptions()):
+    """Measure the disc in every frame of a sweep (see :class:`DiscSweepTracker`).
+
+    Parameters
+    ----------
+    depth_frames : iterable of array_like, each shape (H, W)
+        Depth (z) in metres, NaN or 0 = invalid.
+    intrinsics : Intrinsics
+        Pinhole intrinsics of the depth camera (pixels).
+    seed_uv : array_like, shape (2,)
+        A pixel on the disc in the first frame.
+    theta2_rad : array_like, shape (N,), optional
+        Joint-2 angle per frame, rad.
+    options : Disc3DOptions
+        Disc radius, tolerances, margins.
+
+    Returns
+    -------
+    centres_cam : ndarray, shape (N, 3)
+        Disc centres, metres, camera frame; NaN rows for skipped frames.
+    skipped : dict
+        Frame index -> reason, for the frames where the disc was not measurable.
+
+    Raises
+    ------
+    TudorVisionError
+        If ``seed_uv`` lies outside the image.
+    """
+    tr = DiscSweepTracker(intrinsics, seed_uv, options)
+    out = []
+    for i, dm in enumerate(depth_frames):
+        th = None if theta2_rad is None else float(theta2_rad[i])
+        out.append(tr.update(dm, th).centre_cam)
+    return np.array(out).reshape(-1, 3), dict(tr.skipped)
