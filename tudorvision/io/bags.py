@@ -19,8 +19,7 @@ extrinsics from the rectification and projection matrices), ``rgbd`` or
 ``camera``.
 
 The bag is scanned once when opened (only the header stamps are parsed);
-frames are decoded on demand by one reader per stream that streams forward,
-so iterating in order reads the bag once more.
+frames are decoded on demand by one forward-streaming reader per stream.
 """
 from __future__ import annotations
 
@@ -40,10 +39,8 @@ from .frames import raw_from_depth_m
 __all__ = ["BagTopic", "is_bag", "bag_topics", "parse_topics", "choose_topics", "decode_image", "camera_from_info",
            "stereo_from_infos", "bag_spec", "BagFrames", "IMAGE_TYPES", "INFO_TYPE"]
 
-#: Message types read as image streams.
-IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")
-#: Message type read as calibration.
-INFO_TYPE = "sensor_msgs/msg/CameraInfo"
+IMAGE_TYPES = ("sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage")   #: read as image streams
+INFO_TYPE = "sensor_msgs/msg/CameraInfo"                                   #: read as calibration
 _STREAM_KEYS = ("left", "right", "rgb", "depth", "image")
 
 
@@ -107,6 +104,13 @@ def _open_reader(path: Path):
     return reader
 
 
+def _close(reader) -> None:
+    try:
+        reader.close()
+    except Exception:    # already closed, or broken by an earlier error: nothing left to release
+        pass
+
+
 def bag_topics(path) -> list[BagTopic]:
     """All topics of a bag with their types and message counts.
 
@@ -130,7 +134,7 @@ def bag_topics(path) -> list[BagTopic]:
         return [BagTopic(name, info.msgtype or "?", int(info.msgcount))
                 for name, info in sorted(reader.topics.items())]
     finally:
-        reader.close()
+        _close(reader)
 
 
 def parse_topics(text) -> dict[str, str]:
@@ -397,7 +401,7 @@ def stereo_from_infos(left, right) -> StereoExtrinsics | None:
         None when ``P2[0, 3]`` is zero (no baseline recorded).
     """
     (_, R1, P1), (_, R2, P2) = left, right
-    if P2[0, 0] == 0 or P2[0, 3] == 0:
+    if P2[0, 0] == 0 or P2[0, 3] == 0:                   # no baseline recorded
         return None
     tx = P2[0, 3] / P2[0, 0]
     f, cx, cy, cx2 = P1[0, 0], P1[0, 2], P1[1, 2], P2[0, 2]
@@ -445,13 +449,9 @@ class _Cursor:
             raise ImageProblem(f"cannot read message {k} of {self.topic} ({why})") from None
 
     def close(self):
-        self.gen = None
-        if self.reader is not None:
-            try:
-                self.reader.close()
-            except Exception:    # already closed or broken: nothing left to release
-                pass
-            self.reader = None
+        self.gen, reader, self.reader = None, self.reader, None
+        if reader is not None:
+            _close(reader)
 
 
 class BagFrames:
@@ -599,8 +599,7 @@ def bag_spec(path, *, topics=None, max_dt_s: float | None = None, depth_scale: f
         tops = [BagTopic(n, i.msgtype or "?", int(i.msgcount)) for n, i in sorted(reader.topics.items())]
         kind, streams, infos = choose_topics(tops, topics, where=str(path))
         topic_stream = {t: s for s, t in streams.items()}
-        stamps = {s: [] for s in streams}
-        logt = {s: [] for s in streams}
+        stamps, logt = {s: [] for s in streams}, {s: [] for s in streams}
         conns = [c for c in reader.connections if c.topic in topic_stream]
         for conn, ts, raw in reader.messages(connections=conns):
             s = topic_stream[conn.topic]
@@ -617,10 +616,7 @@ def bag_spec(path, *, topics=None, max_dt_s: float | None = None, depth_scale: f
     except Exception as exc:   # the library raises many types for damaged files
         raise TudorVisionError(f"{path}: cannot read bag ({_why(exc)})") from None
     finally:
-        try:
-            reader.close()
-        except Exception:      # a reader broken by the error above
-            pass
+        _close(reader)
     notes = [f"topics: {', '.join(f'{s}={t}' for s, t in streams.items())}"]
     names = list(streams)
     t = {s: np.asarray(stamps[s], dtype=np.float64) for s in names}
@@ -646,10 +642,9 @@ def bag_spec(path, *, topics=None, max_dt_s: float | None = None, depth_scale: f
         raise TudorVisionError(f"{path}: no frames on {', '.join(streams.values())}")
     scale = float(depth_scale) if depth_scale is not None else 1000.0
     cal = _calibration(kind, infos, msgs, path, notes)
-    layout = {".bag": "rosbag1", ".mcap": "mcap"}.get(path.suffix.lower(), "rosbag2") if path.is_file() \
-        else "rosbag2"
-    rate = 1.0 / period if period else None
+    layout = {".bag": "rosbag1", ".mcap": "mcap"}.get(path.suffix.lower() if path.is_file() else "", "rosbag2")
     src = BagFrames(path, streams, {s: np.asarray(logt[s], dtype=np.int64) for s in names}, frames, scale)
-    return Spec(path=path, layout=layout, kind=kind, rate_hz=rate, depth_scale=scale if kind == "rgbd" else None,
+    return Spec(path=path, layout=layout, kind=kind, rate_hz=1.0 / period if period else None,
+                depth_scale=scale if kind == "rgbd" else None,
                 streams=tuple(names), source=src, calibration=cal, notes=notes,
                 description=f"ROS bag {path.name}", meta={"topics": dict(streams)})
