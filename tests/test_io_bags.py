@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from tudorvision._checks import TudorVisionError
+import tudorvision.cli
 from tudorvision.cli import main
 from tudorvision.io import open_sequence
 from tudorvision.io.bags import (BagTopic, bag_topics, camera_from_info, choose_topics, decode_image, parse_topics,
@@ -148,6 +149,12 @@ def write_rgbd_bag(path: Path, flavour: str, *, float_depth: bool = False):
               T0 * 10**9)
     bag.close()
     return rgb, depth
+
+
+@pytest.fixture(autouse=True)
+def _only_needed_commands(monkeypatch):
+    """Build the real CLI with the commands these tests run (others may be mid-development)."""
+    monkeypatch.setattr(tudorvision.cli, "COMMAND_MODULES", ("tudorvision.cli.seq", "tudorvision.cli.stereo"))
 
 
 FLAVOURS = ["ros1", "sqlite3", "mcap"]
@@ -409,3 +416,23 @@ def test_sidecar_image_folder_with_kind_stereo_is_stereo_or_an_error(tmp_path):
     with pytest.raises(TudorVisionError, match=r"sequence.yaml:2: kind: 'stereo' contradicts layout "
                                                r"'image_folder'.*left/ \+ right/"):
         open_sequence(flat)
+
+
+# ----------------------------------------------------------------------------- tracking straight from a bag
+@pytest.mark.parametrize("flavour", ["ros1", "mcap"])
+def test_colormodel_and_track_mono_on_a_bag(tmp_path, flavour, capsys):
+    folder = _bag_path(tmp_path, flavour, "disc")
+    bag = _Bag(folder, flavour)
+    for k in range(6):
+        img = np.full((120, 160, 3), (90, 110, 100), np.uint8)
+        cv2.circle(img, (40 + 12 * k, 60), 15, (30, 30, 220), -1, lineType=cv2.LINE_AA)
+        bag.image("/cam/image_raw", T0 * 10**9 + k * DT_NS, img, "bgr8")
+    bag.close()
+    src = folder if flavour == "ros1" else _bare_mcap(folder)
+    cm, out = tmp_path / "cm.yaml", tmp_path / "track.csv"
+    assert main(["colormodel", str(src), "--pick", "mono:red:40,60:55,60", "--out", str(cm)]) == 0
+    assert main(["track", "mono", str(src), "--colormodel", str(cm), "--sphere", "red", "--out", str(out)]) == 0
+    rows = np.loadtxt(out, delimiter=",", comments="#", skiprows=5)
+    assert rows.shape == (6, 5) and np.all(rows[:, 4] == 1)
+    np.testing.assert_allclose(rows[:, 2], 40 + 12 * np.arange(6), atol=0.5)
+    np.testing.assert_allclose(rows[:, 1], T0 + np.arange(6) * DT_NS * 1e-9, atol=1e-6)

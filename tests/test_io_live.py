@@ -15,12 +15,19 @@ import numpy as np
 import pytest
 
 from tudorvision._checks import TudorVisionError
+import tudorvision.cli
 from tudorvision.cli import main
 from tudorvision.io import open_sequence
 from tudorvision.io._index import associate
 from tudorvision.io.live import (LiveCapture, StereoPairer, StreamEnded, is_live_source, live_spec,
                                  pair_by_timestamp, split_live_sources)
 
+
+
+@pytest.fixture(autouse=True)
+def _only_needed_commands(monkeypatch):
+    """Build the real CLI with the commands these tests run (others may be mid-development)."""
+    monkeypatch.setattr(tudorvision.cli, "COMMAND_MODULES", ("tudorvision.cli.seq", "tudorvision.cli.stereo"))
 
 # ----------------------------------------------------------------------------- pairing (pure)
 def test_pairing_exact_on_synthetic_timestamps():
