@@ -214,13 +214,10 @@ class DepthBackground:
 def ball_center_cam_from_pixels(u, v, z, intrinsics: Intrinsics, radius_m: float, *, iterations: int = 2):
     """Ball centre from the depths of its visible pixels (exact perspective sphere geometry).
 
-    The centre lies on the viewing ray ``d`` through the pixel centroid; each
-    pixel's surface point ``P`` (back-projected from its depth) is at ``R`` from
-    it, so the centre's distance along ``d`` is ``P.d + sqrt(R^2 - |P|^2 + (P.d)^2)``
-    (the far root). The mean over the pixels is unbiased whichever pixels are
-    visible (the limb lost at depth edges included); the earlier orthographic
-    approximation (lateral offset from the centre's depth, not the pixel's) put
-    the centre 0.2-1.3 mm too far at 1-4 m, several of its millimetre-noise sigmas.
+    The centre lies on the viewing ray ``d`` through the pixel centroid, ``R`` from
+    each pixel's back-projected surface point ``P``: at ``P.d + sqrt(R^2 - |P|^2 + (P.d)^2)``
+    along ``d``, averaged over the pixels (unbiased whichever are visible; the earlier
+    orthographic version was 0.2-1.3 mm far at 1-4 m, several millimetre-noise sigmas).
 
     Parameters
     ----------
@@ -233,7 +230,7 @@ def ball_center_cam_from_pixels(u, v, z, intrinsics: Intrinsics, radius_m: float
     radius_m : float
         Ball radius.
     iterations : int, optional
-        Unused (the solution is closed-form); kept for callers of the earlier iterative version.
+        Unused (closed form); kept for callers of the earlier iterative version.
 
     Returns
     -------
@@ -244,8 +241,7 @@ def ball_center_cam_from_pixels(u, v, z, intrinsics: Intrinsics, radius_m: float
 
     Examples
     --------
-    >>> K = Intrinsics(500.0, 500.0, 50.0, 50.0, 100, 100)
-    >>> c = np.array([0.0, 0.0, 2.0])                # a 10 cm sphere 2 m ahead, rays through pixel centres
+    >>> K, c = Intrinsics(500.0, 500.0, 50.0, 50.0, 100, 100), np.array([0.0, 0.0, 2.0])    # 10 cm sphere at 2 m
     >>> vv, uu = np.mgrid[0:100, 0:100].reshape(2, -1)
     >>> r = np.stack([(uu - 50.0) / 500.0, (vv - 50.0) / 500.0, np.ones(uu.shape)], axis=1)
     >>> b, a = r @ c, np.sum(r * r, axis=1)
@@ -348,14 +344,16 @@ def _refine(d: np.ndarray, bg: DepthBackground, uc: float, vc: float, z0: float,
         win = d[v0:v1, u0:u1]
         vv, uu = np.mgrid[v0:v1, u0:u1]
         rad = 1.3 * r_px + 1.0 if it else 1.6 * r_px + 2.0
+        band = max(3.0 * float(o.depth_model.sigma_m(z0)), 2.0 * R)
         with np.errstate(invalid="ignore"):
             if it == 0:
-                # the coarse blob's depth mixes ball and background in its edge blocks (tens of cm off
-                # before a near wall); start from the median full-resolution foreground depth instead
-                fg0 = (win < bg.limit_full[v0:v1, u0:u1]) & ((uu - uc) ** 2 + (vv - vc) ** 2 <= rad * rad)
+                # the coarse blob's edge blocks mix ball and background (up to 10 cm off before a near wall):
+                # start from the median full-resolution foreground depth within twice the band
+                fg0 = ((np.abs(win - z0) < 2.0 * band) & (win < bg.limit_full[v0:v1, u0:u1])
+                       & ((uu - uc) ** 2 + (vv - vc) ** 2 <= rad * rad))
                 if fg0.any():
                     z0 = float(np.median(win[fg0]))
-        band = max(3.0 * float(o.depth_model.sigma_m(z0)), 2.0 * R)
+                    band = max(3.0 * float(o.depth_model.sigma_m(z0)), 2.0 * R)
         with np.errstate(invalid="ignore"):
             sel = ((np.abs(win - z0) < band) & (win < bg.limit_full[v0:v1, u0:u1])
                    & ((uu - uc) ** 2 + (vv - vc) ** 2 <= rad * rad))

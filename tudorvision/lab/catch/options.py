@@ -43,9 +43,12 @@ class DemoOptions:
         ``random_throw``: release 1.4-1.9 m high about 6 m away, aim within
         +-0.45 m sideways, flight 0.8-1.1 s, drag).
     net_radius_m : float
-        Radius of the net, m: a ball whose centre passes within it of the net centre is caught.
+        Radius of the net's ring, m: a ball is caught when it passes wholly inside, its centre within
+        ``net_radius_m - ball_radius_m`` of the ring centre and never touching the rim
+        (:func:`~tudorvision.lab.catch.score.ring_passage`); the earlier criterion, the centre within
+        ``net_radius_m``, is reported beside it (``success_rate_centre``).
     ball_radius_m : float
-        Radius of the ball, m (rendering and the detector).
+        Radius of the ball, a sphere, m (rendering, the detector and the catch criterion).
     release_sigma_m : float
         Intercept release threshold (largest in-plane standard deviation), m.
     refine_sigma_factor : float
@@ -92,7 +95,7 @@ class DemoOptions:
     ------
     ValueError
         On a non-positive number of throws, an unknown damping law, a
-        non-positive net radius or a negative gap.
+        non-positive net radius, a ball that does not fit through the net or a negative gap.
 
     Examples
     --------
@@ -135,6 +138,9 @@ class DemoOptions:
             raise ValueError(f"damping: expected off, proportional, integral or half_integrator, got {self.damping!r}")
         if not self.net_radius_m > 0 or not self.gap_s >= 0:
             raise ValueError("net_radius_m, gap_s: expected > 0 and >= 0")
+        if not 0 < self.ball_radius_m < self.net_radius_m:
+            raise ValueError(f"ball_radius_m: expected 0 < ball_radius_m < net_radius_m ({self.net_radius_m}), "
+                             f"got {self.ball_radius_m}")
 
 
 def trained_payload_range_kg(collection: CollectionOptions) -> tuple[float, float]:

@@ -7,6 +7,10 @@ detection-noise model. The agent (:mod:`.agent`) receives only what the wall
 camera delivers (:class:`CameraFrame`) and talks to the arm only through the
 joint layer (:class:`~tudorvision.lab.lockstep.LockstepLayer`).
 
+The ball is a sphere (``DemoOptions.ball_radius_m``, 4.5 cm): rendered as one,
+it touches the floor when its centre is a radius high, and the scorer checks
+it against the net's rim (:func:`~tudorvision.lab.catch.score.ring_passage`).
+
 Frames: the lab places the robot base at the world origin
 (:data:`~tudorvision.lab.record.T_WORLD_BASE`); flights are generated in the
 base frame (x right, y from the thrower towards the robot, z up) and placed
@@ -88,7 +92,7 @@ def simulated_detection(p_cam, intrinsics, rng, *, options=None, scale: float = 
     return rng.multivariate_normal(p, scale ** 2 * C), C
 
 
-def true_crossing(times_s, points_base):
+def true_crossing(times_s, points_base, *, ball_radius_m: float = 0.0):
     """Where and when a sampled flight first crosses the working plane ``y = 0`` (linear interpolation).
 
     Parameters
@@ -97,13 +101,15 @@ def true_crossing(times_s, points_base):
         Sample times, s.
     points_base : ndarray, shape (N, 3)
         Ball centres, metres, base frame (y towards the robot, z up).
+    ball_radius_m : float, optional
+        Ball radius, m: the ball (a sphere) touches the floor when its centre is this high.
 
     Returns
     -------
     tuple
         ``(t_s, p_base)``: crossing time (s, on the flight's clock) and point
         (3,); ``(None, None)`` if the flight never crosses, starts beyond
-        the plane, or hits the floor (``z < 0``) first.
+        the plane, or hits the floor (``z < ball_radius_m``) first.
 
     Examples
     --------
@@ -116,7 +122,7 @@ def true_crossing(times_s, points_base):
     if len(above) == 0 or above[0] == 0:
         return None, None
     i = above[0]
-    if np.any(pp[:i + 1, 2] < 0.0):
+    if np.any(pp[:i + 1, 2] < ball_radius_m):
         return None, None
     a = -pp[i - 1, 1] / (pp[i, 1] - pp[i - 1, 1])
     return tt[i - 1] + a * (tt[i] - tt[i - 1]), pp[i - 1] + a * (pp[i] - pp[i - 1])
@@ -133,7 +139,7 @@ class Throw:
     t_release_s : float
         Release time on the demo's clock, s.
     times_s : ndarray, shape (N,)
-        Flight sample times from the release, s (trimmed 30 cm past the plane or 5 cm above the floor).
+        Flight sample times from the release, s (trimmed 30 cm past the plane or once the ball's bottom is 5 cm above the floor).
     points_base : ndarray, shape (N, 3)
         Ball centres of the trimmed flight, metres, base frame.
     t_cross_rel_s : float or None
@@ -142,6 +148,8 @@ class Throw:
         True crossing point, metres, base frame.
     t_cross_s : float
         Crossing time on the demo's clock, s; without a crossing, the end of the trimmed flight.
+    ball_radius_m : float
+        The ball is a sphere of this radius, m (the scorer checks it against the net's rim).
     """
 
     index: int
@@ -151,6 +159,7 @@ class Throw:
     t_cross_rel_s: float | None
     p_cross_base: np.ndarray | None
     t_cross_s: float
+    ball_radius_m: float = 0.045
 
     @property
     def crosses(self) -> bool:
@@ -267,14 +276,15 @@ class CatchScenario:
         p0, v0 = random_throw(self._rng_throw, target_height_m=o.target_height_m)
         tt, pp, _ = throw_trajectory(p0, v0, drag_k_per_m=o.drag_k_per_m, duration_s=2.0)
         t_rel = t_now + self._rng_throw.uniform(0.0, 1.0 / FRAME_RATE_HZ)
-        tc_rel, p_cross = true_crossing(tt, pp)
-        end = np.argmax((pp[:, 1] > 0.3) | (pp[:, 2] < 0.05))
+        r = o.ball_radius_m
+        tc_rel, p_cross = true_crossing(tt, pp, ball_radius_m=r)
+        end = np.argmax((pp[:, 1] > 0.3) | (pp[:, 2] < r + 0.05))
         end = end if end > 0 else len(tt) - 1
         self._flight = (tt[:end + 1], pp[:end + 1])
         self._t_release = t_rel
         t_cross = t_rel + tc_rel if tc_rel is not None else t_rel + tt[end]
         return Throw(index=index, t_release_s=t_rel, times_s=tt[:end + 1], points_base=pp[:end + 1],
-                     t_cross_rel_s=tc_rel, p_cross_base=p_cross, t_cross_s=t_cross)
+                     t_cross_rel_s=tc_rel, p_cross_base=p_cross, t_cross_s=t_cross, ball_radius_m=r)
 
     def end_throw(self) -> None:
         """The ball leaves the stage."""
@@ -309,7 +319,11 @@ class CatchScenario:
 
     # ---------------------------------------------------------------- the net and the operator
     def catch_ball(self) -> None:
-        """A caught ball stays in the net: the arm's payload grows by one ball."""
+        """A caught ball stays in the net: the arm's payload grows by one ball.
+
+        Only a ball that passed wholly through the ring is caught (the scorer's
+        ``caught``); one that touched the rim bounced off and adds nothing.
+        """
         self.balls += 1
         self._payload = Payload.from_parts(self.params, balls=self.balls)
         self.sim.arm.set_payload(self._payload)

@@ -2,10 +2,16 @@
 
 A throw *crosses the workspace* if its true crossing of the working plane is
 reachable by the rigid arm within the joint ranges. It is *caught* if the
-ball centre at the crossing lies within the net radius
-(``DemoOptions.net_radius_m``) of the net centre (the deflected end effector
-at that instant). A secondary, stricter count asks whether the arm could get
-there at all, leaving its pose at the release once the first three
+whole ball (a sphere of ``DemoOptions.ball_radius_m``, 4.5 cm) enters the
+net's ring (radius ``DemoOptions.net_radius_m``, 9 cm; centred on the deflected
+end effector at the crossing, in the plane through it parallel to the
+working plane): its centre crosses the ring plane within ``net_radius_m -
+ball_radius_m`` of the ring centre and the ball never touches the rim on the
+way (:func:`ring_passage`; a ball that touches it bounces off). The earlier,
+lenient count (the ball *centre* within the net radius of the net centre at
+the crossing: a ball 8 cm off hits the rim) stays as ``caught_centre`` /
+``success_rate_centre``. A secondary, stricter count asks whether the arm
+could get there at all, leaving its pose at the release once the first three
 detections are in (a lower bound on the move time: trapezoidal profile).
 """
 from __future__ import annotations
@@ -15,13 +21,13 @@ from dataclasses import asdict, astuple, dataclass, fields
 
 import numpy as np
 
-__all__ = ["ThrowResult", "PER_THROW_COLUMNS", "MISS_REASONS", "min_move_time", "miss_reason", "score_throw",
-           "summarize_throws"]
+__all__ = ["ThrowResult", "PER_THROW_COLUMNS", "MISS_REASONS", "RingPassage", "ring_passage", "min_move_time",
+           "miss_reason", "score_throw", "summarize_throws"]
 
 #: Why a throw was missed, in the order they are tested (the first that applies is reported).
 MISS_REASONS = ("does not reach the working plane", "outside the reachable workspace", "not tracked",
                 "not released (intercept uncertain or predicted unreachable)", "prediction error", "arm late",
-                "deflection or vibration")
+                "ball hit the rim", "deflection or vibration")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -69,13 +75,22 @@ class ThrowResult:
     payload_est_kg : float
         The agent's payload estimate during the throw, kg.
     caught : bool
-        The ball passed within the net radius of the net centre.
+        The whole ball entered the ring without touching the rim (:func:`ring_passage`).
     t_move_min_s : float
         Shortest move from the pose at the release to the crossing (trapezoidal profile), s; ``inf``: unreachable.
     in_time : bool
         Crossing the workspace, and that move fits before the crossing, less three frames.
     reason : str
         Why it was missed (one of :data:`MISS_REASONS`), empty if caught.
+    caught_centre : bool
+        The earlier, lenient criterion: the ball centre passed within the net radius of the net centre
+        (``miss_m <= net_radius_m``).
+    ring_offset_m : float
+        Distance from the ring centre, in the ring plane, at which the ball centre crossed that plane, m.
+    rim_clearance_m : float
+        Smallest gap between the ball's surface and the rim during the passage, m; negative: contact.
+    rim_contact : bool
+        The ball touched the rim (and bounced off).
     """
 
     throw: int
@@ -103,6 +118,10 @@ class ThrowResult:
     t_move_min_s: float
     in_time: bool
     reason: str
+    caught_centre: bool = False
+    ring_offset_m: float = math.nan
+    rim_clearance_m: float = math.nan
+    rim_contact: bool = False
 
     def as_row(self) -> tuple:
         """The values in :data:`PER_THROW_COLUMNS` order.
@@ -127,6 +146,107 @@ class ThrowResult:
 
 #: Columns of ``throws.csv``, in order (the fields of :class:`ThrowResult`).
 PER_THROW_COLUMNS = [f.name for f in fields(ThrowResult)]
+
+
+@dataclass(frozen=True)
+class RingPassage:
+    """How a ball (sphere) passes the net's ring (:func:`ring_passage`).
+
+    Parameters
+    ----------
+    crosses : bool
+        The ball centre crosses the ring plane (from the thrower's side).
+    offset_m : float
+        Distance from the ring centre, in the ring plane, where the ball centre crosses it, m (nan: no crossing).
+    clearance_m : float
+        Smallest distance from the ball's surface to the rim circle while the ball is within a ball
+        radius of the ring plane, m (negative: contact; ``inf`` if it never comes that near the plane).
+    rim_contact : bool
+        ``clearance_m < 0``: the ball touches the rim and bounces off.
+    caught : bool
+        It crosses within ``ring_radius - ball_radius`` of the centre without touching the rim.
+    """
+
+    crosses: bool
+    offset_m: float
+    clearance_m: float
+    rim_contact: bool
+    caught: bool
+
+
+def ring_passage(points_rel_m, *, ring_radius_m: float, ball_radius_m: float, normal=(0.0, 1.0, 0.0),
+                 substeps: int = 16) -> RingPassage:
+    """Whether a ball, a sphere, passes wholly through a ring (the catching net's rim, a thin circle).
+
+    The path is the polyline through the samples (each segment split into
+    ``substeps``); the ring is the circle of ``ring_radius_m`` about the origin
+    in the plane normal to ``normal``. The ball comes from the negative side.
+    It touches the rim where its centre is nearer than ``ball_radius_m`` to the
+    circle (``sqrt((rho - R)^2 + h^2) < r``, ``rho`` the in-plane distance and
+    ``h`` the height over the plane), up to where it is a ball radius past the
+    plane (then it is in the net, or has passed it). It is caught when its
+    centre crosses the plane within ``R - r`` of the centre and it never touches
+    the rim (a head-on ball exactly ``R - r`` off just grazes it: caught).
+
+    Parameters
+    ----------
+    points_rel_m : array_like, shape (N, 3)
+        Ball centre along its flight relative to the ring centre, metres, in time order.
+    ring_radius_m : float
+        Ring radius ``R``, m.
+    ball_radius_m : float
+        Ball radius ``r``, m (0: a point, the lenient criterion).
+    normal : array_like, shape (3,)
+        Ring-plane normal, pointing the way the ball goes (normalised here).
+    substeps : int
+        Linear interpolation steps per sample interval for the contact test.
+
+    Returns
+    -------
+    RingPassage
+
+    Examples
+    --------
+    >>> path = np.array([[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])        # head-on through the centre
+    >>> ring_passage(path, ring_radius_m=0.09, ball_radius_m=0.045).caught
+    True
+    >>> p = ring_passage(path + [0.06, 0.0, 0.0], ring_radius_m=0.09, ball_radius_m=0.045)
+    >>> p.caught, p.rim_contact, round(p.offset_m, 3), round(p.clearance_m, 3)     # 6 cm off: on the rim
+    (False, True, 0.06, -0.015)
+    """
+    R, r = float(ring_radius_m), float(ball_radius_m)
+    n = np.asarray(normal, float)
+    n = n / np.linalg.norm(n)
+    pts = np.asarray(points_rel_m, float).reshape(-1, 3)
+    h = pts @ n
+    cross = np.nonzero((h[:-1] < 0.0) & (h[1:] >= 0.0))[0]
+    if len(cross) == 0:
+        return RingPassage(crosses=False, offset_m=math.nan, clearance_m=math.inf, rim_contact=False, caught=False)
+    i = int(cross[0])
+    a = -h[i] / (h[i + 1] - h[i])
+    p_cross = pts[i] + a * (pts[i + 1] - pts[i])
+    offset = float(np.linalg.norm(p_cross - (p_cross @ n) * n))
+    # the passage: from the crossing back to where the ball was a radius before the plane, forward to a radius past
+    lo = i
+    while lo > 0 and h[lo] > -r:
+        lo -= 1
+    hi = i + 1
+    while hi < len(h) - 1 and h[hi] < r:
+        hi += 1
+    seg = pts[lo:hi + 1]
+    s = np.linspace(0.0, 1.0, max(int(substeps), 1) + 1)[:-1]
+    dense = np.concatenate([(seg[:-1, None, :] + s[None, :, None] * np.diff(seg, axis=0)[:, None, :]).reshape(-1, 3),
+                            seg[-1:]])
+    hh = dense @ n
+    near = np.abs(hh) <= r
+    if not np.any(near):
+        clearance = math.inf
+    else:
+        rho = np.linalg.norm(dense[near] - hh[near, None] * n, axis=1)
+        clearance = float(np.min(np.hypot(rho - R, hh[near]))) - r
+    contact = clearance < 0.0
+    return RingPassage(crosses=True, offset_m=offset, clearance_m=clearance, rim_contact=bool(contact),
+                       caught=bool(offset <= R - r and not contact))
 
 
 def min_move_time(solutions, theta_now, max_speed: float, max_accel: float) -> float:
@@ -165,7 +285,8 @@ def min_move_time(solutions, theta_now, max_speed: float, max_accel: float) -> f
 
 
 def miss_reason(*, caught: bool, crosses: bool, in_workspace: bool, detections: int, n_init: int, released: bool,
-                pred_error_m: float, net_radius_m: float, arrived: bool) -> str:
+                pred_error_m: float, net_radius_m: float, arrived: bool, rim_contact: bool = False,
+                ball_radius_m: float = 0.0) -> str:
     """The first reason (of :data:`MISS_REASONS`) that explains a miss; empty for a catch.
 
     Parameters
@@ -188,6 +309,10 @@ def miss_reason(*, caught: bool, crosses: bool, in_workspace: bool, detections: 
         Net radius, m.
     arrived : bool
         The arm reached its last setpoint (within 1 deg) before the throw ended.
+    rim_contact : bool, optional
+        The ball touched the rim.
+    ball_radius_m : float, optional
+        Ball radius, m: a prediction more than ``net_radius_m - ball_radius_m`` off is a prediction error.
 
     Returns
     -------
@@ -200,8 +325,8 @@ def miss_reason(*, caught: bool, crosses: bool, in_workspace: bool, detections: 
     ...             pred_error_m=0.01, net_radius_m=0.09, arrived=False)
     'arm late'
     """
-    checks = (not crosses, not in_workspace, detections < n_init, not released, pred_error_m > net_radius_m,
-              not arrived)
+    checks = (not crosses, not in_workspace, detections < n_init, not released,
+              pred_error_m > net_radius_m - ball_radius_m, not arrived, rim_contact)
     if caught:
         return ""
     for why, failed in zip(MISS_REASONS, checks):
@@ -211,7 +336,8 @@ def miss_reason(*, caught: bool, crosses: bool, in_workspace: bool, detections: 
 
 
 def score_throw(throw, log, *, net_at_cross, theta_at_release, payload_true_kg: float, options, params,
-                theta1_rad: float, max_speed: float, max_accel: float, frame_rate_hz: float) -> ThrowResult:
+                theta1_rad: float, max_speed: float, max_accel: float, frame_rate_hz: float,
+                net_velocity_at_cross=None) -> ThrowResult:
     """Score one throw from its ground truth and what the agent did.
 
     Parameters
@@ -227,7 +353,7 @@ def score_throw(throw, log, *, net_at_cross, theta_at_release, payload_true_kg: 
     payload_true_kg : float
         Balls in the net during the throw, kg.
     options : DemoOptions
-        The demo's options (net radius, the filter's ``n_init``).
+        The demo's options (net and ball radii, the filter's ``n_init``).
     params : RobotParams
         The robot's parameters (joint ranges).
     theta1_rad : float
@@ -238,11 +364,17 @@ def score_throw(throw, log, *, net_at_cross, theta_at_release, payload_true_kg: 
         The agent's setpoint profile acceleration, rad/s^2.
     frame_rate_hz : float
         Camera frame rate, Hz (the in-time count leaves three frames for the first detections).
+    net_velocity_at_cross : array_like, shape (3,), optional
+        True net velocity at the crossing, m/s, base frame: the ring moves with it during the
+        passage (a few hundredths of a second). Default: the ring stands still at ``net_at_cross``.
 
     Returns
     -------
     ThrowResult
-        The throw's row.
+        The throw's row. ``caught`` is the strict criterion (the whole ball through the ring,
+        :func:`ring_passage` along the throw's flight), ``caught_centre`` the earlier one.
+        A :class:`~tudorvision.lab.catch.scenario.Throw` without a flight across the ring plane
+        (a synthetic one) passes it head-on at ``p_cross_base``.
     """
     from ...catch.intercept import reachable_solutions
 
@@ -256,12 +388,17 @@ def score_throw(throw, log, *, net_at_cross, theta_at_release, payload_true_kg: 
     in_time = bool(in_ws and t_move <= throw.t_cross_rel_s - 3.0 / frame_rate_hz)
     it, bal, first = log.last_intercept, log.last_ballistic_base, log.t_first_setpoint_s
     miss = float(np.linalg.norm(net_at_cross - p_cross)) if crosses else nan
-    caught = bool(crosses and miss <= options.net_radius_m)
+    caught_centre = bool(crosses and miss <= options.net_radius_m)
+    ball_r = float(throw.ball_radius_m)
+    ring = _ring_passage_of(throw, net_at_cross, net_velocity_at_cross, theta1_rad, options.net_radius_m, ball_r) \
+        if crosses else None
+    caught = bool(ring is not None and ring.caught)
     pred_err = float(np.linalg.norm(it.p_base - p_cross)) if (crosses and it is not None) else nan
     bal_err = float(np.linalg.norm(bal - p_cross)) if (crosses and bal is not None) else nan
     reason = miss_reason(caught=caught, crosses=crosses, in_workspace=in_ws, detections=log.detections,
                          n_init=options.ekf.n_init, released=first is not None, pred_error_m=pred_err,
-                         net_radius_m=options.net_radius_m, arrived=log.t_arrived_s is not None)
+                         net_radius_m=options.net_radius_m, arrived=log.t_arrived_s is not None,
+                         rim_contact=bool(ring is not None and ring.rim_contact), ball_radius_m=ball_r)
     return ThrowResult(
         throw=int(throw.index), t_release_s=float(t_rel), crosses_plane=crosses, crossing_workspace=in_ws,
         t_cross_true_s=float(t_cross - t_rel) if crosses else nan,
@@ -275,7 +412,31 @@ def score_throw(throw, log, *, net_at_cross, theta_at_release, payload_true_kg: 
         z_net_m=float(net_at_cross[2]) if net_at_cross is not None else nan,
         miss_m=miss, time_margin_s=float(t_cross - log.t_arrived_s) if log.t_arrived_s is not None else nan,
         payload_true_kg=float(payload_true_kg), payload_est_kg=float(log.payload_est_kg), caught=caught,
-        t_move_min_s=float(t_move), in_time=in_time, reason=reason)
+        t_move_min_s=float(t_move), in_time=in_time, reason=reason, caught_centre=caught_centre,
+        ring_offset_m=ring.offset_m if ring is not None else nan,
+        rim_clearance_m=ring.clearance_m if ring is not None else nan,
+        rim_contact=bool(ring is not None and ring.rim_contact))
+
+
+def _ring_passage_of(throw, net_at_cross, net_velocity, theta1_rad: float, ring_radius_m: float,
+                     ball_radius_m: float) -> RingPassage:
+    """The throw's ball through the net's ring (plane through the net centre, parallel to the working plane)."""
+    normal = np.array([-np.sin(theta1_rad), np.cos(theta1_rad), 0.0])
+    c = np.asarray(net_at_cross, float)
+    pts = np.asarray(throw.points_base, float).reshape(-1, 3)
+    tt = np.asarray(throw.times_s, float).reshape(-1)
+    if len(pts) >= 2 and len(tt) == len(pts):
+        rel = pts - c
+        if net_velocity is not None:
+            rel = rel - (tt - float(throw.t_cross_rel_s))[:, None] * np.asarray(net_velocity, float)
+        h = rel @ normal
+        if np.any((h[:-1] < 0.0) & (h[1:] >= 0.0)):
+            return ring_passage(rel, ring_radius_m=ring_radius_m, ball_radius_m=ball_radius_m, normal=normal)
+    # no sampled flight across the ring plane: head-on through the true crossing
+    off = np.asarray(throw.p_cross_base, float) - c
+    off = off - (off @ normal) * normal
+    path = off + np.outer([-1.0, 1.0], normal)
+    return ring_passage(path, ring_radius_m=ring_radius_m, ball_radius_m=ball_radius_m, normal=normal)
 
 
 def _median(values) -> float | None:
@@ -295,9 +456,12 @@ def summarize_throws(results) -> dict:
     -------
     dict
         ``crossing_workspace``, ``caught``, ``caught_in_workspace``, ``success_rate`` (caught of
-        those crossing the workspace; None without any), ``crossing_in_time``, ``caught_in_time``,
-        ``success_rate_in_time``, ``median_pred_error_m``, ``median_ballistic_error_m`` (None
-        without any), ``misses`` (``{reason: count}``, sorted by reason).
+        those crossing the workspace, the whole ball through the ring; None without any),
+        ``crossing_in_time``, ``caught_in_time``, ``success_rate_in_time``, ``median_pred_error_m``,
+        ``median_ballistic_error_m`` (None without any), ``misses`` (``{reason: count}``, sorted by
+        reason); the earlier, lenient criterion (ball centre within the net radius):
+        ``caught_centre``, ``caught_centre_in_workspace``, ``success_rate_centre``; and
+        ``rim_contacts_in_workspace`` (crossing throws whose ball touched the rim).
 
     Examples
     --------
@@ -309,6 +473,7 @@ def summarize_throws(results) -> dict:
     n_it = sum(r.in_time for r in results)
     caught_it = sum(r.in_time and r.caught for r in results)
     reasons = sorted({r.reason for r in results if r.reason})
+    caught_c_ws = sum(r.crossing_workspace and r.caught_centre for r in results)
     return {
         "crossing_workspace": int(n_ws), "caught": int(sum(r.caught for r in results)),
         "caught_in_workspace": int(caught_ws), "success_rate": (caught_ws / n_ws) if n_ws else None,
@@ -317,4 +482,7 @@ def summarize_throws(results) -> dict:
         "median_pred_error_m": _median([r.pred_error_m for r in results]),
         "median_ballistic_error_m": _median([r.ballistic_pred_error_m for r in results]),
         "misses": {why: sum(1 for r in results if r.reason == why) for why in reasons},
+        "caught_centre": int(sum(r.caught_centre for r in results)), "caught_centre_in_workspace": int(caught_c_ws),
+        "success_rate_centre": (caught_c_ws / n_ws) if n_ws else None,
+        "rim_contacts_in_workspace": int(sum(r.crossing_workspace and r.rim_contact for r in results)),
     }
