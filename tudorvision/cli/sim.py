@@ -68,6 +68,34 @@ def _cmd_ptp(args) -> int:
     return 0
 
 
+def _cmd_modes(args) -> int:
+    import json
+    import math
+    from ..io.atomic import write_text_atomic
+    from ..lab.plant_modes import plant_modes
+    from ..robot import load_robot_params
+    from ..sim.arm import PlantConfig
+    th = _deg3(args.at, "--at")
+    if not np.all(np.isfinite(th)):
+        raise TudorVisionError(f"--at: expected finite degrees, got {args.at!r}")
+    lim = np.asarray(load_robot_params().joint_limits_rad, float)
+    if np.any(th < lim[:, 0] - 1e-9) or np.any(th > lim[:, 1] + 1e-9):
+        raise TudorVisionError(f"--at: {args.at} is outside the joint ranges "
+                               f"{np.round(np.rad2deg(lim)).astype(int).tolist()} deg")
+    if not (math.isfinite(args.payload_kg) and 0.0 <= args.payload_kg <= 2.0):
+        raise TudorVisionError(f"--payload-kg: expected 0 .. 2 kg, got {args.payload_kg}")
+    if not (math.isfinite(args.duration) and 2.0 <= args.duration <= 120.0):
+        raise TudorVisionError(f"--duration: expected 2 .. 120 s, got {args.duration}")
+    cfg = PlantConfig() if args.stiff else PlantConfig.seed_measured()
+    r = plant_modes(th, args.payload_kg, cfg, args.duration)
+    out = {"theta_deg": [float(x) for x in np.rad2deg(th)], "payload_kg": args.payload_kg,
+           "plant": "stiff" if args.stiff else "seed_measured", **r}
+    write_text_atomic(args.out, json.dumps(out, indent=2) + "\n")
+    print(f"link 2: {r['link2_hz'][0]:.2f} / {r['link2_hz'][1]:.2f} Hz, link 3: {r['link3_hz'][0]:.2f} Hz, "
+          f"ring-down {r['ringdown_hz']:.2f} Hz decaying at {r['decay_per_s']:.3f} 1/s; wrote {args.out}")
+    return 0
+
+
 def register(sub) -> None:
     p = sub.add_parser("sim", help="virtual lab: recordings with ground truth, plant runs",
                        description="The virtual TUDOR lab: a simulated elastic arm and rendered cameras.")
@@ -101,4 +129,13 @@ def register(sub) -> None:
     q.add_argument("--out", required=True, help="CSV output")
     q.add_argument("--plot", help="PNG plot output")
     q.set_defaults(func=_cmd_ptp)
+    m = s.add_parser("modes", help="frequencies and decay of the link modes at a pose (seed 4.7, 4.8)",
+                     description="Linearised modes (joints held) and a simulated hammer ring-down at one pose; "
+                                 "writes a JSON with link2_hz [first, second], link3_hz [first], decay_per_s.")
+    m.add_argument("--at", required=True, help="pose, degrees, like 0,45,-45")
+    m.add_argument("--payload-kg", type=float, default=0.3, help="plate payload, kg (default 0.3)")
+    m.add_argument("--duration", type=float, default=8.0, help="ring-down seconds (default 8)")
+    m.add_argument("--stiff", action="store_true", help="the default rigid-hub plant instead of the seed-measured one")
+    m.add_argument("--out", required=True, help="JSON output")
+    m.set_defaults(func=_cmd_modes)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])

@@ -1,0 +1,226 @@
+"""The lab's version of the seed's frequency measurements (sections 4.7, 4.8): modes of the plant at a pose.
+
+Two views of the same plant:
+
+* linearised (:func:`tudorvision.sim.mode_analysis.held_joint_modes`): the
+  link modes with the joints held, hub springs engaged. Link 2's two lowest
+  frequencies are the two lowest coupled modes (both dominate the link-2
+  strain, figure 4.6); link 3's first frequency is that of link 3 on its hub
+  spring with the payload (the seed's reading of its 6.3 Hz peak, compared
+  with the link-3 BVP).
+* ring-down (the oracle, and the only view of the backlash): a hammer
+  impulse at the end effector while the joint cascade holds the pose; the
+  first dominant frequency is the spectral peak of the link-2 hub strain
+  and the decay rate ``zeta_1`` (1/s, as the seed's B.3.26) is fitted to the
+  envelope of that strain band-passed around the peak.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.signal import butter, hilbert, sosfiltfilt
+
+from ..joint.cascade import JointCascade, design_cascade
+from ..joint.planner import plan_motion
+from ..robot.params import RobotParams, load_robot_params
+from ..sim.arm import ElasticArm, Payload, PlantConfig
+from ..sim.mode_analysis import held_joint_matrices, held_joint_modes
+from .simulation import simulate
+
+__all__ = ["plate_payload", "linear_modes", "ring_down", "dominant_frequency_hz", "decay_rate_per_s",
+           "plant_modes", "HAMMER_IMPULSE_NS"]
+
+#: Hammer impulse at the end effector along link 3's bending direction, N s (about 150 um/m on link 2).
+HAMMER_IMPULSE_NS = 0.25
+
+
+def plate_payload(payload_kg: float, params: RobotParams | None = None, plate_size_m: float = 0.08) -> Payload:
+    """The seed's test payload: ``payload_kg`` of plates on the end-effector mount.
+
+    Parameters
+    ----------
+    payload_kg : float
+        Plate mass, kg (0.3 kg gives the seed's ``I_L = 1.6e-4 kg m^2``).
+    params : RobotParams, optional
+        Robot parameters (mount mass); default the packaged file.
+    plate_size_m : float, optional
+        Plate edge, metres.
+
+    Returns
+    -------
+    Payload
+        Mass ``mount + payload_kg`` (kg) and inertia ``payload_kg a^2 / 12`` (kg m^2).
+
+    Raises
+    ------
+    ValueError
+        If ``payload_kg`` is negative or not finite.
+    """
+    if not (math.isfinite(payload_kg) and payload_kg >= 0):
+        raise ValueError(f"payload_kg: expected a finite mass >= 0, got {payload_kg}")
+    p = params or load_robot_params()
+    return Payload(mass_kg=p.end_effector_mount_mass_kg + payload_kg,
+                   inertia_kg_m2=payload_kg * plate_size_m**2 / 12.0)
+
+
+def linear_modes(theta_rad, payload_kg: float, config: PlantConfig) -> dict:
+    """Linearised modes at a pose (joints held, springs engaged).
+
+    Parameters
+    ----------
+    theta_rad : array_like, shape (3,)
+        Joint angles, rad.
+    payload_kg : float
+        Plate payload, kg (:func:`plate_payload`).
+    config : PlantConfig
+        Plant options (hub compliance).
+
+    Returns
+    -------
+    dict
+        ``link2_hz`` [first, second], ``link3_hz`` [first], ``decay_linear_per_s`` (first mode,
+        hub dampers engaged), ``coupled_hz`` (all coupled modes).
+    """
+    arm = ElasticArm(theta_rad, payload=plate_payload(payload_kg), config=config)
+    f, decay, _ = held_joint_modes(arm)
+    return {"link2_hz": [float(f[0]), float(f[1])], "link3_hz": [float(arm.link3.basis.frequency_hz[0])],
+            "decay_linear_per_s": float(decay[0]), "coupled_hz": [float(x) for x in f]}
+
+
+def ring_down(theta_rad, payload_kg: float, config: PlantConfig, duration_s: float = 8.0,
+              impulse_Ns: float = HAMMER_IMPULSE_NS):
+    """Free vibration after a hammer impulse at the end effector, the joint cascade holding the pose.
+
+    Parameters
+    ----------
+    theta_rad : array_like, shape (3,)
+        Joint angles, rad.
+    payload_kg : float
+        Plate payload, kg.
+    config : PlantConfig
+        Plant options.
+    duration_s : float, optional
+        Simulated seconds after the impulse.
+    impulse_Ns : float, optional
+        Impulse along link 3's bending direction at its tip, N s.
+
+    Returns
+    -------
+    SimLog
+        The run (``strain[:, 0]`` is the link-2 hub gauge).
+    """
+    p = load_robot_params()
+    arm = ElasticArm(theta_rad, payload=plate_payload(payload_kg, p), config=config)
+    gains = design_cascade(p, arm.design_inertia_kg_m2())
+    ctrl = JointCascade(gains, config.dt, arm.measured_theta())
+    k2, k3 = arm.link2, arm.link3
+    c3 = math.cos(arm.theta[2])
+    Q = np.array([k2.phiL[r] * c3 + k2.dphiL[r] * k3.L for r in range(k2.n)] + list(k3.phiL)) * impulse_Ns
+    M, _, _ = held_joint_matrices(arm)
+    dv = np.linalg.solve(M, Q)
+    for r in range(k2.n):
+        arm.deta2[r] += float(dv[r])
+    for q in range(k3.n):
+        arm.deta3[q] += float(dv[k2.n + q])
+    th = np.asarray(arm.theta)
+    return simulate(arm, ctrl, plan_motion(th, th, v_max=1.0, a_max=1.0), duration_s)
+
+
+def dominant_frequency_hz(signal, dt: float, f_lo: float = 0.5, f_hi: float = 5.0) -> float:
+    """Frequency of the largest spectral peak of ``signal`` between ``f_lo`` and ``f_hi``, Hz.
+
+    Parameters
+    ----------
+    signal : array_like, shape (N,)
+        Uniformly sampled signal.
+    dt : float
+        Sample period, s.
+    f_lo, f_hi : float, optional
+        Search band, Hz.
+
+    Returns
+    -------
+    float
+        Peak frequency (Hann window, 16x zero padding, parabolic interpolation), Hz.
+    """
+    x = np.asarray(signal, dtype=np.float64)
+    x = (x - x.mean()) * np.hanning(len(x))
+    nfft = 16 * len(x)
+    S = np.abs(np.fft.rfft(x, n=nfft))
+    f = np.fft.rfftfreq(nfft, dt)
+    idx = np.nonzero((f >= f_lo) & (f <= f_hi))[0]
+    j = idx[np.argmax(S[idx])]
+    if 0 < j < len(S) - 1:
+        a, b, c = np.log(S[j - 1] + 1e-300), np.log(S[j] + 1e-300), np.log(S[j + 1] + 1e-300)
+        den = a - 2 * b + c
+        if den < 0:
+            return float(f[j] + 0.5 * (a - c) / den * (f[1] - f[0]))
+    return float(f[j])
+
+
+def decay_rate_per_s(signal, dt: float, f_hz: float, skip_s: float = 0.5) -> float:
+    """Exponential decay rate of the oscillation at ``f_hz`` in ``signal``, 1/s (the seed's ``zeta_1``).
+
+    The mean-free signal is band-passed to ``[0.6, 1.5] f_hz`` (zero phase),
+    its Hilbert envelope taken and ``log(envelope)`` fitted by a line after
+    ``skip_s`` and before the last ``skip_s`` (filter edges); the rate is minus its slope.
+
+    Parameters
+    ----------
+    signal : array_like, shape (N,)
+        Uniformly sampled signal.
+    dt : float
+        Sample period, s.
+    f_hz : float
+        Frequency of the oscillation, Hz.
+    skip_s : float, optional
+        Seconds left out at both ends.
+
+    Returns
+    -------
+    float
+        Decay rate, 1/s (``nan`` when the record is too short).
+    """
+    x = np.asarray(signal, dtype=np.float64)
+    x = x - x.mean()
+    fs = 1.0 / dt
+    sos = butter(2, [0.6 * f_hz, min(1.5 * f_hz, 0.45 * fs)], btype="band", fs=fs, output="sos")
+    y = sosfiltfilt(sos, x)
+    env = np.abs(hilbert(y))
+    t = np.arange(len(x)) * dt
+    keep = (t > skip_s) & (t < t[-1] - skip_s) & (env > 0)
+    if keep.sum() < 10:
+        return float("nan")
+    slope = np.polyfit(t[keep], np.log(env[keep]), 1)[0]
+    return float(-slope)
+
+
+def plant_modes(theta_rad, payload_kg: float, config: PlantConfig | None = None,
+                duration_s: float = 8.0) -> dict:
+    """Everything ``tudorvision sim modes`` reports for one pose.
+
+    Parameters
+    ----------
+    theta_rad : array_like, shape (3,)
+        Joint angles, rad.
+    payload_kg : float
+        Plate payload, kg.
+    config : PlantConfig, optional
+        Default :meth:`PlantConfig.seed_measured`.
+    duration_s : float, optional
+        Ring-down length, s.
+
+    Returns
+    -------
+    dict
+        :func:`linear_modes`'s keys plus ``decay_per_s`` and ``ringdown_hz`` (ring-down, link-2 hub strain).
+    """
+    cfg = config or PlantConfig.seed_measured()
+    out = linear_modes(theta_rad, payload_kg, cfg)
+    log = ring_down(theta_rad, payload_kg, cfg, duration_s)
+    s = log.strain[:, 0]
+    f1 = dominant_frequency_hz(s, cfg.dt, 0.5, 0.5 * (out["link2_hz"][0] + out["link2_hz"][1]))
+    out["ringdown_hz"] = f1
+    out["decay_per_s"] = decay_rate_per_s(s, cfg.dt, f1)
+    return out
