@@ -131,7 +131,12 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
     K : Intrinsics
     seed_uv : array_like, shape (2,)
         Pixel on the disc in the first frame.
-    options : DiscOptions
+    options : DiscOptions or Disc3DOptions
+        ``Disc3DOptions`` (the default of ``calib rgbd-base``): the disc found
+        in 3D as a plane disc of known radius, tracked with a circle prediction
+        from the joint angles (:mod:`tudorvision.rgbd.disc3d`); frames where it
+        is not measurable are skipped and listed in ``lost``. ``DiscOptions``:
+        the seed's uniform-depth region grown from the seed pixel.
     vertical_frame : int, optional
         Frame index of the vertical posture (default: from ``joints.txt``).
     joint_tol_deg : float
@@ -152,6 +157,7 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
     """
     from .._progress import progress
     from ..rgbd.disc import DiscTracker
+    from ..rgbd.disc3d import Disc3DOptions, DiscSweepTracker
 
     tol = np.radians(joint_tol_deg)
     thetas = None
@@ -173,12 +179,22 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
     sweep = np.ones(n, bool)
     if thetas is not None:
         sweep = (np.abs(thetas[:, 0]) < tol) & (np.abs(thetas[:, 2]) < tol)
-    tracker = DiscTracker(K, seed_uv, options, max_consecutive_lost=10 ** 9)
+    if isinstance(options, Disc3DOptions):
+        tracker3d = DiscSweepTracker(K, seed_uv, options)
+    else:
+        tracker = DiscTracker(K, seed_uv, options, max_consecutive_lost=10 ** 9)
     samples = {}          # frame -> (centroid_cam, centroid_uv)
     lost = {}
     for f in progress(seq, total=n, desc="disc"):
         i = f.index
         if not (sweep[i] or vertical[i]):
+            continue
+        if isinstance(options, Disc3DOptions):
+            m = tracker3d.update(f.depth_m, None if thetas is None else float(thetas[i, 1]))
+            if m.valid:
+                samples[i] = (m.centre_cam, None)
+            else:
+                lost[i] = m.reason
             continue
         obs = tracker.update(f.depth_m)
         if not obs.valid and thetas is not None and samples:
@@ -208,6 +224,7 @@ def _cmd_base(args) -> int:
     from ..rgbd.base_calib import base_frame_from_theta2_sweep
     from .rgbd import noise_model_from_calibration
     from ..rgbd.disc import DiscOptions
+    from ..rgbd.disc3d import Disc3DOptions
     from ..rgbd.frames import Intrinsics
 
     seed = _parse_floats(args.seed, "--seed", 2)
@@ -217,8 +234,13 @@ def _cmd_base(args) -> int:
     cam, cal0 = camera_for_sweep(seq, args.calib)
     K = Intrinsics.from_matrix(cam.K, cam.width, cam.height)
     annulus = tuple(_parse_floats(args.depth_annulus, "--depth-annulus", 2))
-    opts = DiscOptions(disc_radius_m=args.disc_radius, depth_model=noise_model_from_calibration(cal0),
-                       depth_annulus=annulus, depth_window=args.depth_window)
+    if not args.disc_radius > 0:
+        raise TudorVisionError(f"--disc-radius: expected a positive radius in metres, got {args.disc_radius}")
+    if args.detector == "disc3d":
+        opts = Disc3DOptions(disc_radius_m=args.disc_radius, depth_model=noise_model_from_calibration(cal0))
+    else:
+        opts = DiscOptions(disc_radius_m=args.disc_radius, depth_model=noise_model_from_calibration(cal0),
+                           depth_annulus=annulus, depth_window=args.depth_window)
     obs = observe_sweep(seq, K, seed, opts, vertical_frame=args.vertical_frame, joint_tol_deg=args.joint_tol_deg)
     circle_idx, vidx, lost = obs["frames"], obs["vertical_frames"], obs["lost"]
     T_base_cam, rep = base_frame_from_theta2_sweep(obs["points_cam"], obs["vertical_cam"], theta2_rad=obs["theta2_rad"],
@@ -231,9 +253,11 @@ def _cmd_base(args) -> int:
             r["reason"] = "lost: " + lost[r["frame"]]
     rep["vertical_frames"] = [int(i) for i in vidx]
     rep["sequence"] = str(seq.path)
+    rep["detector"] = args.detector
+    rep["skipped_frames"] = {str(k): v for k, v in sorted(lost.items())}
     print(f"circle RMSE {rep['circle_rmse_m'] * 100:.2f} cm over {len(rep['points_used'])} samples "
           f"({len(rep['rejected'])} rejected), radius {rep['circle_radius_m']:.3f} m, "
-          f"{len(vidx)} vertical frames")
+          f"{len(vidx)} vertical frames; {len(lost)} frames skipped (disc not measurable)")
     print("T_base_cam =\n" + np.array2string(T_base_cam, precision=4, suppress_small=True))
     bad = check_sweep_fit(rep["circle_radius_m"], rep["circle_rmse_m"], radius_tol_m=args.radius_tol,
                           max_rmse_m=args.max_rmse)
@@ -311,7 +335,8 @@ def register(calib_sub) -> None:
 
     b = calib_sub.add_parser(
         "rgbd-base", help="wall camera to robot base from a theta2 sweep with a disc in the net",
-        description="Track the disc (uniform-depth region grown from --seed) through the theta2 sweep "
+        description="Track the disc (by default found in 3D as a planar disc of --disc-radius near its "
+                    "predicted position, starting at --seed) through the theta2 sweep "
                     "(theta1 = theta3 = 0), fit the circle of its centroids and build the base frame as the "
                     "seed does: origin = circle centre (shifted to the base plate by link1_height with "
                     "--origin base), z towards the end effector at [0, 90, 0] deg, y from the circle normal, "
@@ -322,13 +347,17 @@ def register(calib_sub) -> None:
     b.add_argument("--seed", required=True, help="pixel U,V on the disc in the first frame")
     b.add_argument("--vertical-frame", type=int, help="frame index of the vertical posture (default: from joints.txt)")
     b.add_argument("--calib", help="intrinsics file when the sequence has none")
-    b.add_argument("--disc-radius", type=float, default=0.075, help="disc radius in metres (default 0.075)")
+    b.add_argument("--disc-radius", type=float, default=0.09, help="disc radius in metres (default 0.09: the 18 cm disc)")
+    b.add_argument("--detector", choices=("disc3d", "uniform-depth"), default="disc3d",
+                   help="'disc3d' (default): a planar disc of --disc-radius found in 3D (plane and circle fit on the "
+                        "depth points near the position predicted from the previous frames and the joint angles); "
+                        "'uniform-depth': the seed's region of uniform depth grown from --seed")
     b.add_argument("--origin", choices=("base", "joint2"), default="base",
                    help="'base': base plate (matches tudorvision.robot); 'joint2': the circle centre (default base)")
     b.add_argument("--vertical", choices=("combined", "seed", "plane"), default="combined",
                    help="estimate of the vertical point (default combined; see base_frame_from_theta2_sweep)")
     b.add_argument("--depth-window", choices=("disc", "ellipse", "segment"), default="disc",
-                   help="pixels whose raw depths give the disc depth: 'disc' (default) the disc's whole image "
+                   help="uniform-depth detector only: pixels whose raw depths give the disc depth: 'disc' (default) the disc's whole image "
                         "circle of radius f R / z; 'ellipse' the grown region's moment ellipse; 'segment' the "
                         "region itself (both biased away from the camera under strong depth noise)")
     b.add_argument("--depth-annulus", default="0,1",

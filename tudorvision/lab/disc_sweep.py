@@ -18,7 +18,7 @@ What varies (uniform unless said):
   half a wall 0.25–0.4 m behind the arm plane;
 - payload plates 0–2 (the static sag of the elastic arm).
 
-The disc is 18 cm across in a ring that touches it, link 3 ends on the ring;
+The disc is 18 cm across in a flat 3 cm net ring just behind it, link 3 ends on the ring;
 depth noise is :data:`tudorvision.sensors.KINECT_DEPTH_NOISE` unless given.
 """
 from __future__ import annotations

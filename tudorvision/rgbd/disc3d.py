@@ -103,7 +103,7 @@ class Disc3DOptions:
     min_plane_tol_m: float = 0.01
     ransac_iterations: int = 96
     opening_fraction: float = 0.4
-    area_ratio: tuple = (0.45, 1.95)
+    area_ratio: tuple = (0.45, 2.15)
     min_points: int = 20
     min_minor_px: float = 2.5
     max_normal_std_deg: float = 10.0
@@ -191,8 +191,13 @@ def _ransac_plane(P, core, tol, iterations, rng, view, min_cos_view):
     return n[k], float(h[k])
 
 
-def _refit(P, normal, h, tol):
-    """Least-squares plane of the inliers of (normal, h); returns normal, h, inlier mask, rmse, normal std (rad)."""
+def _refit(P, normal, h, tol, sigma):
+    """Least-squares plane of the inliers of (normal, h).
+
+    Returns normal, h, inlier mask, rmse and the normal's standard error (rad),
+    taken from the depth noise ``sigma`` and the points' lateral spread (the
+    residual scatter would understate it when the noise dwarfs the patch).
+    """
     for _ in range(2):
         inl = np.abs(P @ normal - h) <= tol
         if inl.sum() < 3:
@@ -205,11 +210,10 @@ def _refit(P, normal, h, tol):
     Q = P[inl]
     if len(Q) < 3:
         return normal, h, inl, float("nan"), float("inf")
-    c = Q.mean(axis=0)
-    s = np.linalg.svd(Q - c, compute_uv=False)
-    rmse = float(s[2] / np.sqrt(len(Q)))
-    spread = float(s[1] / np.sqrt(len(Q)))       # std of the points along the plane's narrower axis
-    std = rmse / (spread * np.sqrt(len(Q))) if spread > 0 else float("inf")
+    rmse = float(np.sqrt(np.mean((Q @ normal - h) ** 2)))
+    lateral = Q[:, :2] / Q[:, 2:3] * np.median(Q[:, 2])        # image-plane spread at the patch depth
+    spread = float(np.sqrt(max(np.linalg.eigvalsh(np.cov(lateral.T))[0], 0.0)))
+    std = max(rmse, sigma) / (spread * np.sqrt(len(Q))) if spread > 0 else float("inf")
     return normal, h, inl, rmse, float(std)
 
 
@@ -299,7 +303,7 @@ def measure_disc_3d(depth_m, intrinsics: Intrinsics, predicted_cam, margin_m: fl
         return _skip(f"only {n_sel} valid depth points within {reach:.2f} m of the predicted disc", n_sel)
     P = np.column_stack([gu[sel] * z[sel], gv[sel] * z[sel], z[sel]])
     tol = max(options.min_plane_tol_m, options.plane_tol_sigma * sigma)
-    geo = _Window(K, f, R, zp, pred, gu, gv, lat, sel, z.shape)
+    geo = _Window(K, f, R, zp, pred, gu, gv, lat, sel, z.shape, sigma)
     # the disc is the front surface near the prediction: a wall behind it would give RANSAC a plane slanted
     # across both. Front = within the disc's depth extent (from the previous normal, else up to 60 deg of
     # tilt) plus 3 sigma behind the 10th percentile depth of the points within one radius of the prediction.
@@ -319,7 +323,7 @@ def measure_disc_3d(depth_m, intrinsics: Intrinsics, predicted_cam, margin_m: fl
                             min(0.9, options.min_minor_px * zp / (f * R)))
         if hyp is None:
             continue
-        normal, h, inl_sub, rmse, nstd = _refit(P[idx], *hyp, tol)
+        normal, h, inl_sub, rmse, nstd = _refit(P[idx], *hyp, tol, sigma)
         inl = np.zeros(len(P), bool)
         inl[idx[inl_sub]] = True
         if inl.sum() < options.min_points:
@@ -345,6 +349,7 @@ class _Window:
     lat: np.ndarray
     sel: np.ndarray
     shape: tuple
+    sigma: float
 
 
 def _patch(g, P, inl, minor_px, options):
@@ -359,9 +364,16 @@ def _patch(g, P, inl, minor_px, options):
     n_lab, labels = cv2.connectedComponents(mask, connectivity=8)
     core = (g.lat <= g.R) & (labels > 0)
     counts = np.bincount(labels[core], minlength=n_lab) if core.any() else np.zeros(n_lab, int)
-    if n_lab < 2 or counts[1:].max(initial=0) == 0:
+    if n_lab < 2:
         return None
-    return labels == int(np.argmax(counts[1:]) + 1)
+    if counts[1:].max(initial=0) > 0:
+        return labels == int(np.argmax(counts[1:]) + 1)
+    # nothing under the prediction (it lags a large step): the disc-sized component nearest to it
+    sizes = np.bincount(labels.ravel(), minlength=n_lab)
+    big = [k for k in range(1, n_lab) if sizes[k] >= 0.3 * np.pi * minor_px * (g.f * g.R / g.zp)]
+    if not big:
+        return None
+    return labels == min(big, key=lambda k: float(np.min(g.lat[labels == k])))
 
 
 def _disc_in_plane(g, P, inl, normal, h, rmse, nstd, tol, options, normal_prior) -> DiscMeasurement:
@@ -389,6 +401,25 @@ def _disc_in_plane(g, P, inl, normal, h, rmse, nstd, tol, options, normal_prior)
             normal, h = -normal, -h
         cos_view = abs(float(normal @ _unit(pred)))
         minor_px = f * R / zp * cos_view                       # the disc's smaller image radius
+        if minor_px < options.min_minor_px and normal_from == "fit":
+            # an edge-on fit may be the noise's (depth scatter dwarfing the disc): try the fallback normal; a
+            # truly edge-on disc then leaves too small a patch for the area check
+            nstd = np.inf
+            normal_from = "edge-on fit"
+            continue_with_fallback = True
+        else:
+            continue_with_fallback = False
+        if continue_with_fallback:
+            if normal_prior is not None and np.all(np.isfinite(normal_prior)):
+                normal, normal_from = _unit(np.asarray(normal_prior, float)), "prior"
+            else:
+                normal, normal_from = -_unit(pred), "camera"
+            h = float(np.median(P[inl] @ normal))
+            inl = np.abs(P @ normal - h) <= tol
+            if normal @ pred > 0:
+                normal, h = -normal, -h
+            cos_view = abs(float(normal @ _unit(pred)))
+            minor_px = f * R / zp * cos_view
         if minor_px < options.min_minor_px:
             return _skip(f"disc seen edge-on: smaller image radius {minor_px:.1f} px (plane "
                          f"{np.degrees(np.arccos(cos_view)):.0f} deg from the view)")
@@ -414,7 +445,7 @@ def _disc_in_plane(g, P, inl, normal, h, rmse, nstd, tol, options, normal_prior)
         if on.sum() < options.min_points:
             break
         if normal_from == "fit":
-            normal, h, _, rmse, nstd = _refit(P[pidx[on]], normal, h, tol)
+            normal, h, _, rmse, nstd = _refit(P[pidx[on]], normal, h, tol, g.sigma)
         else:
             h = float(np.median(P[pidx[on]] @ normal))
         if normal @ pred > 0:
@@ -562,7 +593,8 @@ class DiscSweepTracker:
                 step = float(np.linalg.norm(v) * abs(theta2_rad - th[-1]))
                 return pts[-1] + v * (theta2_rad - th[-1]), float(np.clip(0.3 * step + 2 * o.min_margin_m,
                                                                           o.min_margin_m, o.max_margin_m))
-            return pts[-1], o.acquire_margin_m
+            # one pose seen so far: the disc may have turned by the step times an arm of up to 1 m
+            return pts[-1], o.acquire_margin_m + 1.0 * abs(theta2_rad - th[-1])
         if len(self.centres) < 2:
             return self.centres[-1], o.acquire_margin_m
         return 2 * self.centres[-1] - self.centres[-2], max(margin, 0.5 * o.acquire_margin_m)

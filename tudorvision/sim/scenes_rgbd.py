@@ -170,44 +170,40 @@ def wall_disc(disc_center_base, rng: np.random.Generator, *, T_world_base=np.eye
                           "disc_radius_m": radius, "rate_hz": KINECT_RATE_HZ})
 
 
-def _ring_and_arm(arm, T_world_base, T_base_disc, disc_radius_m, ring_tube_m, n_ring):
-    """Arm capsules with link 3 ending on a net ring (capsule polygon) around the disc, world frame."""
+def _ring_and_arm(arm, T_world_base, T_base_disc, disc_radius_m, ring_width_m):
+    """Arm capsules with link 3 ending on a flat net ring just behind the disc, world frame."""
     T = T_world_base
     c = T_base_disc[:3, 3]
     n = T_base_disc[:3, 2]
     shapes = [s for s in arm_shapes(arm, T, sphere_radius_m=0.01, spheres=False)]
-    r_ring = disc_radius_m + ring_tube_m
+    r_ring = disc_radius_m + ring_width_m
     pts3 = arm.link_points_base[-1]
     last = f"link3_{len(pts3) - 2}"
     toward = pts3[-2] - c                                  # from the disc toward the elbow, in the disc plane
     toward = toward - (toward @ n) * n
     toward /= max(np.linalg.norm(toward), 1e-12)
-    attach = c + r_ring * toward
+    attach = c + (r_ring - 0.005) * toward
     out = []
     for sh in shapes:
         if sh.name == last:
             sh = Capsule(p0=sh.p0, p1=to_world(T, attach), radius=sh.radius, color_rgb=sh.color_rgb, name=last)
         out.append(sh)
-    e1 = toward
-    e2 = np.cross(n, e1)
-    a = np.linspace(0.0, 2 * np.pi, n_ring + 1)
-    ring = [c + r_ring * (np.cos(x) * e1 + np.sin(x) * e2) for x in a]
-    for i in range(n_ring):
-        out.append(Capsule(p0=to_world(T, ring[i]), p1=to_world(T, ring[i + 1]), radius=ring_tube_m,
-                           color_rgb=(0.15, 0.15, 0.16), name=f"ring_{i}"))
+    # the ring 4 mm behind the disc: in depth one surface with the disc and the link's end
+    out.append(Disc(center=to_world(T, c - 0.004 * n), normal=T[:3, :3] @ n, radius=r_ring,
+                    color_rgb=(0.2, 0.2, 0.22), name="ring"))
     return out
 
 
 def disc_on_arm(T_base_disc_at, arm_at, rng: np.random.Generator, *, T_world_base=np.eye(4),
-                disc_radius_m: float = 0.09, ring_tube_m: float = 0.006, n_ring: int = 16,
+                disc_radius_m: float = 0.09, ring_width_m: float = 0.03,
                 camera_distance_m: float = 5.0, camera_height_m: float = 1.6, camera_azimuth_rad: float = 0.0,
                 camera_roll_rad: float = 0.0, aim_offset_m=(0.0, 0.0, 0.0), background: str = "invalid",
                 near_gap_m: float = 0.3, width: int = 640, height: int = 480, t0: float = 0.0) -> SimSetup:
     """Wall RGB-D camera and the calibration disc in a net ring at the end of the arm's thin links.
 
-    The disc (radius ``disc_radius_m``) sits in a ring of capsules (tube
-    radius ``ring_tube_m``) that touches it all round; link 3 ends on the ring,
-    so in depth the disc, the ring and the links are one connected surface.
+    The disc (radius ``disc_radius_m``) sits in a flat net ring (``ring_width_m``
+    wide, 4 mm behind it); link 3 ends on the ring, so in depth the disc, the
+    ring and the link are one connected surface.
     The disc's pose follows the end effector (its normal is not made to face
     the camera).
 
@@ -222,10 +218,8 @@ def disc_on_arm(T_base_disc_at, arm_at, rng: np.random.Generator, *, T_world_bas
         Randomises lighting and clutter.
     T_world_base : array_like, shape (4, 4)
         Robot base pose in the world (floor at world z = 0).
-    disc_radius_m, ring_tube_m : float
-        Disc radius and ring tube radius, metres.
-    n_ring : int
-        Capsules forming the ring.
+    disc_radius_m, ring_width_m : float
+        Disc radius and width of the ring around it, metres.
     camera_distance_m : float
         Distance from the camera to the joint-2 axis point above the base, metres.
     camera_height_m : float
@@ -261,7 +255,7 @@ def disc_on_arm(T_base_disc_at, arm_at, rng: np.random.Generator, *, T_world_bas
     """
     T = check_transform(T_world_base, "T_world_base")
     radius = positive_float(disc_radius_m, "disc_radius_m")
-    tube = positive_float(ring_tube_m, "ring_tube_m")
+    ring_w = positive_float(ring_width_m, "ring_width_m")
     dist = positive_float(camera_distance_m, "camera_distance_m")
     if background not in ("invalid", "near"):
         raise ValueError(f"background: expected 'invalid' or 'near', got {background!r}")
@@ -290,7 +284,7 @@ def disc_on_arm(T_base_disc_at, arm_at, rng: np.random.Generator, *, T_world_bas
         c_w = to_world(T, Tbd[:3, 3])
         out = [Disc(center=c_w, normal=T[:3, :3] @ Tbd[:3, 2], radius=radius, color_rgb=(0.9, 0.85, 0.2),
                     name="disc")]
-        return out + _ring_and_arm(arm_at(t), T, Tbd, radius, tube, int(n_ring))
+        return out + _ring_and_arm(arm_at(t), T, Tbd, radius, ring_w)
 
     scene = Scene(static=shapes, lights=lights, dynamic=dynamic)
     T_base_cam = np.linalg.inv(T) @ T_wc
