@@ -27,14 +27,14 @@ import struct
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from .._checks import TudorVisionError
 from ._index import ImageProblem, associate
 from ._layouts import FRAME_STREAMS, Spec
-from .calibration import Calibration, CameraModel, StereoExtrinsics
+from .calibration import Calibration
 from .frames import raw_from_depth_m
+from .rosmsg import camera_from_info, decode_image, stereo_from_infos
 
 __all__ = ["BagTopic", "is_bag", "bag_topics", "parse_topics", "choose_topics", "decode_image", "camera_from_info",
            "stereo_from_infos", "bag_spec", "BagFrames", "IMAGE_TYPES", "INFO_TYPE"]
@@ -280,135 +280,6 @@ def choose_topics(topics: list[BagTopic], requested=None, *, where: str = "bag"
     return kind, streams, found
 
 
-def decode_image(msg) -> np.ndarray:
-    """Pixels of a deserialised ``sensor_msgs/Image`` or ``CompressedImage``.
-
-    Parameters
-    ----------
-    msg : object
-        The message from ``rosbags`` (attributes ``encoding``, ``height``,
-        ``width``, ``step``, ``is_bigendian``, ``data``; or ``format``,
-        ``data``).
-
-    Returns
-    -------
-    ndarray
-        ``(H, W, 3)`` uint8 BGR, ``(H, W)`` uint8 grey, ``(H, W)`` uint16
-        (``mono16`` / ``16UC1``) or ``(H, W)`` float32 (``32FC1``), in the
-        message's units.
-
-    Raises
-    ------
-    ImageProblem
-        Unsupported encoding, or data too short or undecodable.
-    """
-    data = np.frombuffer(memoryview(np.ascontiguousarray(msg.data, dtype=np.uint8)), dtype=np.uint8)
-    if hasattr(msg, "format"):
-        fmt = str(msg.format).lower()
-        if "compresseddepth" in fmt:       # 12-byte config header before the PNG
-            start = data.tobytes().find(b"\x89PNG")
-            data = data[start:] if start >= 0 else data[:0]
-        img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
-        if img is None:
-            raise ImageProblem(f"cannot decode compressed image (format {msg.format!r})")
-        if img.ndim == 3 and img.shape[2] == 4:
-            img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
-        if "rgb8" in fmt and "bgr8" not in fmt and img.ndim == 3:
-            img = np.ascontiguousarray(img[:, :, ::-1])
-        return img
-    enc, h, w, step = str(msg.encoding).lower(), int(msg.height), int(msg.width), int(msg.step)
-    layouts = {"rgb8": ("u1", 3), "bgr8": ("u1", 3), "8uc3": ("u1", 3), "rgba8": ("u1", 4), "bgra8": ("u1", 4),
-               "8uc4": ("u1", 4), "mono8": ("u1", 1), "8uc1": ("u1", 1), "mono16": ("u2", 1),
-               "16uc1": ("u2", 1), "32fc1": ("f4", 1)}
-    if enc not in layouts:
-        raise ImageProblem(f"unsupported image encoding {msg.encoding!r} (supported: {', '.join(layouts)})")
-    typ, ch = layouts[enc]
-    dt = np.dtype(typ).newbyteorder(">" if msg.is_bigendian else "<")
-    row = w * ch * dt.itemsize
-    if h <= 0 or w <= 0 or step < row or data.size < step * h:
-        raise ImageProblem(f"image data of {data.size} bytes does not hold {w}x{h} {msg.encoding} "
-                           f"(step {step})")
-    rows = data[:step * h].reshape(h, step)[:, :row]
-    img = np.ascontiguousarray(rows).view(dt).reshape((h, w, ch) if ch > 1 else (h, w)).astype(dt.newbyteorder("="))
-    if ch == 4:
-        img = img[:, :, :3]
-    if enc.startswith("rgb"):
-        img = img[:, :, ::-1]
-    return np.ascontiguousarray(img)
-
-
-def _field(msg, name):
-    return getattr(msg, name) if hasattr(msg, name) else getattr(msg, name.upper())
-
-
-def camera_from_info(msg) -> tuple[CameraModel, np.ndarray, np.ndarray]:
-    """Camera model from a deserialised ``sensor_msgs/CameraInfo`` (ROS 1 or ROS 2 field names).
-
-    Parameters
-    ----------
-    msg : object
-        The message (``width``, ``height``, ``distortion_model``, ``k``/``K``,
-        ``d``/``D``, ``r``/``R``, ``p``/``P``).
-
-    Returns
-    -------
-    camera : CameraModel
-        Intrinsics (pixels), plumb_bob distortion and image size.
-    R_rect : ndarray, shape (3, 3)
-        Rectification rotation.
-    P : ndarray, shape (3, 4)
-        Rectified projection matrix, pixels (``P[0, 3] = -fx' * baseline_m``
-        for the right camera).
-
-    Raises
-    ------
-    ValueError
-        Uncalibrated (zero) ``K``, or a distortion model this project cannot
-        represent (non-zero coefficients beyond the five of plumb_bob).
-    """
-    K = np.asarray(_field(msg, "k"), dtype=np.float64).reshape(3, 3)
-    d = np.asarray(_field(msg, "d"), dtype=np.float64).ravel()
-    model = str(msg.distortion_model or "plumb_bob")
-    if model not in ("plumb_bob", "rational_polynomial", "radtan", "") or np.any(d[5:] != 0):
-        raise ValueError(f"distortion model {model!r} with {d.size} coefficients cannot be represented "
-                         "(plumb_bob, 5 coefficients)")
-    dist = np.zeros(5)
-    dist[:min(5, d.size)] = d[:5]
-    cam = CameraModel(K=K, dist=dist, width=int(msg.width), height=int(msg.height))
-    R = np.asarray(_field(msg, "r"), dtype=np.float64).reshape(3, 3)
-    P = np.asarray(_field(msg, "p"), dtype=np.float64).reshape(3, 4)
-    if not np.any(R):
-        R = np.eye(3)
-    return cam, R, P
-
-
-def stereo_from_infos(left, right) -> StereoExtrinsics | None:
-    """Stereo extrinsics from the left and right ``(camera, R_rect, P)`` of :func:`camera_from_info`.
-
-    ROS rectification: ``R1 @ x_left`` and ``R2 @ x_right`` are parallel
-    frames, offset along x by ``Tx = P2[0, 3] / P2[0, 0]``, so
-    ``R = R2.T @ R1`` and ``T = R2.T @ (Tx, 0, 0)`` (OpenCV convention,
-    ``x_right = R @ x_left + T``).
-
-    Parameters
-    ----------
-    left, right : tuple
-        ``(CameraModel, R_rect (3, 3), P (3, 4))`` of each camera.
-
-    Returns
-    -------
-    StereoExtrinsics or None
-        None when ``P2[0, 3]`` is zero (no baseline recorded).
-    """
-    (_, R1, P1), (_, R2, P2) = left, right
-    if P2[0, 0] == 0 or P2[0, 3] == 0:                   # no baseline recorded
-        return None
-    tx = P2[0, 3] / P2[0, 0]
-    f, cx, cy, cx2 = P1[0, 0], P1[0, 2], P1[1, 2], P2[0, 2]
-    Q = np.array([[1, 0, 0, -cx], [0, 1, 0, -cy], [0, 0, 0, f], [0, 0, -1 / tx, (cx - cx2) / tx]])
-    return StereoExtrinsics(R=R2.T @ R1, T=R2.T @ np.array([tx, 0.0, 0.0]), R1=R1, R2=R2, P1=P1, P2=P2, Q=Q)
-
-
 def _stamp(raw, is2: bool) -> float | None:
     """``header.stamp`` in seconds, read straight from the serialised bytes (None if too short)."""
     try:
@@ -423,33 +294,48 @@ def _stamp(raw, is2: bool) -> float | None:
 
 
 class _Cursor:
-    """Streams one topic's messages forward with its own reader; restarts for an out-of-order request."""
+    """Reads the chosen topics forward with one reader, keeping read-ahead messages a later frame needs.
 
-    def __init__(self, path: Path, topic: str, logtimes_ns: np.ndarray):
-        self.path, self.topic, self.logtimes_ns = path, topic, logtimes_ns
-        self.reader, self.conns, self.gen, self.pos = None, [], None, -1
+    Messages are numbered ``g`` in the order of the scan at open; a request
+    behind the read position (random access) restarts at its log time.
+    """
 
-    def get(self, k: int):
+    def __init__(self, path: Path, logtimes_ns: np.ndarray, topics: list, needed: set, reader=None):
+        self.path, self.logtimes_ns, self.topics, self.needed = path, logtimes_ns, topics, needed
+        self.reader, self.gen, self.pos, self.cache = reader, None, -1, {}
+        self.conns = [c for c in reader.connections if c.topic in set(topics)] if reader is not None else []
+
+    def get(self, g: int):
         try:
+            if g in self.cache:
+                conn, raw = self.cache.pop(g)
+                return self.reader.deserialize(raw, conn.msgtype)
             if self.reader is None:
                 self.reader = _open_reader(self.path)
-                self.conns = [c for c in self.reader.connections if c.topic == self.topic]
-            if self.gen is None or self.pos != k:
-                t = int(self.logtimes_ns[k])
+                self.conns = [c for c in self.reader.connections if c.topic in set(self.topics)]
+            if self.gen is None or self.pos > g:
+                t = int(self.logtimes_ns[g])
                 self.gen = self.reader.messages(connections=self.conns, start=t)
                 self.pos = int(np.searchsorted(self.logtimes_ns, t))
             while True:
                 conn, _, raw = next(self.gen)
-                self.pos += 1
-                if self.pos - 1 == k:
+                k, self.pos = self.pos, self.pos + 1
+                if conn.topic != self.topics[k]:
+                    raise ValueError(f"message order differs from the scan at open ({conn.topic})")
+                if k == g:
                     return self.reader.deserialize(raw, conn.msgtype)
+                if k in self.needed:             # passed over (e.g. a right image logged first)
+                    self.cache[k] = (conn, raw)
+                    if len(self.cache) > 64:
+                        self.cache.pop(min(self.cache))
         except Exception as exc:   # truncated chunk, corrupt message, vanished file
             self.gen = None
             why = "message missing" if isinstance(exc, StopIteration) else _why(exc)
-            raise ImageProblem(f"cannot read message {k} of {self.topic} ({why})") from None
+            raise ImageProblem(f"cannot read message {g} ({self.topics[g]}) ({why})") from None
 
     def close(self):
         self.gen, reader, self.reader = None, self.reader, None
+        self.cache.clear()
         if reader is not None:
             _close(reader)
 
@@ -463,12 +349,17 @@ class BagFrames:
         The bag.
     streams : dict of str to str
         Stream to image topic.
-    logtimes_ns : dict of str to ndarray, shape (M,), int64
-        Log time of every message of each stream's topic, in bag order.
+    logtimes_ns : ndarray, shape (M,), int64
+        Log time of every message of the image topics, in bag order.
+    msg_topics : list of str, length M
+        Topic of every such message.
     frames : list of tuple
-        ``(t_s, {stream: message number}, t_second_s)`` per frame.
+        ``(t_s, {stream: message number into logtimes_ns}, t_second_s)`` per frame.
     depth_scale : float
         Raw depth units per metre for ``32FC1`` depth.
+    reader : rosbags AnyReader, optional
+        An open reader of the bag to use (and close); default: opened on the
+        first read.
 
     Attributes
     ----------
@@ -478,12 +369,15 @@ class BagFrames:
         Frame times, seconds (``header.stamp`` of the first stream).
     """
 
-    def __init__(self, path: Path, streams: dict, logtimes_ns: dict, frames: list, depth_scale: float):
+    def __init__(self, path: Path, streams: dict, logtimes_ns: np.ndarray, msg_topics: list, frames: list,
+                 depth_scale: float, reader=None):
         self.path = Path(path)
         self.streams = dict(streams)
         self._frames = frames
         self.depth_scale = float(depth_scale)
-        self._cursors = {s: _Cursor(self.path, t, logtimes_ns[s]) for s, t in streams.items()}
+        needed = {g for f in frames for g in f[1].values()}
+        self._cursor = _Cursor(self.path, np.asarray(logtimes_ns, dtype=np.int64), list(msg_topics), needed,
+                               reader)
         self.count = len(frames)
         self.timestamps = np.array([f[0] for f in frames], dtype=np.float64)
 
@@ -513,7 +407,7 @@ class BagFrames:
         t, ks, t2 = self._frames[i]
         out = {}
         for s, k in ks.items():
-            img = decode_image(self._cursors[s].get(k))
+            img = decode_image(self._cursor.get(k))
             if s == "depth":
                 if img.dtype == np.float32:
                     img = raw_from_depth_m(img, self.depth_scale)
@@ -529,9 +423,8 @@ class BagFrames:
         return t, out, t2
 
     def close(self) -> None:
-        """Close the readers."""
-        for c in self._cursors.values():
-            c.close()
+        """Close the reader."""
+        self._cursor.close()
 
 
 def _increasing(t: np.ndarray) -> np.ndarray:
@@ -594,43 +487,48 @@ def bag_spec(path, *, topics=None, max_dt_s: float | None = None, depth_scale: f
         ambiguous image topics, or no frames.
     """
     path = Path(path)
-    reader = _open_reader(path)
+    reader, done = _open_reader(path), False
     try:
         tops = [BagTopic(n, i.msgtype or "?", int(i.msgcount)) for n, i in sorted(reader.topics.items())]
         kind, streams, infos = choose_topics(tops, topics, where=str(path))
         topic_stream = {t: s for s, t in streams.items()}
-        stamps, logt = {s: [] for s in streams}, {s: [] for s in streams}
+        stamps, gidx, logt, msg_topics = {s: [] for s in streams}, {s: [] for s in streams}, [], []
         conns = [c for c in reader.connections if c.topic in topic_stream]
         for conn, ts, raw in reader.messages(connections=conns):
             s = topic_stream[conn.topic]
             st = _stamp(raw, reader.is2)
-            logt[s].append(ts)
+            gidx[s].append(len(logt))
+            logt.append(ts)
+            msg_topics.append(conn.topic)
             stamps[s].append(st if st else ts * 1e-9)
         msgs = {}
         for s, t in infos.items():
             for conn, _, raw in reader.messages(connections=[c for c in reader.connections if c.topic == t]):
                 msgs[s] = reader.deserialize(raw, conn.msgtype)
                 break
+        done = bool(logt)
     except TudorVisionError:
         raise
     except Exception as exc:   # the library raises many types for damaged files
         raise TudorVisionError(f"{path}: cannot read bag ({_why(exc)})") from None
     finally:
-        _close(reader)
+        if not done:
+            _close(reader)
     notes = [f"topics: {', '.join(f'{s}={t}' for s, t in streams.items())}"]
     names = list(streams)
     t = {s: np.asarray(stamps[s], dtype=np.float64) for s in names}
-    keep = {s: _increasing(t[s]) for s in names}
+    keep = {s: np.asarray(gidx[s], dtype=np.int64)[_increasing(t[s])] for s in names}
+    t = {s: np.asarray(stamps[s], dtype=np.float64)[_increasing(t[s])] for s in names}
     for s in names:
-        if len(keep[s]) < len(t[s]):
-            notes.append(f"{len(t[s]) - len(keep[s])} {streams[s]} message(s) left out: stamp not after "
+        if len(keep[s]) < len(stamps[s]):
+            notes.append(f"{len(stamps[s]) - len(keep[s])} {streams[s]} message(s) left out: stamp not after "
                          "the previous one")
-    ta = t[names[0]][keep[names[0]]]
+    ta = t[names[0]]
     period = float(np.median(np.diff(ta))) if ta.size > 1 else None
     if len(names) == 1:
         frames = [(float(ta[j]), {names[0]: int(k)}, None) for j, k in enumerate(keep[names[0]])]
     else:
-        tb = t[names[1]][keep[names[1]]]
+        tb = t[names[1]]
         tol = float(max_dt_s) if max_dt_s is not None else (0.5 * period if period else 0.02)
         pairs = associate(ta, tb, tol)
         frames = [(float(ta[i]), {names[0]: int(keep[names[0]][i]), names[1]: int(keep[names[1]][j])},
@@ -638,12 +536,16 @@ def bag_spec(path, *, topics=None, max_dt_s: float | None = None, depth_scale: f
         if len(pairs) < max(ta.size, tb.size):
             notes.append(f"{ta.size - len(pairs)} {names[0]} and {tb.size - len(pairs)} {names[1]} message(s) "
                          f"without a partner within {tol:.4g} s left out")
-    if not frames:
-        raise TudorVisionError(f"{path}: no frames on {', '.join(streams.values())}")
     scale = float(depth_scale) if depth_scale is not None else 1000.0
-    cal = _calibration(kind, infos, msgs, path, notes)
+    try:
+        if not frames:
+            raise TudorVisionError(f"{path}: no frames on {', '.join(streams.values())}")
+        cal = _calibration(kind, infos, msgs, path, notes)
+    except BaseException:
+        _close(reader)
+        raise
     layout = {".bag": "rosbag1", ".mcap": "mcap"}.get(path.suffix.lower() if path.is_file() else "", "rosbag2")
-    src = BagFrames(path, streams, {s: np.asarray(logt[s], dtype=np.int64) for s in names}, frames, scale)
+    src = BagFrames(path, streams, np.asarray(logt, dtype=np.int64), msg_topics, frames, scale, reader)
     return Spec(path=path, layout=layout, kind=kind, rate_hz=1.0 / period if period else None,
                 depth_scale=scale if kind == "rgbd" else None,
                 streams=tuple(names), source=src, calibration=cal, notes=notes,
