@@ -373,6 +373,12 @@ def test_swapped_cameras_warn_and_exit_nonzero_then_track_0_valid(tmp_path, caps
     assert rc == 3 and out_csv.is_file()
     assert "0.0% valid" in out
     assert "warning: 0 % valid" in err and "left and right look swapped" in err
+    # the base-frame calibration tracking the same sweep stops with the same cause (one error line, exit 2)
+    rc, out, err = _run(capsys, "calib", "base-stereo", SAMPLE / "stereo-sweep", "--calib",
+                        tmp_path / "swapped.yaml", "--colormodel", sweep_models, "--out", tmp_path / "base.yaml")
+    errors = [ln for ln in err.splitlines() if "error" in ln]
+    assert rc == 2 and len(errors) == 1 and "likely cause" in errors[0] and "look swapped" in errors[0]
+    assert not (tmp_path / "base.yaml").exists()
     # the right calibration tracks every frame, in any format (here ROS camera_info left,right)
     rc, out, err = _run(capsys, *base, "--left", left, "--right", right, "--export-ros", tmp_path / "ros")
     assert rc == 0, err

@@ -63,7 +63,13 @@ def _size(text):
 
 
 def register(calib_sub) -> None:
-    """Add ``convert`` to the ``calib`` group."""
+    """Add ``convert`` to the ``calib`` group.
+
+    Parameters
+    ----------
+    calib_sub : argparse subparsers
+        The ``calib`` group's subcommands.
+    """
     p = calib_sub.add_parser(
         "convert", help="convert a calibration between tudorvision, ROS, OpenCV and Kalibr files",
         description="Read a calibration in any supported format (tudorvision YAML, ROS camera_info: one file or "

@@ -205,7 +205,7 @@ def _track_sweep(args):
     """Track SEQ in the left camera frame: (Trajectory, Calibration used)."""
     from ..io.sequence import open_sequence
     from .calib_convert import load_calibration_arg
-    from .stereo import luma_edge_params
+    from .stereo import ValidityDiagnosis, luma_edge_params
     from ..stereo.colormodel import load_color_models
     from ..stereo.pipeline import PipelineOptions
     from ..stereo.tracking import track_stereo
@@ -226,12 +226,15 @@ def _track_sweep(args):
                 raise TudorVisionError(f"{args.seq}: no calibration in the sequence; give --calib FILE")
         tracker, edge_note = luma_edge_params(args.luma_edge, args.seq)
         print(edge_note)
+        diag = ValidityDiagnosis()
         res = track_stereo(seq, cal, load_color_models(args.colormodel), show_progress=None,
-                           options=PipelineOptions(tracker=tracker))
+                           options=PipelineOptions(tracker=tracker), on_result=diag)
     finally:
         seq.close()
     print(f"tracked {args.seq}: {res.stats.summary()}")
-    return res.trajectory, cal
+    if res.stats.processed and res.stats.valid == 0:
+        raise TudorVisionError(f"{args.seq}: 0 % valid frames when tracking the sweep: {diag.cause(cal)}")
+    return res.trajectory, cal, diag
 
 
 def run_base_stereo(args) -> int:
@@ -240,11 +243,11 @@ def run_base_stereo(args) -> int:
     from ..stereo.base_frame import base_frame_from_theta1_sweep
     from ..stereo.trajectory import read_trajectory_csv
 
-    tracked_cal = None
+    tracked_cal, diag = None, None
     if args.traj:
         traj = read_trajectory_csv(args.traj)
     else:
-        traj, tracked_cal = _track_sweep(args)
+        traj, tracked_cal, diag = _track_sweep(args)
     src = args.traj or args.seq
     if traj.frame not in ("left", "unknown"):
         raise TudorVisionError(f"{src}: trajectory is in frame {traj.frame!r}; base-stereo needs "
@@ -257,8 +260,9 @@ def run_base_stereo(args) -> int:
     ok = traj.valid & inside
     sweep = ok & (np.abs(theta[:, 1]) < tol) & (np.abs(theta[:, 2]) < tol)
     if sweep.sum() < 10:
+        cause = f" (likely cause: {diag.cause(tracked_cal)})" if diag is not None else ""
         raise TudorVisionError(f"{src}: only {int(sweep.sum())} valid trajectory rows with "
-                               f"theta2 = theta3 = 0 (within {args.tol_deg} deg); need at least 10")
+                               f"theta2 = theta3 = 0 (within {args.tol_deg} deg); need at least 10{cause}")
     if args.vertical_frame is not None:
         i = args.vertical_frame
         if not 0 <= i < len(traj.t):

@@ -273,8 +273,12 @@ def _sphere_separation(models):
     return float(np.linalg.norm(np.subtract(offsets[names[0]], offsets[names[1]])))
 
 
-class _ValidityDiagnosis:
-    """Counts, per processed frame, where the spheres were lost, to explain a run with no valid frame."""
+class ValidityDiagnosis:
+    """Counts, per processed frame, where the spheres were lost, to explain a run with no valid frame.
+
+    Called as ``on_result(result, frame)`` of :func:`tudorvision.stereo.tracking.track_stereo`;
+    :meth:`cause` then names the likely cause in one line.
+    """
 
     _GEOMETRY = ("stereo-inconsistent", "sphere separation")
 
@@ -333,7 +337,7 @@ def run_track_stereo(args) -> int:
     if args.rerun:
         from ..stereo.rerun_log import RerunStereoLog
         log = RerunStereoLog(args.rerun, image_every=args.rerun_image_every)
-    diag = _ValidityDiagnosis()
+    diag = ValidityDiagnosis()
 
     def on_result(r, frame):
         diag(r, frame)
