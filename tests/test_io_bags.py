@@ -436,3 +436,72 @@ def test_colormodel_and_track_mono_on_a_bag(tmp_path, flavour, capsys):
     assert rows.shape == (6, 5) and np.all(rows[:, 4] == 1)
     np.testing.assert_allclose(rows[:, 2], 40 + 12 * np.arange(6), atol=0.5)
     np.testing.assert_allclose(rows[:, 1], T0 + np.arange(6) * DT_NS * 1e-9, atol=1e-6)
+
+
+# ----------------------------------------------------------------------------- order, random access, partial imports
+def test_right_logged_before_left_and_random_access(tmp_path):
+    path = tmp_path / "order.bag"
+    left, right = _images(21, 8), _images(22, 8)
+    bag = _Bag(path, "ros1")
+    for k in range(8):
+        t = T0 * 10**9 + k * DT_NS
+        bag.image("/cam/right/image", t - 500_000, right[k], "bgr8")     # right logged (and stamped) first
+        bag.image("/cam/left/image", t, left[k], "bgr8")
+    bag.close()
+    with open_sequence(path) as seq:
+        assert len(seq) == 8
+        for i in [7, 0, 3, 4, 5, 1, 6, 2, 2]:
+            f = seq[i]
+            assert np.array_equal(f.left, left[i]) and np.array_equal(f.right, right[i])
+        assert [f.index for f in seq] == list(range(8))
+
+
+def _unsupported_frame_bag(path):
+    imgs = _images(31, 6)
+    bag = _Bag(path, "ros1")
+    for k in range(6):
+        t = T0 * 10**9 + k * DT_NS
+        if k == 2:
+            bag.image("/cam/image", t, np.zeros((H, W * 2), np.uint8), "yuv422")
+        else:
+            bag.image("/cam/image", t, imgs[k], "bgr8")
+    bag.close()
+    return imgs
+
+
+def test_import_skips_undecodable_frames_and_flags_them(tmp_path, capsys):
+    src, out = tmp_path / "yuv.bag", tmp_path / "o"
+    imgs = _unsupported_frame_bag(src)
+    assert main(["seq", "import", str(src), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "partial: 1 defect(s) skipped" in err and "unsupported image encoding 'yuv422'" in err
+    with open_sequence(out) as seq:
+        assert len(seq) == 5 and not (out / "INCOMPLETE").exists()
+        assert "yuv422" in seq.meta["skipped_frames"][0]
+        assert np.array_equal(seq[2].image, imgs[3])
+    assert main(["seq", "import", str(src), "--out", str(tmp_path / "s"), "--strict"]) == 2
+    assert "yuv422" in capsys.readouterr().err
+    assert (tmp_path / "s" / "INCOMPLETE").exists()
+    with pytest.raises(TudorVisionError, match="incomplete"):
+        open_sequence(tmp_path / "s")
+
+
+def test_import_interrupted_by_ctrl_c_is_flagged(tmp_path, monkeypatch, capsys):
+    from tudorvision.io.bags import BagFrames
+
+    src, out = tmp_path / "s.bag", tmp_path / "o"
+    write_stereo_bag(src, "ros1")
+    real = BagFrames.read
+
+    def read(self, i):
+        if i == 3:
+            raise KeyboardInterrupt
+        return real(self, i)
+
+    monkeypatch.setattr(BagFrames, "read", read)
+    assert main(["seq", "import", str(src), "--out", str(out)]) == 130
+    assert "interrupted" in capsys.readouterr().err
+    assert (out / "INCOMPLETE").exists()
+    assert "interrupted (Ctrl-C) after 3 frames" in (out / "sequence.yaml").read_text()
+    with open_sequence(out, strict=False) as seq:
+        assert len(seq) == 3 and "incomplete" in str(seq.report[0])
