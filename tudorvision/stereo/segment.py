@@ -33,7 +33,7 @@ The pipeline of section 2.4, per camera and sphere:
    >= ``rim_prob`` (0.5: the shaded rim), the outer contour of the result
    (pixel centres) is the rim, and a circle is fitted to it robustly:
    candidate circles through triples of rim points spread along the contour
-   are scored by the points within ``rim_tol_px`` minus twice those clearly
+   are scored by the points within ``max(rim_tol_px, rim_tol_frac * r)`` minus twice those clearly
    outside (hidden or missed parts only remove silhouette, so true rim points
    hardly lie outside), and the best is refined by least squares on its
    inliers. Its centre is the position (the silhouette of a sphere is close
@@ -373,7 +373,8 @@ def _refine_shape(filled: np.ndarray, r_area: float, params: SegmentParams, box_
     if len(c) < 12:
         return None
     pts = c.reshape(-1, 2).astype(np.float64) + (sx0, sy0)
-    fit = fit_rim_circle(pts, params.rim_tol_px)
+    tol = max(params.rim_tol_px, params.rim_tol_frac * r_area)
+    fit = fit_rim_circle(pts, tol)
     if fit is None:
         return None
     fu, fv, fr, inl = fit
@@ -390,7 +391,7 @@ def _refine_shape(filled: np.ndarray, r_area: float, params: SegmentParams, box_
         ou, ov, orr = circle_lsq(pts[~inl])
         if (math.isfinite(orr) and 0.6 * fr <= orr <= 1.6 * fr and math.hypot(ou - fu, ov - fv) < fr
                 and float(np.sqrt(np.mean((np.hypot(pts[~inl, 0] - ou, pts[~inl, 1] - ov) - orr) ** 2)))
-                < params.rim_tol_px):
+                < tol):
             # and the region's moment sits halfway between the two centres
             mu_, mv_ = moment_uv
             sep = math.hypot(ou - fu, ov - fv)
