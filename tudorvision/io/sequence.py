@@ -114,11 +114,12 @@ class Sequence:
 
     Attributes
     ----------
-    path : Path
-        The directory or video file.
+    path : Path or str
+        The directory, video file or bag (a live source: its string).
     layout : str
         ``tudorvision``, ``tum``, ``kinect_folders``, ``numbered_pairs``,
-        ``image_folder`` or ``video``.
+        ``image_folder``, ``stereo_folders``, ``rgbd_folders``, ``video``,
+        ``rosbag1``, ``rosbag2``, ``mcap`` or ``live``.
     kind : str
         ``stereo``, ``rgbd`` or ``mono``.
     rate_hz : float or None
@@ -579,7 +580,7 @@ def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
     path = Path(path)
     if not live and not path.exists():
         raise TudorVisionError(f"{path}: no such file or directory")
-    if path.is_file() and path.name == "sequence.yaml":
+    if path.is_file() and path.name in ("sequence.yaml", "metadata.yaml"):   # a rosbag2 folder's metadata
         path = path.parent
     if live:
         spec = live_spec(text, max_frames=max_frames, timeout_s=timeout_s, max_dt_s=max_dt_s)
