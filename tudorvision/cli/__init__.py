@@ -15,7 +15,7 @@ import sys
 
 from .. import __version__
 from .._checks import TudorVisionError
-from ..joint.server import register_core
+from ..joint.cores import register_core
 
 __all__ = ["main", "build_parser"]
 

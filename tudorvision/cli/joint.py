@@ -7,7 +7,11 @@
 * ``joint status --port P [--timeout S]`` prints the layer's state (exit 0),
   or one line and exit 1 when nothing answers;
 * ``joint move --port P --to DEG,DEG,DEG`` sends a setpoint and waits until
-  the arm has settled (exit 0), exit 1 on refusal, silence or timeout;
+  the arm has settled (exit 0), printing a status line every ``--progress``
+  seconds (joint angles, distance to the goal, link-tip oscillation, elapsed
+  time); exit 1 on refusal, silence or timeout, with the reason it did not
+  settle (a joint still on its way or stopped short, a fault, a collision, or
+  link oscillation with the damping law in use and what to try);
 * ``joint payload --port P --kg M`` tells the layer the end-effector payload
   (its damping gains and collision model follow it); exit 1 on refusal or silence.
 
@@ -21,10 +25,12 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
+from collections import deque
 
 import numpy as np
 
-__all__ = ["register"]
+__all__ = ["register", "tip_mm_per_strain"]
 
 
 def _port(allow_zero: bool):
@@ -48,6 +54,27 @@ def _positive(text: str) -> float:
     if not (np.isfinite(value) and value > 0):
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
     return value
+
+
+def _non_negative(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (np.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text!r}")
+    return value
+
+
+def _robot_arg(parser, what: str) -> None:
+    parser.add_argument("--robot", default=None, metavar="FILE",
+                        help=f"robot description YAML (default: the packaged TUDOR file; see "
+                             f"docs/own_hardware.md): {what}")
+
+
+def _robot_params(args):
+    from ..robot import load_robot_params
+    return load_robot_params(getattr(args, "robot", None))
 
 
 def _mass(text: str) -> float:
@@ -124,6 +151,7 @@ def register(subparsers) -> None:
     s.add_argument("--damping-model", default=None, metavar="CHI_NPY",
                    help="core sim: identified strain dynamics (chi.npy) for the model-assisted static "
                         "strain cancellation of the damper")
+    _robot_arg(s, "joint ranges, speed and acceleration limits; core sim: the whole arm")
     s.set_defaults(func=_serve)
 
     st = actions.add_parser("status", help="print the layer's state")
@@ -147,6 +175,9 @@ def register(subparsers) -> None:
                    help="wait for the joints only, not for the link vibrations to decay")
     m.add_argument("--damping", choices=[d.name.lower() for d in _damping_names()],
                    default=None, help="also switch the damping law (default: keep)")
+    m.add_argument("--progress", type=_non_negative, default=1.0, metavar="S",
+                   help="seconds between status lines while waiting (default 1; 0: none)")
+    _robot_arg(m, "link lengths and blades, to turn the strain gauges into link-tip oscillation in mm")
     m.set_defaults(func=_move)
 
     pl = actions.add_parser("payload", help="tell the layer the end-effector payload")
@@ -223,13 +254,19 @@ def _serve(args) -> int:
     if key is None and not loopback:
         raise TudorVisionError(f"--host {args.host}: serving beyond loopback needs --key-file "
                                f"(tudorvision joint keygen --out KEY)")
-    core = make_core(args.core, **_core_options(args))
+    from ..joint.safety import SafetyLimits
+    params = _robot_params(args)
+    limits = SafetyLimits.from_params(params)
+    options = _core_options(args)
+    if args.robot is not None:
+        options.update(params=params) if args.core == "sim" else options.update(limits=limits)
+    core = make_core(args.core, **options)
     try:
         transport = UdpTransport.server(port=args.port, host=args.host)
     except OSError as err:
         raise TudorVisionError(f"--host {args.host} --port {args.port}: cannot bind: {err.strerror}") from None
     with transport:
-        server = JointLayerServer(transport, core, key=key,
+        server = JointLayerServer(transport, core, key=key, limits=limits,
                                   config=ServerConfig(rate_hz=args.rate,
                                                       watchdog_s=args.watchdog))
         host, port = transport.address
@@ -325,10 +362,121 @@ def _move(args) -> int:
             return _fail("move", f"setpoint refused: {reply.code.name}: {reply.text}")
         if reply.text:
             print(f"note: {reply.code.name}: {reply.text}")
-        st = joints.wait_settled(target, tol=float(np.deg2rad(args.tol)), timeout=args.timeout,
-                                 strains=not args.joints_only)
+        st, why = _wait_with_progress(joints, target, args)
     if st is None:
-        return _fail("move", f"arm did not settle at {args.to.tolist()} deg "
-                             f"within {args.timeout:g} s")
+        return _fail("move", f"did not settle at {_deg_text(args.to)} deg within {args.timeout:g} s: {why}")
     print("settled at theta_deg " + " ".join(f"{x:.3f}" for x in np.rad2deg(st.theta)))
     return 0
+
+
+def _deg_text(deg) -> str:
+    return ",".join(f"{x:g}" for x in np.asarray(deg, float))
+
+
+def tip_mm_per_strain(params) -> np.ndarray:
+    """Link-tip deflection per unit root-gauge strain of links 2 and 3, mm per m/m.
+
+    A cantilever blade bent by a force at its tip (the first bending mode,
+    statically): the strain at the gauge ``x`` from the root is
+    ``F (L - x) (h / 2) / (E I)`` and the tip deflection ``F L^3 / (3 E I)``,
+    so the deflection is ``2 L^3 / (3 h (L - x))`` times the strain.
+
+    Parameters
+    ----------
+    params : tudorvision.robot.RobotParams
+        Link blades (length, height) and strain-gauge positions.
+
+    Returns
+    -------
+    ndarray, shape (2,)
+        mm of tip deflection per m/m of strain at the root gauge of link 2 and link 3.
+
+    Examples
+    --------
+    >>> from tudorvision.robot import load_robot_params
+    >>> (tip_mm_per_strain(load_robot_params()) * 100e-6).round(1).tolist()   # 100 um/m at the roots
+    [3.5, 3.2]
+    """
+    out = []
+    for name in ("link2", "link3"):
+        link = getattr(params, name)
+        x = float(params.gauge_positions_m[name][0])
+        out.append(2.0 * link.length_m ** 3 / (3.0 * link.height_m * (link.length_m - x)) * 1e3)
+    return np.array(out)
+
+
+def _oscillation_mm(history, mm_per_strain) -> np.ndarray:
+    """Half peak-to-peak of the root strains over ``history`` as link-tip mm (links 2, 3)."""
+    if len(history) < 2:
+        return np.zeros(2)
+    roots = np.array([[st.strains[0], st.strains[2]] for _, st in history])
+    return (roots.max(axis=0) - roots.min(axis=0)) / 2.0 * mm_per_strain
+
+
+def _status_line(elapsed_s, st, target, osc_mm) -> str:
+    err_deg = np.rad2deg(np.abs(np.asarray(st.theta) - target))
+    j = int(np.argmax(err_deg))
+    return (f"{elapsed_s:5.1f} s  theta_deg " + " ".join(f"{x:8.3f}" for x in np.rad2deg(st.theta))
+            + f"  to goal {err_deg[j]:.3f} deg (joint {j + 1})  link-tip oscillation "
+            + "/".join(f"{x:.1f}" for x in osc_mm) + f" mm  damping {st.damping.name.lower()}")
+
+
+def _why(history, target, tol, args, mm_per_strain) -> str:
+    """One sentence: why the arm is not settled at ``target`` (from the last states seen)."""
+    from ..joint.protocol import Damping, StateFlags
+
+    if not history:
+        return f"no state from {args.host}:{args.port} while waiting{_KEY_HINT}"
+    st = history[-1][1]
+    if st.flags & StateFlags.FAULT:
+        return "the layer stopped the arm after a fault (see 'tudorvision joint status')"
+    if st.flags & StateFlags.COLLISION:
+        return "a collision was detected and the layer reacted (see 'tudorvision joint status')"
+    err = np.asarray(st.theta) - target
+    j = int(np.argmax(np.abs(err)))
+    if abs(err[j]) > tol:
+        err_deg = float(np.rad2deg(abs(err[j])))
+        if st.flags & StateFlags.MOVING:
+            speed = float(np.rad2deg(abs(st.theta_dot[j])))
+            return (f"joint {j + 1} still {err_deg:.2f} deg from the goal, moving at {speed:.1f} deg/s; "
+                    f"try a longer --timeout or a higher --speed")
+        return (f"joint {j + 1} stopped {err_deg:.2f} deg from the goal (tolerance {args.tol:g} deg); "
+                f"the arm may sag under its payload, try --tol or check 'tudorvision joint status'")
+    if args.joints_only:
+        return "the joints are at the goal but still moving (MOVING flag); try a longer --timeout"
+    osc = _oscillation_mm(history, mm_per_strain)
+    k = int(np.argmax(osc))
+    what = f"link oscillation {osc[k]:.1f} mm on link {k + 2} (after joint {k + 2}), joints at the goal"
+    if st.damping == Damping.OFF:
+        return f"{what} - damping is off; try --damping proportional (or --joints-only)"
+    return (f"{what} - damping {st.damping.name.lower()} has not brought the link strains into the "
+            f"settling band yet; try a longer --timeout or --joints-only")
+
+
+def _wait_with_progress(joints, target, args):
+    """Poll until settled at ``target``: ``(state, None)``, or ``(None, reason)`` after ``args.timeout`` s."""
+    from ..joint.protocol import StateFlags
+
+    tol = float(np.deg2rad(args.tol))
+    mm_per_strain = tip_mm_per_strain(_robot_params(args))
+    t0 = time.monotonic()
+    deadline = t0 + args.timeout
+    next_line = t0 + args.progress if args.progress > 0 else float("inf")
+    history = deque()                    # (wall time, state) over the last 2 s
+    while True:
+        now = time.monotonic()
+        if now >= deadline:
+            return None, _why(history, target, tol, args, mm_per_strain)
+        st = joints.request_state(timeout=min(deadline - now, 0.5))
+        now = time.monotonic()
+        if st is not None:
+            history.append((now, st))
+            while history and history[0][0] < now - 2.0:
+                history.popleft()
+            at_goal = float(np.max(np.abs(np.asarray(st.theta) - target))) <= tol
+            if at_goal and (not st.flags & StateFlags.MOVING if args.joints_only else st.settled):
+                return st, None
+            if now >= next_line:
+                print(_status_line(now - t0, st, target, _oscillation_mm(history, mm_per_strain)), flush=True)
+                next_line = now + args.progress
+        time.sleep(max(0.0, min(0.02, deadline - time.monotonic())))

@@ -20,7 +20,6 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from .._checks import TudorVisionError
@@ -32,6 +31,7 @@ __all__ = ["register", "ball_mask", "ransac_circle", "propose_ball_circle", "lab
 
 # ----------------------------------------------------------------------------- proposal
 def _lab_ab(frame_bgr: np.ndarray) -> np.ndarray:
+    import cv2
     lab = cv2.cvtColor(frame_bgr, cv2.COLOR_BGR2LAB)
     return lab[..., 1:].astype(np.float32) - 128.0
 
@@ -70,6 +70,7 @@ def ball_mask(frame_bgr, ref_ab, *, blur: int = 5, min_chroma: float = 6.0, max_
 
     Examples
     --------
+    >>> import cv2
     >>> img = np.full((40, 40, 3), 200, np.uint8)
     >>> _ = cv2.circle(img, (20, 20), 8, (80, 170, 90), -1)
     >>> m = ball_mask(img, _lab_ab(img)[20, 20], blur=0)
@@ -82,6 +83,7 @@ def ball_mask(frame_bgr, ref_ab, *, blur: int = 5, min_chroma: float = 6.0, max_
 
 def _chroma_along(frame_bgr, ref_ab, blur: int, min_chroma: float):
     """Chroma offset from the wall, along and across the ball's direction; and the ball's offset length."""
+    import cv2
     img = cv2.GaussianBlur(frame_bgr, (blur, blur), 0) if blur else frame_bgr
     ab = _lab_ab(img)
     bg = np.median(ab[::4, ::4].reshape(-1, 2), axis=0)
@@ -108,6 +110,7 @@ def _refine_rim(along: np.ndarray, chroma: float, circle, pts: np.ndarray, *, re
     chroma`` are dropped; the circle is fitted by least squares with two
     passes trimming points more than 1 px off. None when fewer than 12 rays.
     """
+    import cv2
     u, v, r = circle
     ang = np.arctan2(pts[:, 1] - v, pts[:, 0] - u)
     s = np.arange(r - reach, r + reach + 1e-9, 0.25, dtype=np.float64)
@@ -240,6 +243,7 @@ def propose_ball_circle(frame_bgr, ref_ab, *, min_area: int = 30, near_uv=None, 
 
     Examples
     --------
+    >>> import cv2
     >>> img = np.full((80, 80, 3), 200, np.uint8)
     >>> _ = cv2.circle(img, (40, 36), 15, (80, 170, 90), -1)
     >>> _ = cv2.rectangle(img, (20, 40), (60, 60), (150, 170, 220), -1)   # a "finger"
@@ -247,6 +251,7 @@ def propose_ball_circle(frame_bgr, ref_ab, *, min_area: int = 30, near_uv=None, 
     >>> abs(u - 40) < 0.7, abs(v - 36) < 0.7, abs(r - 15) < 1.0
     (True, True, True)
     """
+    import cv2
     along, across, chroma = _chroma_along(frame_bgr, ref_ab, 5, 6.0)
     mask = ((along >= 0.3 * chroma) & (across <= along * math.tan(math.radians(40.0)))).astype(np.uint8)
     mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
@@ -320,6 +325,7 @@ def label_tile(frame_bgr, circle, *, text: str = "", scale: int | None = None, h
     >>> label_tile(np.zeros((50, 60, 3), np.uint8), (30, 25, 5), half=10, scale=4).shape
     (84, 84, 3)
     """
+    import cv2
     h_img, w_img = frame_bgr.shape[:2]
     if circle is None:   # nothing to zoom on: the whole frame, to check that no ball is visible
         k = tile_px / max(w_img, h_img)
@@ -459,6 +465,7 @@ def _kv(items, what: str, nvals: int | None):
 
 
 def _run_balls(args) -> int:
+    import cv2
     from ..io import open_sequence
     video = Path(args.video)
     seq = open_sequence(video)

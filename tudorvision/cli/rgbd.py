@@ -7,13 +7,16 @@ from __future__ import annotations
 
 import csv
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .._checks import TudorVisionError
 from ..sensors import KINECT_DEPTH_NOISE, DepthNoiseModel
-from ..rgbd.frames import Intrinsics
 from .seq import add_sequence_options, partial_flags, problem_lines, sequence_options
+
+if TYPE_CHECKING:
+    from ..rgbd.frames import Intrinsics
 
 __all__ = ["register", "intrinsics_for", "noise_model_from_calibration", "BALL_CSV_COLUMNS"]
 
@@ -59,6 +62,7 @@ def intrinsics_for(seq, calib=None) -> tuple[Intrinsics, object]:
             raise TudorVisionError(f"{seq.path}: the sequence has no camera intrinsics; pass --calib FILE "
                                    "(project calibration or ROS camera_info YAML)")
         cam = pick_camera(cal, seq.path)
+    from ..rgbd.frames import Intrinsics
     return Intrinsics.from_matrix(cam.K, cam.width, cam.height), cal
 
 

@@ -1,0 +1,6 @@
+"""``python -m tudorvision``: the ``tudorvision`` command (same as ``python -m tudorvision.cli``)."""
+import sys
+
+from .cli import main
+
+sys.exit(main())
