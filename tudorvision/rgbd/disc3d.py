@@ -458,8 +458,9 @@ def _disc_in_plane(g, P, inl, normal, h, rmse, nstd, tol, options, normal_prior)
         return _skip(f"disc patch of equivalent radius {r_eq:.3f} m does not fit the {R:.3f} m disc "
                      f"(area ratio {ratio:.2f} outside {options.area_ratio[0]}..{options.area_ratio[1]})")
     reach = float(np.max(g.lat[g.sel])) if g.sel.any() else R
-    if np.linalg.norm(centre - pred) > reach:
-        return _skip(f"disc found {np.linalg.norm(centre - pred):.2f} m from the prediction")
+    off = float(np.hypot(*(centre[:2] / centre[2] - pred[:2] / zp)) * zp)
+    if off > reach:
+        return _skip(f"disc found {off:.2f} m across the view from the prediction")
     return DiscMeasurement(True, centre, normal.copy(), r_eq, int(comp.sum()), rmse, normal_from)
 
 
@@ -467,8 +468,8 @@ class DiscSweepTracker:
     """Follow the disc through a theta2 sweep, predicting each centre from the previous frames.
 
     Before the first measurement the prediction is the seed pixel at the
-    median depth around it. With joint angles, from three measurements spread
-    over at least ``circle_min_span_deg`` of theta2 on, the prediction is the
+    median depth around it. With joint angles, from five measurements spread
+    over at least ``circle_min_span_deg`` of theta2 on (five, RMSE under 3 cm), the prediction is the
     circle fitted to the centres so far at the frame's theta2 (the disc turns
     about the joint-2 axis, so the jump back to the vertical posture is
     predicted too); before that a linear step in theta2. Without joint angles a
@@ -502,7 +503,7 @@ class DiscSweepTracker:
     """
 
     def __init__(self, intrinsics: Intrinsics, seed_uv, options: Disc3DOptions = Disc3DOptions(), *,
-                 circle_min_span_deg: float = 15.0):
+                 circle_min_span_deg: float = 30.0):
         self.intrinsics = intrinsics
         self.options = options
         s = check_array(seed_uv, "seed_uv", (2,))
@@ -537,13 +538,15 @@ class DiscSweepTracker:
         if self._circle is not None and n - self._circle_n < max(3, n // 10):
             return self._circle
         th = np.array(self.theta2)
-        if n < 3 or np.ptp(th) < self.circle_min_span_rad:
+        if n < 5 or np.ptp(th) < self.circle_min_span_rad:
             return None
         pts = np.array(self.centres)
         try:
             fit = fit_circle_3d(pts, loss="soft_l1")
         except ValueError:
             return None
+        if not (fit.rmse < 0.03 and fit.radius < 3.0):
+            return None                      # too few or too scattered centres yet: keep the linear step
         e1 = _unit(pts[0] - fit.centre - ((pts[0] - fit.centre) @ fit.normal) * fit.normal)
         e2 = np.cross(fit.normal, e1)
         a = np.arctan2((pts - fit.centre) @ e2, (pts - fit.centre) @ e1)
