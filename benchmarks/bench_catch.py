@@ -8,7 +8,9 @@ Three parts, in one run:
    factor ``scale = max(1, sqrt(median NEES / 2.366))`` multiplies the modelled
    noise in part 2 (robust: a few partial silhouettes have huge NEES).
 2. Success rate over at least ``--min-crossing`` (default 200) throws whose
-   flight crosses the reachable workspace, with the detection-noise model
+   flight crosses the reachable workspace (caught: the whole 9 cm ball through
+   the 18 cm ring without touching the rim, issue 18; beside it the earlier
+   count, the ball centre within the net radius), with the detection-noise model
    (rendering every frame of so many throws takes too long: about 0.1 s per
    frame on one core), plus a rendered subset (``--throws-render``) with the
    real detector on rendered frames; misses by reason. The same throws with
@@ -138,6 +140,8 @@ def run_until(min_crossing: int, opts: DemoOptions, out: str, batch: int = 30):
 
 
 def success(rows):
+    """Counts over the crossing throws; ``caught`` is the strict criterion (whole ball through the ring, issue 18),
+    ``caught_centre`` the earlier one (ball centre within the net radius)."""
     ws = [r for r in rows if r["crossing_workspace"]]
     caught = sum(r["caught"] for r in ws)
     reasons = {}
@@ -145,7 +149,8 @@ def success(rows):
         if not r["caught"]:
             reasons[r["reason"]] = reasons.get(r["reason"], 0) + 1
     it = [r for r in ws if r["in_time"]]
-    return len(rows), len(ws), caught, reasons, len(it), sum(r["caught"] for r in it)
+    centre = sum(r.get("caught_centre", r["caught"]) for r in ws)
+    return len(rows), len(ws), caught, reasons, len(it), sum(r["caught"] for r in it), centre
 
 
 def prediction_error_vs_lead(rows, preds, leads=(0.6, 0.5, 0.4, 0.3, 0.2)):
@@ -283,11 +288,14 @@ def main() -> None:
     o = DemoOptions(**base)
     print(f"\n2. success rate over throws that cross the reachable workspace (net radius "
           f"{100 * o.net_radius_m:.0f} cm, {o.damping} damping)")
-    print(f"{'run':34s} {'throws':>7s} {'crossing':>9s} {'caught':>7s} {'rate':>7s}  misses")
+    print("   caught: the whole ball through the ring (issue 18); centre: the earlier criterion, the ball centre "
+          "within the net radius")
+    print(f"{'run':34s} {'throws':>7s} {'crossing':>9s} {'caught':>7s} {'rate':>7s} {'centre':>7s} {'rate':>7s}  misses")
     names = {"model": "compensated IK, noise model", "rigid": "rigid IK, noise model",
              "render": "compensated IK, rendered frames"}
-    for k, (n, n_ws, c, reasons, n_it, c_it) in results.items():
-        print(f"{names[k]:34s} {n:7d} {n_ws:9d} {c:7d} {100 * c / max(n_ws, 1):6.1f}%  {reasons}")
+    for k, (n, n_ws, c, reasons, n_it, c_it, cc) in results.items():
+        print(f"{names[k]:34s} {n:7d} {n_ws:9d} {c:7d} {100 * c / max(n_ws, 1):6.1f}% {cc:7d} "
+              f"{100 * cc / max(n_ws, 1):6.1f}%  {reasons}")
         print(f"{'':34s} secondary: {n_it} of the crossing throws reachable in time (trapezoidal lower bound "
               f"on the move from the ready pose), {c_it} caught: {100 * c_it / max(n_it, 1):.1f} %")
     for out, (nf, ne) in FAULTS.items():
