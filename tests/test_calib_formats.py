@@ -379,14 +379,6 @@ def test_swapped_cameras_warn_and_exit_nonzero_then_track_0_valid(tmp_path, caps
     errors = [ln for ln in err.splitlines() if "error" in ln]
     assert rc == 2 and len(errors) == 1 and "likely cause" in errors[0] and "look swapped" in errors[0]
     assert not (tmp_path / "base.yaml").exists()
-    # the right calibration tracks every frame, in any format (here ROS camera_info left,right)
-    rc, out, err = _run(capsys, *base, "--left", left, "--right", right, "--export-ros", tmp_path / "ros")
-    assert rc == 0, err
-    rc, out, err = _run(capsys, "track", "stereo", SAMPLE / "stereo-sweep", "--calib",
-                        f"{tmp_path / 'ros' / 'left.yaml'},{tmp_path / 'ros' / 'right.yaml'}",
-                        "--colormodel", sweep_models, "--out", out_csv)
-    assert rc == 0, err
-    assert "calibration: read ROS camera_info left.yaml,right.yaml" in err and "100.0% valid" in out
 
 
 def test_exchanged_images_with_a_good_calibration_name_the_epipolar_geometry(tmp_path, capsys, sweep_models):
@@ -399,3 +391,43 @@ def test_exchanged_images_with_a_good_calibration_name_the_epipolar_geometry(tmp
                         "--colormodel", sweep_models, "--out", tmp_path / "t.csv")
     assert rc == 3
     assert "do not fit the calibration's epipolar geometry" in err and "left and right images are exchanged" in err
+
+
+# ----------------------------------------------------------------------------- the guide runs as written
+def test_calibration_formats_guide_runs_as_written(tmp_path, capsys, monkeypatch):
+    """Every command of docs/calibration_formats.md, expanded by bash as a user's shell would, exits as stated."""
+    import re
+    import subprocess
+
+    text = (ROOT / "docs" / "calibration_formats.md").read_text()
+    for name in ("sample_data", "calib", "tests"):
+        (tmp_path / name).symlink_to(ROOT / name, target_is_directory=True)
+    monkeypatch.chdir(tmp_path)
+    prefix, ran = [], 0
+    for block in re.findall(r"```bash\n(.*?)```", text, re.S):
+        for line in block.strip().splitlines():
+            cmd, _, comment = line.partition("  #")
+            if not cmd.startswith("tudorvision "):
+                prefix.append(cmd)
+                continue
+            m = re.search(r"exits (\d+)", comment)
+            expected = int(m.group(1)) if m else 0
+            script = "\n".join(prefix + ["printf '%s\\0' " + cmd])
+            argv = subprocess.run(["bash", "-c", script], cwd=tmp_path, capture_output=True, text=True,
+                                  check=True).stdout.split("\0")[:-1]
+            rc, out, err = _run(capsys, *argv[1:])
+            assert rc == expected, f"{line}\n{out}\n{err}"
+            ran += 1
+    assert ran >= 12
+    # what the guide wrote is what it says: the same rig through ROS, OpenCV and Kalibr (lossy k3 refit aside)
+    lab = load_calibration(ROOT / "calib" / "stereo_lab.yaml")
+    X = _points(np.random.default_rng(2))
+    _assert_same_geometry(lab, load_calibration(tmp_path / "out" / "calib" / "from_opencv.yaml"), X)
+    kal = load_calibration(tmp_path / "out" / "calib" / "from_kalibr.yaml")
+    assert np.allclose(kal.stereo.T, lab.stereo.T, atol=1e-12) and np.allclose(kal.stereo.R, lab.stereo.R, atol=1e-12)
+    assert swapped_stereo_reason(load_calibration(tmp_path / "out" / "calib" / "swapped.yaml")) is not None
+    # tracked through the ROS pair and the Kalibr file: every frame valid, the same trajectory
+    from tudorvision.stereo import read_trajectory_csv
+    a, b = (read_trajectory_csv(tmp_path / "out" / "calib" / n) for n in ("traj.csv", "traj_kalibr.csv"))
+    assert a.valid.all() and b.valid.all() and len(a.t) == 40
+    assert np.max(np.abs(a.p - b.p)) < 0.02          # Kalibr's k3-free refit moves pixels by < 0.7 px
