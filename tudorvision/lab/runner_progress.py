@@ -101,8 +101,7 @@ class RunProgress:
         if self.live:
             from rich.console import Console
             from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-            self.bar = Progress(TextColumn("{task.description}"), BarColumn(),
-                                TextColumn("{task.completed}/{task.total}"), TextColumn("{task.fields[counts]}"),
+            self.bar = Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[counts]}"),
                                 TimeElapsedColumn(), console=Console(file=self.stream), transient=False)
             self.bar_id = self.bar.add_task(self.label, total=self.total, completed=self.n_done,
                                             counts=self._counts())
