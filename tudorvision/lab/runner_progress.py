@@ -145,7 +145,6 @@ class RunProgress:
             The error's first line when it failed.
         """
         self.n_new += 1
-        self.n_running = max(self.n_running - 1, 0)
         if ok:
             self.n_done += 1
         else:
