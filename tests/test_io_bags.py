@@ -505,3 +505,13 @@ def test_import_interrupted_by_ctrl_c_is_flagged(tmp_path, monkeypatch, capsys):
     assert "interrupted (Ctrl-C) after 3 frames" in (out / "sequence.yaml").read_text()
     with open_sequence(out, strict=False) as seq:
         assert len(seq) == 3 and "incomplete" in str(seq.report[0])
+
+
+def test_decoded_frames_are_writable_copies(tmp_path):
+    path = _bag_path(tmp_path, "ros1", "stereo")
+    left, _ = write_stereo_bag(path, "ros1")
+    with open_sequence(path) as seq:
+        f = seq[0]
+        assert f.left.flags.writeable and f.right.flags.writeable and f.left.flags.c_contiguous
+        f.left[:] = 0                                       # a consumer drawing on a frame
+        assert np.array_equal(seq[0].left, left[0])

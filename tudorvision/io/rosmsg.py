@@ -63,12 +63,14 @@ def decode_image(msg) -> np.ndarray:
         raise ImageProblem(f"image data of {data.size} bytes does not hold {w}x{h} {msg.encoding} "
                            f"(step {step})")
     rows = data[:step * h].reshape(h, step)[:, :row]
-    img = np.ascontiguousarray(rows).view(dt).reshape((h, w, ch) if ch > 1 else (h, w)).astype(dt.newbyteorder("="))
+    img = np.ascontiguousarray(rows).view(dt).reshape((h, w, ch) if ch > 1 else (h, w))
+    img = img.astype(dt.newbyteorder("="), copy=False)
     if ch == 4:
         img = img[:, :, :3]
     if enc.startswith("rgb"):
         img = img[:, :, ::-1]
-    return np.ascontiguousarray(img)
+    img = np.ascontiguousarray(img)      # one copy at most: the message's buffer is read-only
+    return img if img.flags.writeable else img.copy()
 
 
 def _field(msg, name):
