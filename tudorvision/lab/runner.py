@@ -540,7 +540,10 @@ def _run_dask(book: _Book, todo, report: RunReport, *, scheduler, workers, proce
         report.dashboard = client.dashboard_link
     try:
         if scheduler != "local":
-            client.wait_for_workers(1, timeout=60)
+            try:
+                client.wait_for_workers(1, timeout=60)
+            except TimeoutError:
+                raise OSError(f"--scheduler: no worker joined {scheduler} within 60 s") from None
         report.workers = max(sum(client.nthreads().values()), 1)
         book.progress.dashboard(report.dashboard)
         which = {}
