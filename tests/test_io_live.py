@@ -223,3 +223,10 @@ def test_unopenable_device_one_line_error(capsys):
     assert main(["seq", "info", "/dev/video97", "--timeout", "0.5"]) == 2
     err = capsys.readouterr().err
     assert err.strip().count("\n") == 0 and "Traceback" not in err and "/dev/video97" in err
+
+
+def test_seq_info_on_a_stream_reads_a_few_frames(mjpeg, capsys):
+    srv = mjpeg(_frames(20))
+    assert main(["seq", "info", srv.url, "--max-frames", "5", "--timeout", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "layout       live" in out and "frames       5 (5 readable)" in out and "kind         mono" in out
