@@ -495,6 +495,7 @@ def run_tasks(tasks, out, *, scheduler: str | None = "serial", workers: int | No
     skipped = len(tasks) - len(todo)
     progress.skipped(skipped)
     report = RunReport(records=book.records, skipped=skipped, scheduler=scheduler)
+    ended = False
     try:
         if scheduler == "serial" or not todo:
             report.workers = 1
@@ -503,10 +504,11 @@ def run_tasks(tasks, out, *, scheduler: str | None = "serial", workers: int | No
         else:
             _run_dask(book, todo, report, scheduler=scheduler, workers=workers, processes=processes,
                       dashboard_address=dashboard_address)
+        ended = True
     except KeyboardInterrupt:
-        report.interrupted = True
+        report.interrupted = ended = True
     finally:
-        progress.close(interrupted=report.interrupted)
+        progress.close(interrupted=report.interrupted, silent=not ended)
     report.wall_s = time.perf_counter() - t_start
     return report
 

@@ -152,18 +152,20 @@ class RunProgress:
             self._say(f"{self.label}: {key} failed: {error}")
         self._show(force=self.n_done + self.n_failed == self.total)
 
-    def close(self, *, interrupted: bool) -> None:
+    def close(self, *, interrupted: bool, silent: bool = False) -> None:
         """End of the run.
 
         Parameters
         ----------
         interrupted : bool
             Ctrl-C stopped it.
+        silent : bool
+            No closing line (the run stopped on an error the caller reports).
         """
         if self.bar is not None:
             self.bar.stop()
             self.bar = None
-        if self.enabled and (interrupted or not self.live):
+        if self.enabled and not silent and (interrupted or not self.live):
             end = "interrupted; the finished runs are kept" if interrupted else "finished"
             self.stream.write(f"{self.label}: {end}: {self._counts(eta=False)}\n")
             self.stream.flush()
