@@ -431,3 +431,45 @@ def test_calibration_formats_guide_runs_as_written(tmp_path, capsys, monkeypatch
     a, b = (read_trajectory_csv(tmp_path / "out" / "calib" / n) for n in ("traj.csv", "traj_kalibr.csv"))
     assert a.valid.all() and b.valid.all() and len(a.t) == 40
     assert np.max(np.abs(a.p - b.p)) < 0.02          # Kalibr's k3-free refit moves pixels by < 0.7 px
+
+
+def test_mutated_files_never_crash_the_loader(tmp_path):
+    """Seeded fuzz: byte and line mutations of valid files of every format load or give TudorVisionError."""
+    rng = np.random.default_rng(1616)
+    cal = _rig(rng, k3=False)
+    good = {}
+    for fmt in CALIBRATION_FORMATS:
+        good[fmt] = save_calibration_as(cal, fmt, _out_for(fmt, tmp_path / "good", fmt))[0]
+    single = save_calibration_as(Calibration(cameras={"cam": cal.camera("left")}), "opencv",
+                                 tmp_path / "good" / "camera.yml")[0]
+    sources = [p for paths in good.values() for p in paths] + single
+    alphabet = list(b"0123456789.-e:[]{},\n #!%abcxyzMDRTP")
+    n_ok = n_err = 0
+    for k in range(300):
+        src = sources[k % len(sources)]
+        data = bytearray(src.read_bytes())
+        for _ in range(int(rng.integers(1, 4))):
+            i = int(rng.integers(0, len(data)))
+            op = rng.integers(0, 3)
+            if op == 0:
+                data[i] = alphabet[int(rng.integers(0, len(alphabet)))]
+            elif op == 1:
+                del data[i:i + int(rng.integers(1, 40))]
+            else:
+                data[i:i] = bytes(alphabet[int(j)] for j in rng.integers(0, len(alphabet), 5))
+        d = tmp_path / f"m{k}"
+        d.mkdir()
+        target = d / src.name
+        target.write_bytes(bytes(data))
+        spec = str(target)
+        if src.parent.name in ("ros", "opencv"):        # a pair: the mutated file with its intact partner
+            partner = next(p for p in good[src.parent.name] if p != src)
+            shutil.copy(partner, d / partner.name)
+            spec = str(d)
+        try:
+            load_any_calibration(spec)
+            n_ok += 1
+        except TudorVisionError as exc:
+            assert "\n" not in str(exc).strip() and str(d) in str(exc), str(exc)
+            n_err += 1
+    assert n_ok > 10 and n_err > 50

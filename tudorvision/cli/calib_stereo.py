@@ -64,7 +64,8 @@ def register(calib_sub) -> None:
                     "--colormodel; and the joint log.")
     b.add_argument("seq", nargs="?", help="sequence directory (its joints.txt is used unless --joints)")
     b.add_argument("--traj", help="trajectory CSV in the left camera frame (default: track SEQ)")
-    b.add_argument("--calib", help="stereo calibration to track SEQ with (default: the sequence's calibration)")
+    b.add_argument("--calib", help="stereo calibration to track SEQ with (default: the sequence's), in any format "
+                                   "of docs/calibration_formats.md")
     b.add_argument("--colormodel", help="colour model file to track SEQ with (needed without --traj)")
     b.add_argument("--joints", help="joints.txt: 'timestamp theta1 theta2 theta3' per line")
     b.add_argument("--joints-deg", action="store_true", help="joint angles in the file are degrees")

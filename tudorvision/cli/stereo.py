@@ -50,7 +50,9 @@ def register(subparsers) -> None:
                     "when T_base_left is known (--base-calib, or in --calib), else the left camera optical "
                     "frame. Frames where a sphere is missing in either camera are written with valid = 0.")
     s.add_argument("seq", help="stereo sequence directory")
-    s.add_argument("--calib", help="stereo calibration file (default: the sequence's calibration)")
+    s.add_argument("--calib", help="stereo calibration (default: the sequence's): tudorvision YAML, ROS "
+                                   "left.yaml,right.yaml, OpenCV intrinsics.yml,extrinsics.yml, a folder holding a "
+                                   "pair, or Kalibr camchain.yaml (docs/calibration_formats.md)")
     s.add_argument("--colormodel", required=True, help="colour model file (from 'tudorvision colormodel')")
     s.add_argument("--out", required=True, help="trajectory CSV to write")
     s.add_argument("--base-calib", metavar="FILE",
