@@ -7,7 +7,8 @@ from tudorvision.geometry import invert_transform, rotation_angle
 from tudorvision.lab.disc_sweep import DiscSweepParams, render_disc_sweep, sample_disc_sweep
 from tudorvision.rgbd.base_calib import base_frame_from_theta2_sweep
 from tudorvision.rgbd.disc import DiscOptions, observe_disc
-from tudorvision.rgbd.disc3d import Disc3DOptions, DiscSweepTracker, measure_disc_3d, track_disc_sweep
+from tudorvision.rgbd.disc3d import Disc3DOptions, measure_disc_3d
+from tudorvision.rgbd.disc_track import DiscSweepTracker, track_disc_sweep
 from tudorvision.rgbd.frames import Intrinsics
 from tudorvision.sensors import KINECT_SIGMA_Z_COEFFS, DepthNoiseModel
 

@@ -157,7 +157,8 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
     """
     from .._progress import progress
     from ..rgbd.disc import DiscTracker
-    from ..rgbd.disc3d import Disc3DOptions, DiscSweepTracker
+    from ..rgbd.disc3d import Disc3DOptions
+    from ..rgbd.disc_track import DiscSweepTracker
 
     tol = np.radians(joint_tol_deg)
     thetas = None

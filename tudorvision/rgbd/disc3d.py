@@ -28,7 +28,7 @@ Here the disc is measured in 3D near where it is expected:
    pull it. The disc area found inside 1.5 radii (the equivalent radius) must
    fit the known radius, else the frame is skipped.
 
-:class:`DiscSweepTracker` predicts the centre from the previous frames: with
+:class:`tudorvision.rgbd.disc_track.DiscSweepTracker` predicts the centre from the previous frames: with
 joint angles, a circle fitted to the centres so far, parametrised by theta2
 (the disc turns about the joint-2 axis), otherwise a constant-velocity step.
 A frame where the disc cannot be measured (edge-on, out of range, occluded,
@@ -43,11 +43,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._checks import TudorVisionError, check_array
-from ..geometry import fit_circle_3d
 from ..sensors import KINECT_DEPTH_NOISE, DepthNoiseModel
 from .frames import Intrinsics, check_depth
 
-__all__ = ["Disc3DOptions", "DiscMeasurement", "measure_disc_3d", "DiscSweepTracker", "track_disc_sweep"]
+__all__ = ["Disc3DOptions", "DiscMeasurement", "measure_disc_3d"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -158,12 +157,35 @@ class DiscMeasurement:
     reason: str = ""
 
 
-def _skip(reason: str, n: int = 0) -> DiscMeasurement:
+def skip_measurement(reason: str, n: int = 0) -> DiscMeasurement:
+    """An invalid :class:`DiscMeasurement` with ``reason``.
+
+    Parameters
+    ----------
+    reason : str
+        Why the disc was not measurable.
+    n : int
+        Valid depth points seen.
+
+    Returns
+    -------
+    DiscMeasurement
+    """
     nan3 = np.full(3, np.nan)
     return DiscMeasurement(False, nan3, nan3.copy(), n_points=n, reason=reason)
 
 
-def _unit(v):
+def unit_vector(v):
+    """``v / |v|``.
+
+    Parameters
+    ----------
+    v : ndarray, shape (3,)
+
+    Returns
+    -------
+    ndarray, shape (3,)
+    """
     return v / np.linalg.norm(v)
 
 
@@ -283,7 +305,7 @@ def measure_disc_3d(depth_m, intrinsics: Intrinsics, predicted_cam, margin_m: fl
     K, R = intrinsics, options.disc_radius_m
     zp = float(pred[2])
     if not zp > 0.1:
-        return _skip(f"predicted disc depth {zp:.2f} m is behind the camera")
+        return skip_measurement(f"predicted disc depth {zp:.2f} m is behind the camera")
     f = float(np.sqrt(K.fx * K.fy))
     reach = R + float(margin_m)
     up, vp = K.fx * pred[0] / zp + K.cx, K.fy * pred[1] / zp + K.cy
@@ -291,7 +313,7 @@ def measure_disc_3d(depth_m, intrinsics: Intrinsics, predicted_cam, margin_m: fl
     u0, u1 = max(0, int(np.floor(up)) - half), min(K.width, int(np.ceil(up)) + half + 1)
     v0, v1 = max(0, int(np.floor(vp)) - half), min(K.height, int(np.ceil(vp)) + half + 1)
     if u0 >= u1 or v0 >= v1:
-        return _skip(f"predicted disc at pixel ({up:.0f}, {vp:.0f}) is outside the image")
+        return skip_measurement(f"predicted disc at pixel ({up:.0f}, {vp:.0f}) is outside the image")
     z = d[v0:v1, u0:u1]
     gu, gv = np.meshgrid((np.arange(u0, u1) - K.cx) / K.fx, (np.arange(v0, v1) - K.cy) / K.fy)
     lat = np.hypot(gu - pred[0] / zp, gv - pred[1] / zp) * zp          # lateral offset at the predicted depth
@@ -300,7 +322,7 @@ def measure_disc_3d(depth_m, intrinsics: Intrinsics, predicted_cam, margin_m: fl
         sel = np.isfinite(z) & (lat <= reach) & (np.abs(z - zp) <= reach + 3.0 * sigma)
     n_sel = int(sel.sum())
     if n_sel < options.min_points:
-        return _skip(f"only {n_sel} valid depth points within {reach:.2f} m of the predicted disc", n_sel)
+        return skip_measurement(f"only {n_sel} valid depth points within {reach:.2f} m of the predicted disc", n_sel)
     P = np.column_stack([gu[sel] * z[sel], gv[sel] * z[sel], z[sel]])
     tol = max(options.min_plane_tol_m, options.plane_tol_sigma * sigma)
     geo = _Window(K, f, R, zp, pred, gu, gv, lat, sel, z.shape, sigma)
@@ -311,7 +333,7 @@ def measure_disc_3d(depth_m, intrinsics: Intrinsics, predicted_cam, margin_m: fl
     z_front = float(np.quantile(zs[core] if core.sum() >= options.min_points else zs, 0.1))
     tilt = np.radians(60.0)
     if normal_prior is not None and np.all(np.isfinite(normal_prior)):
-        tilt = min(np.arccos(min(1.0, abs(float(_unit(np.asarray(normal_prior, float)) @ _unit(pred))))) +
+        tilt = min(np.arccos(min(1.0, abs(float(unit_vector(np.asarray(normal_prior, float)) @ unit_vector(pred))))) +
                    np.radians(15.0), np.radians(75.0))
     front = zs <= z_front + 2.0 * R * np.sin(tilt) + 3.0 * sigma
     found, first_reason = [], ""
@@ -319,7 +341,7 @@ def measure_disc_3d(depth_m, intrinsics: Intrinsics, predicted_cam, margin_m: fl
         idx = np.nonzero(subset)[0]
         if len(idx) < options.min_points:
             continue
-        hyp = _ransac_plane(P[idx], core[idx], tol, options.ransac_iterations, rng, _unit(pred),
+        hyp = _ransac_plane(P[idx], core[idx], tol, options.ransac_iterations, rng, unit_vector(pred),
                             min(0.9, options.min_minor_px * zp / (f * R)))
         if hyp is None:
             continue
@@ -334,7 +356,7 @@ def measure_disc_3d(depth_m, intrinsics: Intrinsics, predicted_cam, margin_m: fl
         first_reason = first_reason or m.reason
         if subset.all():
             break
-    return _skip(first_reason or "no plane through the points near the predicted disc", n_sel)
+    return skip_measurement(first_reason or "no plane through the points near the predicted disc", n_sel)
 
 
 @dataclass(frozen=True)
@@ -392,14 +414,14 @@ def _disc_in_plane(g, P, inl, normal, h, rmse, nstd, tol, options, normal_prior)
         if not np.degrees(nstd) <= options.max_normal_std_deg or normal_from != "fit":
             # the depth noise leaves the tilt undetermined: keep the previous frames' normal, or face the camera
             if normal_prior is not None and np.all(np.isfinite(normal_prior)):
-                normal, normal_from = _unit(np.asarray(normal_prior, float)), "prior"
+                normal, normal_from = unit_vector(np.asarray(normal_prior, float)), "prior"
             else:
-                normal, normal_from = -_unit(pred), "camera"
+                normal, normal_from = -unit_vector(pred), "camera"
             h = float(np.median(P[inl] @ normal))
             inl = np.abs(P @ normal - h) <= tol
         if normal @ pred > 0:
             normal, h = -normal, -h
-        cos_view = abs(float(normal @ _unit(pred)))
+        cos_view = abs(float(normal @ unit_vector(pred)))
         minor_px = f * R / zp * cos_view                       # the disc's smaller image radius
         if minor_px < options.min_minor_px and normal_from == "fit":
             # an edge-on fit may be the noise's (depth scatter dwarfing the disc): try the fallback normal; a
@@ -411,33 +433,33 @@ def _disc_in_plane(g, P, inl, normal, h, rmse, nstd, tol, options, normal_prior)
             continue_with_fallback = False
         if continue_with_fallback:
             if normal_prior is not None and np.all(np.isfinite(normal_prior)):
-                normal, normal_from = _unit(np.asarray(normal_prior, float)), "prior"
+                normal, normal_from = unit_vector(np.asarray(normal_prior, float)), "prior"
             else:
-                normal, normal_from = -_unit(pred), "camera"
+                normal, normal_from = -unit_vector(pred), "camera"
             h = float(np.median(P[inl] @ normal))
             inl = np.abs(P @ normal - h) <= tol
             if normal @ pred > 0:
                 normal, h = -normal, -h
-            cos_view = abs(float(normal @ _unit(pred)))
+            cos_view = abs(float(normal @ unit_vector(pred)))
             minor_px = f * R / zp * cos_view
         if minor_px < options.min_minor_px:
-            return _skip(f"disc seen edge-on: smaller image radius {minor_px:.1f} px (plane "
+            return skip_measurement(f"disc seen edge-on: smaller image radius {minor_px:.1f} px (plane "
                          f"{np.degrees(np.arccos(cos_view)):.0f} deg from the view)")
         comp = _patch(g, P, inl, minor_px, options)
         if comp is None:
-            return _skip("nothing as wide as the disc in the plane under the prediction (links only?)")
+            return skip_measurement("nothing as wide as the disc in the plane under the prediction (links only?)")
         # every pixel of the patch on the plane: its ray, not its noisy depth
         ru, rv = g.gu[comp], g.gv[comp]
         ndotr = normal[0] * ru + normal[1] * rv + normal[2]
         if np.min(np.abs(ndotr)) < 1e-6:
-            return _skip("disc plane parallel to a viewing ray")
+            return skip_measurement("disc plane parallel to a viewing ray")
         t = h / ndotr
         Q = np.column_stack([ru * t, rv * t, t])
         w = t * t / (K.fx * K.fy * np.abs(ndotr))          # pixel footprint on the plane, m^2
         start = np.average(Q, axis=0, weights=w) if centre is None else centre
         centre = _mean_shift(Q, w, start, R, 0.5 * zp / f)
         if centre is None:
-            return _skip("the disc patch lies outside one radius of its own centre")
+            return skip_measurement("the disc patch lies outside one radius of its own centre")
         if it == 1:
             break
         pidx = index[comp]
@@ -455,233 +477,11 @@ def _disc_in_plane(g, P, inl, normal, h, rmse, nstd, tol, options, normal_prior)
     ratio = area / (np.pi * R * R)
     r_eq = float(np.sqrt(area / np.pi))
     if not options.area_ratio[0] <= ratio <= options.area_ratio[1]:
-        return _skip(f"disc patch of equivalent radius {r_eq:.3f} m does not fit the {R:.3f} m disc "
+        return skip_measurement(f"disc patch of equivalent radius {r_eq:.3f} m does not fit the {R:.3f} m disc "
                      f"(area ratio {ratio:.2f} outside {options.area_ratio[0]}..{options.area_ratio[1]})")
     reach = float(np.max(g.lat[g.sel])) if g.sel.any() else R
     off = float(np.hypot(*(centre[:2] / centre[2] - pred[:2] / zp)) * zp)
     if off > reach:
-        return _skip(f"disc found {off:.2f} m across the view from the prediction")
+        return skip_measurement(f"disc found {off:.2f} m across the view from the prediction")
     return DiscMeasurement(True, centre, normal.copy(), r_eq, int(comp.sum()), rmse, normal_from)
 
-
-class DiscSweepTracker:
-    """Follow the disc through a theta2 sweep, predicting each centre from the previous frames.
-
-    Before the first measurement the prediction is the seed pixel at the
-    median depth around it. With joint angles, from five measurements spread
-    over at least ``circle_min_span_deg`` of theta2 on (five, RMSE under 3 cm), the prediction is the
-    circle fitted to the centres so far at the frame's theta2 (the disc turns
-    about the joint-2 axis, so the jump back to the vertical posture is
-    predicted too); before that a linear step in theta2. Without joint angles a
-    constant-velocity step per frame. The search margin follows the
-    prediction's recent errors, within the options' bounds.
-
-    Parameters
-    ----------
-    intrinsics : Intrinsics
-        Pinhole intrinsics of the depth camera (pixels).
-    seed_uv : array_like, shape (2,)
-        A pixel on the disc in the first frame (u right, v down).
-    options : Disc3DOptions
-        Disc radius, tolerances, margins.
-    circle_min_span_deg : float
-        theta2 span of the measurements before the circle prediction is used.
-
-    Raises
-    ------
-    TudorVisionError
-        If ``seed_uv`` lies outside the image.
-
-    Examples
-    --------
-    >>> K = Intrinsics(525.0, 525.0, 40.0, 30.0, 80, 60)
-    >>> d = np.zeros((60, 80)); vv, uu = np.mgrid[:60, :80]
-    >>> d[(uu - 40) ** 2 + (vv - 30) ** 2 <= 15 ** 2] = 3.0       # a 9 cm disc 3 m away, nothing behind
-    >>> m = DiscSweepTracker(K, (44, 28)).update(d)
-    >>> m.valid, (np.round(m.centre_cam, 3) + 0.0).tolist()
-    (True, [0.0, 0.0, 3.0])
-    """
-
-    def __init__(self, intrinsics: Intrinsics, seed_uv, options: Disc3DOptions = Disc3DOptions(), *,
-                 circle_min_span_deg: float = 30.0):
-        self.intrinsics = intrinsics
-        self.options = options
-        s = check_array(seed_uv, "seed_uv", (2,))
-        if not (0 <= s[0] < intrinsics.width and 0 <= s[1] < intrinsics.height):
-            raise TudorVisionError(f"seed_uv: ({s[0]:.0f}, {s[1]:.0f}) lies outside the "
-                                   f"{intrinsics.width}x{intrinsics.height} image")
-        self.seed_uv = (float(s[0]), float(s[1]))
-        self.circle_min_span_rad = np.radians(circle_min_span_deg)
-        self.centres: list = []
-        self.theta2: list = []
-        self.normals: list = []
-        self.errors: list = []          # |measured - predicted| of recent frames
-        self.n_frames = 0
-        self.skipped: dict = {}         # frame number -> reason
-        self._rng = np.random.default_rng(options.random_seed)
-        self._circle = None
-        self._circle_n = 0
-
-    def _seed_prediction(self, d):
-        u, v = int(round(self.seed_uv[0])), int(round(self.seed_uv[1]))
-        for r in (2, 4, 8, 16, 32):
-            patch = d[max(0, v - r):v + r + 1, max(0, u - r):u + r + 1]
-            zs = patch[np.isfinite(patch)]
-            if len(zs) >= 5:
-                z = float(np.median(zs))
-                K = self.intrinsics
-                return np.array([(self.seed_uv[0] - K.cx) / K.fx * z, (self.seed_uv[1] - K.cy) / K.fy * z, z])
-        return None
-
-    def _fit_circle(self):
-        n = len(self.centres)
-        if self._circle is not None and n - self._circle_n < max(3, n // 10):
-            return self._circle
-        th = np.array(self.theta2)
-        if n < 5 or np.ptp(th) < self.circle_min_span_rad:
-            return None
-        pts = np.array(self.centres)
-        try:
-            fit = fit_circle_3d(pts, loss="soft_l1")
-        except ValueError:
-            return None
-        if not (fit.rmse < 0.03 and fit.radius < 3.0):
-            return None                      # too few or too scattered centres yet: keep the linear step
-        e1 = _unit(pts[0] - fit.centre - ((pts[0] - fit.centre) @ fit.normal) * fit.normal)
-        e2 = np.cross(fit.normal, e1)
-        a = np.arctan2((pts - fit.centre) @ e2, (pts - fit.centre) @ e1)
-        best = None
-        for s in (1.0, -1.0):
-            phi = float(np.angle(np.mean(np.exp(1j * (a - s * th)))))
-            res = float(np.mean(np.abs(np.angle(np.exp(1j * (a - s * th - phi))))))
-            if best is None or res < best[0]:
-                best = (res, s, phi)
-        self._circle = (fit.centre, fit.radius, e1, e2, best[1], best[2])
-        self._circle_n = n
-        return self._circle
-
-    def predict(self, theta2_rad=None):
-        """Predicted disc centre (camera frame, metres) and search margin (metres), or None before any measurement.
-
-        Parameters
-        ----------
-        theta2_rad : float, optional
-            Joint-2 angle of the frame to predict, rad.
-
-        Returns
-        -------
-        tuple of (ndarray, shape (3,), float) or None
-            Predicted centre and the margin to search around it.
-        """
-        o = self.options
-        if not self.centres:
-            return None
-        recent = float(np.max(self.errors[-5:])) if self.errors else o.acquire_margin_m
-        margin = float(np.clip(3.0 * recent + 0.02, o.min_margin_m, o.max_margin_m))
-        if theta2_rad is not None and self.theta2 and self.theta2[-1] is not None:
-            circ = self._fit_circle()
-            if circ is not None:
-                c, r, e1, e2, s, phi = circ
-                a = s * theta2_rad + phi
-                return c + r * (np.cos(a) * e1 + np.sin(a) * e2), margin
-            th = np.array(self.theta2)
-            pts = np.array(self.centres)
-            same = np.abs(th - theta2_rad) < np.radians(0.5)
-            if same.any():                                   # the same pose again
-                return pts[same].mean(axis=0), 2 * o.min_margin_m
-            far = np.nonzero(np.abs(th - th[-1]) > np.radians(0.5))[0]
-            if len(far):
-                k = far[-1]
-                v = (pts[-1] - pts[k]) / (th[-1] - th[k])
-                step = float(np.linalg.norm(v) * abs(theta2_rad - th[-1]))
-                return pts[-1] + v * (theta2_rad - th[-1]), float(np.clip(0.3 * step + 2 * o.min_margin_m,
-                                                                          o.min_margin_m, o.max_margin_m))
-            # one pose seen so far: the disc may have turned by the step times an arm of up to 1 m
-            return pts[-1], o.acquire_margin_m + 1.0 * abs(theta2_rad - th[-1])
-        if len(self.centres) < 2:
-            return self.centres[-1], o.acquire_margin_m
-        return 2 * self.centres[-1] - self.centres[-2], max(margin, 0.5 * o.acquire_margin_m)
-
-    def update(self, depth_m, theta2_rad: float | None = None) -> DiscMeasurement:
-        """Measure the disc in the next frame.
-
-        Parameters
-        ----------
-        depth_m : array_like, shape (H, W)
-            Depth (z) in metres, NaN or 0 = invalid; the intrinsics' shape.
-        theta2_rad : float, optional
-            Joint-2 angle of this frame, rad (enables the circle prediction).
-
-        Returns
-        -------
-        DiscMeasurement
-            The disc centre (metres, camera frame); when it cannot be measured,
-            ``valid=False`` with the reason (also kept in ``skipped``).
-
-        Raises
-        ------
-        ValueError
-            If ``depth_m`` does not have the intrinsics' shape.
-        """
-        d = check_depth(depth_m, intrinsics=self.intrinsics, require_valid=False)
-        frame = self.n_frames
-        self.n_frames += 1
-        pred = self.predict(theta2_rad)
-        if pred is None:
-            p0 = self._seed_prediction(d)
-            if p0 is None:
-                m = _skip("no valid depth around the seed pixel")
-                self.skipped[frame] = m.reason
-                return m
-            pred = (p0, self.options.acquire_margin_m)
-        prior = np.median(np.array(self.normals[-10:]), axis=0) if self.normals else None
-        m = measure_disc_3d(d, self.intrinsics, pred[0], pred[1], self.options, normal_prior=prior, rng=self._rng)
-        if not m.valid:
-            self.skipped[frame] = m.reason
-            return m
-        if self.centres:
-            self.errors.append(float(np.linalg.norm(m.centre_cam - pred[0])))
-        self.centres.append(m.centre_cam)
-        self.theta2.append(None if theta2_rad is None else float(theta2_rad))
-        if m.normal_from == "fit":
-            self.normals.append(m.normal_cam)
-        if theta2_rad is None:
-            self.theta2 = [None] * len(self.centres)
-        return m
-
-
-def track_disc_sweep(depth_frames, intrinsics: Intrinsics, seed_uv, theta2_rad=None,
-                     options: Disc3DOptions = Disc3DOptions()):
-    """Measure the disc in every frame of a sweep (see :class:`DiscSweepTracker`).
-
-    Parameters
-    ----------
-    depth_frames : iterable of array_like, each shape (H, W)
-        Depth (z) in metres, NaN or 0 = invalid.
-    intrinsics : Intrinsics
-        Pinhole intrinsics of the depth camera (pixels).
-    seed_uv : array_like, shape (2,)
-        A pixel on the disc in the first frame.
-    theta2_rad : array_like, shape (N,), optional
-        Joint-2 angle per frame, rad.
-    options : Disc3DOptions
-        Disc radius, tolerances, margins.
-
-    Returns
-    -------
-    centres_cam : ndarray, shape (N, 3)
-        Disc centres, metres, camera frame; NaN rows for skipped frames.
-    skipped : dict
-        Frame index -> reason, for the frames where the disc was not measurable.
-
-    Raises
-    ------
-    TudorVisionError
-        If ``seed_uv`` lies outside the image.
-    """
-    tr = DiscSweepTracker(intrinsics, seed_uv, options)
-    out = []
-    for i, dm in enumerate(depth_frames):
-        th = None if theta2_rad is None else float(theta2_rad[i])
-        out.append(tr.update(dm, th).centre_cam)
-    return np.array(out).reshape(-1, 3), dict(tr.skipped)

@@ -1,0 +1,234 @@
+"""Tracking the calibration disc through a theta2 sweep (issue 15); the measurement is :mod:`.disc3d`."""
+from __future__ import annotations
+
+import numpy as np
+
+from .._checks import TudorVisionError, check_array
+from ..geometry import fit_circle_3d
+from .disc3d import Disc3DOptions, DiscMeasurement, measure_disc_3d, skip_measurement, unit_vector
+from .frames import Intrinsics, check_depth
+
+__all__ = ["DiscSweepTracker", "track_disc_sweep"]
+
+
+class DiscSweepTracker:
+    """Follow the disc through a theta2 sweep, predicting each centre from the previous frames.
+
+    Before the first measurement the prediction is the seed pixel at the
+    median depth around it. With joint angles, from five measurements spread
+    over at least ``circle_min_span_deg`` of theta2 on (five, RMSE under 3 cm), the prediction is the
+    circle fitted to the centres so far at the frame's theta2 (the disc turns
+    about the joint-2 axis, so the jump back to the vertical posture is
+    predicted too); before that a linear step in theta2. Without joint angles a
+    constant-velocity step per frame. The search margin follows the
+    prediction's recent errors, within the options' bounds.
+
+    Parameters
+    ----------
+    intrinsics : Intrinsics
+        Pinhole intrinsics of the depth camera (pixels).
+    seed_uv : array_like, shape (2,)
+        A pixel on the disc in the first frame (u right, v down).
+    options : Disc3DOptions
+        Disc radius, tolerances, margins.
+    circle_min_span_deg : float
+        theta2 span of the measurements before the circle prediction is used.
+
+    Raises
+    ------
+    TudorVisionError
+        If ``seed_uv`` lies outside the image.
+
+    Examples
+    --------
+    >>> K = Intrinsics(525.0, 525.0, 40.0, 30.0, 80, 60)
+    >>> d = np.zeros((60, 80)); vv, uu = np.mgrid[:60, :80]
+    >>> d[(uu - 40) ** 2 + (vv - 30) ** 2 <= 15 ** 2] = 3.0       # a 9 cm disc 3 m away, nothing behind
+    >>> m = DiscSweepTracker(K, (44, 28)).update(d)
+    >>> m.valid, (np.round(m.centre_cam, 3) + 0.0).tolist()
+    (True, [0.0, 0.0, 3.0])
+    """
+
+    def __init__(self, intrinsics: Intrinsics, seed_uv, options: Disc3DOptions = Disc3DOptions(), *,
+                 circle_min_span_deg: float = 30.0):
+        self.intrinsics = intrinsics
+        self.options = options
+        s = check_array(seed_uv, "seed_uv", (2,))
+        if not (0 <= s[0] < intrinsics.width and 0 <= s[1] < intrinsics.height):
+            raise TudorVisionError(f"seed_uv: ({s[0]:.0f}, {s[1]:.0f}) lies outside the "
+                                   f"{intrinsics.width}x{intrinsics.height} image")
+        self.seed_uv = (float(s[0]), float(s[1]))
+        self.circle_min_span_rad = np.radians(circle_min_span_deg)
+        self.centres: list = []
+        self.theta2: list = []
+        self.normals: list = []
+        self.errors: list = []          # |measured - predicted| of recent frames
+        self.n_frames = 0
+        self.skipped: dict = {}         # frame number -> reason
+        self._rng = np.random.default_rng(options.random_seed)
+        self._circle = None
+        self._circle_n = 0
+
+    def _seed_prediction(self, d):
+        u, v = int(round(self.seed_uv[0])), int(round(self.seed_uv[1]))
+        for r in (2, 4, 8, 16, 32):
+            patch = d[max(0, v - r):v + r + 1, max(0, u - r):u + r + 1]
+            zs = patch[np.isfinite(patch)]
+            if len(zs) >= 5:
+                z = float(np.median(zs))
+                K = self.intrinsics
+                return np.array([(self.seed_uv[0] - K.cx) / K.fx * z, (self.seed_uv[1] - K.cy) / K.fy * z, z])
+        return None
+
+    def _fit_circle(self):
+        n = len(self.centres)
+        if self._circle is not None and n - self._circle_n < max(3, n // 10):
+            return self._circle
+        th = np.array(self.theta2)
+        if n < 5 or np.ptp(th) < self.circle_min_span_rad:
+            return None
+        pts = np.array(self.centres)
+        try:
+            fit = fit_circle_3d(pts, loss="soft_l1")
+        except ValueError:
+            return None
+        if not (fit.rmse < 0.03 and fit.radius < 3.0):
+            return None                      # too few or too scattered centres yet: keep the linear step
+        e1 = unit_vector(pts[0] - fit.centre - ((pts[0] - fit.centre) @ fit.normal) * fit.normal)
+        e2 = np.cross(fit.normal, e1)
+        a = np.arctan2((pts - fit.centre) @ e2, (pts - fit.centre) @ e1)
+        best = None
+        for s in (1.0, -1.0):
+            phi = float(np.angle(np.mean(np.exp(1j * (a - s * th)))))
+            res = float(np.mean(np.abs(np.angle(np.exp(1j * (a - s * th - phi))))))
+            if best is None or res < best[0]:
+                best = (res, s, phi)
+        self._circle = (fit.centre, fit.radius, e1, e2, best[1], best[2])
+        self._circle_n = n
+        return self._circle
+
+    def predict(self, theta2_rad=None):
+        """Predicted disc centre (camera frame, metres) and search margin (metres), or None before any measurement.
+
+        Parameters
+        ----------
+        theta2_rad : float, optional
+            Joint-2 angle of the frame to predict, rad.
+
+        Returns
+        -------
+        tuple of (ndarray, shape (3,), float) or None
+            Predicted centre and the margin to search around it.
+        """
+        o = self.options
+        if not self.centres:
+            return None
+        recent = float(np.max(self.errors[-5:])) if self.errors else o.acquire_margin_m
+        margin = float(np.clip(3.0 * recent + 0.02, o.min_margin_m, o.max_margin_m))
+        if theta2_rad is not None and self.theta2 and self.theta2[-1] is not None:
+            circ = self._fit_circle()
+            if circ is not None:
+                c, r, e1, e2, s, phi = circ
+                a = s * theta2_rad + phi
+                return c + r * (np.cos(a) * e1 + np.sin(a) * e2), margin
+            th = np.array(self.theta2)
+            pts = np.array(self.centres)
+            same = np.abs(th - theta2_rad) < np.radians(0.5)
+            if same.any():                                   # the same pose again
+                return pts[same].mean(axis=0), 2 * o.min_margin_m
+            far = np.nonzero(np.abs(th - th[-1]) > np.radians(0.5))[0]
+            if len(far):
+                k = far[-1]
+                v = (pts[-1] - pts[k]) / (th[-1] - th[k])
+                step = float(np.linalg.norm(v) * abs(theta2_rad - th[-1]))
+                return pts[-1] + v * (theta2_rad - th[-1]), float(np.clip(0.3 * step + 2 * o.min_margin_m,
+                                                                          o.min_margin_m, o.max_margin_m))
+            # one pose seen so far: the disc may have turned by the step times an arm of up to 1 m
+            return pts[-1], o.acquire_margin_m + 1.0 * abs(theta2_rad - th[-1])
+        if len(self.centres) < 2:
+            return self.centres[-1], o.acquire_margin_m
+        return 2 * self.centres[-1] - self.centres[-2], max(margin, 0.5 * o.acquire_margin_m)
+
+    def update(self, depth_m, theta2_rad: float | None = None) -> DiscMeasurement:
+        """Measure the disc in the next frame.
+
+        Parameters
+        ----------
+        depth_m : array_like, shape (H, W)
+            Depth (z) in metres, NaN or 0 = invalid; the intrinsics' shape.
+        theta2_rad : float, optional
+            Joint-2 angle of this frame, rad (enables the circle prediction).
+
+        Returns
+        -------
+        DiscMeasurement
+            The disc centre (metres, camera frame); when it cannot be measured,
+            ``valid=False`` with the reason (also kept in ``skipped``).
+
+        Raises
+        ------
+        ValueError
+            If ``depth_m`` does not have the intrinsics' shape.
+        """
+        d = check_depth(depth_m, intrinsics=self.intrinsics, require_valid=False)
+        frame = self.n_frames
+        self.n_frames += 1
+        pred = self.predict(theta2_rad)
+        if pred is None:
+            p0 = self._seed_prediction(d)
+            if p0 is None:
+                m = skip_measurement("no valid depth around the seed pixel")
+                self.skipped[frame] = m.reason
+                return m
+            pred = (p0, self.options.acquire_margin_m)
+        prior = np.median(np.array(self.normals[-10:]), axis=0) if self.normals else None
+        m = measure_disc_3d(d, self.intrinsics, pred[0], pred[1], self.options, normal_prior=prior, rng=self._rng)
+        if not m.valid:
+            self.skipped[frame] = m.reason
+            return m
+        if self.centres:
+            self.errors.append(float(np.linalg.norm(m.centre_cam - pred[0])))
+        self.centres.append(m.centre_cam)
+        self.theta2.append(None if theta2_rad is None else float(theta2_rad))
+        if m.normal_from == "fit":
+            self.normals.append(m.normal_cam)
+        if theta2_rad is None:
+            self.theta2 = [None] * len(self.centres)
+        return m
+
+
+def track_disc_sweep(depth_frames, intrinsics: Intrinsics, seed_uv, theta2_rad=None,
+                     options: Disc3DOptions = Disc3DOptions()):
+    """Measure the disc in every frame of a sweep (see :class:`DiscSweepTracker`).
+
+    Parameters
+    ----------
+    depth_frames : iterable of array_like, each shape (H, W)
+        Depth (z) in metres, NaN or 0 = invalid.
+    intrinsics : Intrinsics
+        Pinhole intrinsics of the depth camera (pixels).
+    seed_uv : array_like, shape (2,)
+        A pixel on the disc in the first frame.
+    theta2_rad : array_like, shape (N,), optional
+        Joint-2 angle per frame, rad.
+    options : Disc3DOptions
+        Disc radius, tolerances, margins.
+
+    Returns
+    -------
+    centres_cam : ndarray, shape (N, 3)
+        Disc centres, metres, camera frame; NaN rows for skipped frames.
+    skipped : dict
+        Frame index -> reason, for the frames where the disc was not measurable.
+
+    Raises
+    ------
+    TudorVisionError
+        If ``seed_uv`` lies outside the image.
+    """
+    tr = DiscSweepTracker(intrinsics, seed_uv, options)
+    out = []
+    for i, dm in enumerate(depth_frames):
+        th = None if theta2_rad is None else float(theta2_rad[i])
+        out.append(tr.update(dm, th).centre_cam)
+    return np.array(out).reshape(-1, 3), dict(tr.skipped)
