@@ -473,3 +473,19 @@ def test_mutated_files_never_crash_the_loader(tmp_path):
             assert "\n" not in str(exc).strip() and str(d) in str(exc), str(exc)
             n_err += 1
     assert n_ok > 10 and n_err > 50
+
+
+@pytest.mark.parametrize("T", [[-0.3, 0.01, 0.02], [0.01, -0.25, 0.0]])       # horizontal and vertical rigs
+def test_ros_pair_q_matches_cv2_stereo_rectify(tmp_path, T):
+    from tudorvision.io.formats import load_ros_stereo, rectified_q, save_ros_stereo
+
+    rng = np.random.default_rng(11)
+    base = _rig(rng, rectify=False)
+    cl, cr = base.camera("left"), base.camera("right")
+    R = cv2.Rodrigues(np.array([0.01, -0.02, 0.005]))[0]
+    R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(cl.K, cl.dist, cr.K, cr.dist, cl.size, R, np.reshape(T, (3, 1)))
+    assert np.allclose(rectified_q(P1, P2), Q, rtol=1e-12, atol=1e-9)
+    cal = Calibration(cameras=base.cameras, stereo=StereoExtrinsics(R=R, T=T))
+    back = load_ros_stereo(*save_ros_stereo(cal, tmp_path / "l.yaml", tmp_path / "r.yaml"))
+    assert np.allclose(back.stereo.R, R, atol=1e-12) and np.allclose(back.stereo.T, T, atol=1e-12)
+    assert np.allclose(back.stereo.Q, Q, rtol=1e-12, atol=1e-9)       # same rectification (alpha -1) as above

@@ -4,7 +4,10 @@
   ``camera_calibration``): ``image_width``, ``image_height``,
   ``camera_name``, ``camera_matrix``, ``distortion_model`` (``plumb_bob``),
   ``distortion_coefficients``, ``rectification_matrix``,
-  ``projection_matrix``; matrices as ``{rows, cols, data}``.
+  ``projection_matrix``; matrices as ``{rows, cols, data}``. A stereo pair
+  is two such files; :func:`load_ros_stereo` recovers ``R``, ``T`` from the
+  rectification and projection matrices and :func:`save_ros_stereo` writes
+  them.
 * OpenCV's ``stereo_calib`` sample: ``intrinsics.yml`` (``M1``, ``D1``,
   ``M2``, ``D2``) and ``extrinsics.yml`` (``R``, ``T``, ``R1``, ``R2``,
   ``P1``, ``P2``, ``Q``), read and written with ``cv2.FileStorage``. The
