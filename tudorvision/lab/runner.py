@@ -523,14 +523,17 @@ def _run_serial(book: _Book, todo) -> None:
 
 def _run_dask(book: _Book, todo, report: RunReport, *, scheduler, workers, processes, dashboard_address) -> None:
     import logging
+    import warnings
 
     from dask.distributed import Client, LocalCluster, as_completed
 
     cluster = None
     if scheduler == "local":
         n = int(workers or os.cpu_count() or 1)
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
-                               dashboard_address=dashboard_address, silence_logs=logging.ERROR)
+        with warnings.catch_warnings():     # 'port 8787 is already in use': another port is taken and printed
+            warnings.filterwarnings("ignore", message=".*already in use", category=UserWarning)
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
+                                   dashboard_address=dashboard_address or ":0", silence_logs=logging.ERROR)
         client = Client(cluster, set_as_default=False)
         if dashboard_address is not None:
             report.dashboard = cluster.dashboard_link
