@@ -515,3 +515,22 @@ def test_decoded_frames_are_writable_copies(tmp_path):
         assert f.left.flags.writeable and f.right.flags.writeable and f.left.flags.c_contiguous
         f.left[:] = 0                                       # a consumer drawing on a frame
         assert np.array_equal(seq[0].left, left[0])
+
+
+def test_compressed_depth_png_and_mono16_colour(tmp_path):
+    depth = _depths_mm(41, 1)[0]
+    png = cv2.imencode(".png", depth)[1].ravel()
+    msg = _Msg(format="16UC1; compressedDepth png", data=np.concatenate([np.zeros(12, np.uint8), png]))
+    out = decode_image(msg)
+    assert out.dtype == np.uint16 and np.array_equal(out, depth)
+    with pytest.raises(Exception, match="quantised 32FC1 compressedDepth is not supported"):
+        decode_image(_Msg(format="32FC1; compressedDepth png", data=np.concatenate([np.zeros(12, np.uint8), png])))
+    path = tmp_path / "mono16.bag"
+    bag = _Bag(path, "ros1")
+    grey16 = [np.random.default_rng(k).integers(0, 65536, (H, W)).astype(np.uint16) for k in range(3)]
+    for k, g in enumerate(grey16):
+        bag.image("/ir/image", T0 * 10**9 + k * DT_NS, g, "mono16")
+    bag.close()
+    with open_sequence(path) as seq:
+        assert seq.kind == "mono"
+        assert all(f.image.dtype == np.uint8 and np.array_equal(f.image, grey16[f.index] >> 8) for f in seq)

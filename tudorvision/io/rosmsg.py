@@ -40,6 +40,9 @@ def decode_image(msg) -> np.ndarray:
     if hasattr(msg, "format"):
         fmt = str(msg.format).lower()
         if "compresseddepth" in fmt:       # 12-byte config header before the PNG
+            if "32fc1" in fmt:
+                raise ImageProblem(f"format {msg.format!r}: quantised 32FC1 compressedDepth is not supported "
+                                   "(record 16UC1, or raw 32FC1)")
             start = data.tobytes().find(b"\x89PNG")
             data = data[start:] if start >= 0 else data[:0]
         img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
