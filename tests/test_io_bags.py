@@ -291,6 +291,14 @@ def test_topic_choice_rules():
         choose_topics(tops[3:])
     with pytest.raises(TudorVisionError, match="STREAM=TOPIC"):
         parse_topics("colour=/x")
+    rs = [BagTopic("/camera/color/image_raw", img, 3), BagTopic("/camera/depth/image_rect_raw", img, 3),
+          BagTopic("/camera/aligned_depth_to_color/image_raw", img, 3),
+          BagTopic("/camera/color/camera_info", info, 3), BagTopic("/camera/depth/camera_info", info, 3)]
+    assert choose_topics(rs) == ("rgbd", {"rgb": "/camera/color/image_raw",
+                                          "depth": "/camera/aligned_depth_to_color/image_raw"},
+                                 {"rgb": "/camera/color/camera_info"})
+    with pytest.raises(TudorVisionError, match="cannot choose"):
+        choose_topics(rs + [BagTopic("/camera/infra1/image_rect_raw", img, 3)])
 
 
 # ----------------------------------------------------------------------------- decoding

@@ -300,7 +300,7 @@ def _import(args) -> int:
         ended = None
         with writer:
             frames = range(len(seq))
-            for i in progress(frames, total=None if live else len(seq), desc="importing"):
+            for i in progress(iter(frames) if live else frames, desc="importing"):
                 try:
                     f = seq.load_or_report(i)
                 except StreamEnded as exc:

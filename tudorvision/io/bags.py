@@ -214,7 +214,8 @@ def choose_topics(topics: list[BagTopic], requested=None, *, where: str = "bag"
     requested : str or dict, optional
         ``--topics`` value (see :func:`parse_topics`); by default the topics
         are found when unambiguous: one image topic (mono), one plus one
-        whose name contains ``depth`` (rgbd), or two whose names contain
+        whose name contains ``depth`` (rgbd; of several depth topics the one
+        containing ``aligned`` is taken), or two whose names contain
         ``left`` and ``right`` (stereo). ``X/compressed`` is ignored when
         the raw topic ``X`` is present.
     where : str
@@ -259,7 +260,9 @@ def choose_topics(topics: list[BagTopic], requested=None, *, where: str = "bag"
         cands = [t for t in images if not (t.rsplit("/", 1)[0] in images and t.rsplit("/", 1)[-1]
                                            in ("compressed", "compressedDepth"))]
         depth = [t for t in cands if "depth" in t.lower()]
-        colour = [t for t in cands if t not in depth]
+        aligned = [t for t in depth if "aligned" in t.lower()]   # e.g. RealSense aligned_depth_to_color
+        depth = aligned if len(aligned) == 1 else depth
+        colour = [t for t in cands if "depth" not in t.lower()]
         left = [t for t in colour if "left" in t.lower()]
         right = [t for t in colour if "right" in t.lower()]
         if len(colour) == 1 and len(depth) == 1:
