@@ -221,7 +221,7 @@ def scan_sequence(seq: Sequence, *, decode: bool = True, show_progress: bool | N
 def _open(args, strict):
     from ..io.sequence import open_sequence
     opts = sequence_options(args)
-    if args.func is _info and opts["max_frames"] is None:
+    if args.func in (_info, _check) and opts["max_frames"] is None:
         opts["max_frames"] = 30                  # a live source has no end: look at 30 frames
     return open_sequence(args.sequence, strict=strict, depth_scale=args.depth_scale, rate_hz=args.rate_hz,
                          **opts)
