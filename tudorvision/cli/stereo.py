@@ -151,10 +151,8 @@ def luma_edge_params(choice: str, source, centre: str = "circle"):
 def _open(path, *, strict: bool = False, args=None):
     from ..io import open_sequence
 
-    p = Path(path)
-    if not p.exists():
-        raise TudorVisionError(f"{p}: no such file or directory")
-    return open_sequence(p, strict=strict, **sequence_options(args))
+    # open_sequence checks existence itself and also takes live sources (/dev/videoN, rtsp://, http://, a,b)
+    return open_sequence(str(path), strict=strict, **sequence_options(args))
 
 
 def _exit_code(interrupted: str | None) -> int:
