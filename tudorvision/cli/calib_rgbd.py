@@ -238,7 +238,10 @@ def _cmd_base(args) -> int:
     if not args.disc_radius > 0:
         raise TudorVisionError(f"--disc-radius: expected a positive radius in metres, got {args.disc_radius}")
     if args.detector == "disc3d":
-        opts = Disc3DOptions(disc_radius_m=args.disc_radius, depth_model=noise_model_from_calibration(cal0))
+        from ..robot import load_robot_params
+        prm = load_robot_params()          # the first theta2 steps move the disc on a circle of link2 + link3
+        opts = Disc3DOptions(disc_radius_m=args.disc_radius, depth_model=noise_model_from_calibration(cal0),
+                             arm_radius_m=float(prm.link2_length_m + prm.link3_length_m))
     else:
         opts = DiscOptions(disc_radius_m=args.disc_radius, depth_model=noise_model_from_calibration(cal0),
                            depth_annulus=annulus, depth_window=args.depth_window)

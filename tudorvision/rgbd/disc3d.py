@@ -46,7 +46,7 @@ from .._checks import TudorVisionError, check_array
 from ..sensors import KINECT_DEPTH_NOISE, DepthNoiseModel
 from .frames import Intrinsics, check_depth
 
-__all__ = ["Disc3DOptions", "DiscMeasurement", "measure_disc_3d"]
+__all__ = ["Disc3DOptions", "DiscMeasurement", "measure_disc_3d", "plane_extent_ratio"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -83,6 +83,19 @@ class Disc3DOptions:
     max_normal_std_deg : float
         Above this standard error of the fitted plane's normal, the plane keeps
         the previous frames' normal (or faces the camera), degrees.
+    max_extent_ratio : float
+        A plane patch is not the disc when its inlier pixels cover more than
+        this fraction of the in-plane annulus between 1.7 and 2.6 disc radii
+        around the centre found (a wall, the floor or a table top: the disc
+        and its ring end at about 1.35 radii).
+    min_roundness : float
+        Smallest accepted axis ratio (square root of the in-plane second
+        moments' eigenvalue ratio) of the patch within 1.5 radii: a disc (and
+        its ring) is round, a strip of floor seen on a wrong plane is not.
+    arm_radius_m : float
+        Distance of the disc centre from the joint-2 axis, metres (link2 +
+        link3 on the seed's arm): bounds how far one theta2 step moves the
+        disc (``2 arm_radius_m sin(dtheta / 2)``) before a circle is fitted.
     depth_model : tudorvision.sensors.DepthNoiseModel
         ``sigma_z(z)`` in metres.
     random_seed : int
@@ -106,6 +119,9 @@ class Disc3DOptions:
     min_points: int = 20
     min_minor_px: float = 2.5
     max_normal_std_deg: float = 10.0
+    max_extent_ratio: float = 0.35
+    min_roundness: float = 0.55
+    arm_radius_m: float = 0.84
     depth_model: DepthNoiseModel = field(default=KINECT_DEPTH_NOISE)
     random_seed: int = 0
 
@@ -118,6 +134,8 @@ class Disc3DOptions:
             raise ValueError(f"opening_fraction: expected in (0, 1), got {self.opening_fraction}")
         if not 0 <= self.area_ratio[0] < self.area_ratio[1]:
             raise ValueError(f"area_ratio: expected 0 <= low < high, got {self.area_ratio}")
+        if not 0 < self.max_extent_ratio <= 1 or not self.arm_radius_m > 0:
+            raise ValueError("max_extent_ratio in (0, 1] and arm_radius_m > 0 expected")
         if self.ransac_iterations < 1 or self.min_points < 3:
             raise ValueError("ransac_iterations >= 1 and min_points >= 3 expected")
 
@@ -254,6 +272,58 @@ def _mean_shift(Q, w, centre, R, edge):
     return centre
 
 
+def plane_extent_ratio(depth_m, intrinsics: Intrinsics, centre_cam, normal_cam, radius_m: float, tol_m: float,
+                       inner: float = 1.7, outer: float = 2.6) -> float:
+    """Fraction of the in-plane annulus around a disc centre covered by depth points on the plane.
+
+    Each pixel's ray is intersected with the plane; the pixel counts (with
+    its footprint on the plane) when its in-plane distance from the centre is
+    between ``inner`` and ``outer`` radii and its measured depth lies within
+    ``tol_m`` of the plane's. The disc and its ring leave this annulus
+    nearly empty (thin links aside); a wall or the floor fills it.
+
+    Parameters
+    ----------
+    depth_m : ndarray, shape (H, W)
+        Depth (z) in metres, NaN = invalid.
+    intrinsics : Intrinsics
+        Pinhole intrinsics (pixels).
+    centre_cam, normal_cam : array_like, shape (3,)
+        Disc centre (metres) and unit normal, camera frame.
+    radius_m : float
+        Disc radius, metres.
+    tol_m : float
+        Depth band of the plane, metres.
+    inner, outer : float
+        Annulus bounds in disc radii.
+
+    Returns
+    -------
+    float
+        Covered area / annulus area (0 when the annulus is outside the image).
+    """
+    K = intrinsics
+    c, n = np.asarray(centre_cam, float), np.asarray(normal_cam, float)
+    zc = float(c[2])
+    f = float(np.sqrt(K.fx * K.fy))
+    half = int(np.ceil(f * outer * radius_m / zc)) + 2
+    uc, vc = K.fx * c[0] / zc + K.cx, K.fy * c[1] / zc + K.cy
+    u0, u1 = max(0, int(uc) - half), min(K.width, int(uc) + half + 1)
+    v0, v1 = max(0, int(vc) - half), min(K.height, int(vc) + half + 1)
+    if u0 >= u1 or v0 >= v1:
+        return 0.0
+    gu, gv = np.meshgrid((np.arange(u0, u1) - K.cx) / K.fx, (np.arange(v0, v1) - K.cy) / K.fy)
+    ndotr = n[0] * gu + n[1] * gv + n[2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = float(n @ c) / ndotr
+        rho = np.sqrt((gu * t - c[0]) ** 2 + (gv * t - c[1]) ** 2 + (t - c[2]) ** 2)
+        z = depth_m[v0:v1, u0:u1]
+        on = (t > 0) & (rho >= inner * radius_m) & (rho <= outer * radius_m) & (np.abs(z - t) <= tol_m)
+        w = t * t / (K.fx * K.fy * np.abs(ndotr))
+    area = float(np.sum(w[on]))
+    return area / (np.pi * (outer ** 2 - inner ** 2) * radius_m ** 2)
+
+
 def _disc_kernel(r):
     import cv2
 
@@ -325,7 +395,7 @@ def measure_disc_3d(depth_m, intrinsics: Intrinsics, predicted_cam, margin_m: fl
         return skip_measurement(f"only {n_sel} valid depth points within {reach:.2f} m of the predicted disc", n_sel)
     P = np.column_stack([gu[sel] * z[sel], gv[sel] * z[sel], z[sel]])
     tol = max(options.min_plane_tol_m, options.plane_tol_sigma * sigma)
-    geo = _Window(K, f, R, zp, pred, gu, gv, lat, sel, z.shape, sigma)
+    geo = _Window(K, f, R, zp, pred, gu, gv, lat, sel, z.shape, sigma, d)
     # the disc is the front surface near the prediction: a wall behind it would give RANSAC a plane slanted
     # across both. Front = within the disc's depth extent (from the previous normal, else up to 60 deg of
     # tilt) plus 3 sigma behind the 10th percentile depth of the points within one radius of the prediction.
@@ -372,6 +442,7 @@ class _Window:
     sel: np.ndarray
     shape: tuple
     sigma: float
+    depth: np.ndarray
 
 
 def _patch(g, P, inl, minor_px, options):
@@ -479,6 +550,17 @@ def _disc_in_plane(g, P, inl, normal, h, rmse, nstd, tol, options, normal_prior)
     if not options.area_ratio[0] <= ratio <= options.area_ratio[1]:
         return skip_measurement(f"disc patch of equivalent radius {r_eq:.3f} m does not fit the {R:.3f} m disc "
                      f"(area ratio {ratio:.2f} outside {options.area_ratio[0]}..{options.area_ratio[1]})")
+    inside = np.linalg.norm(Q - centre, axis=1) <= 1.5 * R
+    if inside.sum() >= 3:
+        ev = np.linalg.eigvalsh(np.cov((Q[inside] - centre).T, aweights=w[inside]))[1:]   # in-plane spread
+        roundness = float(np.sqrt(max(ev[0], 0.0) / ev[1])) if ev[1] > 0 else 0.0
+        if roundness < options.min_roundness:
+            return skip_measurement(f"the plane patch is not round (axis ratio {roundness:.2f} < "
+                                    f"{options.min_roundness}): a strip of floor or wall, a link, not the disc")
+    extent = plane_extent_ratio(g.depth, K, centre, normal, R, tol)
+    if extent > options.max_extent_ratio:
+        return skip_measurement(f"the plane found runs on beyond the disc ({100 * extent:.0f} % of the annulus "
+                                f"1.7-2.6 radii around it lies in it): a wall, the floor or a table, not the disc")
     reach = float(np.max(g.lat[g.sel])) if g.sel.any() else R
     off = float(np.hypot(*(centre[:2] / centre[2] - pred[:2] / zp)) * zp)
     if off > reach:

@@ -6,6 +6,7 @@ import numpy as np
 from .._checks import TudorVisionError, check_array
 from ..geometry import fit_circle_3d
 from .disc3d import Disc3DOptions, DiscMeasurement, measure_disc_3d, skip_measurement, unit_vector
+from .disc_search import acquire_disc
 from .frames import Intrinsics, check_depth
 
 __all__ = ["DiscSweepTracker", "track_disc_sweep"]
@@ -85,7 +86,7 @@ class DiscSweepTracker:
         if self._circle is not None and n - self._circle_n < max(3, n // 10):
             return self._circle
         th = np.array(self.theta2)
-        if n < 5 or np.ptp(th) < self.circle_min_span_rad:
+        if n < 3 or np.ptp(th) < self.circle_min_span_rad:
             return None
         pts = np.array(self.centres)
         try:
@@ -120,6 +121,11 @@ class DiscSweepTracker:
         tuple of (ndarray, shape (3,), float) or None
             Predicted centre and the margin to search around it.
         """
+        p = self._predict(theta2_rad)
+        return None if p is None else (p[0], p[1])
+
+    def _predict(self, theta2_rad):
+        """(centre, margin, mode): mode "step1" when only one pose was seen (the direction is unknown)."""
         o = self.options
         if not self.centres:
             return None
@@ -130,24 +136,30 @@ class DiscSweepTracker:
             if circ is not None:
                 c, r, e1, e2, s, phi = circ
                 a = s * theta2_rad + phi
-                return c + r * (np.cos(a) * e1 + np.sin(a) * e2), margin
+                return c + r * (np.cos(a) * e1 + np.sin(a) * e2), margin, "circle"
             th = np.array(self.theta2)
             pts = np.array(self.centres)
             same = np.abs(th - theta2_rad) < np.radians(0.5)
             if same.any():                                   # the same pose again
-                return pts[same].mean(axis=0), 2 * o.min_margin_m
+                return pts[same].mean(axis=0), 2 * o.min_margin_m, "same"
             far = np.nonzero(np.abs(th - th[-1]) > np.radians(0.5))[0]
             if len(far):
                 k = far[-1]
                 v = (pts[-1] - pts[k]) / (th[-1] - th[k])
-                step = float(np.linalg.norm(v) * abs(theta2_rad - th[-1]))
-                return pts[-1] + v * (theta2_rad - th[-1]), float(np.clip(0.3 * step + 2 * o.min_margin_m,
-                                                                          o.min_margin_m, o.max_margin_m))
-            # one pose seen so far: the disc may have turned by the step times an arm of up to 1 m
-            return pts[-1], o.acquire_margin_m + 1.0 * abs(theta2_rad - th[-1])
+                dth = abs(theta2_rad - th[-1])
+                # a linear step along a circle of the arm's radius misses by about r (1 - cos(dtheta)) per
+                # step length (the chord turns); plus the noise of the two centres
+                curve = o.arm_radius_m * 2.0 * (1.0 - np.cos(max(dth, abs(th[-1] - th[k]))))
+                return pts[-1] + v * (theta2_rad - th[-1]), float(max(o.min_margin_m, 1.3 * curve + 0.05)), "step"
+            # one pose seen so far: the disc turned by the step on a circle of the arm's radius
+            return pts[-1], 2.0 * o.arm_radius_m * np.sin(abs(theta2_rad - th[-1]) / 2.0), "step1"
         if len(self.centres) < 2:
-            return self.centres[-1], o.acquire_margin_m
-        return 2 * self.centres[-1] - self.centres[-2], max(margin, 0.5 * o.acquire_margin_m)
+            return self.centres[-1], o.acquire_margin_m, "still"
+        return 2 * self.centres[-1] - self.centres[-2], max(margin, 0.5 * o.acquire_margin_m), "velocity"
+
+    def _acquire(self, d, around, reach, score, max_score, prior):
+        return acquire_disc(d, self.intrinsics, around, reach, score, max_score, self.options,
+                            normal_prior=prior, rng=self._rng)
 
     def update(self, depth_m, theta2_rad: float | None = None) -> DiscMeasurement:
         """Measure the disc in the next frame.
@@ -171,22 +183,44 @@ class DiscSweepTracker:
             If ``depth_m`` does not have the intrinsics' shape.
         """
         d = check_depth(depth_m, intrinsics=self.intrinsics, require_valid=False)
+        o, R = self.options, self.options.disc_radius_m
         frame = self.n_frames
         self.n_frames += 1
-        pred = self.predict(theta2_rad)
+        pred = self._predict(theta2_rad)
+        prior = np.median(np.array(self.normals[-10:]), axis=0) if self.normals else None
         if pred is None:
             p0 = self._seed_prediction(d)
             if p0 is None:
                 m = skip_measurement("no valid depth around the seed pixel")
                 self.skipped[frame] = m.reason
                 return m
-            pred = (p0, self.options.acquire_margin_m)
-        prior = np.median(np.array(self.normals[-10:]), axis=0) if self.normals else None
-        m = measure_disc_3d(d, self.intrinsics, pred[0], pred[1], self.options, normal_prior=prior, rng=self._rng)
+            ray = unit_vector(p0)
+            # the disc-shaped surface nearest the seed pixel's ray (front-most on ties); a wall behind it runs
+            # on beyond the disc and is no candidate
+            m = self._acquire(d, p0, R + o.acquire_margin_m,
+                              lambda m: float(np.linalg.norm(np.cross(m.centre_cam, ray))), R + 0.5 * o.acquire_margin_m,
+                              prior)
+            if not m.valid:
+                m = measure_disc_3d(d, self.intrinsics, p0, o.acquire_margin_m, o, normal_prior=prior, rng=self._rng)
+        elif pred[2] == "step1":
+            # the disc turned by theta2 on a circle of the arm's radius about an unknown axis: it lies about one
+            # chord from the previous centre, in any direction
+            prev, chord = pred[0], pred[1]
+            m = self._acquire(d, prev, chord + R + 0.1, lambda m: abs(float(np.linalg.norm(m.centre_cam - prev)) - chord),
+                              0.08 + 0.3 * chord, prior)
+        else:
+            m = measure_disc_3d(d, self.intrinsics, pred[0], pred[1], o, normal_prior=prior, rng=self._rng)
+            if not m.valid:
+                # a poor prediction (an early step, a jump): the disc-shaped surface nearest to it
+                centre, margin = pred[0], pred[1]
+                m2 = self._acquire(d, centre, margin + R,
+                                   lambda m: float(np.linalg.norm(m.centre_cam - centre)), margin + 0.5 * R, prior)
+                if m2.valid:
+                    m = m2
         if not m.valid:
             self.skipped[frame] = m.reason
             return m
-        if self.centres:
+        if self.centres and pred is not None and pred[2] != "step1":
             self.errors.append(float(np.linalg.norm(m.centre_cam - pred[0])))
         self.centres.append(m.centre_cam)
         self.theta2.append(None if theta2_rad is None else float(theta2_rad))
