@@ -56,12 +56,13 @@ ASSUMPTIONS = """\
 Simulated TUDOR: assumptions
 - Joints: rigid-equivalent multibody dynamics with lumped bodies (blades as uniform rods,
   actuator 3 as a point mass with inertia at the link-2 tip, payload as a point mass with
-  plate inertia at the end effector); Coriolis/centrifugal terms included; gear backlash,
-  joint elasticity and motor electrical dynamics neglected (amplifier merged into k_M).
+  plate inertia at the end effector); Coriolis/centrifugal terms included; motor electrical
+  dynamics neglected (amplifier merged into k_M).
 - Friction: Zeng's model (3.1.3) with Coulomb terms opposing motion; sticking when the
   Coulomb impulse of one step exceeds the velocity.
-- Links 2 and 3: Euler-Bernoulli blades rigidly clamped at the hub (K_r -> inf), bending only
-  in the arm's vertical plane (out-of-plane bending, torsion and axial strain neglected).
+- Links 2 and 3: Euler-Bernoulli blades clamped at the hub, rigidly by default (K_r -> inf) or
+  on a rotary spring with damper and gear backlash (PlantConfig.seed_measured(), joint_compliance),
+  bending only in the arm's vertical plane (out-of-plane bending, torsion, axial strain neglected).
   Tip load of link 2 = actuator 3 + link 3 + payload with inertia about the tip axis
   (parallel-axis theorem, configuration independent); tip load of link 3 = payload.
 - Static deflection: exact small-deflection cantilever with own weight, tip force and tip
@@ -69,8 +70,8 @@ Simulated TUDOR: assumptions
 - Dynamics of the deflection: n_modes modes per link from (4.4.6), mass-normalised,
   proportional modal damping (ratios from tudor.yaml), forced by gravity, hub rotational
   and translational accelerations, joint-3 reaction on the link-2 tip and contact forces.
-  Gravity stiffening/softening (axial load) and the backlash 'canyons' of fig. 4.8 are not
-  modelled, so link-2 frequencies do not vary with the configuration.
+  Gravity stiffening/softening (axial load) is not modelled; the backlash 'canyons' of fig. 4.8
+  appear only with backlash (seed_measured), the theta3 dependence only in the two-way model.
 - Coupling: by default one-way (joints drive the links, link oscillations do not act back on
   the joints, section 5.1). With obstacles (or two_way=True) the joints and modes share an
   assumed-modes mass matrix built from the exact kinetic energy of the lumped bodies; the
