@@ -39,4 +39,5 @@ SAMPLE_KINDS := stereo-step stereo-sweep stereo-checkerboard stereo-static rgbd-
 sample-data: $(STAMP)
 	rm -rf sample_data/*/
 	for k in $(SAMPLE_KINDS); do $(BIN)/tudorvision sim record $$k --small --seed 0 --out sample_data/$$k || exit 1; done
+	$(BIN)/python sample_data/make_wall_calibration.py sample_data/rgbd-throws
 	du -sh sample_data
