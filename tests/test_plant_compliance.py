@@ -144,3 +144,12 @@ def test_sim_modes_bad_arguments_give_one_line_errors(tmp_path, capsys, args, ms
     err = capsys.readouterr().err.strip()
     assert rc != 0 and msg in err and len(err.splitlines()) == 1 and "Traceback" not in err
     assert not (tmp_path / "x.json").exists()
+
+
+def test_one_way_plant_reports_and_rings_at_its_own_bvp_frequencies():
+    """The default plant: 2.67 / 9.80 Hz at 300 g (issue 18's 'too stiff'), and its ring-down agrees."""
+    cfg = PlantConfig()
+    m = linear_modes(D([0, 45, 0]), 0.3, cfg)
+    assert m["link2_hz"] == pytest.approx([2.665, 9.797], abs=0.01)
+    log = ring_down(D([0, 45, 0]), 0.3, cfg, duration_s=4.0)
+    assert dominant_frequency_hz(log.strain[:, 0], cfg.dt) == pytest.approx(m["link2_hz"][0], rel=0.02)

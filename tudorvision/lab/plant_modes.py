@@ -80,12 +80,21 @@ def linear_modes(theta_rad, payload_kg: float, config: PlantConfig) -> dict:
     -------
     dict
         ``link2_hz`` [first, second], ``link3_hz`` [first], ``decay_linear_per_s`` (first mode,
-        hub dampers engaged), ``coupled_hz`` (all coupled modes).
+        hub dampers engaged), ``modes_hz`` (all modes, Hz). With ``config.two_way`` the
+        link-2 values are the two lowest coupled modes; for the one-way plant they are
+        link 2's own BVP frequencies (what that plant rings at).
     """
     arm = ElasticArm(theta_rad, payload=plate_payload(payload_kg), config=config)
-    f, decay, _ = held_joint_modes(arm)
+    f, decay, _ = held_joint_modes(arm, coupled=bool(config.two_way))
+    if not config.two_way:          # one-way plant: link 2 rings at its own BVP frequencies
+        order = np.argsort(f)
+        f, decay = f[order], decay[order]
+        return {"link2_hz": [float(x) for x in arm.link2.basis.frequency_hz[:2]],
+                "link3_hz": [float(arm.link3.basis.frequency_hz[0])],
+                "decay_linear_per_s": float(decay[np.argmin(np.abs(f - arm.link2.basis.frequency_hz[0]))]),
+                "modes_hz": [float(x) for x in f]}
     return {"link2_hz": [float(f[0]), float(f[1])], "link3_hz": [float(arm.link3.basis.frequency_hz[0])],
-            "decay_linear_per_s": float(decay[0]), "coupled_hz": [float(x) for x in f]}
+            "decay_linear_per_s": float(decay[0]), "modes_hz": [float(x) for x in f]}
 
 
 def ring_down(theta_rad, payload_kg: float, config: PlantConfig, duration_s: float = 8.0,

@@ -19,13 +19,15 @@ from .model import coupled_mass_matrix
 __all__ = ["held_joint_matrices", "held_joint_modes"]
 
 
-def held_joint_matrices(arm):
+def held_joint_matrices(arm, coupled: bool = True):
     """Mass, damping and stiffness of the link modes of ``arm`` with its joints held, at its pose.
 
     Parameters
     ----------
     arm : ElasticArm
         The plant (its bodies, link modes, hub compliance and current ``theta``).
+    coupled : bool, optional
+        ``False``: the one-way model's view, each link on its own BVP (identity mass matrix).
 
     Returns
     -------
@@ -41,6 +43,8 @@ def held_joint_matrices(arm):
     coupling = (k2.gamma, c2_t3, c3_t2, k3.gamma, E)
     m22 = b.J2 + b.J3 + 2 * b.l2 * sc + b.rotor[1]
     M = coupled_mass_matrix(m22, b.J3 + b.l2 * sc, b.J3 + b.rotor[2], coupling, b, k2, k3, c3)[2:, 2:]
+    if not coupled:
+        M = np.eye(k2.n + k3.n)
     K = np.diag(k2.om2 + k3.om2)
     C = np.diag(k2.cdamp + k3.cdamp)
     for j, lm in enumerate((k2, k3)):
@@ -50,13 +54,15 @@ def held_joint_matrices(arm):
     return M, C, K
 
 
-def held_joint_modes(arm):
+def held_joint_modes(arm, coupled: bool = True):
     """Natural frequencies, decay rates and shapes of the link modes with the joints held.
 
     Parameters
     ----------
     arm : ElasticArm
         The plant at the pose of interest.
+    coupled : bool, optional
+        ``False``: each link on its own BVP (what the one-way plant integrates).
 
     Returns
     -------
@@ -68,7 +74,7 @@ def held_joint_modes(arm):
         Column ``i``: modal coordinates ``(eta2, eta3)`` of mode ``i`` (undamped).
     """
     from scipy.linalg import eigh
-    M, C, K = held_joint_matrices(arm)
+    M, C, K = held_joint_matrices(arm, coupled)
     w2, V = eigh(K, M)
     f = np.sqrt(np.maximum(w2, 0.0)) / (2 * np.pi)
     n = len(w2)
