@@ -232,29 +232,46 @@ def _ransac_plane(P, core, tol, iterations, rng, view, min_cos_view):
 
 
 def _refit(P, normal, h, tol, sigma):
-    """Least-squares plane of the inliers of (normal, h).
+    """Least-squares plane of the inliers of (normal, h), fitted in inverse depth.
 
-    Returns normal, h, inlier mask, rmse and the normal's standard error (rad),
-    taken from the depth noise ``sigma`` and the points' lateral spread (the
-    residual scatter would understate it when the noise dwarfs the patch).
+    A plane ``n . p = h`` seen along the rays ``r = (u', v', 1)`` is linear in
+    inverse depth: ``1 / z = (n . r) / h``. The depth noise lies along the
+    rays, so the regression of ``1 / z`` on ``(u', v', 1)`` is unbiased, where
+    a total least-squares (SVD) plane tilts away from the view when the noise
+    is not small against the patch (35 deg at 5.5 m on the 18 cm disc).
+
+    Returns normal, h, inlier mask, rmse and the normal's standard error (rad)
+    from the regression's covariance, the residual scale floored at the depth
+    noise ``sigma``.
     """
     for _ in range(2):
         inl = np.abs(P @ normal - h) <= tol
-        if inl.sum() < 3:
+        if inl.sum() < 4:
             break
         Q = P[inl]
-        c = Q.mean(axis=0)
-        _, s, vt = np.linalg.svd(Q - c, full_matrices=False)
-        normal, h = vt[2], float(vt[2] @ c)
+        A = np.column_stack([Q[:, 0] / Q[:, 2], Q[:, 1] / Q[:, 2], np.ones(len(Q))])
+        sol, *_ = np.linalg.lstsq(A, 1.0 / Q[:, 2], rcond=None)
+        norm = float(np.linalg.norm(sol))
+        if not norm > 0:
+            break
+        normal, h = sol / norm, 1.0 / norm
     inl = np.abs(P @ normal - h) <= tol
     Q = P[inl]
-    if len(Q) < 3:
+    if len(Q) < 4:
         return normal, h, inl, float("nan"), float("inf")
     rmse = float(np.sqrt(np.mean((Q @ normal - h) ** 2)))
-    lateral = Q[:, :2] / Q[:, 2:3] * np.median(Q[:, 2])        # image-plane spread at the patch depth
-    spread = float(np.sqrt(max(np.linalg.eigvalsh(np.cov(lateral.T))[0], 0.0)))
-    std = max(rmse, sigma) / (spread * np.sqrt(len(Q))) if spread > 0 else float("inf")
-    return normal, h, inl, rmse, float(std)
+    A = np.column_stack([Q[:, 0] / Q[:, 2], Q[:, 1] / Q[:, 2], np.ones(len(Q))])
+    v = normal / h
+    zres = Q[:, 2] - 1.0 / (A @ v)                                  # residuals along the rays
+    zmed = float(np.median(Q[:, 2]))
+    s_inv = max(float(np.sqrt(np.mean(zres ** 2))), sigma) / zmed ** 2      # noise of 1/z
+    try:
+        cov = s_inv ** 2 * np.linalg.inv(A.T @ A)
+    except np.linalg.LinAlgError:
+        return normal, h, inl, rmse, float("inf")
+    perp = np.eye(3) - np.outer(normal, normal)
+    std = float(np.sqrt(max(np.linalg.eigvalsh(perp @ cov @ perp)[-1], 0.0)) / np.linalg.norm(v))
+    return normal, h, inl, rmse, std
 
 
 def _mean_shift(Q, w, centre, R, edge):

@@ -7,8 +7,10 @@ frame only the user's seed pixel is known, and after one pose a theta2 step
 of 20-30 degrees moves the disc by 0.3-0.45 m in an unknown direction. Here
 every disc-like surface in a wide window becomes a candidate:
 
-1. the depth is median-filtered (5 x 5, invalid pixels read as far);
-2. pixels next to a depth jump larger than ``max(3 cm, 2.5 sigma_z)`` are cut,
+1. the depth is median-filtered (5 x 5, 3 x 3 for a disc under 8 px in radius; invalid pixels
+   read as far);
+2. pixels next to a depth jump larger than ``max(3 cm, 2.5 sigma_z)`` over one or two
+   pixels are cut,
    so a surface in front of a wall or of nothing is its own region;
 3. an opening of about a third of the disc's image radius removes the thin
    links and the net's edge;
@@ -69,16 +71,16 @@ def disc_candidates(depth_m, intrinsics: Intrinsics, around_cam, reach_m: float,
         return []
     sub = np.asarray(depth_m, dtype=np.float32)[v0:v1, u0:u1]
     valid = np.isfinite(sub) & (sub > 0)
-    zs = cv2.medianBlur(np.where(valid, sub, np.float32(1e3)).astype(np.float32), 5)
+    r_px = f * R / z0
+    zs = cv2.medianBlur(np.where(valid, sub, np.float32(1e3)).astype(np.float32), 5 if r_px >= 8 else 3)
     ok = zs < 100.0
     tau = np.maximum(0.03, 2.5 * options.depth_model.sigma_m(np.clip(zs, 0.3, 8.0)))
-    jump_u = np.abs(np.diff(zs, axis=1)) > tau[:, 1:]
-    jump_v = np.abs(np.diff(zs, axis=0)) > tau[1:, :]
-    ok[:, 1:] &= ~jump_u
-    ok[:, :-1] &= ~jump_u
-    ok[1:, :] &= ~jump_v
-    ok[:-1, :] &= ~jump_v
-    r_px = f * R / z0
+    for step in (1, 2):             # the median blurs a jump over a pixel or two: cut across both
+        jump_u = np.abs(zs[:, step:] - zs[:, :-step]) > tau[:, step:]
+        jump_v = np.abs(zs[step:, :] - zs[:-step, :]) > tau[step:, :]
+        for a in ((0, 1) if step == 1 else (1,)):        # a gradual jump: only the pixel across it
+            ok[:, a:ok.shape[1] - step + a] &= ~jump_u
+            ok[a:ok.shape[0] - step + a, :] &= ~jump_v
     ro = max(1, int(round(0.3 * r_px)))
     kern = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * ro + 1, 2 * ro + 1))
     mask = cv2.morphologyEx(ok.astype(np.uint8), cv2.MORPH_OPEN, kern)

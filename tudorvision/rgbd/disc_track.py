@@ -63,6 +63,7 @@ class DiscSweepTracker:
         self.centres: list = []
         self.theta2: list = []
         self.normals: list = []
+        self.normal_theta2: list = []   # theta2 of each fitted normal (None without joint angles)
         self.errors: list = []          # |measured - predicted| of recent frames
         self.n_frames = 0
         self.skipped: dict = {}         # frame number -> reason
@@ -83,7 +84,7 @@ class DiscSweepTracker:
 
     def _fit_circle(self):
         n = len(self.centres)
-        if self._circle is not None and n - self._circle_n < max(3, n // 10):
+        if self._circle is not None and n - self._circle_n < max(1, n // 10):
             return self._circle
         th = np.array(self.theta2)
         if n < 3 or np.ptp(th) < self.circle_min_span_rad:
@@ -95,6 +96,8 @@ class DiscSweepTracker:
             return None
         if not (fit.rmse < 0.03 and fit.radius < 3.0):
             return None                      # too few or too scattered centres yet: keep the linear step
+        if n < 8 and abs(fit.radius - self.options.arm_radius_m) > 0.3 * self.options.arm_radius_m:
+            return None                      # a circle through a few noisy centres that does not fit the arm
         e1 = unit_vector(pts[0] - fit.centre - ((pts[0] - fit.centre) @ fit.normal) * fit.normal)
         e2 = np.cross(fit.normal, e1)
         a = np.arctan2((pts - fit.centre) @ e2, (pts - fit.centre) @ e1)
@@ -157,6 +160,28 @@ class DiscSweepTracker:
             return self.centres[-1], o.acquire_margin_m, "still"
         return 2 * self.centres[-1] - self.centres[-2], max(margin, 0.5 * o.acquire_margin_m), "velocity"
 
+    def _normal_prior(self, theta2_rad):
+        """The disc normal expected at ``theta2_rad``: the disc turns with the arm, so a normal fitted at
+        another theta2 is turned about the sweep circle's axis by the difference (None when unknown)."""
+        if not self.normals:
+            return None
+        if theta2_rad is None or self.normal_theta2[-1] is None:
+            return np.median(np.array(self.normals[-10:]), axis=0)
+        th = np.array(self.normal_theta2, float)
+        near = np.abs(th - theta2_rad) <= np.radians(2.0)
+        if near.any():                                   # fitted at (about) this pose already
+            return unit_vector(np.median(np.array(self.normals)[near][-10:], axis=0))
+        circ = self._fit_circle() if len(self.centres) >= 3 else None
+        if circ is None:
+            k = int(np.argmin(np.abs(th - theta2_rad)))
+            return self.normals[k] if abs(th[k] - theta2_rad) <= np.radians(10.0) else None
+        axis, s = unit_vector(np.cross(circ[2], circ[3])), circ[4]
+        out = []
+        for n, t in list(zip(self.normals, th))[-5:]:
+            a = s * (theta2_rad - t)                       # Rodrigues: n turned by a about the axis
+            out.append(n * np.cos(a) + np.cross(axis, n) * np.sin(a) + axis * (axis @ n) * (1 - np.cos(a)))
+        return unit_vector(np.median(np.array(out), axis=0))
+
     def _acquire(self, d, around, reach, score, max_score, prior):
         return acquire_disc(d, self.intrinsics, around, reach, score, max_score, self.options,
                             normal_prior=prior, rng=self._rng)
@@ -187,7 +212,7 @@ class DiscSweepTracker:
         frame = self.n_frames
         self.n_frames += 1
         pred = self._predict(theta2_rad)
-        prior = np.median(np.array(self.normals[-10:]), axis=0) if self.normals else None
+        prior = self._normal_prior(theta2_rad)
         if pred is None:
             p0 = self._seed_prediction(d)
             if p0 is None:
@@ -217,6 +242,18 @@ class DiscSweepTracker:
                                    lambda m: float(np.linalg.norm(m.centre_cam - centre)), margin + 0.5 * R, prior)
                 if m2.valid:
                     m = m2
+                elif theta2_rad is not None and self.theta2[-1] is not None:
+                    # the prediction is off (a circle through a few noisy centres): the disc lies one chord of the
+                    # arm's radius from the centre measured at the nearest theta2
+                    th = np.array(self.theta2)
+                    k = int(np.argmin(np.abs(th - theta2_rad)))
+                    prev = self.centres[k]
+                    chord = 2.0 * o.arm_radius_m * np.sin(abs(theta2_rad - th[k]) / 2.0)
+                    m3 = self._acquire(d, prev, chord + R + 0.1,
+                                       lambda m: abs(float(np.linalg.norm(m.centre_cam - prev)) - chord),
+                                       0.08 + 0.3 * chord, prior)
+                    if m3.valid:
+                        m = m3
         if not m.valid:
             self.skipped[frame] = m.reason
             return m
@@ -226,6 +263,7 @@ class DiscSweepTracker:
         self.theta2.append(None if theta2_rad is None else float(theta2_rad))
         if m.normal_from == "fit":
             self.normals.append(m.normal_cam)
+            self.normal_theta2.append(None if theta2_rad is None else float(theta2_rad))
         if theta2_rad is None:
             self.theta2 = [None] * len(self.centres)
         return m
