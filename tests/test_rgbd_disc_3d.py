@@ -103,3 +103,42 @@ def test_options_and_bad_seed():
     with pytest.raises(TudorVisionError, match="outside"):
         DiscSweepTracker(Intrinsics(500.0, 500.0, 160.0, 120.0, 320, 240), (400, 10))
     assert DiscSweepParams().disc_radius_m == 0.09
+
+
+@pytest.mark.parametrize("step_deg, background", [(20.0, "near"), (20.0, "invalid"), (30.0, "near")])
+def test_coarse_sweep_far_camera_near_wall(step_deg, background):
+    """20-30 deg steps (a disc step of 0.3-0.45 m) at 5.5 m, a wall 0.25-0.4 m behind: found from the seed pixel
+    in every frame; the wall behind is never taken for the disc."""
+    sw = _sweep(5, theta2_deg=tuple(np.arange(0.0, 180.1, step_deg)), n_vertical=3, background=background,
+                camera_distance_m=5.5)
+    K = Intrinsics.from_matrix(sw.K, 320, 240)
+    opts = Disc3DOptions(depth_model=MM_NOISE)
+    pts, skipped = track_disc_sweep(sw.depth_m, K, _seed_uv(sw, K), sw.theta_rad[:, 1], opts)
+    err = np.linalg.norm(pts - sw.disc_centres_cam, axis=1)
+    assert skipped == {} and np.max(err) < 0.03 and np.median(err) < 0.015
+    if step_deg == 20.0:                # 10 poses: enough for the circle's outlier rejection
+        sweep = ~sw.vertical
+        T, rep = base_frame_from_theta2_sweep(pts[sweep], pts[sw.vertical], theta2_rad=sw.theta_rad[sweep, 1])
+        o = np.linalg.norm(invert_transform(T)[:3, 3] - invert_transform(sw.T_base_cam)[:3, 3])
+        assert o < 0.02 and np.degrees(rotation_angle(T[:3, :3].T @ sw.T_base_cam[:3, :3])) < 1.5
+
+
+def test_wall_and_floor_strip_are_not_the_disc():
+    """A plane that runs on beyond the disc (a wall) or a long strip (the floor seen on a wrong plane) is rejected."""
+    from tudorvision.rgbd.disc3d import plane_extent_ratio
+
+    K = Intrinsics(525.0, 525.0, 160.0, 120.0, 320, 240)
+    wall = np.full((240, 320), 4.0)
+    assert plane_extent_ratio(wall, K, [0.0, 0.0, 4.0], [0.0, 0.0, -1.0], 0.09, 0.05) > 0.95
+    m = measure_disc_3d(wall, K, [0.0, 0.0, 4.0], 0.05, Disc3DOptions(depth_model=MM_NOISE))
+    assert not m.valid
+    strip = np.full((240, 320), np.nan)
+    strip[112:128, :] = 4.0                      # 12 cm high (as wide as the disc), across the window
+    m = measure_disc_3d(strip, K, [0.0, 0.0, 4.0], 0.05, Disc3DOptions(depth_model=MM_NOISE))
+    assert not m.valid and ("round" in m.reason or "beyond" in m.reason)
+    disc = np.full((240, 320), np.nan)
+    vv, uu = np.mgrid[:240, :320]
+    disc[(uu - 160) ** 2 + (vv - 120) ** 2 <= (525 * 0.09 / 4.0) ** 2] = 4.0
+    assert plane_extent_ratio(disc, K, [0.0, 0.0, 4.0], [0.0, 0.0, -1.0], 0.09, 0.05) == 0.0
+    m = measure_disc_3d(disc, K, [0.03, 0.0, 4.0], 0.05, Disc3DOptions(depth_model=MM_NOISE))
+    assert m.valid and np.linalg.norm(m.centre_cam - [0.0, 0.0, 4.0]) < 0.005
