@@ -4,7 +4,8 @@ Each set-up is drawn by the lab (:func:`tudorvision.lab.disc_sweep.sample_disc_s
 wall camera 3.0-5.8 m from the joint-2 axis with pose jitter, the 18 cm disc
 in a flat net ring at the end of the links (joined in depth), tilted 0-40 deg,
 background out of range (invalid) or a wall 0.25-0.4 m behind the arm plane,
-theta2 swept 0-180 deg in 5 deg steps (2 frames per pose) and 10 frames of the
+theta2 swept 0-180 deg in 5 deg steps (2 frames per pose; ``--step-deg``,
+``--frames-per-pose`` for coarse sweeps) and 10 frames of the
 vertical posture, depth noise as :mod:`tudorvision.sensors` reads the seed's
 fit (``--sigma-unit`` overrides). The detectors get only the depth frames,
 the intrinsics, the joint angles and the seed pixel (the disc centre of frame
@@ -26,7 +27,7 @@ Target: <= 1 cm and <= 1 deg for every set-up.
 
 Run::
 
-    nice .venv/bin/python benchmarks/bench_rgbd_base.py [--setups 12] [--seed 0]
+    nice .venv/bin/python benchmarks/bench_rgbd_base.py [--setups 12] [--seed 0] [--step-deg 5]
 """
 from __future__ import annotations
 
@@ -91,6 +92,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--setups", type=int, default=12)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--step-deg", type=float, default=5.0, help="theta2 step of the sweep, degrees (default 5)")
+    ap.add_argument("--frames-per-pose", type=int, default=2, help="depth frames per sweep pose (default 2)")
     ap.add_argument("--sigma-unit", choices=("mm", "cm"), help="read the seed's sigma_z fit in this unit "
                                                                 "(default: as tudorvision.sensors does)")
     args = ap.parse_args()
@@ -100,11 +103,13 @@ def main() -> None:
         unit = args.sigma_unit
         noise = DepthNoiseModel(coeffs=tuple(c / SIGMA_UNITS_PER_M[unit] for c in KINECT_SIGMA_Z_COEFFS))
     print(f"machine: {cpu_model()}; depth noise: seed's fit read in {unit} "
-          f"(sigma_z(5 m) = {100 * float(noise.sigma_m(5.0)):.1f} cm)")
+          f"(sigma_z(5 m) = {100 * float(noise.sigma_m(5.0)):.1f} cm); theta2 step {args.step_deg:g} deg, "
+          f"{args.frames_per_pose} frame(s) per pose")
     rows = []
     for k in range(args.setups):
         rng = np.random.default_rng([args.seed, k])
-        p = sample_disc_sweep(rng)
+        p = sample_disc_sweep(rng, theta2_deg=tuple(np.arange(0.0, 180.0 + 1e-6, args.step_deg)),
+                              frames_per_pose=args.frames_per_pose)
         t0 = time.perf_counter()
         sw = render_disc_sweep(p, rng, noise=noise)
         t_render = time.perf_counter() - t0

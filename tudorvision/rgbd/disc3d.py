@@ -12,7 +12,10 @@ Here the disc is measured in 3D near where it is expected:
    the viewing ray) and within that plus three depth-noise sigmas along it.
 2. **Plane.** RANSAC on those points (triples drawn from the core, the points
    within one disc radius of the prediction), inlier band ``3 sigma_z``, then
-   a least-squares refit. When depth noise leaves the plane's tilt undetermined
+   a least-squares refit in inverse depth (``1/z`` is linear in the pixel
+   ray for a plane, and the depth noise lies along the rays: unbiased where a
+   total least-squares plane tilts away from the view under Kinect noise at
+   5 m). When depth noise leaves the plane's tilt undetermined
    (its standard error above ``max_normal_std_deg``), the normal of the
    previous frames is used, else the one facing the camera.
 3. **Disc in the plane.** The inlier pixels form a mask; a closing fills noise
@@ -30,7 +33,8 @@ Here the disc is measured in 3D near where it is expected:
 
 :class:`tudorvision.rgbd.disc_track.DiscSweepTracker` predicts the centre from the previous frames: with
 joint angles, a circle fitted to the centres so far, parametrised by theta2
-(the disc turns about the joint-2 axis), otherwise a constant-velocity step.
+(the disc turns about the joint-2 axis), before that a step of the arm's
+radius from the last centre, otherwise a constant-velocity step.
 A frame where the disc cannot be measured (edge-on, out of range, occluded,
 off the image) is skipped and counted with its reason, never fatal.
 

@@ -15,13 +15,20 @@ __all__ = ["DiscSweepTracker", "track_disc_sweep"]
 class DiscSweepTracker:
     """Follow the disc through a theta2 sweep, predicting each centre from the previous frames.
 
-    Before the first measurement the prediction is the seed pixel at the
-    median depth around it. With joint angles, from five measurements spread
-    over at least ``circle_min_span_deg`` of theta2 on (five, RMSE under 3 cm), the prediction is the
-    circle fitted to the centres so far at the frame's theta2 (the disc turns
-    about the joint-2 axis, so the jump back to the vertical posture is
-    predicted too); before that a linear step in theta2. Without joint angles a
-    constant-velocity step per frame. The search margin follows the
+    In the first frame the disc is the disc-shaped surface nearest the seed
+    pixel's ray (a wide candidate search, :func:`tudorvision.rgbd.disc_search.acquire_disc`;
+    a wall behind it is no candidate). With joint angles, after one pose the
+    disc lies one chord ``2 arm_radius_m sin(dtheta / 2)`` from the previous
+    centre in an unknown direction (candidates scored by that distance: 20-30
+    degree steps work); after two a linear step in theta2 with a margin for
+    the chord's turn; from three centres over at least ``circle_min_span_deg``
+    (radius within 30 % of ``arm_radius_m`` while fewer than eight, RMSE under
+    3 cm) the circle fitted to the centres at the frame's theta2 (the disc
+    turns about the joint-2 axis, so the jump back to the vertical posture is
+    predicted too), and the normal prior turned with it. When the disc is not
+    found at the prediction, the candidates near it, then those one chord
+    from the centre measured at the nearest theta2, are tried. Without joint
+    angles a constant-velocity step per frame. The search margin follows the
     prediction's recent errors, within the options' bounds.
 
     Parameters
