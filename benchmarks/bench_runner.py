@@ -2,13 +2,15 @@
 
 Three parts, in one run:
 
-1. Wall time of the same servo repeatability runs (``--runs`` of the 8 start
-   poses x ``--repetitions``, payload 200 g, hybrid law; the lab as
-   ``tudorvision servo --sim --experiment repeatability``) four ways: the old
-   single-process path (a plain loop calling the run function, what
-   ``repeatability(workers=1)`` did before the runner), the runner serially, and
+1. Wall time of the same servo repeatability runs (the 8 start poses x
+   ``--repetitions``, payload 200 g, hybrid law; the lab as ``tudorvision servo
+   --sim --experiment repeatability``) five ways: the old single-process path (a
+   plain loop calling the run function, what ``repeatability(workers=1)`` did
+   before the runner), the old process pool (``ProcessPoolExecutor`` with 2
+   processes, what ``repeatability(workers=2)`` did), the runner serially, and
    the runner on a local Dask cluster of 1 and of 2 worker processes (start-up
-   included). Ratios against the old path; all four must give the same rows.
+   included). Ratios against the old single-process path; all five must give
+   the same rows.
 2. Scheduler overhead per task: no-op tasks (:func:`~tudorvision.lab.runner.probe_task`)
    serially and on the 2-process local cluster, ``(wall(N) - wall(n)) / (N - n)``,
    which counts the client's work too (the atomic, fsync'ed record per task).
@@ -18,7 +20,7 @@ Three parts, in one run:
 
 Run::
 
-    nice .venv/bin/python benchmarks/bench_runner.py [--repetitions 1] [--noop 400]
+    nice .venv/bin/python benchmarks/bench_runner.py [--repetitions 1] [--t-max 10] [--noop 400]
 """
 from __future__ import annotations
 
@@ -49,6 +51,17 @@ def timed(fn):
 def old_path(tasks):
     """The single-process path before the runner: call each run in turn, keep the rows."""
     return [t.fn(*t.args) for t in tasks]
+
+
+def _call(t):
+    return t.fn(*t.args)
+
+
+def old_pool(tasks, workers):
+    """The old ``repeatability(workers=N)`` path: a ProcessPoolExecutor mapping the runs."""
+    from concurrent.futures import ProcessPoolExecutor
+    with ProcessPoolExecutor(max_workers=workers) as ex:
+        return list(ex.map(_call, tasks, chunksize=1))
 
 
 def runner_rows(tasks, scheduler, workers=None):
@@ -86,7 +99,10 @@ def main() -> None:
     ref, t_old = timed(lambda: old_path(tasks))
     for r in ref:
         r.pop("wall_s", None)
-    rows = {}
+    pool, t_pool = timed(lambda: old_pool(tasks, 2))
+    for r in pool:
+        r.pop("wall_s", None)
+    rows = {"old pool": to_jsonable(pool)}
     (rows["serial"], rep_serial), t_serial = timed(lambda: runner_rows(tasks, "serial"))
     (rows["local 1"], rep1), t_l1 = timed(lambda: runner_rows(tasks, "local", 1))
     (rows["local 2"], rep2), t_l2 = timed(lambda: runner_rows(tasks, "local", 2))
@@ -94,9 +110,10 @@ def main() -> None:
     for k, v in rows.items():
         assert json.dumps(v) == ref_text, f"{k}: rows differ from the old path"
     task_s = rep_serial.info()["task_s_mean"]
-    print("  rows identical in all four modes: yes")
+    print("  rows identical in all five modes: yes")
     print(f"  {'mode':34s} {'wall s':>8s} {'vs old':>8s}")
-    for label, t in (("old single-process loop", t_old), ("runner, serial", t_serial),
+    for label, t in (("old single-process loop", t_old), ("old process pool, 2 processes", t_pool),
+                     ("runner, serial", t_serial),
                      ("runner, local cluster, 1 worker", t_l1), ("runner, local cluster, 2 workers", t_l2)):
         print(f"  {label:34s} {t:8.1f} {t / t_old:8.2f}")
     print(f"  mean task duration (serial) {task_s:.2f} s; on 2 workers "
