@@ -20,4 +20,4 @@ def test_api_examples_doctest_passes():
     assert m and int(m.group(1)) >= 40, res.stdout[-500:]
     text = (ROOT / "docs" / "api_examples.md").read_text()
     for api in ("track_stereo", "points_cam_from_depth", "VisualServo", "BallisticPredictor", "JointAdapter"):
-        assert f"import" in text and api in text, api
+        assert api in text, api
