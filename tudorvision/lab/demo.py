@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["run_demo"]
+__all__ = ["run_demo", "views_sheet"]
 
 
 def _physics_summary(params):
@@ -61,23 +61,74 @@ def _plot_step(log, path):
     fig.savefig(path, dpi=90)
 
 
-def _contact_sheet(stereo_dir: Path, rgbd_dirs, path):
+DEPTH_MAX_M = 6.0          # depth tiles: turbo colour map over 0 .. DEPTH_MAX_M, black = no depth
+
+
+def _label(tile, text: str):
+    """Write ``text`` in the tile's top-left corner, white on a dark box; returns the tile."""
+    import cv2
+    (w, h), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.55, 1)
+    cv2.rectangle(tile, (4, 4), (12 + w, 12 + h + base), (30, 30, 30), -1)
+    cv2.putText(tile, text, (8, 8 + h), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (255, 255, 255), 1, cv2.LINE_AA)
+    return tile
+
+
+def _depth_colourbar(width: int):
+    """The depth tiles' colour scale: a caption, the turbo ramp over 0..6 m, ticks and labels every metre."""
+    import cv2
+    bar = np.full((64, width, 3), 30, np.uint8)
+    cv2.putText(bar, f"depth tiles: colour scale 0-{DEPTH_MAX_M:g} m (black: no depth)", (8, 16),
+                cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
+    margin = 20
+    ramp = np.linspace(0, 255, width - 2 * margin).astype(np.uint8)
+    bar[24:38, margin:width - margin] = cv2.applyColorMap(np.tile(ramp, (14, 1)), cv2.COLORMAP_TURBO)
+    for z in range(int(DEPTH_MAX_M) + 1):
+        x = margin + int(round(z / DEPTH_MAX_M * (width - 2 * margin - 1)))
+        cv2.line(bar, (x, 38), (x, 43), (255, 255, 255), 1)
+        text = f"{z} m"
+        (w, _), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.45, 1)
+        cv2.putText(bar, text, (x - w // 2, 58), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (255, 255, 255), 1, cv2.LINE_AA)
+    return bar
+
+
+def views_sheet(stereo_dir, rgbd_dirs, path) -> None:
+    """Write ``views.png``: the stereo pair, then colour and depth of each RGB-D recording, every tile labelled.
+
+    Each tile names its recording, camera or stream and frame (the middle frame).
+    Depth tiles use the turbo colour map over 0..6 m, black where there is no
+    depth; the colour bar at the bottom gives the scale in metres.
+
+    Parameters
+    ----------
+    stereo_dir : str or Path
+        A stereo recording (top row: left and right camera, 640x480 each).
+    rgbd_dirs : sequence of str or Path
+        RGB-D recordings (two per row: colour and depth, 320x240 each).
+    path : str or Path
+        Image to write (PNG), atomically.
+    """
     import cv2
     from ..io import open_sequence
     seq = open_sequence(stereo_dir)
-    f = seq[len(seq) // 2]
-    top = np.hstack([f.left, f.right])
+    k = len(seq) // 2
+    f = seq[k]
+    name = Path(stereo_dir).name
+    top = np.hstack([_label(cv2.resize(f.left, (640, 480)), f"{name}: left camera, frame {k}"),
+                     _label(cv2.resize(f.right, (640, 480)), f"{name}: right camera, frame {k}")])
     tiles = []
     for d in rgbd_dirs:
         s = open_sequence(d)
-        fr = s[min(len(s) - 1, len(s) // 2)]
+        i = min(len(s) - 1, len(s) // 2)
+        fr = s[i]
         z = np.nan_to_num(fr.depth_m, nan=0.0)
-        vis = cv2.applyColorMap((np.clip(z / 6.0, 0, 1) * 255).astype(np.uint8), cv2.COLORMAP_TURBO)
+        vis = cv2.applyColorMap((np.clip(z / DEPTH_MAX_M, 0, 1) * 255).astype(np.uint8), cv2.COLORMAP_TURBO)
         vis[z == 0] = 0
-        tiles.append(np.hstack([cv2.resize(fr.rgb, (320, 240)), cv2.resize(vis, (320, 240))]))
-    sheet = np.vstack([cv2.resize(top, (1280, 480))] + [np.hstack(tiles[i:i + 2]) if i + 1 < len(tiles)
-                                                          else np.hstack([tiles[i], np.zeros_like(tiles[i])])
-                                                          for i in range(0, len(tiles), 2)])
+        label = Path(d).name
+        tiles.append(np.hstack([_label(cv2.resize(fr.bgr, (320, 240)), f"{label}: colour, frame {i}"),
+                                _label(cv2.resize(vis, (320, 240)), f"{label}: depth, frame {i}")]))
+    rows = [top] + [np.hstack(tiles[i:i + 2]) if i + 1 < len(tiles)
+                    else np.hstack([tiles[i], np.zeros_like(tiles[i])]) for i in range(0, len(tiles), 2)]
+    sheet = np.vstack(rows + [_depth_colourbar(rows[0].shape[1])])
     from ..io.atomic import write_bytes_atomic
     ok, buf = cv2.imencode(Path(path).suffix or ".png", sheet)
     if ok:
@@ -152,7 +203,7 @@ def run_demo(out, *, seed: int = 0, log=print) -> dict:
     catch = run_catch_demo(out / "catch", DemoOptions(seed=seed))
     summary["catch"] = {k: catch[k] for k in ("throws", "crossing_workspace", "caught", "success_rate") if k in catch}
     log(f"ball catching: {summary['catch']} -> {out / 'catch'}")
-    _contact_sheet(stereo_dir, rgbd, out / "views.png")
+    views_sheet(stereo_dir, rgbd, out / "views.png")
     log(f"views -> {out / 'views.png'}")
     summary["wall_time_s"] = round(time.monotonic() - t0, 1)
     from ..io.atomic import write_text_atomic
