@@ -72,12 +72,12 @@ def test_undamped_move_reports_progress_and_the_oscillation(sim_port, capsys):
 
 
 def test_move_cut_short_names_the_joint_on_its_way(sim_port, capsys):
-    code = main(["joint", "move", "--port", str(sim_port), "--to", "40,80,0", "--timeout", "0.4",
-                 "--speed", "20", "--progress", "0"])
+    code = main(["joint", "move", "--port", str(sim_port), "--to", "40,80,0", "--timeout", "1.5",
+                 "--speed", "5", "--progress", "0"])
     out, err = capsys.readouterr()
     assert code == 1
     assert out == ""                                 # --progress 0: quiet
-    assert re.fullmatch(r"tudorvision joint move: did not settle at 40,80,0 deg within 0.4 s: joint 1 still "
+    assert re.fullmatch(r"tudorvision joint move: did not settle at 40,80,0 deg within 1.5 s: joint 1 still "
                         r"\d+\.\d\d deg from the goal, moving at \d+\.\d deg/s; try a longer --timeout or a "
                         r"higher --speed\n", err), err
 
