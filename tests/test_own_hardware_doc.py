@@ -42,7 +42,7 @@ BLOCKS = guide_blocks(GUIDE.read_text())
 
 def test_the_guide_has_tested_blocks_for_every_step():
     body = "\n".join(BLOCKS)
-    for step in ("seq import", "calib stereo", "colormodel", "calib base-stereo", "track stereo",
+    for step in ("examples/sequence_to_bag.py", "seq import", "calib stereo", "colormodel", "calib base-stereo", "track stereo",
                  "examples/own_joint_core.py", "joint move", "servo --sim", "catch sample_data"):
         assert step in body, step
 
