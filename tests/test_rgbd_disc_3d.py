@@ -142,3 +142,14 @@ def test_wall_and_floor_strip_are_not_the_disc():
     assert plane_extent_ratio(disc, K, [0.0, 0.0, 4.0], [0.0, 0.0, -1.0], 0.09, 0.05) == 0.0
     m = measure_disc_3d(disc, K, [0.03, 0.0, 4.0], 0.05, Disc3DOptions(depth_model=MM_NOISE))
     assert m.valid and np.linalg.norm(m.centre_cam - [0.0, 0.0, 4.0]) < 0.005
+
+
+def test_coarse_sweep_without_joint_angles():
+    """No joints.txt (``--vertical-frame``): 20 deg steps followed by constant velocity with the chord's turn in
+    the margin, the jump back to the vertical posture found on the circle of the centres so far."""
+    sw = _sweep(6, theta2_deg=tuple(np.arange(0.0, 180.1, 20.0)), n_vertical=2, background="near",
+                camera_distance_m=4.5)
+    K = Intrinsics.from_matrix(sw.K, 320, 240)
+    pts, skipped = track_disc_sweep(sw.depth_m, K, _seed_uv(sw, K), None, Disc3DOptions(depth_model=MM_NOISE))
+    err = np.linalg.norm(pts - sw.disc_centres_cam, axis=1)
+    assert skipped == {} and np.max(err) < 0.03

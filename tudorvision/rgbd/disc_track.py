@@ -28,7 +28,10 @@ class DiscSweepTracker:
     predicted too), and the normal prior turned with it. When the disc is not
     found at the prediction, the candidates near it, then those one chord
     from the centre measured at the nearest theta2, are tried. Without joint
-    angles a constant-velocity step per frame. The search margin follows the
+    angles a constant-velocity step per frame (margin for the step's turn on
+    a circle of ``arm_radius_m``); a disc not found there is searched for on
+    the circle of the centres so far (from five; the jump back to the
+    vertical posture), else within 0.6 arm radii of the last centre. The search margin follows the
     prediction's recent errors, within the options' bounds.
 
     Parameters
@@ -165,7 +168,11 @@ class DiscSweepTracker:
             return pts[-1], 2.0 * o.arm_radius_m * np.sin(abs(theta2_rad - th[-1]) / 2.0), "step1"
         if len(self.centres) < 2:
             return self.centres[-1], o.acquire_margin_m, "still"
-        return 2 * self.centres[-1] - self.centres[-2], max(margin, 0.5 * o.acquire_margin_m), "velocity"
+        # the step turns by about its length / arm radius per frame: a constant-velocity step misses by the turn
+        turn = min(float(np.linalg.norm(self.centres[-1] - self.centres[-2])) / o.arm_radius_m, np.pi / 2)
+        curve = 2.0 * o.arm_radius_m * (1.0 - np.cos(turn))
+        return (2 * self.centres[-1] - self.centres[-2], max(margin, 0.5 * o.acquire_margin_m, 1.3 * curve + 0.05),
+                "velocity")
 
     def _normal_prior(self, theta2_rad):
         """The disc normal expected at ``theta2_rad``: the disc turns with the arm, so a normal fitted at
@@ -188,6 +195,27 @@ class DiscSweepTracker:
             a = s * (theta2_rad - t)                       # Rodrigues: n turned by a about the axis
             out.append(n * np.cos(a) + np.cross(axis, n) * np.sin(a) + axis * (axis @ n) * (1 - np.cos(a)))
         return unit_vector(np.median(np.array(out), axis=0))
+
+    def _search_without_joints(self, d, prior):
+        """Without joint angles: the disc-shaped surface nearest the circle of the centres so far (from five),
+        else the one nearest the last centre within a step of up to 0.6 arm radii (about 40 deg of theta2)."""
+        o, R = self.options, self.options.disc_radius_m
+        if len(self.centres) >= 5:
+            try:
+                fit = fit_circle_3d(np.array(self.centres), loss="soft_l1")
+            except ValueError:
+                fit = None
+            if fit is not None and fit.rmse < 0.03 and abs(fit.radius - o.arm_radius_m) < 0.3 * o.arm_radius_m:
+                def off_circle(m, c=fit.centre, n=fit.normal, r=fit.radius):
+                    v = m.centre_cam - c
+                    out = float(v @ n)
+                    return float(np.hypot(out, np.linalg.norm(v - out * n) - r))
+                m = self._acquire(d, fit.centre, fit.radius + R + 0.1, off_circle, 0.06, prior)
+                if m.valid:
+                    return m
+        last = self.centres[-1]
+        return self._acquire(d, last, 0.6 * o.arm_radius_m + R, lambda m: float(np.linalg.norm(m.centre_cam - last)),
+                             0.6 * o.arm_radius_m, prior)
 
     def _acquire(self, d, around, reach, score, max_score, prior):
         return acquire_disc(d, self.intrinsics, around, reach, score, max_score, self.options,
@@ -259,6 +287,10 @@ class DiscSweepTracker:
                     m3 = self._acquire(d, prev, chord + R + 0.1,
                                        lambda m: abs(float(np.linalg.norm(m.centre_cam - prev)) - chord),
                                        0.08 + 0.3 * chord, prior)
+                    if m3.valid:
+                        m = m3
+                elif theta2_rad is None:
+                    m3 = self._search_without_joints(d, prior)
                     if m3.valid:
                         m = m3
         if not m.valid:
