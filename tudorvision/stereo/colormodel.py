@@ -37,6 +37,8 @@ from tudorvision.stereo._colortables import CHANNEL_LEVELS, CHANNELS, HUE_INDEX,
 from tudorvision.stereo._frame import check_frame
 from tudorvision.stereo.detection import segment_params_for_radius
 from tudorvision.stereo.segment import detect_sphere
+from tudorvision.stereo._pick import (calibrated_prior, circular_hue_stats, pick_stats, reject_outlier_rows,
+                                     trim_highlights_rows)
 
 __all__ = [
     "CHANNELS",
@@ -54,38 +56,6 @@ __all__ = [
 _CAMERAS = ("left", "right", "mono")
 _FORMAT = "tudorvision.colormodel"
 _VERSION = 1
-
-
-def circular_hue_stats(hue) -> tuple[float, float]:
-    """Circular mean and standard deviation of OpenCV hue values (0..179).
-
-    Parameters
-    ----------
-    hue : array_like, shape (N,)
-        Hue levels, two degrees per level; 179 and 0 are neighbours.
-
-    Returns
-    -------
-    mean : float
-        Circular mean in levels, in [0, 180).
-    std : float
-        Circular standard deviation ``sqrt(-2 ln R)`` in levels, where ``R``
-        is the mean resultant length.
-
-    Examples
-    --------
-    >>> m, s = circular_hue_stats([178, 179, 0, 1])
-    >>> round(m, 3), round(s, 2)     # not the linear mean 89.5
-    (179.5, 1.12)
-    """
-    ang = np.asarray(hue, dtype=np.float64).ravel() * (2.0 * np.pi / HUE_LEVELS)
-    if ang.size == 0:
-        raise ValueError("hue: needs at least one value")
-    c, s = np.cos(ang).mean(), np.sin(ang).mean()
-    r = min(math.hypot(c, s), 1.0)
-    mean = (math.atan2(s, c) % (2.0 * np.pi)) * HUE_LEVELS / (2.0 * np.pi)
-    std = math.sqrt(-2.0 * math.log(max(r, 1e-300))) * HUE_LEVELS / (2.0 * np.pi)
-    return float(mean % HUE_LEVELS), float(std)
 
 
 def _check_uv(value, name: str, width: int, height: int) -> np.ndarray:
@@ -117,30 +87,12 @@ def _smooth_pmf(counts: np.ndarray, sigma: float, circular: bool, floor: float) 
     return (1.0 - floor) * pmf + floor / levels
 
 
-def _trim_highlights(fg: np.ndarray, core: np.ndarray, min_pixels: int) -> np.ndarray:
-    """Drop the washed-out highlight from the pick's pixels (R G B H S V rows).
-
-    A highlight pixel is at least as bright (V) as the core's median and less
-    saturated than its median by more than 3.5 robust sigmas (1.4826 MAD of
-    the core, at least 6 levels); ``core`` marks the inner half of the circle.
-    Shading (darker, same saturation) is kept. The trim is skipped when it
-    would keep fewer than half the pixels or fewer than ``min_pixels``.
-    """
-    s_core, v_core = fg[core][:, 4], fg[core][:, 5]
-    s_med, v_med = float(np.median(s_core)), float(np.median(v_core))
-    sigma = max(1.4826 * float(np.median(np.abs(s_core - s_med))), 6.0)
-    keep = ~((fg[:, 4] < s_med - 3.5 * sigma) & (fg[:, 5] >= v_med))
-    n_keep = int(keep.sum())
-    if n_keep < max(min_pixels, fg.shape[0] // 2) or n_keep == fg.shape[0]:
-        return fg
-    return fg[keep]
-
-
 def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_pixels: int = 12,
                     max_std: float = 45.0, max_hue_std: float = 20.0, min_saturation: float = 30.0,
                     background_margin: float = 1.5, llr_clip: float = 8.0, prior: float | None = None,
                     min_std=(6.0, 6.0, 6.0, 2.0, 8.0, 6.0), verify: bool = True,
-                    verify_params=None, trim_highlights: bool = False) -> ColorModel:
+                    verify_params=None, trim_highlights: bool = False, reject_outliers: bool = True,
+                    calibrate_prior: bool = True) -> ColorModel:
     """Fit a sphere's colour model from a picked centre and edge pixel.
 
     Parameters
@@ -185,6 +137,22 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
         statistics. Off by default: on the real ball video of
         ``tests/test_stereo_cli.py`` the narrower model finds a false ball
         before the ball enters the view.
+    reject_outliers : bool
+        When the picked circle is not one colour, try again without the
+        pixels farther than 3 robust standard deviations (1.4826 MAD, at
+        least ``min_std``) from the median in any channel: a specular
+        highlight or a speck of texture in the circle. Only while at least
+        60 % of the pixels and half of the central ones remain; picks that
+        pass as they are keep all their pixels (a narrower model finds
+        false spheres sooner).
+    calibrate_prior : bool
+        When the picked core's median log-odds falls short of the seed
+        threshold (``verify_params.p_seed``, the sphere's colour close to the
+        background's), raise the prior until it passes by one logit, as far
+        as the background's 99.9th percentile stays one logit below the
+        growing threshold ``p_grow``. The model then finds its sphere on the
+        pick frame without admitting the background; ``verify`` still checks
+        it.
 
     Returns
     -------
@@ -238,13 +206,14 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
     fg = np.concatenate([patch[inside][:, ::-1], hsv_patch[inside]], axis=1).astype(np.float64)  # R G B H S V
     d2_in = ((xx - c[0]) ** 2 + (yy - c[1]) ** 2)[inside]
     if trim_highlights:
-        fg = _trim_highlights(fg, d2_in <= max(0.25 * r_in ** 2, 1.0), min_pixels)
-    mean = fg.mean(axis=0)
-    std = fg.std(axis=0)
-    mean[HUE_INDEX], std[HUE_INDEX] = circular_hue_stats(fg[:, HUE_INDEX])
-    use_hue = bool(mean[4] >= min_saturation)
-    bad = [f"{ch}={std[i]:.1f}" for i, ch in enumerate(CHANNELS)
-           if (i != HUE_INDEX and std[i] > max_std) or (i == HUE_INDEX and use_hue and std[i] > max_hue_std)]
+        fg = trim_highlights_rows(fg, d2_in <= max(0.25 * r_in ** 2, 1.0), min_pixels)
+    core = d2_in <= max(0.25 * r_in ** 2, 1.0)
+    mean, std, use_hue, bad = pick_stats(fg, min_saturation, max_std, max_hue_std)
+    if bad and reject_outliers:
+        # only to rescue a pick: a narrower model finds false spheres (a real video's background) sooner
+        kept = reject_outlier_rows(fg, core, min_std, min_pixels)
+        if len(kept) < len(fg):
+            mean, std, use_hue, bad = pick_stats(kept, min_saturation, max_std, max_hue_std)
     if bad:
         raise TudorVisionError(
             f"center_uv, edge_uv: the picked circle is not one colour (std {', '.join(bad)} exceeds "
@@ -274,13 +243,17 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
     model = ColorModel(mean=mean, std=std, background=background, prior=prior, use_hue=use_hue,
                        llr_clip=llr_clip, center_uv=(float(c[0]), float(c[1])), radius_px=radius,
                        n_pixels=n, image_size=(w, h))
+    vparams = segment_params_for_radius(verify_params, radius)
+    if calibrate_prior:
+        model = calibrated_prior(model, img, c, r_in, background_margin * radius, vparams)
     if verify:
-        det = detect_sphere(img, model, params=segment_params_for_radius(verify_params, radius))
+        det = detect_sphere(img, model, params=vparams)
         if not det.valid or np.hypot(det.uv[0] - c[0], det.uv[1] - c[1]) > radius:
             why = det.reason if not det.valid else (
                 f"the best region lies at ({det.uv[0]:.1f}, {det.uv[1]:.1f}), not at the pick")
             raise TudorVisionError(
-                f"center_uv, edge_uv: the colour model does not single out the picked sphere ({why})")
+                f"center_uv, edge_uv: the colour model does not single out the picked sphere ({why}); is the "
+                f"pick on the sphere, and the edge pixel on its rim ({radius:.1f} px from the centre)?")
     return model
 
 
