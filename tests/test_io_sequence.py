@@ -315,3 +315,19 @@ def test_image_folder_in_natural_order(tmp_path):
     assert (seq.layout, seq.kind) == ("image_folder", "mono")
     assert [int(f.image[0, 0]) for f in seq] == [1, 2, 10]
     assert np.allclose(seq.timestamps, [0.0, 0.2, 0.4])
+
+
+def test_max_frames_limits_every_source(tmp_path):
+    """``max_frames`` keeps only the first frames of a recorded sequence (not only of live sources)."""
+    import numpy as np
+    from tudorvision.io import SequenceWriter, open_sequence
+
+    with SequenceWriter(tmp_path / "s", kind="mono", rate_hz=10.0, image_ext=".png") as w:
+        for i in range(6):
+            w.add_mono(0.1 * i, np.full((4, 6), i, np.uint8))
+    seq = open_sequence(tmp_path / "s", max_frames=4)
+    assert len(seq) == 4 and seq.timestamps.shape == (4,)
+    assert [int(f.image[0, 0]) for f in seq] == [0, 1, 2, 3]
+    assert len(open_sequence(tmp_path / "s", max_frames=100)) == 6
+    with pytest.raises(ValueError, match="max_frames"):
+        open_sequence(tmp_path / "s", max_frames=0)

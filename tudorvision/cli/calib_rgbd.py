@@ -81,7 +81,7 @@ def _cmd_depth(args) -> int:
     model, table = calibrate_depth_model(stacks, K, nominal_distances_m=nominal,
                                          rois=None if roi is None else [roi] * len(stacks))
     for r in table:
-        print(f"z {r.distance_m:6.3f} m  sigma {r.sigma_m * 100:7.3f} cm  bias {r.bias_m * 100:+7.3f} cm  "
+        print(f"z {r.distance_m:6.3f} m  sigma {r.sigma_m * 1e3:7.2f} mm  bias {r.bias_m * 1e3:+7.2f} mm  "
               f"pixels {r.n_pixels}")
     print("sigma_z(z) [m] = " + " ".join(f"{c:+.5g}" for c in model.coeffs) + " (z in m, highest power first)")
     if args.out:

@@ -40,25 +40,21 @@ quarter frame period). Other keys are kept in :attr:`Sequence.meta`.
 * a live device or stream, ``/dev/videoN``, ``rtsp://``, ``http://``
   (:mod:`tudorvision.io.live`; ``"DEV1,DEV2"`` for a stereo pair).
 
-For folder layouts a sidecar ``sequence.yaml`` with ``layout:``
-(``tum``, ``kinect_folders``, ``numbered_pairs``, ``image_folder``,
-``stereo_folders``, ``rgbd_folders``), optionally ``kind`` (which must agree
-with the layout), and any
-of ``rate_hz``, ``depth_scale``, ``calibration``, ``intrinsics`` (``{fx, fy,
-cx, cy}``), ``size`` supplies what the folder lacks; keyword arguments of
-:func:`open_sequence` override both.
+For folder layouts a sidecar ``sequence.yaml`` with ``layout:`` (``tum``,
+``kinect_folders``, ``numbered_pairs``, ``image_folder``, ``stereo_folders``,
+``rgbd_folders``), optionally ``kind`` (which must agree with the layout),
+and any of ``rate_hz``, ``depth_scale``, ``calibration``, ``intrinsics``
+(``{fx, fy, cx, cy}``), ``size`` supplies what the folder lacks; keyword
+arguments of :func:`open_sequence` override both.
 
 Depth convention: :attr:`RGBDFrame.depth_m` is float32 metres with **NaN for
 invalid pixels** (raw value 0), so means and fits cannot silently include
 zeros; :attr:`RGBDFrame.depth_raw` keeps the uint16 values.
 
-Strict and lenient reading: with ``strict=True`` (default) the first defect
-raises :class:`~tudorvision._checks.TudorVisionError` naming the file and
-line (malformed or out-of-order index lines, absent files, undecodable
-images, sizes that differ from ``size``). With ``strict=False`` defective
-index lines are left out when opening and defective images are skipped
-while iterating; each is recorded in :attr:`Sequence.report`. Indexing one
-frame (``seq[i]``) always raises for a defective frame.
+Strict reading (default): the first defect raises :class:`~tudorvision._checks.TudorVisionError`
+naming the file and line (bad or out-of-order index lines, absent files, undecodable images, sizes
+that differ from ``size``). Lenient (``strict=False``): defective index lines are left out, defective
+images skipped while iterating, each recorded in :attr:`Sequence.report`; ``seq[i]`` always raises.
 """
 from __future__ import annotations
 
@@ -106,6 +102,8 @@ class Sequence:
     max_pixels : int or None
         Images whose header declares more pixels are defective (not
         decoded); ``None`` for no limit.
+    max_frames : int or None
+        Only the first ``max_frames`` frames of the source.
 
     Raises
     ------
@@ -142,8 +140,9 @@ class Sequence:
     """
 
     def __init__(self, spec: Spec, *, strict: bool = True, calibration: Calibration | None = None,
-                 max_pixels: int | None = DEFAULT_MAX_PIXELS):
+                 max_pixels: int | None = DEFAULT_MAX_PIXELS, max_frames: int | None = None):
         self._spec = spec
+        self._max_frames = max_frames
         self.path = spec.path
         self.layout = spec.layout
         self.kind = spec.kind
@@ -178,10 +177,12 @@ class Sequence:
 
     def __len__(self) -> int:
         if self._video is not None:
-            return self._video.count
-        if self._source is not None:
-            return self._source.count
-        return len(self._spec.records)
+            n = self._video.count
+        elif self._source is not None:
+            n = self._source.count
+        else:
+            n = len(self._spec.records)
+        return n if self._max_frames is None else min(n, self._max_frames)
 
     def __enter__(self):
         return self
@@ -202,8 +203,8 @@ class Sequence:
         if self._video is not None:
             return np.array([self._video.nominal_t(i) for i in range(len(self))])
         if self._source is not None:     # live streams: the frames captured so far
-            return np.asarray(self._source.timestamps, dtype=np.float64)
-        return np.array([r.t for r in self._spec.records], dtype=np.float64)
+            return np.asarray(self._source.timestamps, dtype=np.float64)[:len(self)]
+        return np.array([r.t for r in self._spec.records[:len(self)]], dtype=np.float64)
 
     @property
     def duration_s(self) -> float:
@@ -543,8 +544,9 @@ def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
         or ``"image=/e"`` (or the same as a dict); found automatically when
         unambiguous. Live stereo: ``"left=DEV1,right=DEV2"`` as the path.
     max_frames : int, optional
-        Live sources: stop after this many frames (default: until the
-        stream ends, fails to deliver a frame within ``timeout_s``, or Ctrl-C).
+        Only the first ``max_frames`` frames (live sources: stop after this
+        many; default: until the stream ends, fails to deliver a frame
+        within ``timeout_s``, or Ctrl-C).
     timeout_s : float
         Live sources: longest wait for a frame, seconds.
 
@@ -641,4 +643,7 @@ def open_sequence(path, *, strict: bool = True, rate_hz: float | None = None,
     if calibration is not None:
         cal = calibration if isinstance(calibration, Calibration) else load_calibration(calibration)
         spec.calibration_path = None
-    return Sequence(spec, strict=strict, calibration=cal, max_pixels=max_pixels)
+    if max_frames is not None and (isinstance(max_frames, bool) or not max_frames >= 1):
+        raise ValueError(f"max_frames: expected a positive integer or None, got {max_frames!r}")
+    return Sequence(spec, strict=strict, calibration=cal, max_pixels=max_pixels,
+                    max_frames=None if live else max_frames)
