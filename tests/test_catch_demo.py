@@ -337,3 +337,18 @@ def test_a_fault_stop_is_reset_and_the_last_setpoint_sent_again():
     agent.recover(0.3)
     # a mode switch alone does not clear FAULT (protocol v2): the agent resets it, then resends
     assert calls[2:] == ["reset_fault", "set_mode", "send_setpoint"] and agent.faults == [0.3]
+
+
+def test_open_loop_says_why_no_setpoint(tmp_path, capsys):
+    """A wall calibration that puts the camera 5 m to the side: every crossing is out of reach, and the
+    command says so instead of a bare '0 setpoint(s)'."""
+    from tudorvision.cli import main
+
+    text = (SAMPLE / "wall_calibration.yaml").read_text().replace("- [1.0, 0.0, 0.0, 0.0]", "- [1.0, 0.0, 0.0, 5.0]")
+    assert "0.0, 5.0]" in text
+    cal = tmp_path / "far.yaml"
+    cal.write_text(text)
+    assert main(["catch", str(SAMPLE), "--calib", str(cal), "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "0 setpoint(s)" in out
+    assert "no setpoint: all" in out and "outside the arm's reachable workspace" in out

@@ -34,7 +34,8 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
     Returns
     -------
     dict
-        Counts: frames, detections, throws, setpoints.
+        Counts: frames, detections, throws, setpoints; ``why_no_setpoint``:
+        a one-line reason when no setpoint was sent (else empty).
     """
     from .._progress import progress
     from ..io import open_sequence
@@ -58,7 +59,8 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     preds, sps = [], []
-    n_det = 0
+    n_det = n_cross = n_reach = 0
+    last_cross, min_sigma = None, np.inf
     throws = set()
     for f in progress(seq, total=len(seq), desc="catch (open loop)", enabled=show_progress):
         d = det.update(f.depth_m)
@@ -77,6 +79,11 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
             continue
         preds.append([f.index, f.t, rec["status"], rec["throw"], *p_b, *x, it.t_cross, *it.p_base, it.sigma_m,
                       int(it.reachable), int(it.send), *bal])
+        n_cross += 1
+        last_cross = it.p_base
+        if it.reachable:
+            n_reach += 1
+            min_sigma = min(min_sigma, float(it.sigma_m))
         if it.send:
             try:
                 theta = ikm(it.p_base, 0.0, 0.0, near=theta)
@@ -89,7 +96,22 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
     _write(out / "predictions.csv", cols, preds)
     _write(out / "setpoints.csv", ["frame", "t_s", "throw", "theta1_rad", "theta2_rad", "theta3_rad",
                                    "x_target_m", "y_target_m", "z_target_m"], sps)
-    return {"frames": len(seq), "detections": n_det, "throws": len(throws), "setpoints": len(sps)}
+    why = ""
+    if not sps:
+        if n_det == 0:
+            why = (f"no ball detected (the first {background} frames are the background model; "
+                   "is the ball in view and in range?)")
+        elif n_cross == 0:
+            why = "the filter never predicted a crossing of the arm's working plane (too few detections per throw?)"
+        elif n_reach == 0:
+            c = ", ".join(f"{v:.2f}" for v in last_cross)
+            why = (f"all {n_cross} predicted crossings lie outside the arm's reachable workspace (last at "
+                   f"({c}) m in the base frame): the throw misses the arm, or the calibration's T_base_cam is off")
+        else:
+            why = (f"the reachable crossings never became certain enough to release (smallest sigma "
+                   f"{100 * min_sigma:.1f} cm)")
+    return {"frames": len(seq), "detections": n_det, "throws": len(throws), "setpoints": len(sps),
+            "why_no_setpoint": why}
 
 
 def _write(path, cols, rows):
@@ -132,6 +154,8 @@ def _cmd_catch(args) -> int:
     res = run_open_loop(seq, out, calib=args.calib, background=args.background)
     print(f"{res['detections']} detections in {res['frames']} frames, {res['throws']} throw(s), "
           f"{res['setpoints']} setpoint(s); wrote {out / 'predictions.csv'} and {out / 'setpoints.csv'}")
+    if res["why_no_setpoint"]:
+        print(f"no setpoint: {res['why_no_setpoint']}")
     return 0
 
 
