@@ -22,7 +22,8 @@ import time
 
 import numpy as np
 
-from tudorvision.lab.plant_modes import decay_rate_per_s, dominant_frequency_hz, linear_modes, plate_payload, ring_down
+from tudorvision.lab.plant_modes import (decay_rate_per_s, dominant_frequency_hz, identify_hub_stiffness, linear_modes,
+                                         plate_payload, ring_down)
 from tudorvision.sim.arm import ElasticArm, PlantConfig
 
 SEED = {"f1_range_hz": (1.56, 2.74), "decay_range_per_s": (0.03, 1.24), "link2_hz": (2.0, 9.9), "link3_hz": 6.3}
@@ -35,7 +36,16 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=6.0, help="ring-down seconds per pose")
     ap.add_argument("--png", help="write the two maps as a PNG")
     ap.add_argument("--json", help="write the grid numbers as JSON")
+    ap.add_argument("--identify", action="store_true",
+                    help="only the linearised grid search of the hub stiffnesses (identify_hub_stiffness)")
     a = ap.parse_args(argv)
+    if a.identify:
+        best, table = identify_hub_stiffness()
+        print("K_r2 K_r3 [N m/rad] | link2 f1 f2, link3 f1 at theta=0 | max f1 over theta3 | worst rel. error")
+        for row in sorted(table, key=lambda r: r[-1]):
+            print(f"{row[0]:6g} {row[1]:6g} | {row[2]:.3f} {row[3]:.3f} {row[4]:.3f} | {row[5]:.3f} | {row[6]:.3f}")
+        print(f"best {best}")
+        return 0
     t2s = np.arange(-10.0, 190.0 + 1e-9, a.step)
     t3s = np.arange(-100.0, 100.0 + 1e-9, a.step)
     cfg = PlantConfig.seed_measured()

@@ -153,3 +153,11 @@ def test_one_way_plant_reports_and_rings_at_its_own_bvp_frequencies():
     assert m["link2_hz"] == pytest.approx([2.665, 9.797], abs=0.01)
     log = ring_down(D([0, 45, 0]), 0.3, cfg, duration_s=4.0)
     assert dominant_frequency_hz(log.strain[:, 0], cfg.dt) == pytest.approx(m["link2_hz"][0], rel=0.02)
+
+
+def test_hub_stiffness_grid_search_picks_the_minimax_pair():
+    from tudorvision.lab.plant_modes import identify_hub_stiffness
+    best, table = identify_hub_stiffness((math.inf, 1000.0, 600.0))
+    assert len(table) == 9 and best == (1000.0, 600.0)
+    worst = {(r[0], r[1]): r[-1] for r in table}
+    assert worst[best] == min(worst.values()) < 0.05 < worst[(math.inf, math.inf)]

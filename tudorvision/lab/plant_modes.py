@@ -29,7 +29,10 @@ from ..sim.mode_analysis import held_joint_matrices, held_joint_modes
 from .simulation import simulate
 
 __all__ = ["plate_payload", "linear_modes", "ring_down", "dominant_frequency_hz", "decay_rate_per_s",
-           "plant_modes", "HAMMER_IMPULSE_NS"]
+           "plant_modes", "identify_hub_stiffness", "HAMMER_IMPULSE_NS", "SEED_MODES_300G"]
+
+#: The seed's numbers at 300 g: figure 4.6 (link 2 first, second; link 3 first) and the top of figure 4.8, Hz.
+SEED_MODES_300G = {"link2_hz": (2.0, 9.9), "link3_hz": 6.3, "f1_max_hz": 2.74}
 
 #: Hammer impulse at the end effector along link 3's bending direction, N s (about 150 um/m on link 2).
 HAMMER_IMPULSE_NS = 0.25
@@ -233,3 +236,43 @@ def plant_modes(theta_rad, payload_kg: float, config: PlantConfig | None = None,
     out["ringdown_hz"] = f1
     out["decay_per_s"] = decay_rate_per_s(s, cfg.dt, f1)
     return out
+
+
+def identify_hub_stiffness(candidates_Nm_rad=(float("inf"), 3000.0, 1500.0, 1000.0, 800.0, 600.0),
+                           theta3_extreme_deg: float = 102.0) -> tuple:
+    """Grid search of the hub stiffnesses of links 2 and 3 against the seed's frequencies at 300 g.
+
+    For every pair ``(K_r2, K_r3)`` of ``candidates_Nm_rad`` the two-way plant is
+    linearised at theta = (0, 0, 0) (figure 4.6: link 2 first and second,
+    link 3 first) and at theta3 = +-``theta3_extreme_deg`` (the largest first
+    frequency, the top of figure 4.8's 1.56-2.74 Hz); the pair with the
+    smallest worst relative error against :data:`SEED_MODES_300G` wins.
+
+    Parameters
+    ----------
+    candidates_Nm_rad : sequence of float, optional
+        Candidate ``K_r`` values, N m/rad (``inf`` = rigid).
+    theta3_extreme_deg : float, optional
+        Elbow angle where the first frequency peaks, degrees.
+
+    Returns
+    -------
+    best : tuple of 2 floats
+        ``(K_r2, K_r3)``, N m/rad.
+    table : list of tuple
+        ``(K_r2, K_r3, f21, f22, f31, f1max, worst_rel_error)`` per candidate pair.
+    """
+    seed = SEED_MODES_300G
+    table = []
+    for K2 in candidates_Nm_rad:
+        for K3 in candidates_Nm_rad:
+            cfg = PlantConfig(two_way=True, hub_stiffness_Nm_rad=(K2, K3))
+            m0 = linear_modes(np.zeros(3), 0.3, cfg)
+            fmax = max(linear_modes(np.deg2rad([0.0, 0.0, s3 * theta3_extreme_deg]), 0.3, cfg)["link2_hz"][0]
+                       for s3 in (-1.0, 1.0))
+            vals = (m0["link2_hz"][0], m0["link2_hz"][1], m0["link3_hz"][0], fmax)
+            ref = (seed["link2_hz"][0], seed["link2_hz"][1], seed["link3_hz"], seed["f1_max_hz"])
+            worst = max(abs(v / r - 1.0) for v, r in zip(vals, ref))
+            table.append((float(K2), float(K3), *(float(v) for v in vals), float(worst)))
+    best = min(table, key=lambda row: row[-1])
+    return (best[0], best[1]), table

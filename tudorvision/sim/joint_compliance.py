@@ -23,17 +23,20 @@ gravity torque near ``theta2 = 90 deg``, link 3 vertical at
 frequency and decay: the "canyons" of the seed's figure 4.8.
 
 Identification (docs/simulation.md, "Matching the seed's measured modes"):
-:data:`SEED_MEASURED` uses the two-way model. ``K_r`` of links 2 and 3 were
-chosen on a grid to minimise the worst relative error of four linearised
-numbers at 300 g against the seed: link 2's first and second frequency at
-theta3 = 0 (2.0, 9.9 Hz, figure 4.6), link 3's first frequency on its hub
-spring (6.3 Hz) and the largest first frequency over theta3 (2.74 Hz,
-figure 4.8); all four are within 7 % (K_r in {inf, 3000, 1500, 1000, 800,
-600} N m/rad). Damper and backlash were then set from ring-downs over the
-workspace on a 20 deg grid (``benchmarks/bench_plant_modes.py``), three
-candidates: the largest decay rate near the seed's 1.24 1/s and the
-lowest frequency (the canyon) near its 1.56 Hz, with a backlash below the
-seed's "< 1 deg" (appendix A.3).
+:data:`SEED_MEASURED` uses the two-way model. ``K_r`` of links 2 and 3:
+:func:`tudorvision.lab.plant_modes.identify_hub_stiffness` scores every pair
+of {inf, 3000, 1500, 1000, 800, 600} N m/rad by the worst relative error of
+four linearised numbers at 300 g against the seed (link 2's first and second
+frequency at theta = 0 (2.0, 9.9 Hz, figure 4.6), link 3's first on its
+spring (6.3 Hz), the largest first frequency over theta3 (2.74 Hz, figure
+4.8)). It ranks (1000, 600) first (4.1 %) and (1500, 800) at 6.1 %; of the
+two pairs run through workspace ring-downs, (800, 600) and (1500, 800),
+the latter came closer to the seed's largest first frequency (2.62 against
+2.57 Hz) and was kept. Damper and backlash were then set from three
+candidate ring-down maps on a 20 deg grid (``benchmarks/bench_plant_modes.py``):
+the largest decay rate near the seed's 1.24 1/s and the lowest frequency
+(the canyon) near its 1.56 Hz, with a backlash below the seed's "< 1 deg"
+(appendix A.3).
 """
 from __future__ import annotations
 
