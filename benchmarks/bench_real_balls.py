@@ -47,7 +47,7 @@ LUMA = SegmentParams(edge_refine=True)   # what `tudorvision track mono --luma-e
 
 VIDEOS = ROOT.parent / "shared" / "realdata" / "ball_videos"
 LABELS = ROOT / "tests" / "data" / "ball_labels" / "labels.csv"
-PICK_FRAME = {"ball2.mp4": 660, "ball3.mp4": 180, "ball4.mp4": 208}
+PICK_FRAME = {"ball2.mp4": 660, "ball3.mp4": 179, "ball4.mp4": 208}
 EDGE_FRACTION = 0.8
 
 
