@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from tudorvision._checks import TudorVisionError
+from tudorvision.io import open_sequence
 from tudorvision.io.labels import BallLabel, read_ball_labels, write_ball_labels
 
 HERE = Path(__file__).resolve().parent
@@ -204,3 +205,22 @@ def test_label_command_errors_are_one_line(tmp_path, capsys, extra, match):
     err = capsys.readouterr().err
     assert code == 2
     assert match in err and len(err.strip().splitlines()) == 1
+
+
+@needs_videos
+def test_video_random_access_is_frame_exact():
+    """``seq[i]`` is the i-th decoded frame, also where OpenCV's frame seek lands one frame early
+    (ball3.mp4 from frame 108): the oracle is a plain sequential decode."""
+    import cv2
+
+    path = VIDEOS / "ball3.mp4"
+    cap = cv2.VideoCapture(str(path))
+    decoded = []
+    while len(decoded) < 125:
+        ok, img = cap.read()
+        assert ok
+        decoded.append(img)
+    cap.release()
+    seq = open_sequence(path)
+    for i in (120, 108, 3, 124, 110):          # forward, backward and repeated jumps
+        assert np.array_equal(np.asarray(seq[i].image), decoded[i]), i
