@@ -54,6 +54,10 @@ __all__ = ["Task", "RunReport", "derive_seed", "config_digest", "to_jsonable", "
 #: Folder (inside the output folder) holding one ``<key>.json`` record per finished task.
 RUNS_DIR = "runs"
 
+#: The Dask setting that keeps the nanny from setting ``MALLOC_TRIM_THRESHOLD_`` in its workers (``None``);
+#: for ``dask worker``: ``--no-nanny``, or a Dask configuration file setting it to ``null`` (docs/experiments.md).
+NO_MALLOC_TRIM = "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_"
+
 
 def to_jsonable(value):
     """Plain JSON values (dict, list, str, int, float, bool, None) for a result.
@@ -525,12 +529,17 @@ def _run_dask(book: _Book, todo, report: RunReport, *, scheduler, workers, proce
     import logging
     import warnings
 
+    import dask
     from dask.distributed import Client, LocalCluster, as_completed
 
     cluster = None
     if scheduler == "local":
         n = int(workers or os.cpu_count() or 1)
-        with warnings.catch_warnings():     # 'port 8787 is already in use': another port is taken and printed
+        # Dask's nanny sets MALLOC_TRIM_THRESHOLD_ in its workers, which turns off glibc's adaptive mmap
+        # threshold: every large NumPy temporary is then mapped and unmapped again, and the lab's image-sized
+        # arrays ran 2-3 times slower in a worker than in this process. Workers keep glibc's default.
+        with warnings.catch_warnings(), dask.config.set({NO_MALLOC_TRIM: None}):
+            # 'port 8787 is already in use': another port is taken and printed
             warnings.filterwarnings("ignore", message=".*already in use", category=UserWarning)
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=processes,
                                    dashboard_address=dashboard_address or ":0", silence_logs=logging.ERROR)
