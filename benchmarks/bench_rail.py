@@ -1,0 +1,287 @@
+"""Appendix B.5 of the seed in the virtual lab: stereo accuracy along a vertical rail.
+
+For each seed (room, clutter, lighting, rail tilt and sensor noise) and each
+rail place of the seed (workspace centre; 0.85 m along base x, tangent to
+the workspace) this renders the rail recording of
+:func:`tudorvision.lab.rail.record_rail` (slider 0.30 -> 1.50 m in 50 mm steps,
+``--frames`` images per height, JPEG as the lab's default), then runs the
+normal stereo pipeline on it, as ``tudorvision track stereo`` does:
+
+- colour models fitted from a simulated user pick on the first frame (a
+  centre pixel, the true centroid rounded to a pixel, and an edge pixel at
+  0.8 of the apparent radius; ``fit_color_model_set`` with the CLI's verify);
+- ``track_stereo`` with the CLI's options (tracking mode, luma edge ``auto``,
+  sphere-separation check from the robot parameters), results in the left
+  camera frame (the seed's stereo camera frame);
+- the peer, the seed's centroid: the same with ``SegmentParams(centroid="moment")``
+  (``track stereo --centre centroid``);
+- an oracle: the exact silhouette centroids through the same triangulation
+  (what a perfect segmentation gives with the lab's exact calibration).
+
+Only the evaluation reads the truth. Deviations are those of the seed's
+figure B.3: the triangulated midpoint minus its foot on the straight line
+fitted to all of that run's points, per axis of the left camera frame (x
+right, y down, z forward) and height; also from the true rail line, and the
+full error against the true midpoint. The band is ``max - min`` over the
+heights of the per-height mean; "+-std" widens it by one standard deviation.
+The seed's target: within a 2 mm band inside the workspace (heights up to
+link1 + link2 + link3 = 1.19 m).
+
+Run::
+
+    nice .venv/bin/python benchmarks/bench_rail.py --seeds 0 1 2 --frames 20 \\
+        --plot docs/figures/rail_residual.png --json /tmp/rail.json
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.join(HERE, ".."))
+
+from tudorvision.cli.stereo import luma_edge_params  # noqa: E402
+from tudorvision.io import open_sequence  # noqa: E402
+from tudorvision.lab.rail import RAIL_HEIGHTS_M, RAIL_POSITIONS_M, RailOptions, rail_deviation, record_rail  # noqa: E402
+from tudorvision.robot import load_robot_params  # noqa: E402
+from tudorvision.stereo import (PipelineOptions, SegmentParams, fit_color_model_set, track_stereo,  # noqa: E402
+                                triangulate_spheres)
+
+SPHERES = ("red", "green")
+METHODS = ("ours", "moment", "oracle")
+
+
+def workspace_top_m() -> float:
+    p = load_robot_params()
+    return p.link1_height_m + p.link2_length_m + p.link3_length_m
+
+
+def render(workdir: Path, seed: int, place: str, frames: int, heights, ext: str) -> Path:
+    out = workdir / f"rail_{place}_seed{seed}_f{frames}_h{len(heights)}{ext.replace('.', '_')}"
+    if not (out / "sequence.yaml").is_file():
+        t0 = time.perf_counter()
+        record_rail(out, RailOptions(seed=seed, rail_xy_m=RAIL_POSITIONS_M[place], heights_m=tuple(heights),
+                                     frames_per_height=frames, image_ext=ext, force=True))
+        skipped = open_sequence(out).meta.get("rail_heights_out_of_view_m") or []
+        print(f"  rendered {out.name} in {time.perf_counter() - t0:.0f} s"
+              + (f"; out of view, left out: {skipped} m" if skipped else ""), flush=True)
+    return out
+
+
+def transform(seq, row: int) -> np.ndarray:
+    tr = seq.groundtruth("transforms")
+    return np.array([[tr[f"m{i}{j}"][row] for j in range(4)] for i in range(4)])
+
+
+def user_picks(seq) -> list:
+    """A simulated user's clicks on frame 0: the centre pixel and an edge pixel per camera and sphere."""
+    gt = seq.groundtruth("ee")
+    r = load_robot_params().sphere_radius_m
+    picks = []
+    for row, cam in enumerate(("left", "right")):
+        T_cam_base = np.linalg.inv(transform(seq, row))
+        fx = seq.calibration.camera(cam).fx
+        for s in SPHERES:
+            z = (T_cam_base @ [gt[f"{s}_x_m"][0], gt[f"{s}_y_m"][0], gt[f"{s}_z_m"][0], 1.0])[2]
+            u, v = round(gt[f"{cam}_{s}_u_px"][0]), round(gt[f"{cam}_{s}_v_px"][0])
+            e = max(1, round(0.8 * fx * r / z))
+            picks.append(f"{cam}:{s}:{u},{v}:{u + e},{v}")
+    return picks
+
+
+def run_method(seq, path, method: str, picks):
+    """(points (N, 3) in the left camera frame, seconds) for ``ours``, ``moment`` or ``oracle``."""
+    t0 = time.perf_counter()
+    if method == "oracle":
+        gt = seq.groundtruth("ee")
+        uv = {cam: {s: np.column_stack([gt[f"{cam}_{s}_u_px"], gt[f"{cam}_{s}_v_px"]]) for s in SPHERES}
+              for cam in ("left", "right")}
+        tri = triangulate_spheres(uv["left"], uv["right"], seq.calibration)
+        return np.asarray(tri.ee, float), time.perf_counter() - t0
+    tracker, _ = luma_edge_params("auto", path, "circle" if method == "ours" else "centroid")
+    f0 = seq[0]
+    models = fit_color_model_set({"left": f0.left, "right": f0.right}, picks, verify_params=tracker.segment)
+    off = load_robot_params().sphere_offsets_ee_m
+    sep = float(np.linalg.norm(np.subtract(off["red"], off["green"])))
+    opts = PipelineOptions(tracker=tracker, sphere_separation_m=sep)
+    res = track_stereo(seq, seq.calibration, models, options=opts)
+    p = np.full((len(seq), 3), np.nan)
+    p[res.index] = np.where(res.trajectory.valid[:, None], res.trajectory.p, np.nan)
+    return p, time.perf_counter() - t0
+
+
+def evaluate(path: Path) -> dict:
+    seq = open_sequence(path)
+    rail = seq.groundtruth("rail")
+    h = np.asarray(rail["height_m"], float)
+    gt = seq.groundtruth("ee")
+    T_left_base = np.linalg.inv(transform(seq, 0))
+    R, o = T_left_base[:3, :3], T_left_base[:3, 3]
+    p_true = np.column_stack([gt["ee_x_m"], gt["ee_y_m"], gt["ee_z_m"]]) @ R.T + o
+    ax = seq.groundtruth("rail_axis")
+    line_true = (R @ [ax["p0_x_m"][0], ax["p0_y_m"][0], ax["p0_z_m"][0]] + o, R @ [ax["d_x"][0], ax["d_y"][0],
+                                                                                   ax["d_z"][0]])
+    picks = user_picks(seq)
+    top = workspace_top_m()
+    out = {"frames": len(seq), "heights_m": sorted(set(h.tolist()))}
+    for m in METHODS:
+        p, dt = run_method(seq, path, m, picks)
+        fit = rail_deviation(p, h)
+        tru = rail_deviation(p, h, line=line_true)
+        err = p - p_true
+        hs = fit.heights_m
+        err_mean = np.array([np.nanmean(err[h == v], axis=0) for v in hs])
+        inside = hs <= top + 1e-9
+        mean_in = fit.mean_m[inside]
+        out[m] = {
+            "seconds": dt, "valid": float(np.mean(np.all(np.isfinite(p), axis=1))),
+            "position_mm": (1e3 * fit.position_m).tolist(), "n": fit.n.tolist(),
+            "heights_m": hs.tolist(),
+            "fit_mean_mm": (1e3 * fit.mean_m).tolist(), "fit_std_mm": (1e3 * fit.std_m).tolist(),
+            "fit_band_mm": (1e3 * fit.band_m).tolist(), "fit_band_std_mm": (1e3 * fit.band_std_m).tolist(),
+            "fit_band_inside_mm": (1e3 * (mean_in.max(0) - mean_in.min(0))).tolist(),
+            "fit_rms_mm": 1e3 * fit.rms_m,
+            "true_mean_mm": (1e3 * tru.mean_m).tolist(), "true_band_mm": (1e3 * tru.band_m).tolist(),
+            "true_rms_mm": 1e3 * tru.rms_m,
+            "err_mean_mm": (1e3 * err_mean).tolist(),
+            "err_rms_mm": float(1e3 * np.sqrt(np.nanmean(np.sum(err ** 2, axis=1)))),
+            "tilt_vs_true_deg": float(np.degrees(np.arccos(min(1.0, abs(fit.direction @ line_true[1]))))),
+        }
+    seq.close()
+    return out
+
+
+def fmt3(v) -> str:
+    return "/".join(f"{x:.2f}" for x in v)
+
+
+def plot(results: dict, path: str) -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 3, figsize=(8.0, 2.6), sharey=True)
+    styles = {("ours", "centre"): dict(color="k", ls="-"), ("ours", "border"): dict(color="0.6", ls="-"),
+              ("moment", "centre"): dict(color="k", ls="--"), ("moment", "border"): dict(color="0.6", ls="--")}
+    top = workspace_top_m()
+    for (m, place), st in styles.items():
+        runs = [r[m] for (pl, _), r in results.items() if pl == place]
+        if not runs:
+            continue
+        hs = np.array(runs[0]["heights_m"])
+        mean = np.mean([r["fit_mean_mm"] for r in runs], axis=0)
+        std = np.sqrt(np.mean(np.square([r["fit_std_mm"] for r in runs]), axis=0))
+        for k, ax in enumerate(axes):
+            label = f"{'circle (ours)' if m == 'ours' else 'moment (seed)'}, {place}" if k == 0 else None
+            if m == "ours":
+                ax.errorbar(hs, mean[:, k], yerr=std[:, k], lw=1, capsize=1.5, label=label, **st)
+            else:
+                ax.plot(hs, mean[:, k], lw=1, label=label, **st)
+    for k, ax in enumerate(axes):
+        ax.axhspan(-1.0, 1.0, color="g", alpha=0.08)
+        ax.axvline(top, color="r", lw=0.6, ls=":")
+        ax.set_title(f"{'xyz'[k]} (left camera)", fontsize=8)
+        ax.set_xlabel("slider height [m]", fontsize=8)
+        ax.tick_params(labelsize=7)
+    axes[0].set_ylabel("residual from fitted line [mm]", fontsize=8)
+    axes[0].legend(fontsize=6, loc="lower left")
+    fig.suptitle("B.5 rail: mean (+-std) residual per height, seeds averaged; green: +-1 mm, red: workspace top",
+                 fontsize=8)
+    fig.tight_layout()
+    from tudorvision.io.atomic import write_bytes_atomic
+    import io
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90)
+    plt.close(fig)
+    write_bytes_atomic(path, buf.getvalue())
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--places", nargs="+", choices=tuple(RAIL_POSITIONS_M), default=list(RAIL_POSITIONS_M))
+    ap.add_argument("--frames", type=int, default=20, help="images per height (the seed: 100; default 20)")
+    ap.add_argument("--every", type=int, default=1, help="use every N-th of the seed's 25 heights")
+    ap.add_argument("--image-ext", choices=(".png", ".jpg"), default=".jpg")
+    ap.add_argument("--workdir", default="/tmp/tudorvision_bench_rail", help="render cache")
+    ap.add_argument("--json", help="also write the results to this file")
+    ap.add_argument("--plot", help="PNG of the residual per height")
+    ap.add_argument("--per-height", action="store_true", help="print the per-height table of every run")
+    args = ap.parse_args(argv)
+    heights = RAIL_HEIGHTS_M[::args.every]
+    work = Path(args.workdir)
+    work.mkdir(parents=True, exist_ok=True)
+    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, Python "
+          f"{platform.python_version()}; {len(heights)} heights x {args.frames} frames, {args.image_ext}; "
+          f"workspace top {workspace_top_m():.2f} m")
+    results = {}
+    for seed in args.seeds:
+        for place in args.places:
+            path = render(work, seed, place, args.frames, heights, args.image_ext)
+            r = evaluate(path)
+            results[(place, seed)] = r
+            for m in METHODS:
+                s = r[m]
+                print(f"seed {seed} {place:6s} {m:6s} valid {100 * s['valid']:5.1f}%  band x/y/z (fit) "
+                      f"{fmt3(s['fit_band_mm'])} mm, inside ws {fmt3(s['fit_band_inside_mm'])}, +-std "
+                      f"{fmt3(s['fit_band_std_mm'])}; RMS {s['fit_rms_mm']:.2f} mm; true line band "
+                      f"{fmt3(s['true_band_mm'])} RMS {s['true_rms_mm']:.2f}; vs truth RMS {s['err_rms_mm']:.2f} mm "
+                      f"({s['seconds']:.1f} s)", flush=True)
+            if args.per_height:
+                o, mo = r["ours"], r["moment"]
+                print("   h[m]  position x,y,z [mm] (ours)     ours fit mean+-std x/y/z [mm]        "
+                      "moment fit mean x/y/z    ours true-line mean x/y/z")
+                for k, hh in enumerate(o["heights_m"]):
+                    print(f"   {hh:4.2f}  {fmt3(np.round(o['position_mm'][k], 1))}  "
+                          + " ".join(f"{o['fit_mean_mm'][k][a]:+.2f}+-{o['fit_std_mm'][k][a]:.2f}" for a in range(3))
+                          + f"   {fmt3(mo['fit_mean_mm'][k])}   {fmt3(o['true_mean_mm'][k])}")
+
+    print("\nsummary over seeds " + ", ".join(map(str, args.seeds))
+          + " (band: max - min of the per-height mean residual from the fitted line, mm, per axis x/y/z of "
+            "the left camera; worst seed / mean over seeds)")
+    summary = {}
+    for place in args.places:
+        for m in METHODS:
+            runs = [results[(place, s)][m] for s in args.seeds]
+            band = np.array([r["fit_band_mm"] for r in runs])
+            band_in = np.array([r["fit_band_inside_mm"] for r in runs])
+            band_sd = np.array([r["fit_band_std_mm"] for r in runs])
+            tband = np.array([r["true_band_mm"] for r in runs])
+            s = {"band_max_mm": band.max(0).tolist(), "band_mean_mm": band.mean(0).tolist(),
+                 "band_inside_max_mm": band_in.max(0).tolist(), "band_std_max_mm": band_sd.max(0).tolist(),
+                 "true_band_max_mm": tband.max(0).tolist(),
+                 "rms_mm": float(np.sqrt(np.mean([r["fit_rms_mm"] ** 2 for r in runs]))),
+                 "true_rms_mm": float(np.sqrt(np.mean([r["true_rms_mm"] ** 2 for r in runs]))),
+                 "err_rms_mm": float(np.sqrt(np.mean([r["err_rms_mm"] ** 2 for r in runs]))),
+                 "valid": float(np.mean([r["valid"] for r in runs])),
+                 "seconds": float(np.sum([r["seconds"] for r in runs]))}
+            s["within_2mm_inside"] = bool(np.all(band_in <= 2.0))
+            s["within_2mm_all"] = bool(np.all(band <= 2.0))
+            summary[f"{place}/{m}"] = s
+            print(f"{place:6s} {m:6s} band {fmt3(s['band_max_mm'])} / {fmt3(s['band_mean_mm'])}; inside ws (worst) "
+                  f"{fmt3(s['band_inside_max_mm'])}; +-std (worst) {fmt3(s['band_std_max_mm'])}; RMS "
+                  f"{s['rms_mm']:.2f} mm; true line band (worst) {fmt3(s['true_band_max_mm'])} RMS "
+                  f"{s['true_rms_mm']:.2f}; vs truth RMS {s['err_rms_mm']:.2f}; valid {100 * s['valid']:.1f}%; "
+                  f"2 mm band inside ws: {'met' if s['within_2mm_inside'] else 'NOT met'}")
+        a, b = summary[f"{place}/moment"], summary[f"{place}/ours"]
+        print(f"{place:6s} ratio moment/ours: RMS from fitted line {a['rms_mm'] / b['rms_mm']:.2f}, worst band "
+              f"{max(a['band_max_mm']) / max(b['band_max_mm']):.2f}, time {a['seconds'] / b['seconds']:.2f}")
+    if args.plot:
+        plot(results, args.plot)
+        print(f"wrote {args.plot}")
+    if args.json:
+        with open(args.json, "w") as fh:
+            json.dump({"args": vars(args), "summary": summary,
+                       "runs": {f"{pl}/seed{s}": r for (pl, s), r in results.items()}}, fh, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
