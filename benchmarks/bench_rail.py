@@ -9,7 +9,9 @@ normal stereo pipeline on it, as ``tudorvision track stereo`` does:
 
 - colour models fitted from a simulated user pick on the first frame (a
   centre pixel, the true centroid rounded to a pixel, and an edge pixel at
-  0.8 of the apparent radius; ``fit_color_model_set`` with the CLI's verify);
+  0.8 of the apparent radius, verified as the CLI does; a refused pick is
+  re-clicked smaller, then on the next height's first frame:
+  :func:`tudorvision.lab.rail.user_pick_models`);
 - ``track_stereo`` with the CLI's options (tracking mode, luma edge ``auto``,
   sphere-separation check from the robot parameters), results in the left
   camera frame (the seed's stereo camera frame);
@@ -49,10 +51,11 @@ sys.path.insert(0, os.path.join(HERE, ".."))
 
 from tudorvision.cli.stereo import luma_edge_params  # noqa: E402
 from tudorvision.io import open_sequence  # noqa: E402
-from tudorvision.lab.rail import RAIL_HEIGHTS_M, RAIL_POSITIONS_M, RailOptions, rail_deviation, record_rail  # noqa: E402
+from tudorvision._checks import TudorVisionError  # noqa: E402
+from tudorvision.lab.rail import (RAIL_HEIGHTS_M, RAIL_POSITIONS_M, RailOptions, rail_deviation,  # noqa: E402
+                                  record_rail, user_pick_models)
 from tudorvision.robot import load_robot_params  # noqa: E402
-from tudorvision.stereo import (PipelineOptions, SegmentParams, fit_color_model_set, track_stereo,  # noqa: E402
-                                triangulate_spheres)
+from tudorvision.stereo import PipelineOptions, track_stereo, triangulate_spheres  # noqa: E402
 
 SPHERES = ("red", "green")
 METHODS = ("ours", "moment", "oracle")
@@ -80,41 +83,28 @@ def transform(seq, row: int) -> np.ndarray:
     return np.array([[tr[f"m{i}{j}"][row] for j in range(4)] for i in range(4)])
 
 
-def user_picks(seq) -> list:
-    """A simulated user's clicks on frame 0: the centre pixel and an edge pixel per camera and sphere."""
-    gt = seq.groundtruth("ee")
-    r = load_robot_params().sphere_radius_m
-    picks = []
-    for row, cam in enumerate(("left", "right")):
-        T_cam_base = np.linalg.inv(transform(seq, row))
-        fx = seq.calibration.camera(cam).fx
-        for s in SPHERES:
-            z = (T_cam_base @ [gt[f"{s}_x_m"][0], gt[f"{s}_y_m"][0], gt[f"{s}_z_m"][0], 1.0])[2]
-            u, v = round(gt[f"{cam}_{s}_u_px"][0]), round(gt[f"{cam}_{s}_v_px"][0])
-            e = max(1, round(0.8 * fx * r / z))
-            picks.append(f"{cam}:{s}:{u},{v}:{u + e},{v}")
-    return picks
-
-
-def run_method(seq, path, method: str, picks):
-    """(points (N, 3) in the left camera frame, seconds) for ``ours``, ``moment`` or ``oracle``."""
+def run_method(seq, path, method: str):
+    """(points (N, 3) in the left camera frame, seconds, note) for ``ours``, ``moment`` or ``oracle``."""
     t0 = time.perf_counter()
     if method == "oracle":
         gt = seq.groundtruth("ee")
         uv = {cam: {s: np.column_stack([gt[f"{cam}_{s}_u_px"], gt[f"{cam}_{s}_v_px"]]) for s in SPHERES}
               for cam in ("left", "right")}
         tri = triangulate_spheres(uv["left"], uv["right"], seq.calibration)
-        return np.asarray(tri.ee, float), time.perf_counter() - t0
+        return np.asarray(tri.ee, float), time.perf_counter() - t0, "exact centroids"
     tracker, _ = luma_edge_params("auto", path, "circle" if method == "ours" else "centroid")
-    f0 = seq[0]
-    models = fit_color_model_set({"left": f0.left, "right": f0.right}, picks, verify_params=tracker.segment)
+    try:
+        models, k, picks = user_pick_models(seq, verify_params=tracker.segment)
+    except TudorVisionError as exc:
+        return np.full((len(seq), 3), np.nan), time.perf_counter() - t0, f"pick refused: {exc}"
+    note = f"picked on frame {k}" + (f" ({' '.join(picks)})" if k else "")
     off = load_robot_params().sphere_offsets_ee_m
     sep = float(np.linalg.norm(np.subtract(off["red"], off["green"])))
     opts = PipelineOptions(tracker=tracker, sphere_separation_m=sep)
     res = track_stereo(seq, seq.calibration, models, options=opts)
     p = np.full((len(seq), 3), np.nan)
     p[res.index] = np.where(res.trajectory.valid[:, None], res.trajectory.p, np.nan)
-    return p, time.perf_counter() - t0
+    return p, time.perf_counter() - t0, note
 
 
 def evaluate(path: Path) -> dict:
@@ -128,11 +118,12 @@ def evaluate(path: Path) -> dict:
     ax = seq.groundtruth("rail_axis")
     line_true = (R @ [ax["p0_x_m"][0], ax["p0_y_m"][0], ax["p0_z_m"][0]] + o, R @ [ax["d_x"][0], ax["d_y"][0],
                                                                                    ax["d_z"][0]])
-    picks = user_picks(seq)
     top = workspace_top_m()
     out = {"frames": len(seq), "heights_m": sorted(set(h.tolist()))}
     for m in METHODS:
-        p, dt = run_method(seq, path, m, picks)
+        p, dt, note = run_method(seq, path, m)
+        if not np.isfinite(p).any():
+            raise SystemExit(f"{path.name} {m}: {note}")
         fit = rail_deviation(p, h)
         tru = rail_deviation(p, h, line=line_true)
         err = p - p_true
@@ -141,7 +132,7 @@ def evaluate(path: Path) -> dict:
         inside = hs <= top + 1e-9
         mean_in = fit.mean_m[inside]
         out[m] = {
-            "seconds": dt, "valid": float(np.mean(np.all(np.isfinite(p), axis=1))),
+            "seconds": dt, "note": note, "valid": float(np.mean(np.all(np.isfinite(p), axis=1))),
             "position_mm": (1e3 * fit.position_m).tolist(), "n": fit.n.tolist(),
             "heights_m": hs.tolist(),
             "fit_mean_mm": (1e3 * fit.mean_m).tolist(), "fit_std_mm": (1e3 * fit.std_m).tolist(),
@@ -233,7 +224,7 @@ def main(argv=None) -> int:
                       f"{fmt3(s['fit_band_mm'])} mm, inside ws {fmt3(s['fit_band_inside_mm'])}, +-std "
                       f"{fmt3(s['fit_band_std_mm'])}; RMS {s['fit_rms_mm']:.2f} mm; true line band "
                       f"{fmt3(s['true_band_mm'])} RMS {s['true_rms_mm']:.2f}; vs truth RMS {s['err_rms_mm']:.2f} mm "
-                      f"({s['seconds']:.1f} s)", flush=True)
+                      f"({s['seconds']:.1f} s; {s['note']})", flush=True)
             if args.per_height:
                 o, mo = r["ours"], r["moment"]
                 print("   h[m]  position x,y,z [mm] (ours)     ours fit mean+-std x/y/z [mm]        "

@@ -42,7 +42,8 @@ from ..sim.scenes import GREEN_RGB, RED_RGB, SimSetup, StereoRigConfig, lab_room
 from .record import calibration_from_cameras
 
 __all__ = ["RAIL_HEIGHTS_M", "RAIL_POSITIONS_M", "RailOptions", "rail_lab", "record_rail", "fit_line",
-           "rail_deviation", "RailDeviation", "heights_in_view"]
+           "rail_deviation", "RailDeviation", "heights_in_view",
+           "user_pick_models"]
 
 #: The seed's slider heights above the floor: 300 to 1500 mm in 50 mm steps (25 heights), metres.
 RAIL_HEIGHTS_M = tuple(np.round(np.arange(0.30, 1.5001, 0.05), 3).tolist())
@@ -375,6 +376,78 @@ def record_rail(out, opts: RailOptions = RailOptions()) -> Path:
         w.write_groundtruth("transforms", table, comment="rows: 0=T_base_left, 1=T_base_right, 2=T_world_base; "
                             "4x4 row-major, metres")
     return out
+
+
+# --------------------------------------------------------------------------- the simulated user
+
+def _transform(seq, row: int) -> np.ndarray:
+    tr = seq.groundtruth("transforms")
+    return np.array([[tr[f"m{i}{j}"][row] for j in range(4)] for i in range(4)])
+
+
+def user_pick_models(seq, *, verify_params=None, edge_factors=(0.8, 0.6)):
+    """Colour models from a simulated user's clicks, as ``tudorvision stereo colormodel --pick`` makes them.
+
+    The user clicks, on one stereo pair, the pixel under each sphere's centre
+    (the exact silhouette centroid rounded to a pixel) and a pixel
+    ``edge_factor`` of the apparent radius to its right. When the colour
+    model refuses a pick (it would single out another object), the user
+    clicks a smaller circle, then tries the first frame of the next height,
+    and so on. Only this stand-in for the user reads the truth
+    (``groundtruth/ee.csv``); the models are what the pipeline gets.
+
+    Parameters
+    ----------
+    seq : tudorvision.io.Sequence
+        A :func:`record_rail` sequence.
+    verify_params : tudorvision.stereo.SegmentParams, optional
+        Segmentation the model is verified with (the CLI passes the tracking
+        centre method).
+    edge_factors : sequence of float
+        Edge-pixel distances tried, in apparent sphere radii.
+
+    Returns
+    -------
+    models : tudorvision.stereo.ColorModelSet
+    frame : int
+        Index of the stereo pair picked on.
+    picks : list of str
+        The accepted ``CAMERA:SPHERE:CU,CV:EU,EV`` picks.
+
+    Raises
+    ------
+    TudorVisionError
+        Every frame tried refuses a pick (the last refusal is named).
+    """
+    from ..stereo import ColorModelSet, fit_color_model
+
+    gt = seq.groundtruth("ee")
+    h = np.asarray(seq.groundtruth("rail")["height_index"], int)
+    firsts = [int(np.argmax(h == k)) for k in np.unique(h)]
+    r = load_robot_params().sphere_radius_m
+    T_cam_base = {cam: np.linalg.inv(_transform(seq, row)) for row, cam in enumerate(("left", "right"))}
+    last = ""
+    for k in firsts:
+        frame = seq[k]
+        models, picks = {}, []
+        for cam in ("left", "right"):
+            fx = seq.calibration.camera(cam).fx
+            for s in ("red", "green"):
+                z = (T_cam_base[cam] @ [gt[f"{s}_x_m"][k], gt[f"{s}_y_m"][k], gt[f"{s}_z_m"][k], 1.0])[2]
+                u, v = round(gt[f"{cam}_{s}_u_px"][k]), round(gt[f"{cam}_{s}_v_px"][k])
+                for fac in edge_factors:
+                    e = max(1, round(fac * fx * r / z))
+                    try:
+                        models.setdefault(cam, {})[s] = fit_color_model(getattr(frame, cam), (u, v), (u + e, v),
+                                                                         verify_params=verify_params)
+                    except TudorVisionError as exc:
+                        last = f"frame {k} {cam}:{s}: {exc}"
+                        continue
+                    picks.append(f"{cam}:{s}:{u},{v}:{u + e},{v}")
+                    break
+        if len(picks) == 4:
+            return ColorModelSet(models), k, picks
+    raise TudorVisionError(f"rail: every pick was refused; last: {last}")
 
 
 # --------------------------------------------------------------------------- evaluation
