@@ -476,7 +476,7 @@ def fit_line(points) -> tuple[np.ndarray, np.ndarray]:
     Examples
     --------
     >>> p, d = fit_line([[0, 0, 0], [0, 0, 1], [0, 0, 2]])
-    >>> p.tolist(), d.round(6).tolist()
+    >>> p.tolist(), (d.round(6) + 0.0).tolist()
     ([0.0, 0.0, 1.0], [0.0, 0.0, 1.0])
     """
     p = np.asarray(points, float).reshape(-1, 3)
