@@ -29,6 +29,8 @@ def test_recovers_a_payload_affine_model_and_reports_each_run():
     _, fits_n = fit_with_validation([dict(r, label=f"run{i}") for i, r in enumerate(noisy)])
     assert set(fits_n) == {"run0", "run1"}
     assert all(15.0 < f["rmse_um_m"][0] < 25.0 for f in fits_n.values())
+    # the identification blocks (the other half of table 10.1) see the same noise level
+    assert all(15.0 < f["rmse_um_m_id"][0] < 25.0 and 15.0 < f["sigma_um_m"][1] < 25.0 for f in fits_n.values())
 
 
 def test_rejects_bad_input():

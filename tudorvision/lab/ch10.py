@@ -90,6 +90,9 @@ class Ch10Options:
         Rate of the samples kept for the fit (the seed records at 100 Hz).
     seed0 : int
         Seed of the first run (stimulus and noise); run ``k`` uses ``seed0 + k``.
+    k_eps : tuple of 3 floats or None
+        Proportional damping gains; ``None``: the joint layer's ``ASSISTED_GAINS`` for the
+        plant (one-way or two-way).
     """
 
     seconds: float = 60.0
@@ -103,6 +106,7 @@ class Ch10Options:
     current_noise_A: float = 0.0
     sample_hz: float = 100.0
     seed0: int = 900
+    k_eps: tuple | None = None
 
 
 def reference_friction(params) -> np.ndarray:
@@ -175,7 +179,8 @@ def collect_aprbs_run(plates: int, options: Ch10Options = Ch10Options(), config=
     arm = ElasticArm([0.0, levels[0, 0], levels[0, 1]], payload=Payload.from_parts(p, plates=int(plates)),
                      params=p, config=cfg)
     ca = ControlledArm(arm, v_max=np.deg2rad(options.v_max_deg_s), a_max=np.deg2rad(options.a_max_deg_s2))
-    dcfg = default_damping_config("proportional", two_way=arm.two_way, assisted=True)
+    over = {} if options.k_eps is None else {"k_eps": tuple(float(k) for k in options.k_eps)}
+    dcfg = default_damping_config("proportional", two_way=arm.two_way, assisted=True, **over)
     ca.set_damper(StrainDamper(dcfg, arm.measured_strain(), cfg.dt))
     per_amp = 1.0 / (np.asarray(p.gear_ratio, float) * np.asarray(p.torque_constant_Nm_A, float))
     n = int(round(options.seconds / cfg.dt))
