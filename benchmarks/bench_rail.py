@@ -66,12 +66,14 @@ def workspace_top_m() -> float:
     return p.link1_height_m + p.link2_length_m + p.link3_length_m
 
 
-def render(workdir: Path, seed: int, place: str, frames: int, heights, ext: str) -> Path:
-    out = workdir / f"rail_{place}_seed{seed}_f{frames}_h{len(heights)}{ext.replace('.', '_')}"
+def render(workdir: Path, seed: int, place: str, frames: int, heights, ext: str, distractors: int = 4) -> Path:
+    out = workdir / (f"rail_{place}_seed{seed}_f{frames}_h{len(heights)}{ext.replace('.', '_')}"
+                     + ("" if distractors == 4 else f"_d{distractors}"))
     if not (out / "sequence.yaml").is_file():
         t0 = time.perf_counter()
         record_rail(out, RailOptions(seed=seed, rail_xy_m=RAIL_POSITIONS_M[place], heights_m=tuple(heights),
-                                     frames_per_height=frames, image_ext=ext, force=True))
+                                     frames_per_height=frames, image_ext=ext, n_distractors=distractors,
+                                     force=True))
         skipped = open_sequence(out).meta.get("rail_heights_out_of_view_m") or []
         print(f"  rendered {out.name} in {time.perf_counter() - t0:.0f} s"
               + (f"; out of view, left out: {skipped} m" if skipped else ""), flush=True)
@@ -131,7 +133,11 @@ def evaluate(path: Path) -> dict:
         err_mean = np.array([np.nanmean(err[h == v], axis=0) for v in hs])
         inside = hs <= top + 1e-9
         mean_in = fit.mean_m[inside]
+        all_h = np.unique(h)
+        valid_h = [float(np.mean(np.all(np.isfinite(p[h == v]), axis=1))) for v in all_h]
         out[m] = {
+            "valid_per_height": dict(zip(all_h.tolist(), valid_h)),
+            "heights_without_points_m": [float(v) for v, f in zip(all_h, valid_h) if f == 0.0],
             "seconds": dt, "note": note, "valid": float(np.mean(np.all(np.isfinite(p), axis=1))),
             "position_mm": (1e3 * fit.position_m).tolist(), "n": fit.n.tolist(),
             "heights_m": hs.tolist(),
@@ -151,6 +157,26 @@ def evaluate(path: Path) -> dict:
 
 def fmt3(v) -> str:
     return "/".join(f"{x:.2f}" for x in v)
+
+
+def print_per_height(r: dict) -> None:
+    """Per height: valid fraction, mean position, mean +- std residual (fitted line), for ours and moment."""
+    o, mo = r["ours"], r["moment"]
+    print("   h[m] valid  position x/y/z [mm] (ours, left camera)  ours: fit residual mean+-std x/y/z [mm]"
+          "    true-line mean x/y/z   | moment: valid  fit mean x/y/z")
+    for hh in r["heights_m"]:
+        line = f"   {hh:4.2f} {100 * o['valid_per_height'][hh]:4.0f}%  "
+        if hh in o["heights_m"]:
+            k = o["heights_m"].index(hh)
+            line += (f"{fmt3(np.round(o['position_mm'][k], 1)):28s} "
+                     + " ".join(f"{o['fit_mean_mm'][k][a]:+.2f}+-{o['fit_std_mm'][k][a]:.2f}" for a in range(3))
+                     + f"   {fmt3(o['true_mean_mm'][k]):20s}")
+        else:
+            line += f"{'(no valid frame)':28s} {'':38s}   {'':20s}"
+        line += f" | {100 * mo['valid_per_height'][hh]:4.0f}%  "
+        if hh in mo["heights_m"]:
+            line += fmt3(mo["fit_mean_mm"][mo["heights_m"].index(hh)])
+        print(line)
 
 
 def plot(results: dict, path: str) -> None:
@@ -205,6 +231,8 @@ def main(argv=None) -> int:
     ap.add_argument("--json", help="also write the results to this file")
     ap.add_argument("--plot", help="PNG of the residual per height")
     ap.add_argument("--per-height", action="store_true", help="print the per-height table of every run")
+    ap.add_argument("--distractors", type=int, default=4,
+                    help="reddish and greenish look-alike objects in the room (default 4, as the stereo lab)")
     args = ap.parse_args(argv)
     heights = RAIL_HEIGHTS_M[::args.every]
     work = Path(args.workdir)
@@ -215,7 +243,7 @@ def main(argv=None) -> int:
     results = {}
     for seed in args.seeds:
         for place in args.places:
-            path = render(work, seed, place, args.frames, heights, args.image_ext)
+            path = render(work, seed, place, args.frames, heights, args.image_ext, args.distractors)
             r = evaluate(path)
             results[(place, seed)] = r
             for m in METHODS:
@@ -224,15 +252,11 @@ def main(argv=None) -> int:
                       f"{fmt3(s['fit_band_mm'])} mm, inside ws {fmt3(s['fit_band_inside_mm'])}, +-std "
                       f"{fmt3(s['fit_band_std_mm'])}; RMS {s['fit_rms_mm']:.2f} mm; true line band "
                       f"{fmt3(s['true_band_mm'])} RMS {s['true_rms_mm']:.2f}; vs truth RMS {s['err_rms_mm']:.2f} mm "
-                      f"({s['seconds']:.1f} s; {s['note']})", flush=True)
+                      f"({s['seconds']:.1f} s; {s['note']})"
+                      + (f"; no valid frame at {s['heights_without_points_m']} m" if s["heights_without_points_m"]
+                         else ""), flush=True)
             if args.per_height:
-                o, mo = r["ours"], r["moment"]
-                print("   h[m]  position x,y,z [mm] (ours)     ours fit mean+-std x/y/z [mm]        "
-                      "moment fit mean x/y/z    ours true-line mean x/y/z")
-                for k, hh in enumerate(o["heights_m"]):
-                    print(f"   {hh:4.2f}  {fmt3(np.round(o['position_mm'][k], 1))}  "
-                          + " ".join(f"{o['fit_mean_mm'][k][a]:+.2f}+-{o['fit_std_mm'][k][a]:.2f}" for a in range(3))
-                          + f"   {fmt3(mo['fit_mean_mm'][k])}   {fmt3(o['true_mean_mm'][k])}")
+                print_per_height(r)
 
     print("\nsummary over seeds " + ", ".join(map(str, args.seeds))
           + " (band: max - min of the per-height mean residual from the fitted line, mm, per axis x/y/z of "
@@ -252,6 +276,8 @@ def main(argv=None) -> int:
                  "true_rms_mm": float(np.sqrt(np.mean([r["true_rms_mm"] ** 2 for r in runs]))),
                  "err_rms_mm": float(np.sqrt(np.mean([r["err_rms_mm"] ** 2 for r in runs]))),
                  "valid": float(np.mean([r["valid"] for r in runs])),
+                 "heights_without_points_m": {f"seed{sd}": r["heights_without_points_m"]
+                                              for sd, r in zip(args.seeds, runs) if r["heights_without_points_m"]},
                  "seconds": float(np.sum([r["seconds"] for r in runs]))}
             s["within_2mm_inside"] = bool(np.all(band_in <= 2.0))
             s["within_2mm_all"] = bool(np.all(band <= 2.0))
@@ -260,7 +286,9 @@ def main(argv=None) -> int:
                   f"{fmt3(s['band_inside_max_mm'])}; +-std (worst) {fmt3(s['band_std_max_mm'])}; RMS "
                   f"{s['rms_mm']:.2f} mm; true line band (worst) {fmt3(s['true_band_max_mm'])} RMS "
                   f"{s['true_rms_mm']:.2f}; vs truth RMS {s['err_rms_mm']:.2f}; valid {100 * s['valid']:.1f}%; "
-                  f"2 mm band inside ws: {'met' if s['within_2mm_inside'] else 'NOT met'}")
+                  f"2 mm band inside ws: {'met' if s['within_2mm_inside'] else 'NOT met'}"
+                  + (f"; heights without a valid frame: {s['heights_without_points_m']}"
+                     if s["heights_without_points_m"] else ""))
         a, b = summary[f"{place}/moment"], summary[f"{place}/ours"]
         print(f"{place:6s} ratio moment/ours: RMS from fitted line {a['rms_mm'] / b['rms_mm']:.2f}, worst band "
               f"{max(a['band_max_mm']) / max(b['band_max_mm']):.2f}, time {a['seconds'] / b['seconds']:.2f}")

@@ -79,6 +79,9 @@ class RailOptions:
         Tracking spheres; None: the robot's (``load_robot_params``).
     rig : StereoRigConfig
         The ceiling stereo rig (default: the seed's, BRIEF).
+    n_clutter, n_distractors : int
+        Random boxes, and reddish and greenish look-alike objects, in the
+        room (:func:`tudorvision.sim.scenes.lab_room`).
     image_ext, jpeg_quality : str, int
         Colour image format (the lab's default: JPEG, quality 92).
     sensor : SensorModel
@@ -102,6 +105,8 @@ class RailOptions:
     sphere_radius_m: float | None = None
     sphere_separation_m: float | None = None
     rig: StereoRigConfig = field(default_factory=StereoRigConfig)
+    n_clutter: int = 8
+    n_distractors: int = 4
     image_ext: str = ".jpg"
     jpeg_quality: int = 92
     sensor: SensorModel = field(default_factory=SensorModel)
@@ -188,6 +193,7 @@ def rail_lab(rng: np.random.Generator, opts: RailOptions = RailOptions()) -> Sim
     left, right = stereo_rig(np.eye(4), config=opts.rig)
     keep = (0.5 * opts.rail_xy_m[0], 0.5 * opts.rail_xy_m[1])
     shapes, lights = lab_room(rng, center_xy=(0.0, 0.0), keepout_xy=keep, keepout_radius_m=1.5,
+                              n_clutter=opts.n_clutter, n_distractors=opts.n_distractors,
                               size_m=(8.0, 7.0, opts.rig.height_m + 0.3), clutter_region_y=(-0.8, 3.4))
     # the rail: an aluminium profile from 0.15 m to 1.65 m on a post and a foot plate
     R_rail = np.column_stack([b, np.cross(d, b), d])
