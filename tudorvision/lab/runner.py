@@ -581,6 +581,7 @@ def _run_dask(book: _Book, todo, report: RunReport, *, scheduler, workers, proce
                     outcome = {"ok": False, "error": f"{type(exc).__name__}: {exc}".splitlines()[0],
                                "traceback": None, "duration_s": math.nan, "worker": None}
                 fut.release()
+                book.progress.n_running = min(max(pending - 1, 0), report.workers)
                 if book.finish(i, outcome):
                     ac.add(submit(i))
                 else:
