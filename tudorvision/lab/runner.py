@@ -520,9 +520,11 @@ def run_tasks(tasks, out, *, scheduler: str | None = "serial", workers: int | No
 def _run_serial(book: _Book, todo) -> None:
     for n, i in enumerate(todo):
         t = book.tasks[i]
-        while book.finish(i, execute_task(t.fn, t.args)):
-            pass
-        book.progress.running(min(1, len(todo) - n - 1))
+        while True:
+            outcome = execute_task(t.fn, t.args)
+            book.progress.n_running = min(1, len(todo) - n - 1)
+            if not book.finish(i, outcome):
+                break
 
 
 def _run_dask(book: _Book, todo, report: RunReport, *, scheduler, workers, processes, dashboard_address) -> None:
