@@ -85,7 +85,7 @@ def transform(seq, row: int) -> np.ndarray:
     return np.array([[tr[f"m{i}{j}"][row] for j in range(4)] for i in range(4)])
 
 
-def run_method(seq, path, method: str):
+def run_method(seq, path, method: str, pick_at=None):
     """(points (N, 3) in the left camera frame, seconds, note) for ``ours``, ``moment`` or ``oracle``."""
     t0 = time.perf_counter()
     if method == "oracle":
@@ -96,10 +96,10 @@ def run_method(seq, path, method: str):
         return np.asarray(tri.ee, float), time.perf_counter() - t0, "exact centroids"
     tracker, _ = luma_edge_params("auto", path, "circle" if method == "ours" else "centroid")
     try:
-        models, k, picks = user_pick_models(seq, verify_params=tracker.segment)
+        models, k, picks = user_pick_models(seq, verify_params=tracker.segment, start_height_m=pick_at)
     except TudorVisionError as exc:
         return np.full((len(seq), 3), np.nan), time.perf_counter() - t0, f"pick refused: {exc}"
-    note = f"picked on frame {k}" + (f" ({' '.join(picks)})" if k else "")
+    note = f"picked on frame {k}" + (f" ({' '.join(picks)})" if k and pick_at is None else "")
     off = load_robot_params().sphere_offsets_ee_m
     sep = float(np.linalg.norm(np.subtract(off["red"], off["green"])))
     opts = PipelineOptions(tracker=tracker, sphere_separation_m=sep)
@@ -109,7 +109,7 @@ def run_method(seq, path, method: str):
     return p, time.perf_counter() - t0, note
 
 
-def evaluate(path: Path) -> dict:
+def evaluate(path: Path, pick_at=None) -> dict:
     seq = open_sequence(path)
     rail = seq.groundtruth("rail")
     h = np.asarray(rail["height_m"], float)
@@ -123,7 +123,7 @@ def evaluate(path: Path) -> dict:
     top = workspace_top_m()
     out = {"frames": len(seq), "heights_m": sorted(set(h.tolist()))}
     for m in METHODS:
-        p, dt, note = run_method(seq, path, m)
+        p, dt, note = run_method(seq, path, m, pick_at)
         if not np.isfinite(p).any():
             raise SystemExit(f"{path.name} {m}: {note}")
         fit = rail_deviation(p, h)
@@ -180,42 +180,46 @@ def print_per_height(r: dict) -> None:
 
 
 def plot(results: dict, path: str) -> None:
+    """Rows: rail places; columns: axes x/y/z; per seed, ours (solid, +-std bars) and moment (dashed)."""
+    import io
+
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 3, figsize=(8.0, 2.6), sharey=True)
-    styles = {("ours", "centre"): dict(color="k", ls="-"), ("ours", "border"): dict(color="0.6", ls="-"),
-              ("moment", "centre"): dict(color="k", ls="--"), ("moment", "border"): dict(color="0.6", ls="--")}
-    top = workspace_top_m()
-    for (m, place), st in styles.items():
-        runs = [r[m] for (pl, _), r in results.items() if pl == place]
-        if not runs:
-            continue
-        hs = np.array(runs[0]["heights_m"])
-        mean = np.mean([r["fit_mean_mm"] for r in runs], axis=0)
-        std = np.sqrt(np.mean(np.square([r["fit_std_mm"] for r in runs]), axis=0))
-        for k, ax in enumerate(axes):
-            label = f"{'circle (ours)' if m == 'ours' else 'moment (seed)'}, {place}" if k == 0 else None
-            if m == "ours":
-                ax.errorbar(hs, mean[:, k], yerr=std[:, k], lw=1, capsize=1.5, label=label, **st)
-            else:
-                ax.plot(hs, mean[:, k], lw=1, label=label, **st)
-    for k, ax in enumerate(axes):
-        ax.axhspan(-1.0, 1.0, color="g", alpha=0.08)
-        ax.axvline(top, color="r", lw=0.6, ls=":")
-        ax.set_title(f"{'xyz'[k]} (left camera)", fontsize=8)
-        ax.set_xlabel("slider height [m]", fontsize=8)
-        ax.tick_params(labelsize=7)
-    axes[0].set_ylabel("residual from fitted line [mm]", fontsize=8)
-    axes[0].legend(fontsize=6, loc="lower left")
-    fig.suptitle("B.5 rail: mean (+-std) residual per height, seeds averaged; green: +-1 mm, red: workspace top",
-                 fontsize=8)
-    fig.tight_layout()
     from tudorvision.io.atomic import write_bytes_atomic
-    import io
+
+    places = sorted({pl for pl, _ in results}, key=list(RAIL_POSITIONS_M).index)
+    seeds = sorted({sd for _, sd in results})
+    fig, axes = plt.subplots(len(places), 3, figsize=(8.0, 1.0 + 2.0 * len(places)), sharex=True, squeeze=False)
+    top = workspace_top_m()
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for i, place in enumerate(places):
+        for j, seed in enumerate(seeds):
+            r = results.get((place, seed))
+            if r is None:
+                continue
+            c = colors[j % len(colors)]
+            o, mo = r["ours"], r["moment"]
+            for k, ax in enumerate(axes[i]):
+                hs = np.array(o["heights_m"])
+                ax.errorbar(hs, np.array(o["fit_mean_mm"])[:, k], yerr=np.array(o["fit_std_mm"])[:, k], color=c,
+                            lw=0.9, capsize=1.2, elinewidth=0.5, label=f"circle (ours), seed {seed}" if k == 0 else None)
+                ax.plot(mo["heights_m"], np.array(mo["fit_mean_mm"])[:, k], color=c, lw=0.8, ls="--",
+                        label=f"moment (seed's), seed {seed}" if k == 0 else None)
+        for k, ax in enumerate(axes[i]):
+            ax.axhspan(-1.0, 1.0, color="g", alpha=0.08)
+            ax.axvline(top, color="r", lw=0.6, ls=":")
+            ax.set_title(f"{place} rail, {'xyz'[k]} (left camera)", fontsize=8)
+            ax.tick_params(labelsize=7)
+            if i == len(places) - 1:
+                ax.set_xlabel("slider height [m]", fontsize=8)
+        axes[i][0].set_ylabel("residual [mm]", fontsize=8)
+    axes[0][0].legend(fontsize=5.5, loc="best", ncol=2)
+    fig.suptitle("B.5 rail: per-height mean (+-std) residual from the fitted line; green: a 2 mm band, "
+                 "red: top of the workspace", fontsize=8)
+    fig.tight_layout()
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
+    fig.savefig(buf, format="png", dpi=80)
     plt.close(fig)
     write_bytes_atomic(path, buf.getvalue())
 
@@ -231,6 +235,8 @@ def main(argv=None) -> int:
     ap.add_argument("--json", help="also write the results to this file")
     ap.add_argument("--plot", help="PNG of the residual per height")
     ap.add_argument("--per-height", action="store_true", help="print the per-height table of every run")
+    ap.add_argument("--pick-at", type=float, default=None, metavar="H",
+                    help="the simulated user picks on the first frame at height H m (default: the first frame)")
     ap.add_argument("--distractors", type=int, default=4,
                     help="reddish and greenish look-alike objects in the room (default 4, as the stereo lab)")
     args = ap.parse_args(argv)
@@ -244,7 +250,7 @@ def main(argv=None) -> int:
     for seed in args.seeds:
         for place in args.places:
             path = render(work, seed, place, args.frames, heights, args.image_ext, args.distractors)
-            r = evaluate(path)
+            r = evaluate(path, args.pick_at)
             results[(place, seed)] = r
             for m in METHODS:
                 s = r[m]

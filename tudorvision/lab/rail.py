@@ -391,7 +391,7 @@ def _transform(seq, row: int) -> np.ndarray:
     return np.array([[tr[f"m{i}{j}"][row] for j in range(4)] for i in range(4)])
 
 
-def user_pick_models(seq, *, verify_params=None, edge_factors=(0.8, 0.6)):
+def user_pick_models(seq, *, verify_params=None, edge_factors=(0.8, 0.6), start_height_m=None):
     """Colour models from a simulated user's clicks, as ``tudorvision stereo colormodel --pick`` makes them.
 
     The user clicks, on one stereo pair, the pixel under each sphere's centre
@@ -411,6 +411,9 @@ def user_pick_models(seq, *, verify_params=None, edge_factors=(0.8, 0.6)):
         centre method).
     edge_factors : sequence of float
         Edge-pixel distances tried, in apparent sphere radii.
+    start_height_m : float, optional
+        Pick first on the first frame of the height nearest this (then the
+        following heights, then the ones below); None: the first frame.
 
     Returns
     -------
@@ -428,8 +431,14 @@ def user_pick_models(seq, *, verify_params=None, edge_factors=(0.8, 0.6)):
     from ..stereo import ColorModelSet, fit_color_model
 
     gt = seq.groundtruth("ee")
-    h = np.asarray(seq.groundtruth("rail")["height_index"], int)
-    firsts = [int(np.argmax(h == k)) for k in np.unique(h)]
+    rail = seq.groundtruth("rail")
+    h = np.asarray(rail["height_index"], int)
+    ks = np.unique(h)
+    firsts = [int(np.argmax(h == k)) for k in ks]
+    if start_height_m is not None:
+        hm = np.asarray(rail["height_m"], float)[firsts]
+        j = int(np.argmin(np.abs(hm - float(start_height_m))))
+        firsts = firsts[j:] + firsts[:j][::-1]
     r = load_robot_params().sphere_radius_m
     T_cam_base = {cam: np.linalg.inv(_transform(seq, row)) for row, cam in enumerate(("left", "right"))}
     last = ""
