@@ -1,0 +1,451 @@
+"""Chapter 8 of the seed as runner tasks: oscillation damping compared over experiments, laws and payloads.
+
+One task is one simulated run of an experiment of figure 8.1 (a point-to-point
+move of joints 2 and 3 with a payload, strain measurement noise drawn from the
+run's seed) under one damping law; it returns the chapter's metrics (B.4) of
+the run for both strain signals (``online``: what the damper sees; ``dynamic``:
+the noise-free strain minus the static strain of the pose), so that only a few
+numbers travel back from a worker. The metrics' spectral amplitude needs the
+dominant frequency of the experiment, taken from its undamped run with seed 0:
+:func:`run_damping_study` runs those runs first (one task per group) and hands
+the frequency to the others as a parameter.
+
+The benchmark scripts ``benchmarks/bench_damping_ch8.py`` and
+``benchmarks/bench_damping_payloads.py`` build on these functions; the runner
+(:mod:`tudorvision.lab.runner`) runs the tasks serially, on a local Dask
+cluster or on a running scheduler with the same results.
+"""
+from __future__ import annotations
+
+import csv
+import dataclasses
+import io
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from ..joint.cascade import friction_compensation
+from ..joint.controlled import ControlledArm
+from ..joint.damping import ASSISTED_GAINS, DampingConfig, StrainDamper
+from ..joint.identification import fit_with_validation
+from ..joint.metrics import METRIC_NAMES, damping_metrics, normalise_metrics
+from ..joint.strain_dynamics import StrainDynamicsModel, aprbs, derivatives
+from ..io.atomic import write_text_atomic
+from ..robot import load_robot_params
+from ..sim.arm import ElasticArm, Payload, PlantConfig, link_static_loads
+from .runner import Task, config_digest, run_tasks
+
+__all__ = ["OPS_DEG", "EXPERIMENTS", "LAWS", "HORIZON_S", "SIGNALS", "ID_LO_RAD", "ID_HI_RAD",
+           "static_strain_link2_root", "friction_feedforward", "run_experiment", "dominant_freq", "ch8_task",
+           "run_damping_study", "evaluate", "runs_csv", "identification_task", "identify"]
+
+#: Operating points of figure 8.1, deg (assumed; see ``benchmarks/bench_damping_ch8.py``).
+OPS_DEG = {1: (0.0, 0.0, 0.0), 2: (0.0, 45.0, -45.0), 3: (0.0, 90.0, 0.0), 4: (0.0, 135.0, 45.0),
+           5: (0.0, 180.0, 0.0)}
+_SMALL = (0.0, 5.0, 5.0)
+#: The 12 experiments: name -> (start, goal) joint angles, deg.
+EXPERIMENTS = {f"{i:02d}": (OPS_DEG[i], tuple(a + b for a, b in zip(OPS_DEG[i], _SMALL))) for i in range(1, 6)}
+EXPERIMENTS.update({"06": (OPS_DEG[1], OPS_DEG[2]), "07": (OPS_DEG[2], OPS_DEG[3]),
+                    "08": (OPS_DEG[3], OPS_DEG[4]), "09": (OPS_DEG[4], OPS_DEG[5]),
+                    "10": (OPS_DEG[1], OPS_DEG[3]), "11": (OPS_DEG[3], OPS_DEG[5]),
+                    "12": (OPS_DEG[5], OPS_DEG[2])})
+#: The undamped cascade and the three damping laws.
+LAWS = ("off", "proportional", "integral", "half_integrator")
+#: Horizon of a run and of the strain settling time's normalisation, s.
+HORIZON_S = 10.0
+#: The two strain signals the metrics are taken on.
+SIGNALS = ("online", "dynamic")
+#: APRBS ranges of the identification for the model-assisted cancellation (joints 2, 3), rad: they
+#: cover the operating points of figure 8.1 (joint 2 from horizontal to horizontal).
+ID_LO_RAD, ID_HI_RAD = np.deg2rad([-5.0, -60.0]), np.deg2rad([185.0, 60.0])
+
+
+def static_strain_link2_root(arm: ElasticArm, theta) -> np.ndarray:
+    """Static strain at the link-2 root gauge for given poses (the plant's formula).
+
+    Parameters
+    ----------
+    arm : ElasticArm
+        The plant (bodies, gravity, link model).
+    theta : array_like, shape (N, 3)
+        Joint angles, rad.
+
+    Returns
+    -------
+    ndarray, shape (N,)
+        Strain, m/m.
+    """
+    l2, _ = link_static_loads(np.asarray(theta, float), arm.bodies, arm.g)
+    lm = arm.link2
+    x = lm.gauges[0]
+    c = (l2[:, 0] * (lm.L - x) ** 2 / 2.0 + l2[:, 1] * (lm.L - x) + l2[:, 2]) / lm.EI
+    return -0.5 * lm.h * c
+
+
+def friction_feedforward(spec: str | None, params):
+    """The velocity loop's Coulomb feed-forward from ``"SOURCE:SCALE:BAND"`` (e.g. ``measured:1.0:0.01``).
+
+    Parameters
+    ----------
+    spec : str or None
+        Source (``reference``, ``measured`` or ``command``), scale and ramp band (rad/s); ``None`` or ``""``: none.
+    params : RobotParams
+        Robot parameters (the A.3 friction model).
+
+    Returns
+    -------
+    FrictionCompensation or None
+        The feed-forward.
+
+    Raises
+    ------
+    ValueError
+        On a malformed ``spec``.
+    """
+    if not spec:
+        return None
+    try:
+        src, scale, band = spec.split(":")
+        comp = friction_compensation(params, scale=float(scale), w_band=float(band))
+    except ValueError:
+        raise ValueError(f"--friction-ff: expected SOURCE:SCALE:BAND, got {spec!r}") from None
+    return dataclasses.replace(comp, source=src)
+
+
+def run_experiment(exp: str, law: str, k_eps, *, two_way: bool, noise: float, seed: int,
+                   horizon_s: float = HORIZON_S, plates: int = 3, coulomb: bool = True,
+                   friction_ff: str | None = None, model_chi=None) -> dict:
+    """Simulate one run of an experiment; the series the metrics need, decimated to 500 Hz.
+
+    Parameters
+    ----------
+    exp : str
+        Experiment name (key of :data:`EXPERIMENTS`).
+    law : str
+        Damping law (:data:`LAWS`).
+    k_eps : sequence of float, length 3
+        Damping gains, rad/s per m/m.
+    two_way : bool
+        Two-way coupled plant.
+    noise : float
+        Strain noise standard deviation, m/m.
+    seed : int
+        Noise seed.
+    horizon_s : float
+        Simulated time, s.
+    plates : int
+        Test plates (100 g each) on the end-effector mount.
+    coulomb : bool
+        Coulomb friction in the joints.
+    friction_ff : str or None
+        Coulomb feed-forward (:func:`friction_feedforward`).
+    model_chi : array_like or None
+        Parameters of a :class:`~tudorvision.joint.strain_dynamics.StrainDynamicsModel` for the
+        model-assisted static strain cancellation.
+
+    Returns
+    -------
+    dict
+        ``t`` (N,) s, ``theta2`` and ``ref2`` (N,) rad, ``eps_online``, ``eps3_online`` and ``eps_dynamic``
+        (N,) m/m, ``goal2`` rad, ``final_err_deg`` (3,).
+    """
+    p = load_robot_params()
+    start, goal = (np.deg2rad(v) for v in EXPERIMENTS[exp])
+    cfg = PlantConfig(two_way=two_way, strain_noise_m_m=noise, noise_seed=seed, coulomb_friction=coulomb)
+    arm = ElasticArm(start, payload=Payload.from_parts(p, plates=plates), params=p, config=cfg)
+    ca = ControlledArm(arm, friction=friction_feedforward(friction_ff, p))
+    model = None if model_chi is None else StrainDynamicsModel(chi=np.asarray(model_chi))
+    damper = StrainDamper(DampingConfig(law=law, k_eps=tuple(k_eps)), arm.measured_strain(), cfg.dt,
+                          strain_model=model, payload_kg=arm.payload.mass_kg)
+    ca.set_damper(damper)
+    ca.set_goal(goal)
+    n = int(round(horizon_s / cfg.dt))
+    dec = 4
+    t, th2, ref2, et0, et2, th, strain0 = [], [], [], [], [], [], []
+    t0 = arm.t
+    for k in range(n):
+        ca.step()
+        if k % dec == 0:
+            t.append(arm.t - t0)
+            th.append(list(arm.theta))
+            th2.append(arm.theta[1])
+            ref2.append(ca.theta_ref[1])
+            et0.append(damper.eps_tilde[0])
+            et2.append(damper.eps_tilde[2])
+            strain0.append(arm.strain[0])
+    dyn = np.asarray(strain0) - static_strain_link2_root(arm, np.asarray(th))
+    return {"t": np.asarray(t), "theta2": np.asarray(th2), "ref2": np.asarray(ref2),
+            "eps_online": np.asarray(et0), "eps3_online": np.asarray(et2), "eps_dynamic": dyn,
+            "goal2": float(goal[1]), "final_err_deg": np.rad2deg(np.asarray(arm.theta) - goal).tolist()}
+
+
+def dominant_freq(t, x) -> float:
+    """Frequency of the largest spectral peak of ``x`` between 1 and 6 Hz.
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Uniform sample times, s.
+    x : ndarray, shape (N,)
+        The signal.
+
+    Returns
+    -------
+    float
+        Hz.
+    """
+    f = np.fft.rfftfreq(t.size, t[1] - t[0])
+    X = np.abs(np.fft.rfft(x - x.mean()))
+    m = (f > 1.0) & (f < 6.0)
+    return float(f[m][np.argmax(X[m])])
+
+
+def ch8_task(exp: str, law: str, k_eps, two_way: bool, noise: float, seed: int, horizon_s: float, plates: int,
+             coulomb: bool, friction_ff: str | None, model_chi, freq_hz: float | None) -> dict:
+    """One run as a runner task: the run's metrics on both strain signals (a few numbers, not the series).
+
+    Parameters
+    ----------
+    exp, law, k_eps, two_way, noise, seed, horizon_s, plates, coulomb, friction_ff, model_chi
+        As for :func:`run_experiment`.
+    freq_hz : float or None
+        Dominant frequency of the experiment for the spectral amplitude, Hz; ``None``: this run's own
+        (the undamped run with seed 0 gives it to the others).
+
+    Returns
+    -------
+    dict
+        ``freq_hz`` (used), ``metrics`` (``{signal: damping metrics}`` for :data:`SIGNALS`),
+        ``eps3_tail_max`` (largest link-3 root online strain in the last 2 s, m/m), ``final_err_deg`` (3,).
+    """
+    r = run_experiment(exp, law, k_eps, two_way=two_way, noise=noise, seed=seed, horizon_s=horizon_s,
+                       plates=plates, coulomb=coulomb, friction_ff=friction_ff, model_chi=model_chi)
+    freq = dominant_freq(r["t"], r["eps_dynamic"]) if freq_hz is None else float(freq_hz)
+    metrics = {s: damping_metrics(r["t"], r[f"eps_{s}"], r["theta2"], r["ref2"], theta_goal=r["goal2"],
+                                  freq_hz=freq, horizon_s=horizon_s) for s in SIGNALS}
+    tail = r["t"] > horizon_s - 2.0
+    return {"freq_hz": freq, "metrics": metrics, "eps3_tail_max": float(np.max(np.abs(r["eps3_online"][tail]))),
+            "final_err_deg": r["final_err_deg"]}
+
+
+def run_damping_study(out, groups, labels, reps: int, run_args: Callable, *, experiment: str = "ch8",
+                      scheduler: str | None = "serial", workers: int | None = None, show_progress=None,
+                      processes: bool = True, dashboard_address: str | None = ":8787"):
+    """Run ``groups x labels x reps`` runs through the runner, undamped seed-0 runs first.
+
+    Parameters
+    ----------
+    out : str or Path
+        Output folder of the runner's records.
+    groups : sequence of str
+        Groups normalised together (experiments, or payloads).
+    labels : sequence of str
+        Cases per group; ``labels[0]`` is the undamped reference.
+    reps : int
+        Repetitions (noise seeds ``0 .. reps-1``).
+    run_args : callable
+        ``run_args(group, label)`` -> dict of :func:`ch8_task`'s arguments but ``seed`` and ``freq_hz``
+        (JSON values but ``model_chi``, an array or ``None``).
+    experiment : str
+        Experiment name of the tasks.
+    scheduler, workers, show_progress, processes, dashboard_address
+        As for :func:`~tudorvision.lab.runner.run_tasks`.
+
+    Returns
+    -------
+    results : dict
+        ``{(group, label, seed): ch8_task result}`` for the runs that finished.
+    reports : list of RunReport
+        The runner's reports (reference runs, then the others).
+    """
+    def task(group, label, seed, freq):
+        kw = dict(run_args(group, label))
+        chi = kw.pop("model_chi", None)
+        params = {"group": group, "label": label, **kw, "model": None if chi is None else
+                  config_digest(np.asarray(chi).tolist()), "freq_hz": freq}
+        args = (kw["exp"], kw["law"], tuple(kw["k_eps"]), kw["two_way"], kw["noise"], seed, kw["horizon_s"],
+                kw["plates"], kw["coulomb"], kw["friction_ff"], chi, freq)
+        return (group, label, seed), Task(experiment, params, seed, ch8_task, args)
+
+    common = dict(scheduler=scheduler, workers=workers, show_progress=show_progress, processes=processes,
+                  dashboard_address=dashboard_address)
+    first = [task(g, labels[0], 0, None) for g in groups]
+    reports = [run_tasks([t for _, t in first], out, label=f"{experiment} reference runs", **common)]
+    results = {k: rec["result"] for (k, _), rec in zip(first, reports[0].records)
+               if rec is not None and rec["status"] == "done"}
+    freq = {g: results[(g, labels[0], 0)]["freq_hz"] for g in groups if (g, labels[0], 0) in results}
+    rest = [task(g, lab, s, freq[g]) for g in groups if g in freq for lab in labels for s in range(reps)
+            if (lab, s) != (labels[0], 0)]
+    if rest and not reports[0].interrupted:
+        reports.append(run_tasks([t for _, t in rest], out, label=f"{experiment} runs", **common))
+        results.update({k: rec["result"] for (k, _), rec in zip(rest, reports[1].records)
+                        if rec is not None and rec["status"] == "done"})
+    return results, reports
+
+
+def evaluate(results: dict, groups, labels, reps: int, *, horizon_s: float = HORIZON_S) -> dict:
+    """Normalised statistics per (signal, group, label) from the runs' metrics.
+
+    Parameters
+    ----------
+    results : dict
+        ``{(group, label, seed): ch8_task result}``, all runs present.
+    groups : sequence of str
+        Groups (experiments or payloads).
+    labels : sequence of str
+        Cases; ``"off"`` (or ``labels[0]``) is the undamped reference.
+    reps : int
+        Repetitions.
+    horizon_s : float
+        Horizon of the strain settling time's normalisation, s.
+
+    Returns
+    -------
+    dict
+        ``{(signal, group, label): row}``; a row holds ``freq_hz``, ``<metric>_pct``, ``<metric>_pct_std``
+        (percent of the undamped mean), ``<metric>_abs`` (mean) and ``final_joint_error_deg_max``.
+    """
+    ref = "off" if "off" in labels else labels[0]
+    table = {}
+    for signal in SIGNALS:
+        for g in groups:
+            freq = results[(g, ref, 0)]["freq_hz"]
+            mu = [results[(g, ref, s)]["metrics"][signal] for s in range(reps)]
+            u_mean = {k: float(np.mean([m[k] for m in mu])) for k in METRIC_NAMES}
+            for lab in labels:
+                ms = [results[(g, lab, s)]["metrics"][signal] for s in range(reps)]
+                norm = [normalise_metrics(m, u_mean, horizon_s=horizon_s) for m in ms]
+                row = {"freq_hz": freq}
+                for k in METRIC_NAMES:
+                    v = np.array([n[k] for n in norm])
+                    row[k + "_pct"] = float(v.mean())
+                    row[k + "_pct_std"] = float(v.std())
+                    row[k + "_abs"] = float(np.mean([m[k] for m in ms]))
+                row["final_joint_error_deg_max"] = float(max(abs(np.rad2deg(m["final_joint_error_rad"]))
+                                                             for m in ms))
+                table[(signal, g, lab)] = row
+    return table
+
+
+def runs_csv(results: dict, path) -> int:
+    """Write one row per run (group, label, seed, frequency, metrics of both signals) in key order.
+
+    Parameters
+    ----------
+    results : dict
+        ``{(group, label, seed): ch8_task result}``.
+    path : str or Path
+        The CSV file (written atomically).
+
+    Returns
+    -------
+    int
+        Rows written.
+    """
+    head = (["group", "label", "seed", "freq_hz"] + [f"{s}_{k}" for s in SIGNALS for k in METRIC_NAMES]
+            + [f"{s}_final_joint_error_rad" for s in SIGNALS] + ["eps3_tail_max", "final_err2_deg", "final_err3_deg"])
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(head)
+    for (g, lab, s) in sorted(results):
+        r = results[(g, lab, s)]
+        m = r["metrics"]
+        w.writerow([g, lab, s, repr(r["freq_hz"])] + [repr(m[si][k]) for si in SIGNALS for k in METRIC_NAMES]
+                   + [repr(m[si]["final_joint_error_rad"]) for si in SIGNALS]
+                   + [repr(r["eps3_tail_max"]), repr(r["final_err_deg"][1]), repr(r["final_err_deg"][2])])
+    write_text_atomic(Path(path), buf.getvalue())
+    return len(results)
+
+
+def identification_task(plates: int, seconds: float, two_way: bool, noise: float, seed: int, coulomb: bool) -> dict:
+    """APRBS motion of joints 2, 3 with proportional damping; 100 Hz samples for the strain-dynamics fit.
+
+    Parameters
+    ----------
+    plates : int
+        Test plates (100 g each).
+    seconds : float
+        Length of the motion, s.
+    two_way : bool
+        Two-way coupled plant.
+    noise : float
+        Strain noise, m/m.
+    seed : int
+        Seed of the APRBS and the noise.
+    coulomb : bool
+        Coulomb friction in the joints.
+
+    Returns
+    -------
+    dict
+        ``t`` (M,) s, ``theta``, ``d``, ``dd`` (M, 3) rad, rad/s, rad/s^2, ``eps`` (M, 2) m/m, ``m`` (M,) kg,
+        ``plates``.
+    """
+    p = load_robot_params()
+    rng = np.random.default_rng(seed)
+    times, levels = aprbs(rng, seconds, ID_LO_RAD, ID_HI_RAD)
+    cfg = PlantConfig(two_way=two_way, strain_noise_m_m=noise, noise_seed=seed, coulomb_friction=coulomb)
+    arm = ElasticArm([0.0, levels[0, 0], levels[0, 1]], payload=Payload.from_parts(p, plates=plates), params=p,
+                     config=cfg)
+    ca = ControlledArm(arm)
+    # damped as in the seed's identification (10.4); ONE_WAY_GAINS' link-3 gain lets the long APRBS
+    # runs grow joint-3 oscillations (see ASSISTED_GAINS), so the assisted gains damp here
+    k = ASSISTED_GAINS["two-way" if two_way else "one-way"]
+    ca.set_damper(StrainDamper(DampingConfig(law="proportional", k_eps=k), arm.measured_strain(), cfg.dt))
+    n = int(round(seconds / cfg.dt))
+    th, eps = np.empty((n, 3)), np.empty((n, 2))
+    nxt = 1
+    for i in range(n):
+        if nxt < times.size and i * cfg.dt >= times[nxt]:
+            ca.set_goal([0.0, levels[nxt, 0], levels[nxt, 1]])
+            nxt += 1
+        ca.step()
+        th[i] = arm.measured_theta()
+        ms = arm.measured_strain()
+        eps[i] = ms[0], ms[2]
+    t = np.arange(n) * cfg.dt
+    d, dd = derivatives(t, th, window_s=0.04)
+    sl = slice(200, -200, 20)
+    return {"t": t[sl], "theta": th[sl], "d": d[sl], "dd": dd[sl], "eps": eps[sl],
+            "m": np.full(t[sl].size, arm.payload.mass_kg), "plates": plates}
+
+
+def identify(out, *, two_way: bool, seconds: float, noise: float, coulomb: bool, scheduler: str | None = "serial",
+             workers: int | None = None, show_progress=None):
+    """Strain-referred dynamics (10.2.8) by least squares on APRBS runs with payloads 0-400 g, via the runner.
+
+    Fit on alternate 5 s blocks, validation (B.4 goodness of fit) on the others. Noise
+    seeds 900+ (the experiments use 0..reps-1).
+
+    Parameters
+    ----------
+    out : str or Path
+        Output folder of the runner's records.
+    two_way, seconds, noise, coulomb
+        As for :func:`identification_task` (``seconds`` per payload).
+    scheduler, workers, show_progress
+        As for :func:`~tudorvision.lab.runner.run_tasks`.
+
+    Returns
+    -------
+    model : StrainDynamicsModel
+        The fit.
+    fits : dict
+        Validation fit (%) and RMSE (um/m) of the link-2 / link-3 root strain per payload.
+
+    Raises
+    ------
+    RuntimeError
+        When an identification run failed or was interrupted.
+    """
+    tasks = [Task("ch8-id", {"plates": pl, "seconds": seconds, "two_way": two_way, "noise": noise,
+                             "coulomb": coulomb}, 900 + pl, identification_task,
+                  (pl, seconds, two_way, noise, 900 + pl, coulomb)) for pl in range(5)]
+    rep = run_tasks(tasks, out, scheduler=scheduler, workers=workers, show_progress=show_progress,
+                    label="ch8 identification")
+    if not rep.complete:
+        raise RuntimeError(f"identification: {len(rep.failed)} run(s) failed"
+                           + (", interrupted" if rep.interrupted else ""))
+    data = [{k: (v if k == "plates" else np.asarray(v, float)) for k, v in r["result"].items()} for r in rep.records]
+    return fit_with_validation(data)
