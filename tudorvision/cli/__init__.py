@@ -32,6 +32,7 @@ COMMAND_MODULES = (
     "tudorvision.cli.joint",
     "tudorvision.cli.demo",
     "tudorvision.cli.label",
+    "tudorvision.cli.robot",
 )
 
 
