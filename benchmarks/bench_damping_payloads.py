@@ -10,31 +10,39 @@ noise, for the undamped cascade and a damping law with
   (``PAYLOAD_SCHEDULE``, ``default_damping_config(..., payload_kg=m)``).
 
 Metrics (B.4) on the link-2 root gauge and joint 2, normalised to the undamped
-case at the same payload (``bench_damping_ch8.evaluate``), plus the largest
+case at the same payload (``tudorvision.lab.ch8_experiments.evaluate``), plus the largest
 link-3 root oscillation in the last 2 s of the 10 s horizon (um/m), which shows
 a link-3 oscillation that the damping itself sustains.
 
 Run:  .venv/bin/python benchmarks/bench_damping_payloads.py [--reps 10] [--plates 0,1,2,3,4,5,6]
-      [--law proportional] [--noise 2e-6] [--jobs 2] [--out out/damping_payloads]
+      [--law proportional] [--noise 2e-6] [--scheduler serial|local|tcp://HOST:8786] [--workers 2]
+      [--out out/damping_payloads]
+
+The runs go through the experiment runner (tudorvision.lab.runner, docs/experiments.md): each finished
+run is recorded in OUT/runs/ as it arrives, running the command again resumes; ``--jobs`` is the old name
+of ``--workers``; timing goes to OUT/runner.json (no longer to meta.json).
 """
 from __future__ import annotations
 
 import argparse
 import csv
+import io
 import json
 import os
+import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from _machine import cpu_model  # benchmarks/ is on sys.path when run as a script
-from bench_damping_ch8 import HORIZON_S, evaluate, run_experiment
+from bench_damping_ch8 import check_scheduler, runner_info, scheduler_options  # benchmarks/ is on sys.path
+from tudorvision.io.atomic import write_text_atomic
 from tudorvision.joint.damping import ONE_WAY_GAINS, default_damping_config
 from tudorvision.joint.metrics import METRIC_NAMES
+from tudorvision.lab.ch8_experiments import (DROP_MOVE_DEG, DROP_POSE_DEG, HORIZON_S, evaluate, payload_change_task,
+                                             run_damping_study, runs_csv)
+from tudorvision.lab.runner import Task, run_tasks
 from tudorvision.robot import load_robot_params
-from tudorvision.sim.arm import Payload, PlantConfig
-from tudorvision.lab.simulation import SimCore
+from tudorvision.sim.arm import Payload
 
 LABELS = ("off", "fixed", "scheduled")
 COLORS = {"off": "0.5", "fixed": "C0", "scheduled": "C1"}
@@ -48,88 +56,63 @@ def _gains(label: str, law: str, mass_kg: float):
     return law, default_damping_config(law, payload_kg=mass_kg).k_eps
 
 
-def _job(args):
-    plates, label, law, mass, noise, seed = args
-    real_law, k = _gains(label, law, mass)
-    r = run_experiment("06", real_law, k, two_way=False, noise=noise, seed=seed, plates=plates)
-    tail = r["t"] > HORIZON_S - 2.0
-    r["eps3_tail_max"] = float(np.max(np.abs(r["eps3_online"][tail])))
-    return (f"{plates}", label, seed), r
-
-
-#: Payload-change scenario: the arm rests at DROP_POSE_DEG with the 0.5 kg camera rig, the rig is
-#: taken off (0.05 kg mount left) and the arm moves by DROP_MOVE_DEG; ``scheduled`` is told the new
-#: payload at once (``SimCore.set_payload``), ``fixed`` keeps the 300 g gains.
-DROP_POSE_DEG, DROP_MOVE_DEG = (0.0, 60.4, 61.5), (0.0, 14.0, -45.0)
-
-
-def _drop_job(args):
-    label, law, noise, seed = args
-    p = load_robot_params()
-    pose = np.deg2rad(DROP_POSE_DEG)
-    core = SimCore(pose, payload=Payload.from_parts(p, camera=True), params=p,
-                   config=PlantConfig(two_way=False, strain_noise_m_m=noise, noise_seed=seed))
-    core.set_modes(damping={"proportional": 1, "integral": 2}[law], collision=0)
-    if label == "fixed":
-        core.controlled.damper.set_gains(ONE_WAY_GAINS[law])
-    core.step(1.0)
-    core.arm.set_payload(Payload.from_parts(p, balls=0))
-    if label == "scheduled":
-        core.set_payload(core.arm.payload.mass_kg)
-    core.step(0.5)
-    core.apply_setpoint(pose + np.deg2rad(DROP_MOVE_DEG), max_speed_rad_s=p.max_speed_rad_s,
-                        max_accel_rad_s2=p.max_accel_rad_s2)
-    env, last_big = [], 0.0
-    for k in range(int(round(HORIZON_S / 0.01))):
-        core.step(0.01)
-        e = abs(core.arm.strain[2] - core.controlled.damper.mu[2])
-        env.append(e)
-        if e > 15e-6:
-            last_big = (k + 1) * 0.01
-    env = np.asarray(env)
-    return label, seed, {"tail_max": float(env[-200:].max()), "settling_s": last_big,
-                         "speed_frac": float(np.max(np.abs(core.state().theta_dot) / p.max_speed_rad_s))}
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reps", type=int, default=10)
     ap.add_argument("--plates", default="0,1,2,3,4,5,6", help="comma-separated plate counts (100 g each)")
     ap.add_argument("--law", default="proportional", choices=("proportional", "integral"))
     ap.add_argument("--noise", type=float, default=2e-6, help="strain noise std, m/m")
-    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
+    scheduler_options(ap)
     ap.add_argument("--out", default="out/damping_payloads")
     a = ap.parse_args(argv)
+    check_scheduler(ap, a)
     try:
         plates = [int(x) for x in a.plates.split(",") if x]
     except ValueError:
         ap.error(f"--plates: expected comma-separated integers, got {a.plates!r}")
     if not plates or min(plates) < 0:
         ap.error(f"--plates: expected plate counts >= 0, got {a.plates!r}")
+    if a.reps < 1:
+        ap.error(f"--reps: expected >= 1, got {a.reps}")
+    progress = False if a.quiet else None
     p = load_robot_params()
     mass = {pl: Payload.from_parts(p, plates=pl).mass_kg for pl in plates}
-    jobs = [(pl, lab, a.law, mass[pl], a.noise, s) for pl in plates for lab in LABELS for s in range(a.reps)]
     t0 = time.time()
-    results = {}
-    with ProcessPoolExecutor(max_workers=a.jobs) as ex:
-        for key, r in ex.map(_job, jobs, chunksize=2):
-            results[key] = r
+
+    def run_args(group, label):
+        law, k = _gains(label, a.law, mass[int(group)])
+        return {"exp": "06", "law": law, "k_eps": [float(x) for x in k], "two_way": False, "noise": a.noise,
+                "horizon_s": HORIZON_S, "plates": int(group), "coulomb": True, "friction_ff": None,
+                "model_chi": None}
+
     exps = [f"{pl}" for pl in plates]
+    results, reports = run_damping_study(a.out, exps, LABELS, a.reps, run_args, experiment="ch8-payloads",
+                                         scheduler=a.scheduler, workers=a.workers, show_progress=progress)
+    drop_keys = [(lab, s) for lab in LABELS[1:] for s in range(a.reps)]
+    if all(r.complete for r in reports):
+        reports.append(run_tasks([Task("ch8-payload-change", {"label": lab, "law": a.law, "noise": a.noise}, s,
+                                        payload_change_task, (lab, a.law, a.noise, s)) for lab, s in drop_keys],
+                                 a.out, scheduler=a.scheduler, workers=a.workers, show_progress=progress,
+                                 label="payload change"))
+    info = runner_info(reports, t0, a)
+    write_text_atomic(os.path.join(a.out, "runner.json"), json.dumps(info, indent=1))
+    if not info["complete"]:
+        print(f"incomplete ({sum(len(r.failed) for r in reports)} failed run(s)"
+              f"{', interrupted' if info['interrupted'] else ''}); records kept in {a.out}/runs, runner.json lists "
+              "the failures; run again to resume", file=sys.stderr)
+        return 130 if info["interrupted"] else 1
+    runs_csv(results, os.path.join(a.out, "runs.csv"))
     table = evaluate(results, exps, LABELS, a.reps)
     tails = {(e, lab): [results[(e, lab, s)]["eps3_tail_max"] for s in range(a.reps)]
              for e in exps for lab in LABELS}
     gains = {e: {lab: list(_gains(lab, a.law, mass[int(e)])[1]) for lab in LABELS} for e in exps}
     meta = {"law": a.law, "reps": a.reps, "noise": a.noise, "plates": plates,
-            "payload_kg": {e: mass[int(e)] for e in exps}, "gains": gains, "wall_s": time.time() - t0,
-            "cpu": cpu_model(), "jobs": a.jobs, "experiment": "06"}
+            "payload_kg": {e: mass[int(e)] for e in exps}, "gains": gains, "experiment": "06"}
     drop = {}
-    with ProcessPoolExecutor(max_workers=a.jobs) as ex:
-        for lab, seed, r in ex.map(_drop_job, [(lab, a.law, a.noise, s) for lab in LABELS[1:]
-                                                for s in range(a.reps)]):
-            drop.setdefault(lab, []).append(r)
+    for (lab, _), rec in zip(drop_keys, reports[-1].records):
+        drop.setdefault(lab, []).append(rec["result"])
     meta["payload_change"] = {"pose_deg": DROP_POSE_DEG, "move_deg": DROP_MOVE_DEG, "from_kg": 0.5, "to_kg": 0.05,
                               "runs": drop}
-    meta["wall_s"] = time.time() - t0
     _write(table, tails, exps, a, meta)
     for lab, runs in drop.items():
         print(f"payload change 0.5 -> 0.05 kg, {lab}: link-3 settled (15 um/m) in "
@@ -141,18 +124,20 @@ def main(argv=None):
               f"({f['strain_settling_s_pct']:.0f} %), scheduled {s['strain_settling_s_abs']:.2f} s "
               f"({s['strain_settling_s_pct']:.0f} %); link-3 tail max fixed {1e6 * max(tails[(e, 'fixed')]):.0f}, "
               f"scheduled {1e6 * max(tails[(e, 'scheduled')]):.0f} um/m", flush=True)
-    print(f"wrote {a.out} in {time.time() - t0:.0f} s", flush=True)
+    print(f"wrote {a.out} in {info['total_wall_s']:.0f} s ({a.scheduler}, {info['workers']} worker(s))", flush=True)
+    return 0
 
 
 def _write(table, tails, exps, a, meta):
     os.makedirs(a.out, exist_ok=True)
     keys = [k + s for k in METRIC_NAMES for s in ("_pct", "_pct_std", "_abs")] + ["final_joint_error_deg_max"]
-    with open(os.path.join(a.out, "payload_metrics.csv"), "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["signal", "plates", "payload_kg", "gains", "link3_tail_max_um_m"] + keys)
-        for (sig, e, lab), row in table.items():
-            w.writerow([sig, e, f"{meta['payload_kg'][e]:.3f}", lab, f"{1e6 * max(tails[(e, lab)]):.1f}"]
-                       + [f"{row[k]:.6g}" for k in keys])
+    buf = io.StringIO(newline="")
+    w = csv.writer(buf)
+    w.writerow(["signal", "plates", "payload_kg", "gains", "link3_tail_max_um_m"] + keys)
+    for (sig, e, lab), row in table.items():
+        w.writerow([sig, e, f"{meta['payload_kg'][e]:.3f}", lab, f"{1e6 * max(tails[(e, lab)]):.1f}"]
+                   + [f"{row[k]:.6g}" for k in keys])
+    write_text_atomic(os.path.join(a.out, "payload_metrics.csv"), buf.getvalue())
     short = {"max_strain": "max|eps|", "strain_settling_s": "T_CS(eps)", "spectral_amp": "|F(w1)|",
              "iats": "IATS", "joint_settling_s": "T_CS(theta2)", "iate": "IATE"}
     lines = [f"# Section 8.3 on the simulated TUDOR: experiment 06 with 0-{max(meta['plates']) * 100} g",
@@ -185,10 +170,8 @@ def _write(table, tails, exps, a, meta):
     lines += ["", "Undamped: " + "; ".join(
         f"{e} plates T_CS {table[('online', e, 'off')]['strain_settling_s_abs']:.2f} s, "
         f"link-3 tail {1e6 * max(tails[(e, 'off')]):.0f} um/m" for e in exps), ""]
-    with open(os.path.join(a.out, "payload_metrics.md"), "w") as fh:
-        fh.write("\n".join(lines) + "\n")
-    with open(os.path.join(a.out, "meta.json"), "w") as fh:
-        json.dump(meta, fh, indent=1)
+    write_text_atomic(os.path.join(a.out, "payload_metrics.md"), "\n".join(lines) + "\n")
+    write_text_atomic(os.path.join(a.out, "meta.json"), json.dumps(meta, indent=1))
     _figure(table, tails, exps, a, meta)
 
 
@@ -223,4 +206,4 @@ def _figure(table, tails, exps, a, meta):
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

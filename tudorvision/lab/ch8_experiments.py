@@ -27,7 +27,7 @@ import numpy as np
 
 from ..joint.cascade import friction_compensation
 from ..joint.controlled import ControlledArm
-from ..joint.damping import ASSISTED_GAINS, DampingConfig, StrainDamper
+from ..joint.damping import ASSISTED_GAINS, ONE_WAY_GAINS, DampingConfig, StrainDamper
 from ..joint.identification import fit_with_validation
 from ..joint.metrics import METRIC_NAMES, damping_metrics, normalise_metrics
 from ..joint.strain_dynamics import StrainDynamicsModel, aprbs, derivatives
@@ -35,10 +35,12 @@ from ..io.atomic import write_text_atomic
 from ..robot import load_robot_params
 from ..sim.arm import ElasticArm, Payload, PlantConfig, link_static_loads
 from .runner import Task, config_digest, run_tasks
+from .simulation import SimCore
 
 __all__ = ["OPS_DEG", "EXPERIMENTS", "LAWS", "HORIZON_S", "SIGNALS", "ID_LO_RAD", "ID_HI_RAD",
            "static_strain_link2_root", "friction_feedforward", "run_experiment", "dominant_freq", "ch8_task",
-           "run_damping_study", "evaluate", "runs_csv", "identification_task", "identify"]
+           "run_damping_study", "evaluate", "runs_csv", "identification_task", "identify",
+           "DROP_POSE_DEG", "DROP_MOVE_DEG", "payload_change_task"]
 
 #: Operating points of figure 8.1, deg (assumed; see ``benchmarks/bench_damping_ch8.py``).
 OPS_DEG = {1: (0.0, 0.0, 0.0), 2: (0.0, 45.0, -45.0), 3: (0.0, 90.0, 0.0), 4: (0.0, 135.0, 45.0),
@@ -449,3 +451,60 @@ def identify(out, *, two_way: bool, seconds: float, noise: float, coulomb: bool,
                            + (", interrupted" if rep.interrupted else ""))
     data = [{k: (v if k == "plates" else np.asarray(v, float)) for k, v in r["result"].items()} for r in rep.records]
     return fit_with_validation(data)
+
+
+#: Payload-change scenario of section 8.3: the arm rests at DROP_POSE_DEG with the 0.5 kg camera rig,
+#: the rig is taken off (0.05 kg mount left) and the arm moves by DROP_MOVE_DEG.
+DROP_POSE_DEG, DROP_MOVE_DEG = (0.0, 60.4, 61.5), (0.0, 14.0, -45.0)
+
+
+def payload_change_task(label: str, law: str, noise: float, seed: int, horizon_s: float = HORIZON_S) -> dict:
+    """The payload-change scenario: rig taken off at rest, then a move; link-3 settling afterwards.
+
+    ``scheduled`` gains are told the new payload at once (``SimCore.set_payload``), ``fixed``
+    keeps the 300 g gains (``ONE_WAY_GAINS``).
+
+    Parameters
+    ----------
+    label : str
+        ``"fixed"`` or ``"scheduled"``.
+    law : str
+        ``"proportional"`` or ``"integral"``.
+    noise : float
+        Strain noise, m/m.
+    seed : int
+        Noise seed.
+    horizon_s : float
+        Time observed after the move command, s.
+
+    Returns
+    -------
+    dict
+        ``tail_max`` (largest link-3 oscillation about the damper's static estimate in the last 2 s, m/m),
+        ``settling_s`` (last time it exceeded 15 um/m, s after the move command), ``speed_frac`` (largest
+        joint speed at the end as a fraction of the limit).
+    """
+    p = load_robot_params()
+    pose = np.deg2rad(DROP_POSE_DEG)
+    core = SimCore(pose, payload=Payload.from_parts(p, camera=True), params=p,
+                   config=PlantConfig(two_way=False, strain_noise_m_m=noise, noise_seed=seed))
+    core.set_modes(damping={"proportional": 1, "integral": 2}[law], collision=0)
+    if label == "fixed":
+        core.controlled.damper.set_gains(ONE_WAY_GAINS[law])
+    core.step(1.0)
+    core.arm.set_payload(Payload.from_parts(p, balls=0))
+    if label == "scheduled":
+        core.set_payload(core.arm.payload.mass_kg)
+    core.step(0.5)
+    core.apply_setpoint(pose + np.deg2rad(DROP_MOVE_DEG), max_speed_rad_s=p.max_speed_rad_s,
+                        max_accel_rad_s2=p.max_accel_rad_s2)
+    env, last_big = [], 0.0
+    for k in range(int(round(horizon_s / 0.01))):
+        core.step(0.01)
+        e = abs(core.arm.strain[2] - core.controlled.damper.mu[2])
+        env.append(e)
+        if e > 15e-6:
+            last_big = (k + 1) * 0.01
+    env = np.asarray(env)
+    return {"tail_max": float(env[-200:].max()), "settling_s": last_big,
+            "speed_frac": float(np.max(np.abs(core.state().theta_dot) / p.max_speed_rad_s))}
