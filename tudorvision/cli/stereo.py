@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import TudorVisionError
+from ._viewer import add_viewer_arguments, open_viewer
 from .seq import add_sequence_options, partial_flags, problem_lines, sequence_options
 
 __all__ = ["register"]
@@ -60,7 +61,7 @@ def register(subparsers) -> None:
                         "default: T_base_left of --calib when present")
     s.add_argument("--no-base", action="store_true", help="ignore T_base_left: write the left camera frame")
     s.add_argument("--plot", metavar="PNG", help="draw trajectory, speed and acceleration")
-    s.add_argument("--rerun", metavar="RRD", help="write a rerun recording of images, detections and the 3D track")
+    add_viewer_arguments(s, file_help="write a rerun recording of images, detections and the 3D track")
     s.add_argument("--rerun-image-every", type=int, default=1, metavar="N",
                    help="log the images of every N-th frame only (default 1)")
     s.add_argument("--live", action="store_true",
@@ -91,6 +92,7 @@ def register(subparsers) -> None:
     m.add_argument("--out", required=True, help="pixel track CSV to write")
     m.add_argument("--full-frame", action="store_true", help="search every full frame (no tracking windows)")
     m.add_argument("--strict", action="store_true", help="stop at the first undecodable frame")
+    add_viewer_arguments(m, file_help="write a rerun recording of the pixel track")
     add_sequence_options(m)
     add_luma_edge_argument(m)
     add_centre_argument(m)
@@ -334,9 +336,10 @@ def run_track_stereo(args) -> int:
     options = PipelineOptions(tracking=not args.full_frame, method=args.method, tracker=tracker,
                               rolling_shutter=not args.no_rolling_shutter, sphere_separation_m=sep or None)
     log = None
-    if args.rerun:
+    viewer = open_viewer(args, "tudorvision_stereo")
+    if viewer is not None:
         from ..stereo.rerun_log import RerunStereoLog
-        log = RerunStereoLog(args.rerun, image_every=args.rerun_image_every)
+        log = RerunStereoLog(recording=viewer.rec, image_every=args.rerun_image_every)
     diag = ValidityDiagnosis()
 
     def on_result(r, frame):
@@ -349,8 +352,8 @@ def run_track_stereo(args) -> int:
                            speed=args.speed, show_progress=None if not args.live else False,
                            on_result=on_result, keep_partial=True)
     except BaseException:
-        if log is not None:
-            log.close()
+        if viewer is not None:
+            viewer.close(hold=False)
         raise
     finally:
         seq.close()
@@ -374,7 +377,7 @@ def run_track_stereo(args) -> int:
     if log is not None:
         log.log_trajectory(traj, res.index)
         log.close()
-        print(f"wrote {args.rerun}")
+        viewer.close()
     speed = traj.speed
     if np.isfinite(speed).any():
         print(f"peak speed {np.nanmax(speed):.2f} m/s, peak acceleration {np.nanmax(traj.accel_norm):.1f} m/s^2")
@@ -392,17 +395,29 @@ def run_track_mono(args) -> int:
     seq = _open(args.video, strict=args.strict, args=args)
     models = _load_models(args.colormodel)
     model = models.get(args.camera, args.sphere)
+    viewer = None
     try:
         tracker, edge_note = luma_edge_params(args.luma_edge, args.video, getattr(args, "centre", "circle"))
         print(edge_note)
+        viewer = open_viewer(args, "tudorvision_track_mono")
         res = track_mono(seq, model, tracking=not args.full_frame, params=tracker, show_progress=None,
                          keep_partial=True)
+    except BaseException:
+        if viewer is not None:
+            viewer.close(hold=False)
+        raise
     finally:
         seq.close()
     flags = partial_flags(len(res.t), res.stats.interrupted, problem_lines(seq))
     out = write_mono_track_csv(args.out, res, comment="\n".join(
         flags + [f"video: {args.video}", f"sphere: {args.sphere} ({args.camera}) from {args.colormodel}"]))
     print(f"wrote {out} ({len(res.t)} rows)")
+    if viewer is not None:
+        from ..stereo.rerun_log import log_mono_track
+        try:
+            log_mono_track(viewer.rec, res, sphere=args.sphere, camera=args.camera)
+        finally:
+            viewer.close()
     print(res.stats.summary())
     if len(res.t) and not np.any(res.valid):
         print(f"warning: 0 % valid: sphere {args.sphere!r} found in no frame: the colour model likely does not "

@@ -25,7 +25,7 @@ import numpy as np
 
 from .._checks import TudorVisionError
 
-__all__ = ["RerunStereoLog"]
+__all__ = ["RerunStereoLog", "log_mono_track"]
 
 _COLORS = {"red": (230, 40, 40), "green": (40, 200, 60), "blue": (40, 90, 230), "yellow": (230, 210, 40)}
 
@@ -43,8 +43,9 @@ class RerunStereoLog:
 
     Parameters
     ----------
-    path : str or Path
-        Output ``.rrd`` file (parent directories are created).
+    path : str or Path, optional
+        Output ``.rrd`` file (parent directories are created); not used
+        when ``recording`` is given.
     image_every : int
         Log the images of every n-th frame only (detections and 3D points are
         logged for every frame); 0 logs no images.
@@ -52,6 +53,9 @@ class RerunStereoLog:
         Images are stored JPEG-encoded to keep the file small.
     application_id : str
         rerun application id.
+    recording : rerun.RecordingStream, optional
+        Log to this stream (its sinks: a file, a live or a web viewer)
+        instead of opening ``path``; :meth:`close` then only flushes it.
 
     Examples
     --------
@@ -63,18 +67,24 @@ class RerunStereoLog:
     True
     """
 
-    def __init__(self, path, *, image_every: int = 1, jpeg_quality: int = 85,
-                 application_id: str = "tudorvision_stereo"):
+    def __init__(self, path=None, *, image_every: int = 1, jpeg_quality: int = 85,
+                 application_id: str = "tudorvision_stereo", recording=None):
         if int(image_every) != image_every or image_every < 0:
             raise TudorVisionError(f"image_every: expected a non-negative integer, got {image_every!r}")
+        if path is None and recording is None:
+            raise TudorVisionError("RerunStereoLog: give a path or a recording")
         rr = _rerun()
-        self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
         self.image_every = int(image_every)
         self.jpeg_quality = int(jpeg_quality)
         self._rr = rr
-        self._rec = rr.RecordingStream(application_id)
-        self._rec.save(str(self.path))
+        self._own = recording is None
+        self.path = None if path is None else Path(path)
+        if self._own:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._rec = rr.RecordingStream(application_id)
+            self._rec.save(str(self.path))
+        else:
+            self._rec = recording
         self._n = 0
 
     def _time(self, index: int, t: float) -> None:
@@ -148,6 +158,46 @@ class RerunStereoLog:
                 rec.log("plots/speed", rr.Scalars(float(s)))
 
     def close(self) -> None:
-        """Flush and close the file."""
+        """Flush; close the file when this log opened it."""
         self._rec.flush()
-        self._rec.disconnect()
+        if self._own:
+            self._rec.disconnect()
+
+
+def log_mono_track(recording, result, *, sphere: str = "sphere", camera: str = "mono") -> None:
+    """Log a single-camera pixel track: the sphere's image point per frame and its u, v plots.
+
+    Entities: ``cameras/<camera>/<sphere>`` (rr.Points2D, pixels, u right,
+    v down), ``plots/<sphere>/u_px`` and ``plots/<sphere>/v_px``
+    (rr.Scalars), on the ``frame`` and ``time`` timelines; invalid frames
+    clear the point.
+
+    Parameters
+    ----------
+    recording : rerun.RecordingStream
+        The stream to log to.
+    result : MonoTrackResult
+        Output of :func:`~tudorvision.stereo.tracking.track_mono`: ``frame``
+        (N,) decode index, ``t`` (N,) in s, ``uv`` (N, 2) in px, ``valid`` (N,).
+    sphere : str
+        Sphere name (entity path and label).
+    camera : str
+        Camera name (entity path).
+
+    Returns
+    -------
+    None
+    """
+    rr = _rerun()
+    color = _COLORS.get(sphere, (255, 255, 255))
+    index = np.asarray(getattr(result, "frame", np.arange(len(result.t))), dtype=int)
+    uv = np.asarray(result.uv, dtype=np.float64).reshape(-1, 2)
+    for k, t, p, ok in zip(index, result.t, uv, result.valid):
+        recording.set_time("frame", sequence=int(k))
+        recording.set_time("time", duration=float(t))
+        if ok and np.all(np.isfinite(p)):
+            recording.log(f"cameras/{camera}/{sphere}", rr.Points2D([p], radii=4, colors=[color], labels=[sphere]))
+            recording.log(f"plots/{sphere}/u_px", rr.Scalars(float(p[0])))
+            recording.log(f"plots/{sphere}/v_px", rr.Scalars(float(p[1])))
+        else:
+            recording.log(f"cameras/{camera}/{sphere}", rr.Clear(recursive=False))
