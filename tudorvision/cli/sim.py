@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import TudorVisionError
+from .robot_args import add_robot_option, robot_from_args
 
 __all__ = ["register"]
 
@@ -28,22 +29,21 @@ def _cmd_record(args) -> int:
         raise TudorVisionError(f"--frames: expected a positive count, got {args.frames}")
     opts = RecordOptions(seed=args.seed, small=args.small, frames=args.frames, rolling_shutter=args.rolling_shutter,
                          payload_plates=args.plates, jitter_rig=args.jitter_rig, image_ext=args.image_ext,
-                         force=args.force)
+                         force=args.force, params=robot_from_args(args) if args.robot else None)
     out = record(args.kind, args.out, opts)
     print(f"wrote {args.kind} recording to {out}")
     return 0
 
 
 def _cmd_ptp(args) -> int:
-    from ..robot import load_robot_params
     from ..sim.arm import Payload
     from ..lab.simulation import simulate_ptp
-    p = load_robot_params()
+    p = robot_from_args(args)
     start, goal = _deg3(args.start, "--from"), _deg3(args.to, "--to")
     if args.plates < 0:
         raise TudorVisionError(f"--plates: expected >= 0, got {args.plates}")
-    log = simulate_ptp(start, goal, args.duration, payload=Payload.from_parts(p, plates=args.plates,
-                                                                             camera=args.camera))
+    log = simulate_ptp(start, goal, args.duration, params=p,
+                       payload=Payload.from_parts(p, plates=args.plates, camera=args.camera))
     ee = log.ee_position()
     from ..io.atomic import atomic_write
     out = Path(args.out)
@@ -73,12 +73,12 @@ def _cmd_modes(args) -> int:
     import math
     from ..io.atomic import write_text_atomic
     from ..lab.plant_modes import plant_modes
-    from ..robot import load_robot_params
     from ..sim.arm import PlantConfig
     th = _deg3(args.at, "--at")
+    params = robot_from_args(args)
     if not np.all(np.isfinite(th)):
         raise TudorVisionError(f"--at: expected finite degrees, got {args.at!r}")
-    lim = np.asarray(load_robot_params().joint_limits_rad, float)
+    lim = np.asarray(params.joint_limits_rad, float)
     if np.any(th < lim[:, 0] - 1e-9) or np.any(th > lim[:, 1] + 1e-9):
         raise TudorVisionError(f"--at: {args.at} is outside the joint ranges "
                                f"{np.round(np.rad2deg(lim)).astype(int).tolist()} deg")
@@ -87,7 +87,7 @@ def _cmd_modes(args) -> int:
     if not (math.isfinite(args.duration) and 2.0 <= args.duration <= 120.0):
         raise TudorVisionError(f"--duration: expected 2 .. 120 s, got {args.duration}")
     cfg = PlantConfig() if args.stiff else PlantConfig.seed_measured()
-    r = plant_modes(th, args.payload_kg, cfg, args.duration)
+    r = plant_modes(th, args.payload_kg, cfg, args.duration, params=params)
     out = {"theta_deg": [float(x) for x in np.rad2deg(th)], "payload_kg": args.payload_kg,
            "plant": "stiff" if args.stiff else "seed_measured", **r}
     write_text_atomic(args.out, json.dumps(out, indent=2) + "\n")
@@ -117,6 +117,7 @@ def register(sub) -> None:
     r.add_argument("--rolling-shutter", action="store_true", help="stereo cameras with a rolling shutter")
     r.add_argument("--jitter-rig", action="store_true", help="randomise the stereo rig pose per seed")
     r.add_argument("--image-ext", default=".jpg", choices=[".jpg", ".png"], help="colour image format")
+    add_robot_option(r, "the simulated arm (link lengths, blades, limits) and its ground truth")
     r.set_defaults(func=_cmd_record)
     q = s.add_parser("ptp", help="simulate a point-to-point motion of the elastic arm",
                      description="Planner + cascade + elastic plant at 2 kHz; writes a CSV (and a PNG plot).")
@@ -128,6 +129,7 @@ def register(sub) -> None:
     q.add_argument("--decimate", type=int, default=4, help="write every n-th 2 kHz sample (default 4)")
     q.add_argument("--out", required=True, help="CSV output")
     q.add_argument("--plot", help="PNG plot output")
+    add_robot_option(q, "the simulated arm: rigid chain, blades, motors, limits")
     q.set_defaults(func=_cmd_ptp)
     m = s.add_parser("modes", help="frequencies and decay of the link modes at a pose (seed 4.7, 4.8)",
                      description="Linearised modes (joints held) and a simulated hammer ring-down at one pose; "
@@ -137,5 +139,6 @@ def register(sub) -> None:
     m.add_argument("--duration", type=float, default=8.0, help="ring-down seconds (default 8)")
     m.add_argument("--stiff", action="store_true", help="the default rigid-hub plant instead of the seed-measured one")
     m.add_argument("--out", required=True, help="JSON output")
+    add_robot_option(m, "the simulated arm: blades, payload mount, joint ranges")
     m.set_defaults(func=_cmd_modes)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])

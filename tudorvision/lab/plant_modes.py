@@ -67,7 +67,7 @@ def plate_payload(payload_kg: float, params: RobotParams | None = None, plate_si
                    inertia_kg_m2=payload_kg * plate_size_m**2 / 12.0)
 
 
-def linear_modes(theta_rad, payload_kg: float, config: PlantConfig) -> dict:
+def linear_modes(theta_rad, payload_kg: float, config: PlantConfig, params: RobotParams | None = None) -> dict:
     """Linearised modes at a pose (joints held, springs engaged).
 
     Parameters
@@ -78,6 +78,8 @@ def linear_modes(theta_rad, payload_kg: float, config: PlantConfig) -> dict:
         Plate payload, kg (:func:`plate_payload`).
     config : PlantConfig
         Plant options (hub compliance).
+    params : RobotParams, optional
+        Robot parameters; default the packaged file.
 
     Returns
     -------
@@ -87,7 +89,7 @@ def linear_modes(theta_rad, payload_kg: float, config: PlantConfig) -> dict:
         link-2 values are the two lowest coupled modes; for the one-way plant they are
         link 2's own BVP frequencies (what that plant rings at).
     """
-    arm = ElasticArm(theta_rad, payload=plate_payload(payload_kg), config=config)
+    arm = ElasticArm(theta_rad, payload=plate_payload(payload_kg, params), params=params, config=config)
     f, decay, _ = held_joint_modes(arm, coupled=bool(config.two_way))
     if not config.two_way:          # one-way plant: link 2 rings at its own BVP frequencies
         order = np.argsort(f)
@@ -101,7 +103,7 @@ def linear_modes(theta_rad, payload_kg: float, config: PlantConfig) -> dict:
 
 
 def ring_down(theta_rad, payload_kg: float, config: PlantConfig, duration_s: float = 8.0,
-              impulse_Ns: float = HAMMER_IMPULSE_NS):
+              impulse_Ns: float = HAMMER_IMPULSE_NS, params: RobotParams | None = None):
     """Free vibration after a hammer impulse at the end effector, the joint cascade holding the pose.
 
     Parameters
@@ -116,14 +118,16 @@ def ring_down(theta_rad, payload_kg: float, config: PlantConfig, duration_s: flo
         Simulated seconds after the impulse.
     impulse_Ns : float, optional
         Impulse along link 3's bending direction at its tip, N s.
+    params : RobotParams, optional
+        Robot parameters; default the packaged file.
 
     Returns
     -------
     SimLog
         The run (``strain[:, 0]`` is the link-2 hub gauge).
     """
-    p = load_robot_params()
-    arm = ElasticArm(theta_rad, payload=plate_payload(payload_kg, p), config=config)
+    p = params or load_robot_params()
+    arm = ElasticArm(theta_rad, payload=plate_payload(payload_kg, p), params=p, config=config)
     gains = design_cascade(p, arm.design_inertia_kg_m2())
     ctrl = JointCascade(gains, config.dt, arm.measured_theta())
     k2, k3 = arm.link2, arm.link3
@@ -209,7 +213,7 @@ def decay_rate_per_s(signal, dt: float, f_hz: float, skip_s: float = 0.5) -> flo
 
 
 def plant_modes(theta_rad, payload_kg: float, config: PlantConfig | None = None,
-                duration_s: float = 8.0) -> dict:
+                duration_s: float = 8.0, params: RobotParams | None = None) -> dict:
     """Everything ``tudorvision sim modes`` reports for one pose.
 
     Parameters
@@ -222,6 +226,8 @@ def plant_modes(theta_rad, payload_kg: float, config: PlantConfig | None = None,
         Default :meth:`PlantConfig.seed_measured`.
     duration_s : float, optional
         Ring-down length, s.
+    params : RobotParams, optional
+        Robot parameters (``--robot``); default the packaged file.
 
     Returns
     -------
@@ -229,8 +235,8 @@ def plant_modes(theta_rad, payload_kg: float, config: PlantConfig | None = None,
         :func:`linear_modes`'s keys plus ``decay_per_s`` and ``ringdown_hz`` (ring-down, link-2 hub strain).
     """
     cfg = config or PlantConfig.seed_measured()
-    out = linear_modes(theta_rad, payload_kg, cfg)
-    log = ring_down(theta_rad, payload_kg, cfg, duration_s)
+    out = linear_modes(theta_rad, payload_kg, cfg, params)
+    log = ring_down(theta_rad, payload_kg, cfg, duration_s, params=params)
     s = log.strain[:, 0]
     f1 = dominant_frequency_hz(s, cfg.dt, 0.5, 0.5 * (out["link2_hz"][0] + out["link2_hz"][1]))
     out["ringdown_hz"] = f1

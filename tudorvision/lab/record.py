@@ -83,6 +83,8 @@ class RecordOptions:
         Write into a non-empty output folder, deleting only the files a
         recording writes (:meth:`tudorvision.io.SequenceWriter.own_outputs`);
         without it a non-empty folder is refused.
+    params : RobotParams or None
+        The simulated robot (``--robot``); None: the packaged ``tudor.yaml``.
     """
 
     seed: int = 0
@@ -98,6 +100,7 @@ class RecordOptions:
     jitter_rig: bool = False
     show_progress: bool | None = None
     force: bool = False
+    params: RobotParams | None = None
 
 
 # --------------------------------------------------------------------------- helpers
@@ -261,11 +264,11 @@ def _stereo_payload(params, opts):
 
 def _record_stereo_motion(out: Path, opts: RecordOptions, *, start_deg, goal_deg, duration_s, description,
                           max_speed: bool):
-    p = load_robot_params()
+    p = opts.params or load_robot_params()
     rng = np.random.default_rng(opts.seed)
     payload = _stereo_payload(p, opts)
     kw = dict(v_max=p.max_speed_rad_s, a_max=p.max_accel_rad_s2) if max_speed else {}
-    log = simulate_ptp(np.deg2rad(start_deg), np.deg2rad(goal_deg), duration_s, payload=payload, t_move=0.2, **kw)
+    log = simulate_ptp(np.deg2rad(start_deg), np.deg2rad(goal_deg), duration_s, payload=payload, t_move=0.2, params=p, **kw)
     interp = _LogInterp(log.t, log.theta, log.tip2, log.tip3, p)
     setup = stereo_lab(rng, arm=interp.geometry, T_world_base=T_WORLD_BASE, jitter_rig=opts.jitter_rig)
     left, right = _rig_cameras(setup)
@@ -297,7 +300,7 @@ def record_stereo_step(out, opts: RecordOptions):
 
 def _record_stereo_poses(out: Path, opts: RecordOptions, thetas, *, description, frames_per_pose=1,
                          truth_name="ee"):
-    p = load_robot_params()
+    p = opts.params or load_robot_params()
     rng = np.random.default_rng(opts.seed)
     payload = _stereo_payload(p, opts)
     states = [(th, *static_arm_state(th, payload, p)) for th in thetas]
@@ -322,7 +325,7 @@ def _record_stereo_poses(out: Path, opts: RecordOptions, thetas, *, description,
 
 def record_stereo_static(out, opts: RecordOptions):
     """Static poses spread over the workspace seen by the stereo rig."""
-    p = load_robot_params()
+    p = opts.params or load_robot_params()
     rng = np.random.default_rng(opts.seed + 1000)
     n = opts.frames or (12 if opts.small else 40)
     thetas = np.column_stack([rng.uniform(-0.6, 0.6, n), rng.uniform(0.3, 2.4, n), rng.uniform(-1.2, 1.2, n)])
@@ -422,7 +425,7 @@ def _wall_camera_truth(w, cam, T_world_base):
 def record_rgbd_disc(out, opts: RecordOptions):
     """Wall camera calibration sweep: theta2 from -10 to 190 deg (theta1 = theta3 = 0), disc in the net."""
     out = Path(out)
-    p = load_robot_params()
+    p = opts.params or load_robot_params()
     rng = np.random.default_rng(opts.seed)
     payload = Payload.from_parts(p, plates=opts.payload_plates)
     n = opts.frames or (11 if opts.small else 41)
@@ -503,7 +506,7 @@ def record_rgbd_throws(out, opts: RecordOptions):
     out = Path(out)
     rng = np.random.default_rng(opts.seed)
     n_throws = opts.frames or (1 if opts.small else 5)
-    p = load_robot_params()
+    p = opts.params or load_robot_params()
     geom0 = elastic_arm_geometry(np.deg2rad([0.0, 90.0, 0.0]), *static_arm_state(np.deg2rad([0.0, 90.0, 0.0]),
                                  Payload.from_parts(p), p), p)
     gap_s, bg_s = (0.1, 0.25) if opts.small else (0.5, 0.5)
