@@ -91,19 +91,22 @@ def _rerun():
 
 
 def _viewer_executable() -> str | None:
-    """The ``rerun`` viewer executable: on PATH, next to the Python interpreter, or in ``rerun_cli``."""
-    found = shutil.which("rerun")
-    if found:
-        return found
-    cand = Path(sys.executable).parent / "rerun"
-    if cand.is_file():
-        return str(cand)
+    """The ``rerun`` viewer binary: the one of the installed SDK (``rerun_cli``), else ``rerun`` on PATH.
+
+    The SDK's own binary comes first: it is the matching version, and it is
+    the process itself (the ``rerun`` script on PATH is a Python wrapper
+    whose child would outlive a terminate).
+    """
     try:
         import rerun_cli
     except ImportError:
-        return None
-    cand = Path(rerun_cli.__file__).parent / "rerun"
-    return str(cand) if cand.is_file() else None
+        rerun_cli = None
+    if rerun_cli is not None:
+        for name in ("rerun", "rerun.exe"):
+            cand = Path(rerun_cli.__file__).parent / name
+            if cand.is_file():
+                return str(cand)
+    return shutil.which("rerun")
 
 
 def _port_open(host: str, port: int, timeout_s: float = 0.5) -> bool:
@@ -186,8 +189,8 @@ class Viewer:
         finally:
             try:
                 if self.web_process is not None and hold and self.web_process.poll() is None:
-                    print(f"rerun web viewer keeps serving at {self.web_url} (Ctrl-C to stop)", flush=True)
                     try:
+                        print(f"rerun web viewer keeps serving at {self.web_url} (Ctrl-C to stop)", flush=True)
                         self.web_process.wait()
                     except KeyboardInterrupt:
                         pass
