@@ -23,6 +23,7 @@ import numpy as np
 
 from .._checks import TudorVisionError
 from ..io.atomic import atomic_write, write_text_atomic
+from ._viewer import add_viewer_arguments, open_viewer
 
 __all__ = ["register", "run_sim", "run_sequence", "plot_errors"]
 
@@ -64,6 +65,8 @@ def register(sub) -> None:
                    help="repeatability: runs per payload and pose for the compared law (default --repetitions)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", metavar="DIR", help="output directory (--sim)")
+    add_viewer_arguments(p, file_help="rerun recording (.rrd) of images, features, errors and joint commands "
+                                      "(default with --sim: OUT/servo.rrd; open loop: none)")
     p.set_defaults(func=_main)
 
 
@@ -91,7 +94,7 @@ def _lab_config(args):
     from dataclasses import replace
 
     from ..lab.servo_lab import LabConfig
-    cfg = LabConfig()
+    cfg = LabConfig(params=robot_from_args(args) if args.robot else None)
     if args.no_damping:
         cfg = replace(cfg, damping=False)
     if args.supersample < 1:
@@ -124,14 +127,19 @@ def run_sim(args) -> int:
                    scene_seed=args.seed)
     theta0 = start_poses(cfg, lab.square_center_world)[args.start_pose]
     lab = ServoLab(cfg, theta0, plates=g // 100, rng=np.random.default_rng([args.seed, 1]), scene_seed=args.seed)
-    servo = VisualServo(goal, cfg.T_ee_cam, law=LawConfig(law=args.law, interaction=args.interaction),
+    servo = VisualServo(goal, cfg.T_ee_cam, law=LawConfig(law=args.law, interaction=args.interaction), params=cfg.params,
                         smoothing_frames=args.smoothing_frames or DEFAULT_SMOOTHING_FRAMES)
-    log = _RerunServoLog(out / "servo.rrd", goal)
-    log.log_goal(goal_bgr)
+    from ..servo.rerun_log import RerunServoLog
+    viewer = open_viewer(args, "tudorvision_servo", default_file=out / "servo.rrd")
+    log = RerunServoLog(viewer.rec, goal) if viewer is not None else None
+    if log is not None:
+        log.log_goal(goal_bgr)
     try:
-        result = run_closed_loop(lab, servo, p_goal, on_frame=log.log_frame)
-    finally:
-        log.close()
+        result = run_closed_loop(lab, servo, p_goal, on_frame=None if log is None else log.log_frame)
+    except BaseException:
+        if viewer is not None:
+            viewer.close(hold=False)
+        raise
     _write_csv(out / "errors.csv", result.history)
     plot_errors(result.history, out / "errors.png")
     summary = {"converged": result.converged, "settling_time_s": result.settling_time_s,
@@ -139,6 +147,8 @@ def run_sim(args) -> int:
                "payload_g": g, "start_pose": args.start_pose, "law": args.law, "seed": args.seed,
                "theta_start_rad": np.asarray(theta0).tolist()}
     write_text_atomic(out / "result.json", json.dumps(summary, indent=2))
+    if viewer is not None:
+        viewer.close()
     print(f"servo: {'converged' if result.converged else 'did not converge'}"
           + (f" in {result.settling_time_s:.2f} s" if result.converged else "")
           + f", final camera position error {result.final_error_m * 1e3:.1f} mm; wrote {out}")
@@ -178,58 +188,6 @@ def plot_errors(h: dict, path) -> None:
     b.grid(True, alpha=0.3)
     fig.tight_layout()
     fig.savefig(str(path), dpi=100)
-
-
-class _RerunServoLog:
-    """Rerun recording of a servo run: images, features, errors (rerun 0.41 API)."""
-
-    def __init__(self, path: Path, goal):
-        try:
-            import rerun as rr
-        except ImportError:
-            raise TudorVisionError("the rerun recording needs the rerun SDK: pip install rerun-sdk") from None
-        self._rr = rr
-        self._rec = rr.RecordingStream("tudorvision_servo")
-        self._rec.save(str(path))
-        self._goal = goal
-        self._n = 0
-
-    def log_goal(self, bgr) -> None:
-        import cv2
-        rr = self._rr
-        ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 85])
-        if ok:
-            self._rec.log("goal/image", rr.EncodedImage(contents=buf.tobytes(), media_type="image/jpeg"), static=True)
-        f = self._goal.features
-        self._rec.log("camera/goal_features", rr.Points2D(np.vstack([f.centroid_uv, f.corners_uv]), radii=3,
-                                                           colors=[(0, 200, 0)]), static=True)
-
-    def log_frame(self, t, bgr, depth, step) -> None:
-        import cv2
-        rr, rec = self._rr, self._rec
-        rec.set_time("frame", sequence=self._n)
-        rec.set_time("time", duration=float(t))
-        if self._n % 3 == 0:
-            ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 80])
-            if ok:
-                rec.log("camera/image", rr.EncodedImage(contents=buf.tobytes(), media_type="image/jpeg"))
-        f = step.features
-        if f.found:
-            rec.log("camera/features", rr.Points2D(np.vstack([f.centroid_uv, f.corners_uv]), radii=3,
-                                                   colors=[(255, 60, 60)]))
-        c = step.command
-        if c.ok:
-            rec.log("errors/e_u_px", rr.Scalars(float(c.error[0])))
-            rec.log("errors/e_v_px", rr.Scalars(float(c.error[1])))
-            rec.log("errors/e_z_mm", rr.Scalars(float(c.error[2]) * 1e3))
-            rec.log("errors/estimated_mm", rr.Scalars(float(c.error_m) * 1e3))
-        for j, v in enumerate(step.theta_dot):
-            rec.log(f"command/theta_dot_{j + 1}", rr.Scalars(float(v)))
-        self._n += 1
-
-    def close(self) -> None:
-        self._rec.flush()
-        self._rec.disconnect()
 
 
 def _repeatability(args) -> int:
@@ -340,9 +298,25 @@ def run_sequence(args) -> int:
         joints = None
     print("# frame t ok e_u_px e_v_px e_z_m vx_cam vy_cam vz_cam theta_dot1 theta_dot2 theta_dot3 reason"
           + ("" if have_he and joints is not None else "  (theta_dot: no joints.txt or T_ee_cam; zero)"))
+    from ..servo.rerun_log import RerunServoLog
+    viewer = open_viewer(args, "tudorvision_servo")
+    log = RerunServoLog(viewer.rec, servo.goal) if viewer is not None else None
+    if log is not None:
+        log.log_goal(bgr)
+    try:
+        _open_loop_lines(seq, servo, joints, have_he, log)
+    finally:
+        if viewer is not None:
+            viewer.close()
+    return 0
+
+
+def _open_loop_lines(seq, servo, joints, have_he, log) -> None:
     for fr in seq:
         theta = joints.at(fr.t) if joints is not None else np.zeros(3)
         st = servo.step(fr.bgr, fr.depth_m, theta)
+        if log is not None:
+            log.log_frame(fr.t, fr.bgr, fr.depth_m, st)
         c = st.command
         td = st.theta_dot if (have_he and joints is not None) else np.zeros(3)
         e = c.error if c.error is not None else np.full(3, np.nan)
@@ -350,4 +324,3 @@ def run_sequence(args) -> int:
         print(f"{fr.index} {fr.t:.4f} {int(c.ok)} {e[0]:.2f} {e[1]:.2f} {e[2]:.4f} "
               f"{c.v_cam[0]:.4f} {c.v_cam[1]:.4f} {c.v_cam[2]:.4f} {td[0]:.4f} {td[1]:.4f} {td[2]:.4f}"
               + (f" {reason}" if reason else ""))
-    return 0
