@@ -24,6 +24,7 @@ import numpy as np
 from .._checks import TudorVisionError
 from ..io.atomic import atomic_write, write_text_atomic
 from ._viewer import add_viewer_arguments, open_viewer
+from .robot_args import add_robot_option, robot_from_args
 
 __all__ = ["register", "run_sim", "run_sequence", "plot_errors"]
 
@@ -67,6 +68,7 @@ def register(sub) -> None:
     p.add_argument("--out", metavar="DIR", help="output directory (--sim)")
     add_viewer_arguments(p, file_help="rerun recording (.rrd) of images, features, errors and joint commands "
                                       "(default with --sim: OUT/servo.rrd; open loop: none)")
+    add_robot_option(p, "the simulated arm (--sim) and the joint map (Jacobian) of the servo law")
     p.set_defaults(func=_main)
 
 
@@ -289,7 +291,8 @@ def run_sequence(args) -> int:
     try:
         servo = VisualServo.from_goal_image(bgr, goal_depth, cam.K, T_ee_cam,
                                             law=LawConfig(law=args.law, interaction=args.interaction),
-                                            smoothing_frames=args.smoothing_frames or 1)
+                                            smoothing_frames=args.smoothing_frames or 1,
+                                            params=robot_from_args(args))
     except ValueError as exc:
         raise TudorVisionError(f"{goal_path}: {exc}") from None
     try:

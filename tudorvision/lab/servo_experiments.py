@@ -69,7 +69,7 @@ def start_poses(cfg: LabConfig, square_world, *, near_dz_m: float = -0.07, far_d
         If a pose is unreachable within the joint ranges.
     """
     from scipy.optimize import least_squares
-    p = params or load_robot_params()
+    p = params or cfg.params or load_robot_params()
     w, h = cfg.image_size
     f = 525.0 * w / 640.0
     th_goal = np.asarray(cfg.theta_goal, float)
@@ -110,7 +110,7 @@ def run_one(spec: RunSpec, cfg: LabConfig, goal, p_goal, scene_seed: int) -> dic
     rng = np.random.default_rng([spec.seed, spec.payload_g, spec.pose, spec.repetition, spec.law == "ibvs"])
     lab = ServoLab(cfg, spec.theta_start, plates=spec.payload_g // 100, rng=rng, scene_seed=scene_seed)
     servo = VisualServo(goal, cfg.T_ee_cam, law=LawConfig(law=spec.law, interaction=spec.interaction),
-                        smoothing_frames=DEFAULT_SMOOTHING_FRAMES)
+                        smoothing_frames=DEFAULT_SMOOTHING_FRAMES, params=cfg.params)
     r = run_closed_loop(lab, servo, p_goal)
     e0 = r.history["error_true_m"][0] if len(r.history["error_true_m"]) else float("nan")
     return {"law": spec.law, "payload_g": spec.payload_g, "pose": spec.pose,
@@ -417,7 +417,8 @@ def track_moving_square(*, speed_m_s: float = 0.01, duration_s: float = 8.0, see
 
     lab.setup = replace(lab.setup, scene=Scene(static=static, lights=lab.setup.scene.lights, dynamic=dynamic))
     law_cfg = LawConfig(law=law)
-    servo = VisualServo(goal, cfg.T_ee_cam, law=law_cfg, smoothing_frames=DEFAULT_SMOOTHING_FRAMES)
+    servo = VisualServo(goal, cfg.T_ee_cam, law=law_cfg, smoothing_frames=DEFAULT_SMOOTHING_FRAMES,
+                        params=cfg.params)
     r = run_closed_loop(lab, servo, p_goal)
     t = r.history["t"]
     T = r.history["T_world_cam"]

@@ -32,7 +32,7 @@ import numpy as np
 
 from ..joint.protocol import Damping, Mode
 from ..sensors import depth_m_from_raw
-from ..robot import load_robot_params
+from ..robot import RobotParams, load_robot_params
 from ..servo.loop import VisualServo, default_T_ee_cam
 from .lockstep import LockstepLayer
 from .simulation import SimCore
@@ -86,6 +86,8 @@ class LabConfig:
     supersample : int
         With ``roi_render``: ``k x k`` colour samples per pixel around the
         square (pixel-area integration; 1 = the simulator's point sampling).
+    params : RobotParams or None
+        The simulated robot (``--robot``); None: the packaged ``tudor.yaml``.
     """
 
     pedestal_m: float = 0.85
@@ -104,6 +106,7 @@ class LabConfig:
     lost_stop_s: float = 1.0
     roi_render: bool = True
     supersample: int = 1
+    params: RobotParams | None = None
 
     @property
     def T_world_base(self) -> np.ndarray:
@@ -141,7 +144,7 @@ class ServoLab:
         from ..sim import DepthSensorModel, Payload, eye_in_hand
         from ..sim.render import pixel_bboxes
         self.config = cfg = config
-        self.params = load_robot_params()
+        self.params = cfg.params or load_robot_params()
         self.rng = rng
         self.noise = noise
         payload = Payload.from_parts(self.params, plates=plates, camera=True)
