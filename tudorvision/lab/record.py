@@ -17,7 +17,7 @@ stereo-sweep         theta1 sweep with theta2 = theta3 = 0, then the vertical po
 stereo-checkerboard  checkerboard pairs for stereo calibration
 rgbd-plane           planar target at stepped distances (one sequence per distance)
 rgbd-disc            wall camera, disc in the net, theta2 sweep, then the vertical posture
-rgbd-throws          9 cm balls thrown towards the robot, wall camera behind the thrower
+rgbd-throws          9 cm balls thrown towards the robot, wall camera 5 m away (as for rgbd-disc)
 servo-views          eye-in-hand views of a black square on white ground
 """
 from __future__ import annotations
@@ -48,6 +48,8 @@ SQUARE_M = 0.08
 
 #: Robot base pose in the lab world (floor at z = 0, base on the floor).
 T_WORLD_BASE = np.eye(4)
+#: the wall RGB-D camera of rgbd-disc and rgbd-throws stands this far in front of the base (base -y), m
+WALL_CAMERA_STANDOFF_M = 5.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -438,7 +440,7 @@ def record_rgbd_disc(out, opts: RecordOptions):
     idx = lambda t: int(frame_pose[min(int(round(t * KINECT_RATE_HZ)), len(frame_pose) - 1)])
     disc = lambda t: fk_elastic(*states[idx(t)], p)[:3, 3]
     geom = lambda t: elastic_arm_geometry(*states[idx(t)], p)
-    setup = wall_disc(disc, rng, T_world_base=T_WORLD_BASE, arm=geom, camera_standoff_m=5.0)
+    setup = wall_disc(disc, rng, T_world_base=T_WORLD_BASE, arm=geom, camera_standoff_m=WALL_CAMERA_STANDOFF_M)
     cam = setup.cameras["rgbd"]
     times = np.arange(len(frame_pose)) / KINECT_RATE_HZ
     rows = []
@@ -502,7 +504,7 @@ def random_throw(rng: np.random.Generator, *, T_world_base=T_WORLD_BASE, thrower
 
 
 def record_rgbd_throws(out, opts: RecordOptions):
-    """Balls thrown from about 6 m; wall RGB-D camera behind the thrower (30 Hz, depth noise)."""
+    """Balls thrown from about 6 m; wall RGB-D camera 5 m in front of the robot, where rgbd-disc has it (30 Hz, depth noise)."""
     out = Path(out)
     rng = np.random.default_rng(opts.seed)
     n_throws = opts.frames or (1 if opts.small else 5)
@@ -528,12 +530,13 @@ def record_rgbd_throws(out, opts: RecordOptions):
                 return np.array([np.interp(t - t0, tt, pp[:, j]) for j in range(3)])
         return parked
 
-    setup = ball_throw(ball, rng, T_world_base=T_WORLD_BASE, arm=geom0, camera_position_world=(0.0, -6.8, 2.0))
+    setup = ball_throw(ball, rng, T_world_base=T_WORLD_BASE, arm=geom0,
+                       camera_position_world=(0.0, -WALL_CAMERA_STANDOFF_M, 2.0))
     cam = setup.cameras["rgbd"]
     n_frames = int(np.ceil(t_cursor * KINECT_RATE_HZ))
     rows = []
     with _writer(out, "rgbd", KINECT_RATE_HZ, opts, calibration=_kinect_calibration(cam),
-                 description=f"{n_throws} ball throw(s) from about 6 m, wall camera behind the thrower") as w:
+                 description=f"{n_throws} ball throw(s) from about 6 m, wall camera 5 m from the robot") as w:
         for k in progress(range(n_frames), desc="throw frames", enabled=opts.show_progress):
             t = k / KINECT_RATE_HZ
             bgr, depth, _ = render_rgbd(cam, setup.scene, t, rng=rng)

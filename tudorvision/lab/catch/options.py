@@ -90,6 +90,19 @@ class DemoOptions:
         Progress bar over the throws; ``None``: only on a terminal.
     ekf : EKFOptions
         Ball filter options (its ball model is replaced by one with ``drag_k_per_m``).
+    camera_distance_m : float
+        The wall camera stands this far in front of the robot base (base -y), m, for the throws and
+        for its calibration sweep alike (the disc must stay within the Kinect's 6 m range; nearer than
+        about 5.8 m the thrower, 6 m away, releases behind the camera and the ball is seen late).
+    camera_height_m : float
+        Height of the wall camera above the floor, m (it looks at the point 1 m above the base).
+    true_calibration : bool
+        Give the agent the true camera-to-base transform instead of the one calibrated from the
+        simulated disc sweep (:func:`~tudorvision.lab.catch.calibration.calibrate_wall_camera`); for
+        comparison only.
+    calibration_seed : int
+        Seed of the calibration sweep's rendering and depth noise (one calibration per camera
+        placement, shared by all throws and sessions; cached).
 
     Raises
     ------
@@ -130,6 +143,10 @@ class DemoOptions:
     plots: bool = True
     show_progress: bool | None = None
     ekf: EKFOptions = field(default_factory=EKFOptions)
+    camera_distance_m: float = 5.8
+    camera_height_m: float = 2.0
+    true_calibration: bool = False
+    calibration_seed: int = 0
 
     def __post_init__(self):
         if int(self.throws) != self.throws or self.throws < 1:
@@ -141,6 +158,9 @@ class DemoOptions:
         if not 0 < self.ball_radius_m < self.net_radius_m:
             raise ValueError(f"ball_radius_m: expected 0 < ball_radius_m < net_radius_m ({self.net_radius_m}), "
                              f"got {self.ball_radius_m}")
+        if not 1.0 <= self.camera_distance_m <= 8.0 or not 0.5 <= self.camera_height_m <= 3.0:
+            raise ValueError(f"camera_distance_m, camera_height_m: expected 1-8 m and 0.5-3 m, got "
+                             f"{self.camera_distance_m}, {self.camera_height_m}")
 
 
 def trained_payload_range_kg(collection: CollectionOptions) -> tuple[float, float]:

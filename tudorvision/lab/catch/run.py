@@ -3,7 +3,7 @@
 Loop per wall-camera frame (30 Hz)::
 
     scenario: render RGB-D frame (or the detection-noise model)
-    agent:    BallDetector -> T_base_cam -> CatchPerception (EKF, intercept) -> compensated IK
+    agent:    BallDetector -> T_base_cam (calibrated) -> CatchPerception (EKF, intercept) -> compensated IK
               -> JointAdapter.send_setpoint -> joint-control layer (JointLayerServer) -> simulated elastic arm
     scorer:   at the true crossing, the net against the ball (ground truth)
 
@@ -18,6 +18,12 @@ the arm returns to the ready pose and the agent weighs the payload from the
 strains the layer reports at rest; the estimate is clipped to the range the
 kinematics were trained on (``collection.payloads_kg``, on top of the mount:
 :func:`~tudorvision.lab.catch.options.trained_payload_range_kg`).
+
+Before the throws, the wall camera is calibrated from a simulated disc sweep
+with the camera where it stands for the throws
+(:func:`~tudorvision.lab.catch.calibration.calibrate_wall_camera`, the
+perception of ``calib rgbd-base``); ``DemoOptions.true_calibration`` gives the
+agent the true transform instead, for comparison.
 
 The frames after the ball has left the sensor's detection range (4.5 m) are
 not rendered (nothing can be detected in them); between throws no frames
@@ -35,12 +41,13 @@ from ...catch.ekf import BallModel, EKFOptions
 from ...catch.intercept import InterceptOptions
 from ...catch.perception import CatchPerception
 from .agent import CatchAgent, CatchIK, profile_limits
+from .calibration import calibrate_wall_camera, wall_camera_position_world
 from .options import DemoOptions, trained_payload_range_kg
 from .scenario import FRAME_RATE_HZ, CatchScenario
 from .score import score_throw, summarize_throws
 from . import writers
 
-__all__ = ["demo_kinematics", "run_demo"]
+__all__ = ["demo_kinematics", "run_demo", "wall_camera_transform"]
 
 N_BACKGROUND_FRAMES = 10
 AFTER_CROSSING_S = 0.1      # frames go on this long after the true crossing
@@ -69,6 +76,49 @@ def demo_kinematics(options: DemoOptions, params):
     data = load_or_collect(options.cache_dir, options.collection, params)
     km = fit_kinematics(data, test_payloads_kg=[0.1], params=params)
     return km, InverseKinematics(km.deflection, params, margin_rad=np.deg2rad(1.0))
+
+
+def _net_at_cross(layer, world, t_cross_s):
+    """True net centre (m) and its velocity (m/s, finite difference over the last control period) at the crossing."""
+    layer.advance_to(t_cross_s - layer.period)
+    t0, p0 = layer.t, world.net_position()
+    layer.advance_to(t_cross_s)
+    t1, p1 = layer.t, world.net_position()
+    return p1, ((p1 - p0) / (t1 - t0) if t1 > t0 else None)
+
+
+def wall_camera_transform(options: DemoOptions, params, T_base_cam_true, *, verbose: bool = True):
+    """The ``T_base_cam`` the agent gets: calibrated from the disc sweep, or the truth if asked for.
+
+    Parameters
+    ----------
+    options : DemoOptions
+        ``true_calibration``, the camera placement and ``calibration_seed``.
+    params : RobotParams
+        The robot's parameters.
+    T_base_cam_true : array_like, shape (4, 4)
+        The wall camera's true pose in the base frame (lab side: the calibration's error).
+    verbose : bool
+        Print the calibration's error against the truth (one line).
+
+    Returns
+    -------
+    T_base_cam : ndarray, shape (4, 4)
+        Camera to base transform for the agent.
+    report : dict
+        ``source`` (``"disc sweep"`` or ``"true"``), and for the sweep the report of
+        :func:`~tudorvision.lab.catch.calibration.calibrate_wall_camera` (``position_error_m``,
+        ``rotation_error_deg``, ...).
+    """
+    if options.true_calibration:
+        return np.asarray(T_base_cam_true, float), {"source": "true"}
+    T, rep = calibrate_wall_camera(options, params, T_base_cam_true)
+    rep = {"source": "disc sweep", **rep}
+    if verbose:
+        print(f"wall camera calibrated from the disc sweep ({rep['frames']} frames, circle RMSE "
+              f"{rep['circle_rmse_m'] * 1e3:.1f} mm{', cached' if rep['cached'] else ''}): error against the "
+              f"truth {rep['position_error_m'] * 100:.2f} cm, {rep['rotation_error_deg']:.3f} deg")
+    return T, rep
 
 
 def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
@@ -105,8 +155,9 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
 
     world = CatchScenario(o, params, ik(np.asarray(o.ready_point_base, float), 0.0, elbow="up"))
     layer = world.layer
+    T_base_cam, calib = wall_camera_transform(o, params, world.T_base_cam, verbose=o.show_progress is not False)
     detector = BallDetector(world.intrinsics, world.detector_options, n_background=N_BACKGROUND_FRAMES)
-    agent = CatchAgent(layer, ik, km.strain, CatchPerception(ekf_opts, iopts, params), detector, world.T_base_cam,
+    agent = CatchAgent(layer, ik, km.strain, CatchPerception(ekf_opts, iopts, params), detector, T_base_cam,
                        options=o, params=params, payload_range_kg=trained_payload_range_kg(o.collection))
     max_speed, max_accel = profile_limits(o, params)
     rate = FRAME_RATE_HZ
@@ -124,14 +175,13 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
         theta_release = np.asarray(layer.state().theta)
         payload_true = world.payload_added_kg
         agent.begin_throw(i)
-        net = None
+        net, net_vel = None, None
         k = int(np.ceil(t_now * rate - 1e-9))
         while (t := k / rate) <= throw.t_cross_s + AFTER_CROSSING_S:
             if t > t_now:
                 # plant to this frame, evaluating the net at the true crossing on the way
                 if throw.crosses and net is None and t_now < throw.t_cross_s <= t:
-                    layer.advance_to(throw.t_cross_s)
-                    net = world.net_position()
+                    net, net_vel = _net_at_cross(layer, world, throw.t_cross_s)
                 layer.advance_to(t)
                 t_now = t
             seen = agent.step(t, world.observe(t))
@@ -139,9 +189,9 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
                 rr_log.frame(t, seen[0], seen[1], world.net_position())
             k += 1
         if throw.crosses and net is None:
-            layer.advance_to(throw.t_cross_s)
-            net = world.net_position()
-        result = score_throw(throw, agent.log, net_at_cross=net, theta_at_release=theta_release,
+            net, net_vel = _net_at_cross(layer, world, throw.t_cross_s)
+        result = score_throw(throw, agent.log, net_at_cross=net, net_velocity_at_cross=net_vel,
+                             theta_at_release=theta_release,
                              payload_true_kg=payload_true, options=o, params=params, theta1_rad=iopts.theta1_rad,
                              max_speed=max_speed, max_accel=max_accel, frame_rate_hz=rate)
         results.append(result)
@@ -167,6 +217,11 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
         # secondary: the crossing throws the arm could reach in time at all (lower bound on the move time)
         "crossing_in_time": score["crossing_in_time"], "caught_in_time": score["caught_in_time"],
         "success_rate_in_time": score["success_rate_in_time"],
+        # the earlier criterion (ball centre within the ring's radius) and balls that touched the rim
+        "success_rate_centre": score["success_rate_centre"],
+        "caught_centre_in_workspace": score["caught_centre_in_workspace"],
+        "rim_contacts_in_workspace": score["rim_contacts_in_workspace"],
+        "calibration": calib, "camera_position_world_m": [float(x) for x in wall_camera_position_world(o)],
         "seed": o.seed, "render": o.render, "damping": o.damping, "compensate": o.compensate,
         "net_radius_m": o.net_radius_m, "balls_in_net": world.balls, "net_emptied": world.emptied,
         "median_pred_error_m": score["median_pred_error_m"],

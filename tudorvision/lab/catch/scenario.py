@@ -205,7 +205,8 @@ class CatchScenario:
         The joint-control layer around the simulated arm, advanced in simulated time:
         the agent's only way to the arm.
     T_base_cam : ndarray, shape (4, 4)
-        The wall camera's calibrated extrinsics (camera frame to base frame).
+        The wall camera's true extrinsics (camera frame to base frame): ground truth, for the
+        calibration's error and ``DemoOptions.true_calibration`` only.
     intrinsics : Intrinsics
         The wall camera's intrinsics.
     balls : int
@@ -238,10 +239,13 @@ class CatchScenario:
             a = self.sim.arm
             return elastic_arm_geometry(a.theta, a.tip2, a.tip3, params)
 
+        from .calibration import wall_camera_position_world
+
         self.setup = ball_throw(self.ball_world, np.random.default_rng([o.seed, 4]), T_world_base=T_WORLD_BASE,
-                                arm=arm_geometry, ball_radius_m=o.ball_radius_m)
+                                arm=arm_geometry, ball_radius_m=o.ball_radius_m,
+                                camera_position_world=wall_camera_position_world(o))
         self.camera = self.setup.cameras["rgbd"]
-        self.T_base_cam = np.linalg.inv(T_WORLD_BASE) @ self.camera.T_world_cam     # the calibrated extrinsics
+        self.T_base_cam = np.linalg.inv(T_WORLD_BASE) @ self.camera.T_world_cam     # the true extrinsics
         self._T_cam_world = np.linalg.inv(self.camera.T_world_cam)
         self.intrinsics = Intrinsics.from_matrix(self.camera.K, self.camera.width, self.camera.height)
         self.detector_options = BallDetectorOptions(ball_radius_m=o.ball_radius_m)

@@ -50,13 +50,15 @@ def catch_session_task(options: DemoOptions) -> dict:
     dict
         ``per_throw`` (one :meth:`ThrowResult.as_dict <tudorvision.lab.catch.score.ThrowResult.as_dict>`
         per throw) and the counts ``balls_in_net``, ``net_emptied``, ``setpoints_not_acknowledged``,
-        ``layer_faults_cleared``; nothing that depends on the machine (no wall times).
+        ``layer_faults_cleared``, ``calibration`` (the wall camera's, as in the demo's ``summary.json``,
+        without ``cached``); nothing that depends on the machine (no wall times).
     """
     from .run import run_demo
     o = replace(options, rerun=False, plots=False, show_progress=False)
     with tempfile.TemporaryDirectory(prefix="tudorvision-catch-") as d:
         s = run_demo(d, o)
-    return {"per_throw": s["per_throw"], **{k: s[k] for k in _COUNTS}}
+    calib = {k: v for k, v in s["calibration"].items() if k != "cached"}
+    return {"per_throw": s["per_throw"], **{k: s[k] for k in _COUNTS}, "calibration": calib}
 
 
 def _options_digest(options: DemoOptions) -> str:
@@ -145,6 +147,7 @@ def write_sessions(out, options: DemoOptions, report, *, session_throws: int, wa
                "session_seeds": f"seed * {MAX_SESSIONS} + session",
                **score, "render": options.render, "damping": options.damping, "compensate": options.compensate,
                "net_radius_m": options.net_radius_m, **counts,
+               "calibration": next((rec["result"].get("calibration") for rec in report.done), None),
                "complete": report.complete, "interrupted": report.interrupted,
                "sessions_failed": len(report.failed),
                "failures": [{k: r[k] for k in ("key", "seed", "params", "error")} for r in report.failed]}
