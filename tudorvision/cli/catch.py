@@ -1,13 +1,16 @@
 """``tudorvision catch``: the catching demo and open-loop prediction on recorded RGB-D throws."""
 from __future__ import annotations
 
+import contextlib
 import csv
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from .._checks import TudorVisionError
+from ._viewer import add_viewer_arguments, open_viewer, viewer_requested
 
 __all__ = ["register", "run_open_loop"]
 
@@ -24,12 +27,32 @@ def _base_transform(cal, path_hint) -> np.ndarray:
 
 
 def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 1.07), background: int = 10,
-                  show_progress=None) -> dict:
+                  show_progress=None, recording=None, depth_every: int = 5) -> dict:
     """Detection -> EKF -> intercept -> compensated IK on a recorded RGB-D sequence (no arm).
 
     Writes ``predictions.csv`` (per detection: filter status, state, intercept,
     the drag-free peer's intercept) and ``setpoints.csv`` (the joint setpoints
     that would be sent) in ``out_dir``.
+
+    Parameters
+    ----------
+    seq_path : str or Path
+        RGB-D sequence.
+    out_dir : str or Path
+        Output folder (created).
+    calib : str, optional
+        Calibration with the intrinsics and ``T_base_cam`` (default: the sequence's).
+    ready_point_base : array_like, shape (3,)
+        The net's ready point, m, base frame.
+    background : int
+        Frames for the detector's background model.
+    show_progress : bool or None
+        Progress bar on stderr.
+    recording : rerun.RecordingStream, optional
+        Log every ``depth_every``-th depth frame, the detections, intercepts
+        and setpoints to it (:class:`~tudorvision.lab.catch.writers.RerunLog`).
+    depth_every : int
+        Depth frames logged to ``recording``: every n-th (0: none).
 
     Returns
     -------
@@ -62,13 +85,21 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
     n_det = n_cross = n_reach = 0
     last_cross, min_sigma = None, np.inf
     throws = set()
+    rr_log = None
+    if recording is not None:
+        from ..lab.catch.writers import RerunLog
+        rr_log = RerunLog(recording=recording, net_radius_m=0.05)
     for f in progress(seq, total=len(seq), desc="catch (open loop)", enabled=show_progress):
+        if rr_log is not None and depth_every and f.index % depth_every == 0:
+            rr_log.depth(f.t, f.depth_m)
         d = det.update(f.depth_m)
         if d is None:
             continue
         n_det += 1
         p_b, C_b = detection_to_base(d.p_cam, d.cov_cam, T_base_cam)
         rec = perception.step(f.t, p_b, C_b)
+        if rr_log is not None:
+            rr_log.frame(f.t, p_b, rec)
         if rec["throw"] >= 0:
             throws.add(rec["throw"])
         it = rec["intercept"]
@@ -90,6 +121,8 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
             except ValueError:
                 continue
             sps.append([f.index, f.t, rec["throw"], *theta, *it.p_base])
+            if rr_log is not None:
+                rr_log.setpoint(f.t, theta, it.p_base)
     cols = ["frame", "t_s", "status", "throw", "x_det_m", "y_det_m", "z_det_m", "x_m", "y_m", "z_m", "vx_m_s",
             "vy_m_s", "vz_m_s", "t_cross_s", "x_cross_m", "y_cross_m", "z_cross_m", "sigma_m", "reachable", "send",
             "x_ballistic_m", "y_ballistic_m", "z_ballistic_m"]
@@ -130,12 +163,25 @@ def _cmd_catch(args) -> int:
     if args.target == "demo":
         from ..lab.catch_demo import DemoOptions, run_demo
 
+        from ..lab.catch.writers import rerun_stream
+
         opts = DemoOptions(throws=args.throws, seed=args.seed, render=not args.no_render, damping=args.damping,
                            compensate=not args.rigid, rerun=not args.no_rerun)
         out = Path(args.out or "out/catch/demo")
         if args.scheduler or args.workers or args.session_throws:
+            if viewer_requested(args):
+                raise TudorVisionError("--rerun, --rerun-live, --rerun-web: not with --scheduler, --workers or "
+                                       "--session-throws (sessions write no recording)")
             return _demo_sessions(args, opts, out)
-        s = run_demo(out, opts)
+        viewer = open_viewer(args, "tudorvision_catch", default_file=None if args.no_rerun else out / "catch.rrd")
+        opts = replace(opts, rerun=viewer is not None)
+        try:
+            with contextlib.nullcontext() if viewer is None else rerun_stream(viewer.rec):
+                s = run_demo(out, opts)
+        except BaseException:
+            if viewer is not None:
+                viewer.close(hold=False)
+            raise
         rate = "n/a" if s["success_rate"] is None else f"{100 * s['success_rate']:.0f} %"
         print(f"{s['throws']} throws, {s['crossing_workspace']} cross the reachable workspace, "
               f"{s['caught_in_workspace']} of them caught (success rate {rate}); {s['caught']} caught in all")
@@ -145,17 +191,28 @@ def _cmd_catch(args) -> int:
             err = "" if not np.isfinite(r["pred_error_m"]) else f", intercept error {100 * r['pred_error_m']:.1f} cm"
             print(f"  throw {r['throw']}: {what}{miss}{err}")
         print(f"wrote {out / 'summary.json'}, throws.csv, predictions.csv, setpoints.csv"
-              + (", catch.png" if opts.plots else "") + (", catch.rrd" if opts.rerun else ""))
+              + (", catch.png" if opts.plots else ""))
+        if viewer is not None:
+            viewer.close()
         return 0
     seq = Path(args.target)
     if not seq.exists():
         raise FileNotFoundError(2, "no such sequence", str(seq))
     out = Path(args.out or "out/catch/open_loop")
-    res = run_open_loop(seq, out, calib=args.calib, background=args.background)
+    viewer = open_viewer(args, "tudorvision_catch_open_loop")
+    try:
+        res = run_open_loop(seq, out, calib=args.calib, background=args.background,
+                            recording=None if viewer is None else viewer.rec)
+    except BaseException:
+        if viewer is not None:
+            viewer.close(hold=False)
+        raise
     print(f"{res['detections']} detections in {res['frames']} frames, {res['throws']} throw(s), "
           f"{res['setpoints']} setpoint(s); wrote {out / 'predictions.csv'} and {out / 'setpoints.csv'}")
     if res["why_no_setpoint"]:
         print(f"no setpoint: {res['why_no_setpoint']}")
+    if viewer is not None:
+        viewer.close()
     return 0
 
 
@@ -199,7 +256,9 @@ def register(subparsers) -> None:
                    choices=["off", "proportional", "integral", "half_integrator"],
                    help="demo: damping law of the joint layer (default proportional)")
     p.add_argument("--rigid", action="store_true", help="demo: rigid inverse kinematics (no deflection compensation)")
-    p.add_argument("--no-rerun", action="store_true", help="demo: do not write the rerun recording")
+    p.add_argument("--no-rerun", action="store_true", help="demo: do not write OUT/catch.rrd")
+    add_viewer_arguments(p, file_help="rerun recording (.rrd) of detections, intercepts, net and setpoints "
+                                      "(demo default: OUT/catch.rrd; SEQ: none)")
     p.add_argument("--scheduler", default=None, metavar="serial|local|ADDRESS",
                    help="demo: run the throws as independent sessions (fresh arm, seed S*1000+session) on the "
                         "experiment runner: 'serial', 'local' (a Dask cluster of --workers processes) or a "

@@ -14,6 +14,8 @@ Numbers are written with 6 significant digits, missing values (``nan``,
 """
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import csv
 import json
 from pathlib import Path
@@ -23,7 +25,10 @@ import numpy as np
 from .agent import PREDICTION_COLUMNS, SETPOINT_COLUMNS
 from .score import PER_THROW_COLUMNS
 
-__all__ = ["RerunLog", "format_cell", "plot_catch", "write_csv", "write_summary_json", "write_throws_csv"]
+__all__ = ["RerunLog", "format_cell", "plot_catch", "rerun_stream", "write_csv", "write_summary_json",
+           "write_throws_csv"]
+
+_STREAM = contextvars.ContextVar("tudorvision_catch_rerun_stream", default=None)
 
 
 def format_cell(v):
@@ -186,39 +191,95 @@ def plot_catch(results, predictions, *, net_radius_m: float, params):
     return fig
 
 
-class RerunLog:
-    """rerun recording of the demo: detections, intercepts, net.
+@contextlib.contextmanager
+def rerun_stream(recording):
+    """Send the :class:`RerunLog` opened inside the ``with`` block to ``recording`` instead of its own file.
+
+    The CLI uses it to stream the demo to a live or web viewer (the
+    recording's sinks, chosen by the caller, may include ``catch.rrd``).
 
     Parameters
     ----------
-    path : str or Path
-        The ``.rrd`` file.
+    recording : rerun.RecordingStream
+        The stream to log to; the caller flushes and closes it.
+
+    Returns
+    -------
+    contextmanager
+        Yields ``recording``.
+    """
+    token = _STREAM.set(recording)
+    try:
+        yield recording
+    finally:
+        _STREAM.reset(token)
+
+
+class RerunLog:
+    """rerun recording of the catch: detections, intercepts, net, setpoints (rerun 0.41).
+
+    Entities: ``world/detections`` (last 40 detections), ``world/net``,
+    ``world/intercept`` (rr.Points3D, metres, base frame), ``world/setpoint``,
+    ``plots/intercept_sigma_m``, ``plots/setpoint/theta<j>_rad``
+    (rr.Scalars) and ``camera/depth`` (rr.DepthImage, metres), on the
+    ``time`` timeline (s).
+
+    Parameters
+    ----------
+    path : str or Path, optional
+        The ``.rrd`` file; not used when a recording is given or set by
+        :func:`rerun_stream`.
     net_radius_m : float
         Radius the net is drawn with, m.
+    recording : rerun.RecordingStream, optional
+        Log to this stream instead of opening ``path``.
     """
 
-    def __init__(self, path, *, net_radius_m: float):
+    def __init__(self, path=None, *, net_radius_m: float, recording=None):
         import rerun as rr
 
         self.rr = rr
-        self.rec = rr.RecordingStream("tudorvision_catch")
-        self.rec.save(str(path))
+        recording = recording if recording is not None else _STREAM.get()
+        self._own = recording is None
+        if self._own:
+            if path is None:
+                raise ValueError("RerunLog: give a path or a recording")
+            self.rec = rr.RecordingStream("tudorvision_catch")
+            self.rec.save(str(path))
+        else:
+            self.rec = recording
         self.net_radius_m = float(net_radius_m)
         self._pts: list = []
 
-    def frame(self, t: float, p_det_base, record: dict, net_now_base) -> None:
-        """Log one detection at ``t`` (s): the last 40 detections, the net now and the intercept (m, base frame)."""
+    def frame(self, t: float, p_det_base, record: dict, net_now_base=None) -> None:
+        """Log one detection at ``t`` (s): the last 40 detections, the net now (if given) and the intercept (m, base)."""
         rr, r = self.rr, self.rec
         r.set_time("time", duration=float(t))
         self._pts.append(p_det_base)
         r.log("world/detections", rr.Points3D(np.array(self._pts[-40:]), radii=0.01, colors=(255, 200, 0)))
-        r.log("world/net", rr.Points3D([net_now_base], radii=self.net_radius_m, colors=(80, 160, 255)))
+        if net_now_base is not None:
+            r.log("world/net", rr.Points3D([net_now_base], radii=self.net_radius_m, colors=(80, 160, 255)))
         it = record.get("intercept")
         if it is not None:
             r.log("world/intercept", rr.Points3D([it.p_base], radii=max(it.sigma_m, 0.01),
                                                  colors=(0, 255, 0) if it.send else (255, 80, 80)))
             r.log("plots/intercept_sigma_m", rr.Scalars(it.sigma_m))
 
+    def setpoint(self, t: float, theta_rad, p_target_base) -> None:
+        """Log a joint setpoint sent at ``t`` (s): the joint angles (rad) and the target point (m, base frame)."""
+        rr, r = self.rr, self.rec
+        r.set_time("time", duration=float(t))
+        for j, v in enumerate(np.asarray(theta_rad, float).ravel()):
+            r.log(f"plots/setpoint/theta{j + 1}_rad", rr.Scalars(float(v)))
+        r.log("world/setpoint", rr.Points3D([np.asarray(p_target_base, float)], radii=0.02, colors=(0, 200, 255)))
+
+    def depth(self, t: float, depth_m) -> None:
+        """Log a depth frame (H, W) in metres at ``t`` (s)."""
+        self.rec.set_time("time", duration=float(t))
+        self.rec.log("camera/depth", self.rr.DepthImage(np.asarray(depth_m, np.float32), meter=1.0))
+
     def close(self) -> None:
-        """Flush the recording."""
+        """Flush the recording (and close its file when this log opened it)."""
         self.rec.flush()
+        if self._own:
+            self.rec.disconnect()
