@@ -11,6 +11,7 @@ import numpy as np
 
 from .._checks import TudorVisionError
 from ._viewer import add_viewer_arguments, open_viewer, viewer_requested
+from .robot_args import add_robot_option, robot_from_args
 
 __all__ = ["register", "run_open_loop"]
 
@@ -27,7 +28,7 @@ def _base_transform(cal, path_hint) -> np.ndarray:
 
 
 def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 1.07), background: int = 10,
-                  show_progress=None, recording=None, depth_every: int = 5) -> dict:
+                  show_progress=None, recording=None, depth_every: int = 5, params=None) -> dict:
     """Detection -> EKF -> intercept -> compensated IK on a recorded RGB-D sequence (no arm).
 
     Writes ``predictions.csv`` (per detection: filter status, state, intercept,
@@ -53,6 +54,8 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
         and setpoints to it (:class:`~tudorvision.lab.catch.writers.RerunLog`).
     depth_every : int
         Depth frames logged to ``recording``: every n-th (0: none).
+    params : RobotParams, optional
+        The robot (``--robot``); default the packaged ``tudor.yaml``.
 
     Returns
     -------
@@ -74,7 +77,7 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
     K, cal = intrinsics_for(seq, calib)
     cal_T = cal if calib is not None else seq.calibration   # --calib read once, any format (intrinsics_for)
     T_base_cam = _base_transform(cal_T, calib or seq_path)
-    params = load_robot_params()
+    params = params or load_robot_params()
     km, ikm = demo_kinematics(DemoOptions(), params)
     perception = CatchPerception(params=params)
     det = BallDetector(K, BallDetectorOptions(depth_model=noise_model_from_calibration(cal)), n_background=background)
@@ -166,7 +169,8 @@ def _cmd_catch(args) -> int:
         from ..lab.catch.writers import rerun_stream
 
         opts = DemoOptions(throws=args.throws, seed=args.seed, render=not args.no_render, damping=args.damping,
-                           compensate=not args.rigid, rerun=not args.no_rerun)
+                           compensate=not args.rigid, rerun=not args.no_rerun,
+                           params=robot_from_args(args) if args.robot else None)
         out = Path(args.out or "out/catch/demo")
         if args.scheduler or args.workers or args.session_throws:
             if viewer_requested(args):
@@ -201,7 +205,7 @@ def _cmd_catch(args) -> int:
     out = Path(args.out or "out/catch/open_loop")
     viewer = open_viewer(args, "tudorvision_catch_open_loop")
     try:
-        res = run_open_loop(seq, out, calib=args.calib, background=args.background,
+        res = run_open_loop(seq, out, calib=args.calib, background=args.background, params=robot_from_args(args),
                             recording=None if viewer is None else viewer.rec)
     except BaseException:
         if viewer is not None:
@@ -270,4 +274,5 @@ def register(subparsers) -> None:
                    help="demo on the runner: throws per session (default 30)")
     p.add_argument("--calib", help="SEQ: calibration with intrinsics and T_base_cam")
     p.add_argument("--background", type=int, default=10, help="SEQ: frames for the background (default 10)")
+    add_robot_option(p, "the arm, its kinematics and joint limits (demo: also the simulated arm)")
     p.set_defaults(func=_cmd_catch)

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ...catch.ekf import EKFOptions
+from ...robot import RobotParams
 from ..data_collection import DEMO_COLLECTION, CollectionOptions
 
 __all__ = ["DemoOptions", "DAMPING_LAWS", "trained_payload_range_kg"]
@@ -103,6 +104,8 @@ class DemoOptions:
     calibration_seed : int
         Seed of the calibration sweep's rendering and depth noise (one calibration per camera
         placement, shared by all throws and sessions; cached).
+    params : RobotParams or None
+        The robot (``--robot``: arm, kinematics, limits); None: the packaged ``tudor.yaml``.
 
     Raises
     ------
@@ -143,6 +146,7 @@ class DemoOptions:
     plots: bool = True
     show_progress: bool | None = None
     ekf: EKFOptions = field(default_factory=EKFOptions)
+    params: RobotParams | None = None
     camera_distance_m: float = 5.8
     camera_height_m: float = 2.0
     true_calibration: bool = False

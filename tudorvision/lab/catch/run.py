@@ -146,7 +146,7 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     o = options
-    params = load_robot_params()
+    params = o.params or load_robot_params()
     wall0 = time.perf_counter()
     km, inverse = demo_kinematics(o, params)
     ekf_opts = EKFOptions(**{**asdict(o.ekf), "model": BallModel(drag_k_per_m=o.drag_k_per_m)})
