@@ -352,3 +352,48 @@ def test_open_loop_says_why_no_setpoint(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "0 setpoint(s)" in out
     assert "no setpoint: all" in out and "outside the arm's reachable workspace" in out
+
+
+def test_demo_catches_with_the_wall_camera_calibrated_from_a_disc_sweep(tmp_path, capsys):
+    """Issue 18: the agent gets T_base_cam from a simulated disc sweep (calib rgbd-base's perception) with the
+    camera where it stands for the throws, not the true transform; it catches about as well as with the truth."""
+    base = dict(throws=6, seed=3, render=False, rerun=False, plots=False, cache_dir=str(tmp_path / "cache"))
+    s = run_demo(tmp_path / "cal", DemoOptions(**base))
+    printed = capsys.readouterr().out
+    assert "calibrated from the disc sweep" in printed and "error against the truth" in printed
+    cal = s["calibration"]
+    assert cal["source"] == "disc sweep" and cal["sweep_camera_offset_m"] < 1e-9
+    # calibrated, not copied: a small but non-zero error against the truth (lab side)
+    assert 0.0 < cal["position_error_m"] < 0.02 and 0.0 < cal["rotation_error_deg"] < 1.0
+    assert abs(cal["circle_radius_m"] - 0.84) < 0.02
+    t = run_demo(tmp_path / "true", DemoOptions(**base, true_calibration=True))
+    assert t["calibration"] == {"source": "true"}
+    assert s["crossing_workspace"] == t["crossing_workspace"] >= 2        # the same throws
+    assert s["caught_in_workspace"] >= t["caught_in_workspace"] - 1
+    summary = json.loads((tmp_path / "cal" / "summary.json").read_text())
+    for key in ("success_rate", "success_rate_centre", "caught_centre_in_workspace", "rim_contacts_in_workspace",
+                "calibration"):
+        assert key in summary, key
+    assert summary["caught_centre_in_workspace"] >= summary["caught_in_workspace"]
+    # one calibration per camera placement: the second run reads it from the cache (memory or cache_dir)
+    again = run_demo(tmp_path / "cal2", DemoOptions(**{**base, "throws": 1}))
+    assert again["calibration"]["cached"] and again["calibration"]["position_error_m"] == cal["position_error_m"]
+
+
+def test_calibration_sweep_camera_is_the_throw_camera(tmp_path):
+    from tudorvision.lab.catch.calibration import calibrate_wall_camera, wall_camera_position_world
+    from tudorvision.lab.catch.scenario import CatchScenario
+    from tudorvision.robot import load_robot_params
+
+    p = load_robot_params()
+    o = DemoOptions(throws=1, render=False, cache_dir=str(tmp_path), camera_distance_m=5.0, calibration_seed=1)
+    world = CatchScenario(o, p, np.deg2rad([0.0, 90.0, 0.0]))
+    np.testing.assert_allclose(world.camera.T_world_cam[:3, 3], wall_camera_position_world(o))
+    T, rep = calibrate_wall_camera(o, p, world.T_base_cam)
+    assert rep["sweep_camera_offset_m"] < 1e-9 and not rep["cached"]
+    assert rep["position_error_m"] < 0.02 and rep["rotation_error_deg"] < 1.0
+    assert list(tmp_path.glob("wall_calibration_*.json"))              # cached on disk
+    # a camera elsewhere than the throws' is refused (the sweep would calibrate another camera)
+    with pytest.raises(ValueError, match="not the throws' camera"):
+        calibrate_wall_camera(DemoOptions(throws=1, cache_dir=str(tmp_path / "x"), camera_distance_m=5.2), p,
+                              world.T_base_cam)
