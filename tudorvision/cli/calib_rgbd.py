@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import TudorVisionError
+from .robot_args import add_robot_option, robot_from_args
 
 __all__ = ["register", "observe_sweep", "check_sweep_fit"]
 
@@ -237,9 +238,8 @@ def _cmd_base(args) -> int:
     annulus = tuple(_parse_floats(args.depth_annulus, "--depth-annulus", 2))
     if not args.disc_radius > 0:
         raise TudorVisionError(f"--disc-radius: expected a positive radius in metres, got {args.disc_radius}")
+    prm = robot_from_args(args)            # the disc moves on a circle of link2 + link3 about joint 2
     if args.detector == "disc3d":
-        from ..robot import load_robot_params
-        prm = load_robot_params()          # the first theta2 steps move the disc on a circle of link2 + link3
         opts = Disc3DOptions(disc_radius_m=args.disc_radius, depth_model=noise_model_from_calibration(cal0),
                              arm_radius_m=float(prm.link2_length_m + prm.link3_length_m))
     else:
@@ -248,7 +248,8 @@ def _cmd_base(args) -> int:
     obs = observe_sweep(seq, K, seed, opts, vertical_frame=args.vertical_frame, joint_tol_deg=args.joint_tol_deg)
     circle_idx, vidx, lost = obs["frames"], obs["vertical_frames"], obs["lost"]
     T_base_cam, rep = base_frame_from_theta2_sweep(obs["points_cam"], obs["vertical_cam"], theta2_rad=obs["theta2_rad"],
-                                            origin=args.origin, vertical=args.vertical)
+                                            origin=args.origin, vertical=args.vertical,
+                                            link1_height_m=prm.link1_height_m)
     # report indices as sequence frame numbers
     rep["points_used"] = [int(circle_idx[k]) for k in rep["points_used"]]
     rep["rejected"] = [dict(r, frame=int(circle_idx[r.pop("index")])) for r in rep["rejected"]]
@@ -263,7 +264,7 @@ def _cmd_base(args) -> int:
           f"({len(rep['rejected'])} rejected), radius {rep['circle_radius_m']:.3f} m, "
           f"{len(vidx)} vertical frames; {len(lost)} frames skipped (disc not measurable)")
     print("T_base_cam =\n" + np.array2string(T_base_cam, precision=4, suppress_small=True))
-    bad = check_sweep_fit(rep["circle_radius_m"], rep["circle_rmse_m"], radius_tol_m=args.radius_tol,
+    bad = check_sweep_fit(rep["circle_radius_m"], rep["circle_rmse_m"], params=prm, radius_tol_m=args.radius_tol,
                           max_rmse_m=args.max_rmse)
     rep["fit_warning"] = bad
     if bad:
@@ -376,4 +377,5 @@ def register(calib_sub) -> None:
                    help="largest accepted circle RMSE in metres (default 0.06; the seed reports 0.048)")
     b.add_argument("--accept-bad-fit", action="store_true",
                    help="exit 0 even when the circle does not fit the arm's geometry (the warning stays)")
+    add_robot_option(b, "link1 height (base origin) and link2 + link3 (the sweep circle's expected radius)")
     b.set_defaults(func=_cmd_base)

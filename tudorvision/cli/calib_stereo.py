@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import TudorVisionError
+from .robot_args import add_robot_option, robot_from_args
 
 __all__ = ["register"]
 
@@ -73,7 +74,7 @@ def register(calib_sub) -> None:
                    help="0-based trajectory row in the vertical posture (default: rows whose joints are "
                         "[0, 90, 0] deg within --tol-deg)")
     b.add_argument("--tol-deg", type=float, default=1.0, help="joint tolerance for sweep/vertical rows (default 1)")
-    b.add_argument("--robot-params", help="robot parameter YAML (default: packaged TUDOR parameters)")
+    add_robot_option(b, "link lengths and joint ranges of the theta1 sweep", legacy_alias="--robot-params")
     add_luma_edge_argument(b, "when tracking SEQ: locate the sphere rims on the luma edge (auto = on for JPEG "
                               "frames and video; see 'track stereo --help')")
     b.add_argument("--out", required=True,
@@ -240,7 +241,6 @@ def _track_sweep(args):
 
 def run_base_stereo(args) -> int:
     from ..io.calibration import Calibration, load_calibration, save_calibration
-    from ..robot import load_robot_params
     from ..stereo.base_frame import base_frame_from_theta1_sweep
     from ..stereo.trajectory import read_trajectory_csv
 
@@ -254,7 +254,7 @@ def run_base_stereo(args) -> int:
         raise TudorVisionError(f"{src}: trajectory is in frame {traj.frame!r}; base-stereo needs "
                                "the left camera frame (track without a base calibration)")
     t_j, th_j = _joint_log(args)
-    params = load_robot_params(args.robot_params)
+    params = robot_from_args(args)
     tol = np.deg2rad(args.tol_deg)
     inside = (traj.t >= t_j[0]) & (traj.t <= t_j[-1])
     theta = np.stack([np.interp(traj.t, t_j, th_j[:, k]) for k in range(3)], axis=1)

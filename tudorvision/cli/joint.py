@@ -30,6 +30,8 @@ from collections import deque
 
 import numpy as np
 
+from .robot_args import add_robot_option, robot_from_args
+
 __all__ = ["register", "tip_mm_per_strain"]
 
 
@@ -67,14 +69,11 @@ def _non_negative(text: str) -> float:
 
 
 def _robot_arg(parser, what: str) -> None:
-    parser.add_argument("--robot", default=None, metavar="FILE",
-                        help=f"robot description YAML (default: the packaged TUDOR file; see "
-                             f"docs/own_hardware.md): {what}")
+    add_robot_option(parser, what)
 
 
 def _robot_params(args):
-    from ..robot import load_robot_params
-    return load_robot_params(getattr(args, "robot", None))
+    return robot_from_args(args)
 
 
 def _mass(text: str) -> float:
