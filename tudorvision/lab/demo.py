@@ -170,8 +170,12 @@ def _track_step(stereo_dir: Path, out: Path, log) -> dict:
     return summary
 
 
-def run_demo(out, *, seed: int = 0, log=print) -> dict:
-    """Run the embedded demo into directory ``out``; returns the summary dict."""
+def run_demo(out, *, seed: int = 0, log=print, params=None) -> dict:
+    """Run the embedded demo into directory ``out``; returns the summary dict.
+
+    ``params``: the robot (``--robot``), for the arm physics, the step motion, the recordings
+    and the catching demo; default the packaged ``tudor.yaml``.
+    """
     from ..robot import load_robot_params
     from ..sim.arm import Payload
     from .simulation import simulate_ptp
@@ -179,13 +183,13 @@ def run_demo(out, *, seed: int = 0, log=print) -> dict:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.monotonic()
-    p = load_robot_params()
+    p = params or load_robot_params()
     summary = {"physics": _physics_summary(p)}
     for row in summary["physics"]:
         log(f"payload {row['payload_g']:4d} g: link 2 modes {row['link2_modes_hz']} Hz, link 3 modes "
             f"{row['link3_modes_hz']} Hz, EE sag at zero configuration {row['ee_sag_at_zero_config_mm']} mm")
     lg = simulate_ptp(np.deg2rad([0, 45, -45]), np.deg2rad([0, 135, 45]), 5.0,
-                      payload=Payload.from_parts(p, plates=3), t_move=0.2)
+                      payload=Payload.from_parts(p, plates=3), t_move=0.2, params=p)
     _plot_step(lg, out / "step_motion.png")
     peak = float(np.abs(lg.strain).max() * 1e6)
     settle = lg.strain[-2000:, 0] - lg.strain[-2000:, 0].mean()
@@ -193,14 +197,14 @@ def run_demo(out, *, seed: int = 0, log=print) -> dict:
                        "residual_oscillation_last_1s_um_m": round(float(np.abs(settle).max() * 1e6), 1)}
     log(f"step motion: peak strain {peak:.0f} µm/m; undamped oscillation still "
         f"{summary['step']['residual_oscillation_last_1s_um_m']:.0f} µm/m after 4 s -> {out / 'step_motion.png'}")
-    opts = RecordOptions(seed=seed, small=True, frames=60, force=True)   # the demo's own folder: re-runs replace it
+    opts = RecordOptions(seed=seed, small=True, frames=60, force=True, params=params)   # the demo's own folder: re-runs replace it
     stereo_dir = record("stereo-step", out / "recordings" / "stereo-step", opts)
-    rgbd = [record(k, out / "recordings" / k, RecordOptions(seed=seed, small=True, frames=n, force=True))
+    rgbd = [record(k, out / "recordings" / k, RecordOptions(seed=seed, small=True, frames=n, force=True, params=params))
             for k, n in (("rgbd-disc", 4), ("servo-views", 2))]
     log(f"rendered recordings with ground truth -> {out / 'recordings'}")
     summary["stereo_tracking"] = _track_step(stereo_dir, out, log)
     from .catch_demo import DemoOptions, run_demo as run_catch_demo
-    catch = run_catch_demo(out / "catch", DemoOptions(seed=seed))
+    catch = run_catch_demo(out / "catch", DemoOptions(seed=seed, params=params))
     summary["catch"] = {k: catch[k] for k in ("throws", "crossing_workspace", "caught", "success_rate") if k in catch}
     log(f"ball catching: {summary['catch']} -> {out / 'catch'}")
     views_sheet(stereo_dir, rgbd, out / "views.png")
