@@ -10,6 +10,9 @@
   (:class:`~.score.ThrowResult`, one per throw) and the run's summary;
 * :mod:`.writers`: ``throws.csv``, ``predictions.csv``, ``setpoints.csv``,
   ``summary.json``, ``catch.png`` and ``catch.rrd``;
+* :mod:`.calibration`: the wall camera's ``T_base_cam`` from a simulated disc
+  sweep with the camera where it stands for the throws (the perception of
+  ``calib rgbd-base``; the true transform only with ``DemoOptions.true_calibration``);
 
 :func:`~.run.run_demo` wires them (``tudorvision catch demo``); its options are
 :class:`~.options.DemoOptions`. :mod:`.sessions` splits many throws into
