@@ -121,13 +121,35 @@ def bench_compute(n_frames: int, repeat: int) -> dict:
     return res
 
 
+def _read_summary(path: str):
+    """A repeatability run's summary.json (a file, or the run's folder) with ``wall_s`` and ``workers`` from the
+    ``runner.json`` beside it (the runner keeps timing out of the summary); ``None`` after a one-line error."""
+    import sys
+    from pathlib import Path
+    p = Path(path)
+    if p.is_dir():
+        p = p / "summary.json"
+    try:
+        summary = json.loads(p.read_text())
+        runner = p.with_name("runner.json")
+        info = json.loads(runner.read_text()) if runner.is_file() else {}
+    except (OSError, ValueError) as exc:
+        print(f"--summary: cannot read {p}: {exc}", file=sys.stderr)
+        return None
+    if "wall_s" not in summary:     # written by the runner: timing in runner.json
+        summary["wall_s"] = info.get("total_wall_s", info.get("wall_s"))
+        summary["workers"] = info.get("workers", "?")
+    return summary
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=8)
     ap.add_argument("--repeat", type=int, default=200)
     ap.add_argument("--repetitions", type=int, default=0, help="run the repeatability experiment with N")
     ap.add_argument("--workers", type=int, default=1)
-    ap.add_argument("--summary", help="report an existing repeatability summary.json")
+    ap.add_argument("--summary", help="report an existing repeatability summary.json (or its folder); wall time "
+                                      "and workers come from the runner.json beside it")
     ap.add_argument("--track-speed", type=float, default=0.01)
     ap.add_argument("--no-track", action="store_true")
     args = ap.parse_args()
@@ -143,14 +165,17 @@ def main() -> int:
     print(f"  budget 2 ms; ratio tudorvision hybrid / peer (wall median): {c['hybrid']['wall_ms'] / c['peer']['wall_ms']:.2f}")
     summary = None
     if args.summary:
-        summary = json.loads(open(args.summary).read())
+        summary = _read_summary(args.summary)
+        if summary is None:
+            return 2
     elif args.repetitions:
         from tudorvision.lab.servo_experiments import repeatability
         with tempfile.TemporaryDirectory() as d:
             summary = repeatability(d, repetitions=args.repetitions, workers=args.workers)
     if summary is not None:
+        wall = "wall unknown" if summary.get("wall_s") is None else f"wall {summary['wall_s']:.0f} s"
         print(f"repeatability ({summary['repetitions']} repetitions x 8 poses x payloads "
-              f"{summary['payloads_g']} g per law, wall {summary['wall_s']:.0f} s on {summary['workers']} workers):")
+              f"{summary['payloads_g']} g per law, {wall} on {summary.get('workers', '?')} workers):")
         for law, r in summary["laws"].items():
             print(f"  {law:6s}: mean {r['mean_error_m'] * 1e3:.2f} mm, p90 {r['p90_error_m'] * 1e3:.2f} mm, "
                   f"radius {r['radius_m'] * 1e3:.2f} mm, ISO radius {r['iso_radius_m'] * 1e3:.2f} mm, "
