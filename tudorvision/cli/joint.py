@@ -30,6 +30,7 @@ from collections import deque
 
 import numpy as np
 
+from ._viewer import add_viewer_arguments, open_viewer
 from .robot_args import add_robot_option, robot_from_args
 
 __all__ = ["register", "tip_mm_per_strain"]
@@ -177,6 +178,8 @@ def register(subparsers) -> None:
     m.add_argument("--progress", type=_non_negative, default=1.0, metavar="S",
                    help="seconds between status lines while waiting (default 1; 0: none)")
     _robot_arg(m, "link lengths and blades, to turn the strain gauges into link-tip oscillation in mm")
+    add_viewer_arguments(m, file_help="rerun recording (.rrd) of joint angles, speeds, strains and the setpoint "
+                                      "while waiting")
     m.set_defaults(func=_move)
 
     pl = actions.add_parser("payload", help="tell the layer the end-effector payload")
@@ -361,7 +364,12 @@ def _move(args) -> int:
             return _fail("move", f"setpoint refused: {reply.code.name}: {reply.text}")
         if reply.text:
             print(f"note: {reply.code.name}: {reply.text}")
-        st, why = _wait_with_progress(joints, target, args)
+        viewer = open_viewer(args, "tudorvision_joint_move")
+        try:
+            st, why = _wait_with_progress(joints, target, args, recording=None if viewer is None else viewer.rec)
+        finally:
+            if viewer is not None:
+                viewer.close()
     if st is None:
         return _fail("move", f"did not settle at {_deg_text(args.to)} deg within {args.timeout:g} s: {why}")
     print("settled at theta_deg " + " ".join(f"{x:.3f}" for x in np.rad2deg(st.theta)))
@@ -452,9 +460,13 @@ def _why(history, target, tol, args, mm_per_strain) -> str:
             f"settling band yet; try a longer --timeout or --joints-only")
 
 
-def _wait_with_progress(joints, target, args):
-    """Poll until settled at ``target``: ``(state, None)``, or ``(None, reason)`` after ``args.timeout`` s."""
+def _wait_with_progress(joints, target, args, recording=None):
+    """Poll until settled at ``target``: ``(state, None)``, or ``(None, reason)`` after ``args.timeout`` s.
+
+    Every state received is logged to ``recording`` (a rerun stream) when given.
+    """
     from ..joint.protocol import StateFlags
+    from ..joint.rerun_log import log_joint_state
 
     tol = float(np.deg2rad(args.tol))
     mm_per_strain = tip_mm_per_strain(_robot_params(args))
@@ -469,6 +481,8 @@ def _wait_with_progress(joints, target, args):
         st = joints.request_state(timeout=min(deadline - now, 0.5))
         now = time.monotonic()
         if st is not None:
+            if recording is not None:
+                log_joint_state(recording, st, target)
             history.append((now, st))
             while history and history[0][0] < now - 2.0:
                 history.popleft()
