@@ -242,3 +242,15 @@ def test_joint_move_records_joint_angles(tmp_path, capsys):
     n = rows["/joints/theta_deg/2"]
     assert n >= 2 and all(rows[f"/joints/{k}/{j}"] == n for k in ("theta_deg", "setpoint_deg") for j in (1, 2, 3))
     assert rows["/strains/4_um_m"] == n
+
+
+def test_calib_rgbd_base_records_disc_and_base_frame(tmp_path, capsys):
+    rrd = tmp_path / "wall.rrd"
+    rc, out, err = _run(capsys, "calib", "rgbd-base", SAMPLE / "rgbd-disc", "--seed", "402,283",
+                        "--out", tmp_path / "wall.yaml", "--rerun", rrd)
+    assert rc == 0, err
+    rows = _entity_rows(rrd)
+    # the sample: 11 sweep poses and 4 vertical frames, one disc sample (or clear) each; depth every 5th frame
+    assert rows["/camera/disc"] == 15
+    assert rows["/camera/depth"] == 3
+    assert rows["/camera/base"] == 1 and rows["/camera/sweep"] == 1 and rows["/camera/base/axes"] == 1

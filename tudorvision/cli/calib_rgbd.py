@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import TudorVisionError
+from ._viewer import add_viewer_arguments, open_viewer
 from .robot_args import add_robot_option, robot_from_args
 
 __all__ = ["register", "observe_sweep", "check_sweep_fit"]
@@ -121,7 +122,8 @@ def _predict_uv(samples, thetas, th2, max_gap=np.radians(30.0)):
     return samples[k][1], float(samples[k][0][2])
 
 
-def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None, joint_tol_deg: float = 0.5):
+def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None, joint_tol_deg: float = 0.5,
+                  on_frame=None):
     """Track the disc through a recorded theta2 sweep and its vertical-posture frames.
 
     Parameters
@@ -142,6 +144,9 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
         Frame index of the vertical posture (default: from ``joints.txt``).
     joint_tol_deg : float
         Joint tolerance for sweep and vertical frames, degrees.
+    on_frame : callable, optional
+        ``on_frame(frame, centre_cam)`` for every sweep or vertical frame:
+        the RGB-D frame and the disc centre (m, camera frame) or None when lost.
 
     Returns
     -------
@@ -197,6 +202,8 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
                 samples[i] = (m.centre_cam, None)
             else:
                 lost[i] = m.reason
+            if on_frame is not None:
+                on_frame(f, samples[i][0] if i in samples else None)
             continue
         obs = tracker.update(f.depth_m)
         if not obs.valid and thetas is not None and samples:
@@ -210,6 +217,8 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
             samples[i] = (obs.centroid_cam, obs.centroid_uv)
         else:
             lost[i] = obs.reason
+        if on_frame is not None:
+            on_frame(f, samples[i][0] if i in samples else None)
     vidx = [i for i in range(n) if vertical[i] and i in samples]
     if not vidx:
         raise TudorVisionError("disc lost in every vertical-posture frame")
@@ -221,9 +230,28 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
             "lost": lost}
 
 
+def _fit_base(args, seq, K, seed, opts, prm, recording):
+    """observe_sweep + base_frame_from_theta2_sweep, logging depth (every 5th frame), disc and base frame."""
+    from ..rgbd.base_calib import base_frame_from_theta2_sweep
+    from ..rgbd import rerun_log
+
+    def on_frame(f, centre):
+        if f.index % 5 == 0:
+            rerun_log.log_depth_frame(recording, f.index, f.t, f.depth_m)
+        rerun_log.log_disc(recording, f.index, f.t, centre)
+
+    obs = observe_sweep(seq, K, seed, opts, vertical_frame=args.vertical_frame, joint_tol_deg=args.joint_tol_deg,
+                        on_frame=None if recording is None else on_frame)
+    T_base_cam, rep = base_frame_from_theta2_sweep(obs["points_cam"], obs["vertical_cam"], theta2_rad=obs["theta2_rad"],
+                                                   origin=args.origin, vertical=args.vertical,
+                                                   link1_height_m=prm.link1_height_m)
+    if recording is not None:
+        rerun_log.log_base_frame(recording, T_base_cam, obs["points_cam"])
+    return T_base_cam, rep, obs
+
+
 def _cmd_base(args) -> int:
     from ..io import open_sequence
-    from ..rgbd.base_calib import base_frame_from_theta2_sweep
     from .rgbd import noise_model_from_calibration
     from ..rgbd.disc import DiscOptions
     from ..rgbd.disc3d import Disc3DOptions
@@ -245,11 +273,13 @@ def _cmd_base(args) -> int:
     else:
         opts = DiscOptions(disc_radius_m=args.disc_radius, depth_model=noise_model_from_calibration(cal0),
                            depth_annulus=annulus, depth_window=args.depth_window)
-    obs = observe_sweep(seq, K, seed, opts, vertical_frame=args.vertical_frame, joint_tol_deg=args.joint_tol_deg)
+    viewer = open_viewer(args, "tudorvision_calib_rgbd_base")
+    try:
+        T_base_cam, rep, obs = _fit_base(args, seq, K, seed, opts, prm, None if viewer is None else viewer.rec)
+    finally:
+        if viewer is not None:
+            viewer.close()
     circle_idx, vidx, lost = obs["frames"], obs["vertical_frames"], obs["lost"]
-    T_base_cam, rep = base_frame_from_theta2_sweep(obs["points_cam"], obs["vertical_cam"], theta2_rad=obs["theta2_rad"],
-                                            origin=args.origin, vertical=args.vertical,
-                                            link1_height_m=prm.link1_height_m)
     # report indices as sequence frame numbers
     rep["points_used"] = [int(circle_idx[k]) for k in rep["points_used"]]
     rep["rejected"] = [dict(r, frame=int(circle_idx[r.pop("index")])) for r in rep["rejected"]]
@@ -371,6 +401,8 @@ def register(calib_sub) -> None:
     b.add_argument("--joint-tol-deg", type=float, default=0.5, help="joint tolerance for sweep/vertical frames")
     b.add_argument("--out", help="calibration file to write or update (transforms: T_base_cam)")
     b.add_argument("--report", help="JSON report")
+    add_viewer_arguments(b, file_help="rerun recording (.rrd) of depth frames, the tracked disc and the fitted "
+                                      "base frame")
     b.add_argument("--radius-tol", type=float, default=0.05,
                    help="largest accepted |circle radius - (link2 + link3)| in metres (default 0.05)")
     b.add_argument("--max-rmse", type=float, default=0.06,
