@@ -35,6 +35,10 @@ def _cmd_record(args) -> int:
     return 0
 
 
+def _deg_text(rad) -> str:
+    return "[" + ", ".join(f"{x:.0f}" for x in np.rad2deg(rad)) + "]"
+
+
 def _cmd_ptp(args) -> int:
     from ..sim.arm import Payload
     from ..lab.simulation import simulate_ptp
@@ -62,6 +66,10 @@ def _cmd_ptp(args) -> int:
         ax[1].plot(log.t, log.strain * 1e6); ax[1].set_ylabel("strain [µm/m]")
         ax[1].legend(["link 2 near", "link 2 far", "link 3 near", "link 3 far"])
         ax[2].plot(log.t, (ee - ee[-1]) * 1e3); ax[2].set_ylabel("EE − final [mm]"); ax[2].set_xlabel("t [s]")
+        ax[2].legend(["x (base)", "y (base)", "z (base)"])
+        for a in ax:
+            a.grid(True, alpha=0.3)
+        ax[0].set_title(f"point-to-point {_deg_text(start)} → {_deg_text(goal)} deg, {args.plates} plate(s)")
         fig.tight_layout()
         fig.savefig(args.plot, dpi=100)
         print(f"wrote plot {args.plot}")

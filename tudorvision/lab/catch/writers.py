@@ -168,7 +168,15 @@ def plot_catch(results, predictions, *, net_radius_m: float, params):
     a.set_aspect("equal")
     a.set_xlabel("x base (m)")
     a.set_ylabel("z base (m)")
-    a.set_title("crossings (dots) and net (circles): green caught, red missed, grey outside")
+    a.set_title("true crossings (dots) and the net at the crossing (circles)")
+    from matplotlib.lines import Line2D
+    a.legend(handles=[Line2D([], [], color="k", ls="--", lw=0.8, label="reach (link 2 + link 3)"),
+                      Line2D([], [], color="tab:green", marker="o", ls="", label="caught"),
+                      Line2D([], [], color="tab:red", marker="o", ls="", label="missed (in workspace)"),
+                      Line2D([], [], color="tab:gray", marker="o", ls="", label="outside the workspace"),
+                      Line2D([], [], color="k", marker="o", ls="", mfc="none", ms=10,
+                             label=f"net (radius {100 * net_radius_m:.0f} cm)")],
+             loc="lower right", fontsize=8)
     col = {name: PREDICTION_COLUMNS.index(name) for name in ("throw", "t_s", "x_cross_m", "z_cross_m")}
     pr = np.array([[p[col["throw"]], p[col["t_s"]], p[col["x_cross_m"]], p[col["z_cross_m"]]] for p in predictions],
                   float) if len(predictions) else np.zeros((0, 4))
@@ -180,9 +188,15 @@ def plot_catch(results, predictions, *, net_radius_m: float, params):
             continue
         t_cross = r.t_release_s + r.t_cross_true_s
         err = np.hypot(sel[:, 2] - r.x_cross_true_m, sel[:, 3] - r.z_cross_true_m)
-        b.semilogy(t_cross - sel[:, 1], err * 100, ".-", lw=0.8)
-    b.axvline(0.3, color="k", ls=":")
-    b.axhline(2.0, color="k", ls=":")
+        b.semilogy(t_cross - sel[:, 1], err * 100, ".-", lw=0.8, label=f"throw {r.throw}")
+    b.axvline(0.3, color="k", ls=":", label="0.3 s before the crossing")
+    b.axhline(2.0, color="k", ls="-.", lw=0.8, label="2 cm")
+    b.grid(True, which="both", alpha=0.3)
+    handles, labels = b.get_legend_handles_labels()
+    if len(labels) > 12:            # many throws: name the reference lines only
+        keep = [i for i, lab in enumerate(labels) if not lab.startswith("throw ")]
+        handles, labels = [handles[i] for i in keep], [labels[i] for i in keep]
+    b.legend(handles, labels, loc="upper left", fontsize=8)
     b.invert_xaxis()
     b.set_xlabel("time before crossing (s)")
     b.set_ylabel("intercept error (cm)")
