@@ -290,7 +290,8 @@ def main() -> None:
     cal = run_demo(args.out + "/calibration", DemoOptions(**base, render=False, throws=1))["calibration"]
     print(f"\n   wall camera at {DemoOptions().camera_distance_m} m: T_base_cam from the simulated disc sweep "
           f"(calibration seed {cal['calibration_seed']}): error against the truth {100 * cal['position_error_m']:.2f} cm, "
-          f"{cal['rotation_error_deg']:.3f} deg, circle RMSE {1e3 * cal['circle_rmse_m']:.1f} mm")
+          f"{cal['rotation_error_deg']:.3f} deg (camera pose), {100 * cal['error_at_arm_m']:.2f} cm at the arm, circle RMSE "
+          f"{1e3 * cal['circle_rmse_m']:.1f} mm")
     if not args.skip_true:
         rows_t, _, _ = run_until(args.min_crossing, DemoOptions(**base, render=False, noise_scale=nm["scale"],
                                                                 true_calibration=True), args.out + "/model_true")

@@ -365,6 +365,7 @@ def test_demo_catches_with_the_wall_camera_calibrated_from_a_disc_sweep(tmp_path
     assert cal["source"] == "disc sweep" and cal["sweep_camera_offset_m"] < 1e-9
     # calibrated, not copied: a small but non-zero error against the truth (lab side)
     assert 0.0 < cal["position_error_m"] < 0.02 and 0.0 < cal["rotation_error_deg"] < 1.0
+    assert 0.0 < cal["error_at_arm_m"] < 0.03
     assert abs(cal["circle_radius_m"] - 0.84) < 0.02
     t = run_demo(tmp_path / "true", DemoOptions(**base, true_calibration=True))
     assert t["calibration"] == {"source": "true"}

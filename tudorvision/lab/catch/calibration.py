@@ -74,7 +74,9 @@ def _errors(T_est, T_true):
 
     pos = float(np.linalg.norm(invert_transform(T_est)[:3, 3] - invert_transform(T_true)[:3, 3]))
     rot = float(np.degrees(rotation_angle(T_est[:3, :3].T @ T_true[:3, :3])))
-    return pos, rot
+    aim = np.array([0.0, 0.0, WALL_CAMERA_AIM_HEIGHT_M, 1.0])          # a point at the arm, base frame
+    at_arm = float(np.linalg.norm((T_est @ invert_transform(T_true) @ aim)[:3] - aim[:3]))
+    return {"position_error_m": pos, "rotation_error_deg": rot, "error_at_arm_m": at_arm}
 
 
 def calibrate_wall_camera(options, params, T_base_cam_true) -> tuple[np.ndarray, dict]:
@@ -96,7 +98,8 @@ def calibrate_wall_camera(options, params, T_base_cam_true) -> tuple[np.ndarray,
     T_base_cam : ndarray, shape (4, 4)
         The calibrated camera pose in the base frame (``p_base = T_base_cam @ p_cam``).
     report : dict
-        ``position_error_m`` (camera centre), ``rotation_error_deg``, ``circle_rmse_m``,
+        ``position_error_m`` (camera centre), ``rotation_error_deg``, ``error_at_arm_m`` (a point 1 m
+        above the base mapped through the calibrated against the true transform), ``circle_rmse_m``,
         ``circle_radius_m``, ``frames``, ``skipped_frames``, ``sweep_camera_offset_m`` (sweep
         camera against the throws' camera; 0 up to rounding), ``cached`` (bool).
 
@@ -113,7 +116,9 @@ def calibrate_wall_camera(options, params, T_base_cam_true) -> tuple[np.ndarray,
     from ..disc_sweep import render_disc_sweep
 
     sp = _sweep_params(options, params)
-    key_src = json.dumps({"sweep": repr(sp), "seed": int(options.calibration_seed), "v": 1}, sort_keys=True)
+    from ..data_collection import robot_key
+    key_src = json.dumps({"sweep": repr(sp), "seed": int(options.calibration_seed), "v": 1,
+                          **({"robot": robot_key(params)} if robot_key(params) else {})}, sort_keys=True)
     key = hashlib.sha1(key_src.encode()).hexdigest()[:16]
     T_true = np.asarray(T_base_cam_true, float)
     path = Path(options.cache_dir) / f"wall_calibration_{key}.json"
@@ -127,11 +132,11 @@ def calibrate_wall_camera(options, params, T_base_cam_true) -> tuple[np.ndarray,
         T = np.asarray(cached["T_base_cam"], float)
         rep = dict(cached["report"])
         _MEMORY[key] = cached
-        rep["position_error_m"], rep["rotation_error_deg"] = _errors(T, T_true)
+        rep.update(_errors(T, T_true))
         rep["cached"] = True
         return T, rep
 
-    sweep = render_disc_sweep(sp, np.random.default_rng([int(options.calibration_seed), 15]))
+    sweep = render_disc_sweep(sp, np.random.default_rng([int(options.calibration_seed), 15]), robot=params)
     offset = float(np.max(np.abs(sweep.T_base_cam - T_true)))
     if offset > 1e-6:
         raise TudorVisionError(f"catch demo: the calibration sweep's camera is not the throws' camera "
@@ -159,6 +164,6 @@ def calibrate_wall_camera(options, params, T_base_cam_true) -> tuple[np.ndarray,
     except (OSError, TudorVisionError):
         pass                                # the cache is an optimisation only
     out = dict(rep)
-    out["position_error_m"], out["rotation_error_deg"] = _errors(np.asarray(T, float), T_true)
+    out.update(_errors(np.asarray(T, float), T_true))
     out["cached"] = False
     return np.asarray(T, float), out

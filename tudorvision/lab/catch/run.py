@@ -117,7 +117,8 @@ def wall_camera_transform(options: DemoOptions, params, T_base_cam_true, *, verb
     if verbose:
         print(f"wall camera calibrated from the disc sweep ({rep['frames']} frames, circle RMSE "
               f"{rep['circle_rmse_m'] * 1e3:.1f} mm{', cached' if rep['cached'] else ''}): error against the "
-              f"truth {rep['position_error_m'] * 100:.2f} cm, {rep['rotation_error_deg']:.3f} deg")
+              f"truth {rep['position_error_m'] * 100:.2f} cm, {rep['rotation_error_deg']:.3f} deg (camera pose), "
+              f"{rep['error_at_arm_m'] * 100:.2f} cm at the arm")
     return T, rep
 
 
