@@ -158,7 +158,7 @@ def _tilt(T_ee, tilt, axis_angle):
 
 
 def render_disc_sweep(params: DiscSweepParams, rng: np.random.Generator, *, width: int = 640, height: int = 480,
-                      noise: DepthNoiseModel | None = None) -> DiscSweep:
+                      noise: DepthNoiseModel | None = None, robot=None) -> DiscSweep:
     """Render the sweep of a set-up as depth frames (each pose ray-cast once, noise drawn per frame).
 
     Parameters
@@ -172,12 +172,14 @@ def render_disc_sweep(params: DiscSweepParams, rng: np.random.Generator, *, widt
     noise : tudorvision.sensors.DepthNoiseModel, optional
         Depth noise; default the simulated sensor's (the seed's Kinect fit as
         :mod:`tudorvision.sensors` reads it).
+    robot : RobotParams, optional
+        The simulated arm (``--robot``); default the packaged ``tudor.yaml``.
 
     Returns
     -------
     DiscSweep
     """
-    prm = load_robot_params()
+    prm = robot or load_robot_params()
     payload = Payload.from_parts(prm, plates=params.payload_plates)
     poses = [np.radians([0.0, a, 0.0]) for a in params.theta2_deg] + [np.radians([0.0, 90.0, 0.0])]
     states = [(th, *static_arm_state(th, payload, prm)) for th in poses]
