@@ -199,6 +199,8 @@ def test_rerun_web_serves_on_loopback_only(models, tmp_path):
                 addrs = _listening(port)
                 if Path("/proc/net/tcp").exists():
                     assert addrs == {"0100007F"}, addrs      # 127.0.0.1, not 0.0.0.0 (00000000)
+                    gport = int(re.search(r"127\.0\.0\.1%3A(\d+)%2Fproxy", url).group(1))
+                    assert _listening(gport) == {"0100007F"}  # the gRPC server behind it too
             if "keeps serving" in line:
                 served = True
                 p.send_signal(signal.SIGINT)
