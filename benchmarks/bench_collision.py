@@ -72,15 +72,24 @@ class _Stages:
 
     def run(self, name, specs, fn):
         """``specs``: (params, seed, args after the setup); returns the results in order."""
+        return self.run_many([(name, specs, fn)])[0]
+
+    def run_many(self, groups):
+        """Independent groups ``(name, specs, fn)`` in one pass (one cluster); their results, group by group."""
         tasks = [Task(f"collision-{name}", {**self.setup.params(), **params}, seed, fn, (self.setup, *args))
-                 for params, seed, args in specs]
+                 for name, specs, fn in groups for params, seed, args in specs]
+        name = " + ".join(g[0] for g in groups)
         rep = run_tasks(tasks, self.a.out, scheduler=self.a.scheduler, workers=self.a.workers,
                         show_progress=False if self.a.quiet else None, label=f"collision {name}")
         self.reports.append(rep)
         if not rep.complete:
             raise _Incomplete(f"stage {name}: {len(rep.failed)} failed task(s)"
                               + (", interrupted" if rep.interrupted else ""))
-        return [r["result"] for r in rep.records]
+        out, i = [], 0
+        for _, specs, _ in groups:
+            out.append([r["result"] for r in rep.records[i:i + len(specs)]])
+            i += len(specs)
+        return out
 
 
 def _arrays(d: dict) -> dict:
@@ -213,15 +222,18 @@ def _benchmark(a, setup: CollisionSetup, st: _Stages) -> dict:
     chi = np.asarray(model.chi)
     mparams = {"model": config_digest(chi.tolist())}
     cpl = None if a.no_decouple else [float(coupling.c0), float(coupling.c1), float(coupling.threshold)]
-    # 3. false positives
+    # 3. false positives and 4. contacts: independent given the model and thresholds, one pass
+    per = a.fp_minutes * 60.0 / len(PLATES)
+    chunks = max(1, int(np.ceil(per / 60.0)))
+    fp_specs = [({**mparams, "stage": "false positives", "plates": pl, "seconds": per / chunks,
+                  "thr": thr_of(thr, pl).tolist(), "coupling": cpl}, a.fp_seed0 + 10 * pl + c,
+                 (pl, per / chunks, a.fp_seed0 + 10 * pl + c, chi, thr_of(thr, pl), "none", cpl, False))
+                for pl in PLATES for c in range(chunks)] if a.fp_minutes > 0 else []
+    scen = [(pl, k, s) for pl in a.contact_plates for k in ("link3", "link2") for s in a.strategies]
+    specs = [({**mparams, "stage": "contact", "plates": pl, "kind": k, "strategy": s, "thr": thr_of(thr, pl).tolist(),
+               "coupling": cpl}, 7, (k, s, chi, thr_of(thr, pl), cpl, pl)) for pl, k, s in scen]
+    fp, contacts = st.run_many([("fp", fp_specs, residual_run), ("contact", specs, contact_run)])
     if a.fp_minutes > 0:
-        per = a.fp_minutes * 60.0 / len(PLATES)
-        chunks = max(1, int(np.ceil(per / 60.0)))
-        specs = [({**mparams, "stage": "false positives", "plates": pl, "seconds": per / chunks,
-                   "thr": thr_of(thr, pl).tolist(), "coupling": cpl}, a.fp_seed0 + 10 * pl + c,
-                  (pl, per / chunks, a.fp_seed0 + 10 * pl + c, chi, thr_of(thr, pl), "none", cpl, False))
-                 for pl in PLATES for c in range(chunks)]
-        fp = st.run("fp", specs, residual_run)
         n_fp = sum(len(r["detections"]) for r in fp)
         per_pl = {f"{100 * pl} g": sum(len(r["detections"]) for r in fp if r["plates"] == pl) for pl in PLATES}
         peak = {f"{100 * pl} g": np.round(np.max([np.asarray(r["res_absmax"]) / thr_of(thr, pl) for r in fp
@@ -233,11 +245,7 @@ def _benchmark(a, setup: CollisionSetup, st: _Stages) -> dict:
         print(f"false positives in {a.fp_minutes:g} min: {n_fp}", flush=True)
     elif a.reuse and "false_positives" in prev:
         report["false_positives"] = prev["false_positives"]
-    # 4. contacts
-    scen = [(pl, k, s) for pl in a.contact_plates for k in ("link3", "link2") for s in a.strategies]
-    specs = [({**mparams, "stage": "contact", "plates": pl, "kind": k, "strategy": s, "thr": thr_of(thr, pl).tolist(),
-               "coupling": cpl}, 7, (k, s, chi, thr_of(thr, pl), cpl, pl)) for pl, k, s in scen]
-    report["contacts"] = st.run("contact", specs, contact_run)
+    report["contacts"] = contacts
     for o in report["contacts"]:
         print(o, flush=True)
     return report

@@ -245,8 +245,9 @@ def main(argv=None):
                     "noise": a.noise, "horizon_s": a.horizon, "plates": 3, "coulomb": not a.no_coulomb,
                     "friction_ff": a.friction_ff, "model_chi": chi}
 
-        results, reports = run_damping_study(out, exps, laws, a.reps, run_args, experiment="ch8",
+        results, report = run_damping_study(out, exps, laws, a.reps, run_args, experiment="ch8",
                                              scheduler=a.scheduler, workers=a.workers, show_progress=progress)
+        reports = [report]
         info = runner_info(reports, t0, a)
         write_text_atomic(os.path.join(out, "runner.json"), json.dumps(info, indent=1))
         if not info["complete"]:

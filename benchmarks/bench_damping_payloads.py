@@ -86,10 +86,11 @@ def main(argv=None):
                 "model_chi": None}
 
     exps = [f"{pl}" for pl in plates]
-    results, reports = run_damping_study(a.out, exps, LABELS, a.reps, run_args, experiment="ch8-payloads",
+    results, report = run_damping_study(a.out, exps, LABELS, a.reps, run_args, experiment="ch8-payloads",
                                          scheduler=a.scheduler, workers=a.workers, show_progress=progress)
     drop_keys = [(lab, s) for lab in LABELS[1:] for s in range(a.reps)]
-    if all(r.complete for r in reports):
+    reports = [report]
+    if report.complete:
         reports.append(run_tasks([Task("ch8-payload-change", {"label": lab, "law": a.law, "noise": a.noise}, s,
                                         payload_change_task, (lab, a.law, a.noise, s)) for lab, s in drop_keys],
                                  a.out, scheduler=a.scheduler, workers=a.workers, show_progress=progress,

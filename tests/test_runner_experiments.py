@@ -3,11 +3,11 @@
 * chapter 8 (experiment 06, undamped and proportional, 2 repetitions, 3 s): the
   serial run and a local cluster of two worker processes write byte-identical
   per-run rows (``runs.csv``) and summaries (``ch8_metrics.csv``/``.md``,
-  ``meta.json``); a task's frequency is the dominant frequency of its own run
-  computed directly; a run with one record lost (killed before it was written)
+  ``meta.json``); every run uses the dominant frequency of the undamped
+  seed-0 run, computed here directly; a run with one record lost (killed before it was written)
   resumes, runs only that task and writes the same bytes;
 * collision (a small model fitted here, ``--reuse``; false-positive runs of all
-  payloads and the two contact scenarios without detection and with the stop strategy): serial and
+  payloads and the two contact scenarios without detection): serial and
   a two-process cluster write the same ``collision.json``, ``collision.md`` and
   ``contacts.csv``; a resumed run with a lost contact record writes the same
   summary.
@@ -24,7 +24,7 @@ import numpy as np
 import pytest
 
 from tudorvision.joint.strain_dynamics import fit_strain_dynamics
-from tudorvision.lab.ch8_experiments import ch8_task, dominant_freq, run_experiment
+from tudorvision.lab.ch8_experiments import ch8_task, dominant_freq, resolve_runs, run_experiment
 from tudorvision.lab.collision_experiments import CollisionSetup, identification_run
 from tudorvision.lab.runner import RUNS_DIR
 
@@ -71,11 +71,19 @@ def test_ch8_serial_rows_follow_the_runs(ch8_serial):
 
 
 def test_ch8_task_is_its_run():
-    a = ch8_task("06", "proportional", (0.0, 2000.0, 2000.0), False, 2e-6, 1, 1.5, 3, True, None, None, 2.5)
+    a = ch8_task("06", "proportional", (0.0, 2000.0, 2000.0), False, 2e-6, 1, 1.5, 3, True, None, None)
     r = run_experiment("06", "proportional", (0.0, 2000.0, 2000.0), two_way=False, noise=2e-6, seed=1,
                        horizon_s=1.5)
-    assert a["freq_hz"] == 2.5 and a["final_err_deg"] == r["final_err_deg"]
+    assert a["final_err_deg"] == r["final_err_deg"]
     assert a["metrics"]["online"]["max_strain"] == float(np.max(np.abs(r["eps_online"])))
+    assert a["freq_hz"] == dominant_freq(r["t"], r["eps_dynamic"])
+    # the amplitude at every candidate frequency; the run's own frequency is one of them
+    i = list(a["bins_hz"]).index(a["freq_hz"])
+    for sig in ("online", "dynamic"):
+        assert a["spectral_by_bin"][sig][i] == a["metrics"][sig]["spectral_amp"]
+    # a reference's frequency is handed to the other runs of its group
+    res = resolve_runs({("g", "off", 0): a, ("g", "x", 0): {**a, "freq_hz": 9.9}}, ["g"], "off")
+    assert res[("g", "x", 0)]["freq_hz"] == a["freq_hz"] and set(res) == {("g", "off", 0), ("g", "x", 0)}
 
 
 def test_ch8_local_cluster_and_resume_give_the_same_bytes(ch8_serial, tmp_path):
@@ -109,7 +117,7 @@ def test_ch8_bad_options_are_one_line_errors(tmp_path, capsys):
 
 # ----------------------------------------------------------------------------- collision
 
-COLL_ARGS = ["--reuse", "--fp-minutes", "0.02", "--contact-plates", "3", "--strategies", "no detection,stop",
+COLL_ARGS = ["--reuse", "--fp-minutes", "0.01", "--contact-plates", "3", "--strategies", "no detection",
              "--quiet"]
 COLL_FILES = ("collision.json", "collision.md", "contacts.csv")
 
@@ -142,12 +150,11 @@ def _collision(src: Path, dst: Path, *mode) -> Path:
 def test_collision_serial_local_and_resume_agree(collision_fixture, tmp_path):
     serial = _collision(collision_fixture, tmp_path / "serial", "--scheduler", "serial")
     rep = json.loads((serial / "collision.json").read_text())
-    assert rep["false_positives"]["minutes"] == 0.02
+    assert rep["false_positives"]["minutes"] == 0.01
     assert [(c["kind"], c["strategy"], c["payload_g"]) for c in rep["contacts"]] == [
-        ("link3", "no detection", 300), ("link3", "stop", 300), ("link2", "no detection", 300), ("link2", "stop", 300)]
+        ("link3", "no detection", 300), ("link2", "no detection", 300)]
     # the sphere is put in the path: without detection the arm runs into it
-    assert all(c["onset_s"] is not None and c["peak_force_N"] > 0 for c in rep["contacts"]
-               if c["strategy"] == "no detection")
+    assert all(c["onset_s"] is not None and c["peak_force_N"] > 0 for c in rep["contacts"])
     assert "wall_s" not in rep and json.loads((serial / "runner.json").read_text())["complete"]
     local = _collision(collision_fixture, tmp_path / "local", "--scheduler", "local", "--workers", "2")
     _same(serial, local, COLL_FILES)
@@ -158,9 +165,9 @@ def test_collision_serial_local_and_resume_agree(collision_fixture, tmp_path):
         (resumed / name).unlink()
     shutil.copy(collision_fixture / "collision.json", resumed / "collision.json")
     contact = [p for p in _records(resumed) if p.name.startswith("collision-contact")]
-    assert len(contact) == 4
+    assert len(contact) == 2
     contact[0].unlink()
     _collision(collision_fixture, resumed, "--scheduler", "serial")
     _same(serial, resumed, COLL_FILES)
     stages = json.loads((resumed / "runner.json").read_text())["stages"]
-    assert [s["skipped"] for s in stages] == [5, 3]
+    assert [s["skipped"] for s in stages] == [5 + 1]

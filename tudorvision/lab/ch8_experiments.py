@@ -6,9 +6,10 @@ run's seed) under one damping law; it returns the chapter's metrics (B.4) of
 the run for both strain signals (``online``: what the damper sees; ``dynamic``:
 the noise-free strain minus the static strain of the pose), so that only a few
 numbers travel back from a worker. The metrics' spectral amplitude needs the
-dominant frequency of the experiment, taken from its undamped run with seed 0:
-:func:`run_damping_study` runs those runs first (one task per group) and hands
-the frequency to the others as a parameter.
+dominant frequency of the experiment, taken from its undamped run with seed 0;
+each task also returns the amplitude at every candidate frequency, and
+:func:`resolve_runs` picks the reference's once all runs are in, so the runs
+never wait for each other (one pass through the runner).
 
 The benchmark scripts ``benchmarks/bench_damping_ch8.py`` and
 ``benchmarks/bench_damping_payloads.py`` build on these functions; the runner
@@ -29,7 +30,7 @@ from ..joint.cascade import friction_compensation
 from ..joint.controlled import ControlledArm
 from ..joint.damping import ASSISTED_GAINS, ONE_WAY_GAINS, DampingConfig, StrainDamper
 from ..joint.identification import fit_with_validation
-from ..joint.metrics import METRIC_NAMES, damping_metrics, normalise_metrics
+from ..joint.metrics import METRIC_NAMES, damping_metrics, normalise_metrics, spectral_amplitude
 from ..joint.strain_dynamics import StrainDynamicsModel, aprbs, derivatives
 from ..io.atomic import write_text_atomic
 from ..robot import load_robot_params
@@ -39,7 +40,7 @@ from .simulation import SimCore
 
 __all__ = ["OPS_DEG", "EXPERIMENTS", "LAWS", "HORIZON_S", "SIGNALS", "ID_LO_RAD", "ID_HI_RAD",
            "static_strain_link2_root", "friction_feedforward", "run_experiment", "dominant_freq", "ch8_task",
-           "run_damping_study", "evaluate", "runs_csv", "identification_task", "identify",
+           "resolve_runs", "run_damping_study", "evaluate", "runs_csv", "identification_task", "identify",
            "DROP_POSE_DEG", "DROP_MOVE_DEG", "payload_change_task"]
 
 #: Operating points of figure 8.1, deg (assumed; see ``benchmarks/bench_damping_ch8.py``).
@@ -203,38 +204,89 @@ def dominant_freq(t, x) -> float:
     return float(f[m][np.argmax(X[m])])
 
 
+def _candidate_bins(t) -> np.ndarray:
+    f = np.fft.rfftfreq(t.size, t[1] - t[0])
+    return f[(f > 1.0) & (f < 6.0)]
+
+
 def ch8_task(exp: str, law: str, k_eps, two_way: bool, noise: float, seed: int, horizon_s: float, plates: int,
-             coulomb: bool, friction_ff: str | None, model_chi, freq_hz: float | None) -> dict:
+             coulomb: bool, friction_ff: str | None, model_chi) -> dict:
     """One run as a runner task: the run's metrics on both strain signals (a few numbers, not the series).
+
+    The spectral amplitude needs the experiment's dominant frequency, which only its undamped
+    run with seed 0 knows; so the task returns the amplitude at every candidate frequency (the
+    DFT bins between 1 and 6 Hz that :func:`dominant_freq` chooses from) and :func:`resolve_runs`
+    picks the reference's once all runs are in. The runs therefore do not wait for each other.
 
     Parameters
     ----------
     exp, law, k_eps, two_way, noise, seed, horizon_s, plates, coulomb, friction_ff, model_chi
         As for :func:`run_experiment`.
-    freq_hz : float or None
-        Dominant frequency of the experiment for the spectral amplitude, Hz; ``None``: this run's own
-        (the undamped run with seed 0 gives it to the others).
 
     Returns
     -------
     dict
-        ``freq_hz`` (used), ``metrics`` (``{signal: damping metrics}`` for :data:`SIGNALS`),
+        ``freq_hz`` (this run's own dominant frequency of the dynamic strain, Hz), ``metrics``
+        (``{signal: damping metrics}`` for :data:`SIGNALS`, spectral amplitude at ``freq_hz``),
+        ``bins_hz`` (K,) candidate frequencies, ``spectral_by_bin`` (``{signal: (K,) amplitudes, m/m}``),
         ``eps3_tail_max`` (largest link-3 root online strain in the last 2 s, m/m), ``final_err_deg`` (3,).
     """
     r = run_experiment(exp, law, k_eps, two_way=two_way, noise=noise, seed=seed, horizon_s=horizon_s,
                        plates=plates, coulomb=coulomb, friction_ff=friction_ff, model_chi=model_chi)
-    freq = dominant_freq(r["t"], r["eps_dynamic"]) if freq_hz is None else float(freq_hz)
+    freq = dominant_freq(r["t"], r["eps_dynamic"])
     metrics = {s: damping_metrics(r["t"], r[f"eps_{s}"], r["theta2"], r["ref2"], theta_goal=r["goal2"],
                                   freq_hz=freq, horizon_s=horizon_s) for s in SIGNALS}
+    bins = _candidate_bins(r["t"])
+    spectra = {s: [spectral_amplitude(r["t"], r[f"eps_{s}"], f) for f in bins] for s in SIGNALS}
     tail = r["t"] > horizon_s - 2.0
-    return {"freq_hz": freq, "metrics": metrics, "eps3_tail_max": float(np.max(np.abs(r["eps3_online"][tail]))),
-            "final_err_deg": r["final_err_deg"]}
+    return {"freq_hz": freq, "metrics": metrics, "bins_hz": bins, "spectral_by_bin": spectra,
+            "eps3_tail_max": float(np.max(np.abs(r["eps3_online"][tail]))), "final_err_deg": r["final_err_deg"]}
+
+
+def resolve_runs(raw: dict, groups, reference: str) -> dict:
+    """Give every run its group's reference frequency (undamped, seed 0) and the spectral amplitude there.
+
+    Parameters
+    ----------
+    raw : dict
+        ``{(group, label, seed): ch8_task result}``.
+    groups : sequence of str
+        Groups to resolve (each needs its ``(group, reference, 0)`` run).
+    reference : str
+        Label of the undamped runs.
+
+    Returns
+    -------
+    dict
+        ``{(group, label, seed): {"freq_hz", "metrics", "eps3_tail_max", "final_err_deg"}}`` with
+        ``freq_hz`` the reference's and ``spectral_amp`` taken at it.
+
+    Raises
+    ------
+    ValueError
+        If a run's candidate frequencies differ from its reference's (another horizon or step).
+    """
+    out = {}
+    for g in groups:
+        ref = raw[(g, reference, 0)]
+        freq, bins = ref["freq_hz"], [float(f) for f in ref["bins_hz"]]
+        i = bins.index(freq)
+        for (gg, lab, s), r in raw.items():
+            if gg != g:
+                continue
+            if [float(f) for f in r["bins_hz"]] != bins:
+                raise ValueError(f"run {(gg, lab, s)}: its frequency bins differ from the reference run's")
+            metrics = {sig: {**r["metrics"][sig], "spectral_amp": float(r["spectral_by_bin"][sig][i])}
+                       for sig in SIGNALS}
+            out[(gg, lab, s)] = {"freq_hz": freq, "metrics": metrics, "eps3_tail_max": r["eps3_tail_max"],
+                                 "final_err_deg": r["final_err_deg"]}
+    return out
 
 
 def run_damping_study(out, groups, labels, reps: int, run_args: Callable, *, experiment: str = "ch8",
                       scheduler: str | None = "serial", workers: int | None = None, show_progress=None,
                       processes: bool = True, dashboard_address: str | None = ":8787"):
-    """Run ``groups x labels x reps`` runs through the runner, undamped seed-0 runs first.
+    """Run ``groups x labels x reps`` runs through the runner (one task each) and resolve their frequencies.
 
     Parameters
     ----------
@@ -247,8 +299,8 @@ def run_damping_study(out, groups, labels, reps: int, run_args: Callable, *, exp
     reps : int
         Repetitions (noise seeds ``0 .. reps-1``).
     run_args : callable
-        ``run_args(group, label)`` -> dict of :func:`ch8_task`'s arguments but ``seed`` and ``freq_hz``
-        (JSON values but ``model_chi``, an array or ``None``).
+        ``run_args(group, label)`` -> dict of :func:`ch8_task`'s arguments but ``seed`` (JSON values but
+        ``model_chi``, an array or ``None``).
     experiment : str
         Experiment name of the tasks.
     scheduler, workers, show_progress, processes, dashboard_address
@@ -257,33 +309,28 @@ def run_damping_study(out, groups, labels, reps: int, run_args: Callable, *, exp
     Returns
     -------
     results : dict
-        ``{(group, label, seed): ch8_task result}`` for the runs that finished.
-    reports : list of RunReport
-        The runner's reports (reference runs, then the others).
+        ``{(group, label, seed): resolved result}`` (:func:`resolve_runs`) of the groups whose runs all
+        finished.
+    report : RunReport
+        The runner's report.
     """
-    def task(group, label, seed, freq):
-        kw = dict(run_args(group, label))
-        chi = kw.pop("model_chi", None)
-        params = {"group": group, "label": label, **kw, "model": None if chi is None else
-                  config_digest(np.asarray(chi).tolist()), "freq_hz": freq}
-        args = (kw["exp"], kw["law"], tuple(kw["k_eps"]), kw["two_way"], kw["noise"], seed, kw["horizon_s"],
-                kw["plates"], kw["coulomb"], kw["friction_ff"], chi, freq)
-        return (group, label, seed), Task(experiment, params, seed, ch8_task, args)
-
-    common = dict(scheduler=scheduler, workers=workers, show_progress=show_progress, processes=processes,
-                  dashboard_address=dashboard_address)
-    first = [task(g, labels[0], 0, None) for g in groups]
-    reports = [run_tasks([t for _, t in first], out, label=f"{experiment} reference runs", **common)]
-    results = {k: rec["result"] for (k, _), rec in zip(first, reports[0].records)
-               if rec is not None and rec["status"] == "done"}
-    freq = {g: results[(g, labels[0], 0)]["freq_hz"] for g in groups if (g, labels[0], 0) in results}
-    rest = [task(g, lab, s, freq[g]) for g in groups if g in freq for lab in labels for s in range(reps)
-            if (lab, s) != (labels[0], 0)]
-    if rest and not reports[0].interrupted:
-        reports.append(run_tasks([t for _, t in rest], out, label=f"{experiment} runs", **common))
-        results.update({k: rec["result"] for (k, _), rec in zip(rest, reports[1].records)
-                        if rec is not None and rec["status"] == "done"})
-    return results, reports
+    keys, tasks = [], []
+    for g in groups:
+        for lab in labels:
+            kw = dict(run_args(g, lab))
+            chi = kw.pop("model_chi", None)
+            params = {"group": g, "label": lab, **kw,
+                      "model": None if chi is None else config_digest(np.asarray(chi).tolist())}
+            args = (kw["exp"], kw["law"], tuple(kw["k_eps"]), kw["two_way"], kw["noise"])
+            rest = (kw["horizon_s"], kw["plates"], kw["coulomb"], kw["friction_ff"], chi)
+            for s in range(reps):
+                keys.append((g, lab, s))
+                tasks.append(Task(experiment, params, s, ch8_task, args + (s,) + rest))
+    report = run_tasks(tasks, out, scheduler=scheduler, workers=workers, show_progress=show_progress,
+                       processes=processes, dashboard_address=dashboard_address, label=f"{experiment} runs")
+    raw = {k: rec["result"] for k, rec in zip(keys, report.records) if rec is not None and rec["status"] == "done"}
+    whole = [g for g in groups if all((g, lab, s) in raw for lab in labels for s in range(reps))]
+    return resolve_runs(raw, whole, labels[0]), report
 
 
 def evaluate(results: dict, groups, labels, reps: int, *, horizon_s: float = HORIZON_S) -> dict:
