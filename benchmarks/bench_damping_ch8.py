@@ -34,8 +34,16 @@ before the double moving average (:class:`tudorvision.joint.damping.StrainDamper
 ``strain_model``). Proportional gains then default to ``ASSISTED_GAINS``.
 
 Run:  .venv/bin/python benchmarks/bench_damping_ch8.py [--reps 20] [--plant one-way|two-way|both]
-      [--noise 2e-6] [--jobs 2] [--tune] [--no-coulomb] [--friction-ff SRC:SCALE:BAND]
-      [--model-assist [--model chi.npy] [--id-seconds 30]] [--laws off,proportional] [--out out/damping_ch8]
+      [--noise 2e-6] [--scheduler serial|local|tcp://HOST:8786] [--workers 2] [--tune] [--no-coulomb]
+      [--friction-ff SRC:SCALE:BAND] [--model-assist [--model chi.npy] [--id-seconds 30]]
+      [--experiments 06,07] [--laws off,proportional] [--horizon 10] [--out out/damping_ch8]
+
+The runs are tasks of the experiment runner (tudorvision.lab.runner; the run functions are in
+tudorvision.lab.ch8_experiments, docs/experiments.md): each finished run is recorded in
+OUT/<plant>/runs/ as it arrives and the same command resumes; the tables do not depend on the
+scheduler. Changes from the --jobs version: ``--jobs`` is the old name of ``--workers``; meta.json no
+longer holds wall_s, cpu and jobs (they are in runner.json beside it); runs.csv (one row per run) and
+``--horizon`` are new.
 """
 from __future__ import annotations
 
