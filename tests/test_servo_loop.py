@@ -91,3 +91,25 @@ def test_run_stops_early_when_no_command_can_be_sent(small_lab):
     assert np.ptp(h["p_cam_world"], axis=0).max() < 5e-3      # zero commands: only the mode-switch transient
     # the recorded true camera poses are the positions reported
     np.testing.assert_allclose(h["T_world_cam"][:, :3, 3], h["p_cam_world"])
+
+
+def test_servo_sim_status_line_only_on_a_terminal():
+    """`servo --sim` shows a status line once per simulated second on a terminal, nothing in logs."""
+    import io
+    from types import SimpleNamespace
+
+    from tudorvision.cli.servo import _with_status
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    seen, term = [], Terminal()
+    frame = _with_status(lambda t, *rest: seen.append(t), 10.0, stream=term)
+    for t in (0.0, 0.5, 1.0, 1.2, 2.1):
+        frame(t, None, None, SimpleNamespace(command=SimpleNamespace(ok=t < 2.0, error_m=0.0123)))
+    assert seen == [0.0, 0.5, 1.0, 1.2, 2.1]                 # the wrapped callback still sees every frame
+    lines = term.getvalue().split("\r")[1:]
+    assert len(lines) == 3 and "t   1.0 / 10 s" in lines[1] and "12.3 mm" in lines[1]
+    assert "features lost" in lines[2]
+    assert _with_status(None, 10.0, stream=io.StringIO()) is None   # not a terminal: no wrapper

@@ -137,11 +137,14 @@ def run_sim(args) -> int:
     if log is not None:
         log.log_goal(goal_bgr)
     try:
-        result = run_closed_loop(lab, servo, p_goal, on_frame=None if log is None else log.log_frame)
+        result = run_closed_loop(lab, servo, p_goal, on_frame=_with_status(None if log is None else log.log_frame,
+                                                                            cfg.t_max_s))
     except BaseException:
         if viewer is not None:
             viewer.close(hold=False)
         raise
+    if sys.stderr.isatty():
+        sys.stderr.write("\n")                     # end the status line
     _write_csv(out / "errors.csv", result.history)
     plot_errors(result.history, out / "errors.png")
     summary = {"converged": result.converged, "settling_time_s": result.settling_time_s,
@@ -155,6 +158,26 @@ def run_sim(args) -> int:
           + (f" in {result.settling_time_s:.2f} s" if result.converged else "")
           + f", final camera position error {result.final_error_m * 1e3:.1f} mm; wrote {out}")
     return 0 if result.converged else 1
+
+
+def _with_status(on_frame, t_max_s: float, stream=None):
+    """``on_frame`` plus a status line on stderr every simulated second (a terminal only: logs stay clean)."""
+    import sys
+    stream = stream or sys.stderr
+    if not (hasattr(stream, "isatty") and stream.isatty()):
+        return on_frame
+    shown = [-1]
+
+    def frame(t, bgr, depth, step):
+        if on_frame is not None:
+            on_frame(t, bgr, depth, step)
+        if int(t) > shown[0]:
+            shown[0] = int(t)
+            c = step.command
+            err = f"{c.error_m * 1e3:6.1f} mm" if c.ok and c.error_m is not None else "features lost"
+            stream.write(f"\rservo: t {t:5.1f} / {t_max_s:.0f} s, estimated error {err}   ")
+            stream.flush()
+    return frame
 
 
 def _write_csv(path: Path, h: dict) -> None:
