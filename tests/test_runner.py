@@ -253,3 +253,15 @@ def test_external_dask_scheduler_and_worker_on_loopback(tmp_path):
             except subprocess.TimeoutExpired:
                 p.kill()
                 p.wait()
+
+
+def test_twenty_throw_catch_run_identical_serial_and_on_two_worker_processes(tmp_path):
+    """Issue 17's catch case at its size: 20 throws in 4 sessions, serial vs a 2-process local cluster."""
+    from tudorvision.lab.catch import DemoOptions, run_sessions
+    opts = DemoOptions(throws=20, seed=5, render=False)
+    s1 = run_sessions(tmp_path / "serial", opts, session_throws=5, scheduler="serial")
+    s2 = run_sessions(tmp_path / "local", opts, session_throws=5, scheduler="local", workers=2,
+                      dashboard_address=None)
+    assert s1["complete"] and s2["complete"] and s1["throws_done"] == 20 and s1["sessions"] == 4
+    _same_files(tmp_path / "serial", tmp_path / "local", ["throws.csv", "summary.json"])
+    assert s2["per_throw"] == s1["per_throw"]
