@@ -14,8 +14,9 @@ OpenCV; ``from tudorvision.io import X`` works as usual.
 """
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
+
+from .._lazy import lazy_exports
 
 if TYPE_CHECKING:  # the same names, for type checkers and the import-layer checks
     from ._imageheader import DEFAULT_MAX_PIXELS
@@ -42,7 +43,6 @@ _PROVIDERS = {
     "sequence": ("Sequence", "load_joint_log", "open_sequence"),
     "writer": ("SequenceWriter",),
 }
-_WHERE = {name: module for module, names in _PROVIDERS.items() for name in names}
 
 __all__ = [
     "open_sequence", "Sequence", "load_joint_log", "StereoFrame", "RGBDFrame", "MonoFrame", "JointLog",
@@ -54,17 +54,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
-    """Import the submodule that provides ``name`` on first use (module-level, PEP 562)."""
-    try:
-        module = _WHERE[name]
-    except KeyError:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    """Module attributes including the lazily imported names."""
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _PROVIDERS, globals(), __all__)

@@ -10,8 +10,9 @@ filters; ``from tudorvision.joint import X`` works as usual.
 """
 from __future__ import annotations
 
-import importlib
 from typing import TYPE_CHECKING
+
+from .._lazy import lazy_exports
 
 if TYPE_CHECKING:  # the same names, for type checkers and the import-layer checks
     from .adapter import AdapterStats, JointAdapter
@@ -50,7 +51,6 @@ _PROVIDERS = {
     "server_config": ("ServerConfig",),
     "transport": ("InProcessTransport", "LockstepClientTransport", "Transport", "TransportClosed", "UdpTransport"),
 }
-_WHERE = {name: module for module, names in _PROVIDERS.items() for name in names}
 
 __all__ = [
     # what perception talks to
@@ -72,17 +72,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str):
-    """Import the submodule that provides ``name`` on first use (module-level, PEP 562)."""
-    try:
-        module = _WHERE[name]
-    except KeyError:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    """Module attributes including the lazily imported names."""
-    return sorted(set(globals()) | set(__all__))
+__getattr__, __dir__ = lazy_exports(__name__, _PROVIDERS, globals(), __all__)
