@@ -46,7 +46,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._checks import TudorVisionError, check_array
+from .._checks import check_array
 from ..sensors import KINECT_DEPTH_NOISE, DepthNoiseModel
 from .frames import Intrinsics, check_depth
 
@@ -388,8 +388,6 @@ def measure_disc_3d(depth_m, intrinsics: Intrinsics, predicted_cam, margin_m: fl
         If the depth image does not have the intrinsics' shape or the
         prediction is not three finite values.
     """
-    import cv2
-
     d = check_depth(depth_m, intrinsics=intrinsics, require_valid=False)
     pred = check_array(predicted_cam, "predicted_cam", (3,))
     rng = rng if rng is not None else np.random.default_rng(options.random_seed)
@@ -427,7 +425,7 @@ def measure_disc_3d(depth_m, intrinsics: Intrinsics, predicted_cam, margin_m: fl
         tilt = min(np.arccos(min(1.0, abs(float(unit_vector(np.asarray(normal_prior, float)) @ unit_vector(pred))))) +
                    np.radians(15.0), np.radians(75.0))
     front = zs <= z_front + 2.0 * R * np.sin(tilt) + 3.0 * sigma
-    found, first_reason = [], ""
+    first_reason = ""
     for subset in (front, np.ones(len(P), bool)):
         idx = np.nonzero(subset)[0]
         if len(idx) < options.min_points:
@@ -502,38 +500,33 @@ def _disc_in_plane(g, P, inl, normal, h, rmse, nstd, tol, options, normal_prior)
     index[g.sel] = np.arange(len(P))
     normal_from = "fit"
     centre = None
+
+    def fallback_plane():
+        # the depth noise leaves the tilt undetermined: keep the previous frames' normal, or face the camera
+        if normal_prior is not None and np.all(np.isfinite(normal_prior)):
+            n, source = unit_vector(np.asarray(normal_prior, float)), "prior"
+        else:
+            n, source = -unit_vector(pred), "camera"
+        hh = float(np.median(P[inl] @ n))
+        return n, source, hh, np.abs(P @ n - hh) <= tol
+
+    def facing(n, hh):
+        # the normal toward the camera, the cosine of the view angle and the disc's smaller image radius
+        if n @ pred > 0:
+            n, hh = -n, -hh
+        cos = abs(float(n @ unit_vector(pred)))
+        return n, hh, cos, f * R / zp * cos
+
     for it in range(2):
         if not np.degrees(nstd) <= options.max_normal_std_deg or normal_from != "fit":
-            # the depth noise leaves the tilt undetermined: keep the previous frames' normal, or face the camera
-            if normal_prior is not None and np.all(np.isfinite(normal_prior)):
-                normal, normal_from = unit_vector(np.asarray(normal_prior, float)), "prior"
-            else:
-                normal, normal_from = -unit_vector(pred), "camera"
-            h = float(np.median(P[inl] @ normal))
-            inl = np.abs(P @ normal - h) <= tol
-        if normal @ pred > 0:
-            normal, h = -normal, -h
-        cos_view = abs(float(normal @ unit_vector(pred)))
-        minor_px = f * R / zp * cos_view                       # the disc's smaller image radius
+            normal, normal_from, h, inl = fallback_plane()
+        normal, h, cos_view, minor_px = facing(normal, h)
         if minor_px < options.min_minor_px and normal_from == "fit":
             # an edge-on fit may be the noise's (depth scatter dwarfing the disc): try the fallback normal; a
             # truly edge-on disc then leaves too small a patch for the area check
             nstd = np.inf
-            normal_from = "edge-on fit"
-            continue_with_fallback = True
-        else:
-            continue_with_fallback = False
-        if continue_with_fallback:
-            if normal_prior is not None and np.all(np.isfinite(normal_prior)):
-                normal, normal_from = unit_vector(np.asarray(normal_prior, float)), "prior"
-            else:
-                normal, normal_from = -unit_vector(pred), "camera"
-            h = float(np.median(P[inl] @ normal))
-            inl = np.abs(P @ normal - h) <= tol
-            if normal @ pred > 0:
-                normal, h = -normal, -h
-            cos_view = abs(float(normal @ unit_vector(pred)))
-            minor_px = f * R / zp * cos_view
+            normal, normal_from, h, inl = fallback_plane()
+            normal, h, cos_view, minor_px = facing(normal, h)
         if minor_px < options.min_minor_px:
             return skip_measurement(f"disc seen edge-on: smaller image radius {minor_px:.1f} px (plane "
                          f"{np.degrees(np.arccos(cos_view)):.0f} deg from the view)")
