@@ -9,6 +9,7 @@ import time
 
 import pytest
 
+from _subproc import start_cli, stop
 from tudorvision.cli import main
 
 SERVE_S = 20.0
@@ -16,25 +17,12 @@ SERVE_S = 20.0
 
 @pytest.fixture(scope="module")
 def served_port():
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "tudorvision.cli", "joint", "serve", "--port", "0",
-         "--duration", str(SERVE_S)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc, line = start_cli(["joint", "serve", "--port", "0", "--duration", SERVE_S],
+                           expect=["listening on udp 127.0.0.1:"], timeout_s=15.0)
     try:
-        ready, _, _ = select.select([proc.stdout], [], [], 15.0)
-        line = proc.stdout.readline() if ready else ""
-        if "listening on udp 127.0.0.1:" not in line:
-            proc.kill()
-            _, err = proc.communicate(timeout=5)
-            pytest.fail(f"joint serve did not start: {line!r} {err[-2000:]!r}")
         yield int(line.rsplit(":", 1)[1])
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=5)
+        stop(proc)
 
 
 def _dead_port() -> int:

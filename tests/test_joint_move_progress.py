@@ -8,12 +8,10 @@ same kind of move settles. A move cut short names the joint still on its way.
 from __future__ import annotations
 
 import re
-import select
-import subprocess
-import sys
 
 import pytest
 
+from _subproc import start_cli, stop
 from tudorvision.cli import main
 
 pytest.importorskip("tudorvision.sim.arm", reason="simulated arm not available")
@@ -24,23 +22,12 @@ LINE = re.compile(r"^\s*\d+\.\d s  theta_deg( +-?\d+\.\d{3}){3}  to goal \d+\.\d
 
 @pytest.fixture(scope="module")
 def sim_port():
-    proc = subprocess.Popen([sys.executable, "-m", "tudorvision.cli", "joint", "serve", "--port", "0",
-                             "--core", "sim", "--duration", "60"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc, line = start_cli(["joint", "serve", "--port", "0", "--core", "sim", "--duration", "60"],
+                           expect=["listening on udp 127.0.0.1:"])
     try:
-        ready, _, _ = select.select([proc.stdout], [], [], 20.0)
-        line = proc.stdout.readline() if ready else ""
-        if "listening on udp 127.0.0.1:" not in line:
-            proc.kill()
-            pytest.fail(f"joint serve did not start: {line!r} {proc.communicate(timeout=5)[1][-2000:]!r}")
         yield int(line.rsplit(":", 1)[1])
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=5)
+        stop(proc)
 
 
 def test_damped_move_settles_with_the_suggested_flag(sim_port, capsys):

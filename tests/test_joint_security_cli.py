@@ -2,12 +2,10 @@
 from __future__ import annotations
 
 import os
-import select
-import subprocess
-import sys
 
 import pytest
 
+from _subproc import start_cli, stop
 from tudorvision.cli import main
 
 
@@ -31,23 +29,12 @@ def keyed_layer(tmp_path_factory):
     key = tmp_path_factory.mktemp("key") / "joint.key"
     from tudorvision.joint.protocol import write_key_file
     write_key_file(key)
-    proc = subprocess.Popen([sys.executable, "-m", "tudorvision.cli", "joint", "serve", "--port", "0",
-                             "--duration", "20", "--key-file", str(key)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc, line = start_cli(["joint", "serve", "--port", "0", "--duration", "20", "--key-file", key],
+                           expect=["HMAC-SHA256", "127.0.0.1:"], timeout_s=15.0)
     try:
-        ready, _, _ = select.select([proc.stdout], [], [], 15.0)
-        line = proc.stdout.readline() if ready else ""
-        if "HMAC-SHA256" not in line or "127.0.0.1:" not in line:
-            proc.kill()
-            pytest.fail(f"joint serve --key-file did not start: {line!r} {proc.communicate(timeout=5)[1][-2000:]!r}")
         yield int(line.rsplit(":", 1)[1]), str(key)
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=5)
+        stop(proc)
 
 
 def test_keyed_layer_answers_key_holders_only(keyed_layer, tmp_path, capsys):

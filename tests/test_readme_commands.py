@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import pytest
+from _subproc import stop
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -70,12 +71,7 @@ def workdir(tmp_path_factory):
     background = []
     yield d, background
     for proc in background:
-        proc.terminate()
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=5)
+        stop(proc)
 
 
 def _marks(cmd):

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from _subproc import start_cli, stop
 from tudorvision._checks import TudorVisionError
 from tudorvision.cli import _viewer, main
 from tudorvision.stereo import read_mono_track_csv
@@ -219,14 +220,9 @@ def test_rerun_web_serves_on_loopback_only(models, tmp_path):
 
 def test_joint_move_records_joint_angles(tmp_path, capsys):
     pytest.importorskip("tudorvision.sim.arm", reason="simulated arm not available")
-    import select
-    proc = subprocess.Popen([sys.executable, "-m", "tudorvision.cli", "joint", "serve", "--port", "0",
-                             "--core", "sim", "--duration", "40"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+    proc, line = start_cli(["joint", "serve", "--port", "0", "--core", "sim", "--duration", "40"],
+                           expect=["listening on udp 127.0.0.1:"])
     try:
-        ready, _, _ = select.select([proc.stdout], [], [], 20.0)
-        line = proc.stdout.readline() if ready else ""
-        assert "listening on udp 127.0.0.1:" in line, line
         port = int(line.rsplit(":", 1)[1])
         rrd = tmp_path / "move.rrd"
         rc, out, err = _run(capsys, "joint", "move", "--port", port, "--to", "0,80,0", "--timeout", "25",
@@ -234,12 +230,7 @@ def test_joint_move_records_joint_angles(tmp_path, capsys):
         assert rc == 0, err
         assert out.splitlines()[-1].startswith("settled at theta_deg") and f"wrote {rrd}" in out
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=5)
+        stop(proc)
     rows = _entity_rows(rrd)
     n = rows["/joints/theta_deg/2"]
     assert n >= 2 and all(rows[f"/joints/{k}/{j}"] == n for k in ("theta_deg", "setpoint_deg") for j in (1, 2, 3))
