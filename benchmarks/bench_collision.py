@@ -48,6 +48,7 @@ import time
 import numpy as np
 
 from _machine import cpu_model  # benchmarks/ is on sys.path when run as a script
+from bench_damping_ch8 import check_scheduler, scheduler_options
 from tudorvision.io.atomic import write_text_atomic
 from tudorvision.joint.collision import (DEFAULT_K_I, ResidualCoupling, fit_residual_coupling,
                                          thresholds_from_residuals)
@@ -55,7 +56,7 @@ from tudorvision.joint.identification import fit_with_validation
 from tudorvision.joint.strain_dynamics import StrainDynamicsModel, fit_report, fit_strain_dynamics
 from tudorvision.lab.collision_experiments import (CONTACT_PLATES, PLATES, STRATEGIES, CollisionSetup, contact_run,
                                                    identification_run, residual_run, thr_of)
-from tudorvision.lab.runner import Task, config_digest, parse_scheduler, run_tasks
+from tudorvision.lab.runner import Task, config_digest, run_tasks
 
 _DEFAULT = CollisionSetup()
 
@@ -103,12 +104,7 @@ def main(argv=None):
     ap.add_argument("--thr-seconds", type=float, default=60.0, help="seconds per payload for the thresholds")
     ap.add_argument("--fp-minutes", type=float, default=10.0, help="collision-free minutes for false positives")
     ap.add_argument("--noise", type=float, default=_DEFAULT.noise)
-    ap.add_argument("--scheduler", default="local",
-                    help="serial, local (a Dask LocalCluster; default) or a scheduler address tcp://HOST:8786")
-    ap.add_argument("--workers", type=int, default=None,
-                    help="worker processes of the local cluster (default: the machine's cores)")
-    ap.add_argument("--jobs", type=int, default=None, help="old name of --workers")
-    ap.add_argument("--quiet", action="store_true", help="no progress lines")
+    scheduler_options(ap)
     ap.add_argument("--out", default="out/collision")
     ap.add_argument("--k-i", type=float, default=DEFAULT_K_I, help="observer gain K_I of the residual, 1/s")
     ap.add_argument("--reuse-model", action="store_true",
@@ -146,13 +142,7 @@ def main(argv=None):
                     help="only compare damping gains: per pair, identify on 20 s APRBS per payload and report the "
                          "collision-free residual on 20 s more (tuning seeds 5000+, not the benchmark's)")
     a = ap.parse_args(argv)
-    try:
-        a.scheduler = parse_scheduler(a.scheduler)
-    except ValueError as exc:
-        ap.error(str(exc))
-    a.workers = a.jobs if a.workers is None else a.workers
-    if a.workers is not None and a.workers < 1:
-        ap.error(f"--workers: expected >= 1, got {a.workers}")
+    check_scheduler(ap, a)
     bad = [pl for pl in a.contact_plates if pl not in PLATES]
     if bad:
         ap.error(f"--contact-plates: expected plates in {list(PLATES)}, got {bad}")

@@ -166,6 +166,7 @@ def collect_aprbs_run(plates: int, options: Ch10Options = Ch10Options(), config=
     from ..joint.strain_dynamics import aprbs, derivatives
     from ..robot import load_robot_params
     from ..sim.arm import ElasticArm, Payload, PlantConfig
+    from .ch8_experiments import drive_aprbs
 
     if int(plates) < 0:
         raise ValueError(f"plates: expected >= 0, got {plates}")
@@ -184,17 +185,8 @@ def collect_aprbs_run(plates: int, options: Ch10Options = Ch10Options(), config=
     ca.set_damper(StrainDamper(dcfg, arm.measured_strain(), cfg.dt))
     per_amp = 1.0 / (np.asarray(p.gear_ratio, float) * np.asarray(p.torque_constant_Nm_A, float))
     n = int(round(options.seconds / cfg.dt))
-    th, eps, cur = np.empty((n, 3)), np.empty((n, 2)), np.empty((n, 2))
-    nxt = 1
-    for k in range(n):
-        if nxt < times.size and k * cfg.dt >= times[nxt]:
-            ca.set_goal([0.0, levels[nxt, 0], levels[nxt, 1]])
-            nxt += 1
-        ca.step()
-        th[k] = arm.measured_theta()
-        ms = arm.measured_strain()
-        eps[k] = ms[0], ms[2]
-        cur[k] = arm.tau[1] * per_amp[1], arm.tau[2] * per_amp[2]
+    th, eps, tau = drive_aprbs(ca, arm, times, levels, n, torque=True)
+    cur = tau * per_amp[1:]
     if options.current_noise_A > 0:
         cur += np.random.default_rng([seed, 10]).normal(0.0, options.current_noise_A, cur.shape)
     t = np.arange(n) * cfg.dt

@@ -41,7 +41,7 @@ from .simulation import SimCore
 __all__ = ["OPS_DEG", "EXPERIMENTS", "LAWS", "HORIZON_S", "SIGNALS", "ID_LO_RAD", "ID_HI_RAD",
            "static_strain_link2_root", "friction_feedforward", "run_experiment", "dominant_freq", "ch8_task",
            "resolve_runs", "run_damping_study", "evaluate", "runs_csv", "identification_task", "identify",
-           "DROP_POSE_DEG", "DROP_MOVE_DEG", "payload_change_task"]
+           "DROP_POSE_DEG", "DROP_MOVE_DEG", "payload_change_task", "drive_aprbs"]
 
 #: Operating points of figure 8.1, deg (assumed; see ``benchmarks/bench_damping_ch8.py``).
 OPS_DEG = {1: (0.0, 0.0, 0.0), 2: (0.0, 45.0, -45.0), 3: (0.0, 90.0, 0.0), 4: (0.0, 135.0, 45.0),
@@ -407,6 +407,50 @@ def runs_csv(results: dict, path) -> int:
     return len(results)
 
 
+def drive_aprbs(ca, arm, times, levels, n: int, *, torque: bool = False):
+    """Drive a controlled arm through APRBS joint-2/3 levels and sample it every control period.
+
+    Parameters
+    ----------
+    ca : tudorvision.joint.controlled.ControlledArm
+        The arm's cascade (its goal is set to each level at the level's time).
+    arm : Plant
+        The arm under ``ca`` (``measured_theta()``, ``measured_strain()``, ``tau``, ``dt``).
+    times : ndarray, shape (L,)
+        Start time of each level, s (level 0 is the start pose).
+    levels : ndarray, shape (L, 2)
+        theta2, theta3 of each level, rad.
+    n : int
+        Control periods to run.
+    torque : bool
+        Also sample the applied joint-2/3 torques.
+
+    Returns
+    -------
+    theta : ndarray, shape (n, 3)
+        Measured joint angles, rad.
+    eps : ndarray, shape (n, 2)
+        Root strains of links 2 and 3, m/m.
+    tau : ndarray, shape (n, 2) or None
+        Applied joint-2/3 torques, N m (``torque`` only).
+    """
+    dt = arm.dt
+    th, eps = np.empty((n, 3)), np.empty((n, 2))
+    tau = np.empty((n, 2)) if torque else None
+    nxt = 1
+    for i in range(n):
+        if nxt < times.size and i * dt >= times[nxt]:
+            ca.set_goal([0.0, levels[nxt, 0], levels[nxt, 1]])
+            nxt += 1
+        ca.step()
+        th[i] = arm.measured_theta()
+        ms = arm.measured_strain()
+        eps[i] = ms[0], ms[2]
+        if torque:
+            tau[i] = arm.tau[1], arm.tau[2]
+    return th, eps, tau
+
+
 def identification_task(plates: int, seconds: float, two_way: bool, noise: float, seed: int, coulomb: bool) -> dict:
     """APRBS motion of joints 2, 3 with proportional damping; 100 Hz samples for the strain-dynamics fit.
 
@@ -443,16 +487,7 @@ def identification_task(plates: int, seconds: float, two_way: bool, noise: float
     k = ASSISTED_GAINS["two-way" if two_way else "one-way"]
     ca.set_damper(StrainDamper(DampingConfig(law="proportional", k_eps=k), arm.measured_strain(), cfg.dt))
     n = int(round(seconds / cfg.dt))
-    th, eps = np.empty((n, 3)), np.empty((n, 2))
-    nxt = 1
-    for i in range(n):
-        if nxt < times.size and i * cfg.dt >= times[nxt]:
-            ca.set_goal([0.0, levels[nxt, 0], levels[nxt, 1]])
-            nxt += 1
-        ca.step()
-        th[i] = arm.measured_theta()
-        ms = arm.measured_strain()
-        eps[i] = ms[0], ms[2]
+    th, eps, _ = drive_aprbs(ca, arm, times, levels, n)
     t = np.arange(n) * cfg.dt
     d, dd = derivatives(t, th, window_s=0.04)
     sl = slice(200, -200, 20)
