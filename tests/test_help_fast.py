@@ -31,11 +31,11 @@ def test_top_level_help_imports_no_heavy_package():
 
 def test_every_subcommand_help_imports_no_heavy_package():
     res = _run(f"""
-        import contextlib, io, sys
+        import argparse, contextlib, io, sys
         from tudorvision.cli import build_parser
 
         def walk(parser, prefix):
-            sub = getattr(parser, "subcommands", None)
+            sub = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)), None)
             if sub is None:
                 yield prefix
                 return

@@ -25,7 +25,6 @@ COMMAND_MODULES = (
     "tudorvision.cli.seq",
     "tudorvision.cli.calib",
     "tudorvision.cli.stereo",
-    "tudorvision.cli.batch",      # after stereo: adds 'track batch'
     "tudorvision.cli.rgbd",
     "tudorvision.cli.servo",
     "tudorvision.cli.catch",
@@ -45,36 +44,8 @@ def _sim_core(**options):
 register_core("sim", _sim_core)
 
 
-class CommandParser(argparse.ArgumentParser):
-    """An argument parser that keeps its subcommands (``subcommands``), so a later module can add to them.
-
-    Parameters
-    ----------
-    *args, **kwargs
-        As :class:`argparse.ArgumentParser`.
-    """
-
-    subcommands = None
-
-    def add_subparsers(self, **kwargs):
-        """Add subcommands and remember them as ``subcommands``.
-
-        Parameters
-        ----------
-        **kwargs
-            As :meth:`argparse.ArgumentParser.add_subparsers`.
-
-        Returns
-        -------
-        argparse action
-            The subcommands.
-        """
-        self.subcommands = super().add_subparsers(**kwargs)
-        return self.subcommands
-
-
 def build_parser() -> argparse.ArgumentParser:
-    parser = CommandParser(
+    parser = argparse.ArgumentParser(
         prog="tudorvision",
         description="Perception for the elastic-link arm TUDOR: stereo tracking, RGB-D calibration, "
                     "visual servoing, ball catching, and a virtual lab to test them on.")

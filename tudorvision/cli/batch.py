@@ -23,7 +23,7 @@ from pathlib import Path
 
 from .._checks import TudorVisionError
 
-__all__ = ["register", "add_scheduler_arguments", "track_sequence_task", "run_batch"]
+__all__ = ["register_track_batch", "add_scheduler_arguments", "track_sequence_task", "run_batch"]
 
 SCHEDULER_HELP = ("where the runs go: 'serial' (this process), 'local' (a Dask cluster of --workers processes on "
                   "this machine, the default) or a running Dask scheduler's address, e.g. tcp://host:8786 "
@@ -48,18 +48,14 @@ def add_scheduler_arguments(parser, *, default: str | None = "local", workers: b
                             help="local cluster: worker processes (default: the machine's cores)")
 
 
-def register(sub) -> None:
-    """Add ``batch`` under ``track`` (``tudorvision track batch``).
+def register_track_batch(tsub) -> None:
+    """Add ``batch`` to the ``track`` group (``tudorvision track batch``).
 
     Parameters
     ----------
-    sub : argparse subparsers action
-        The top-level subcommands; ``track`` must be registered before (by ``cli.stereo``).
+    tsub : argparse subparsers action
+        The ``track`` group's subcommands (from :mod:`tudorvision.cli.stereo`).
     """
-    track = sub.choices.get("track")
-    tsub = getattr(track, "subcommands", None)
-    if tsub is None:       # pragma: no cover - the track command is not part of this build
-        return
     b = tsub.add_parser(
         "batch", help="track many sequences into one folder (serially, on a local Dask cluster or a cluster)",
         description="Run 'track stereo' or 'track mono' on every SEQ and write OUT/<name>.csv per sequence and "

@@ -100,6 +100,10 @@ def register(subparsers) -> None:
 
 
 # ----------------------------------------------------------------------------- helpers
+    from .batch import register_track_batch   # after stereo and mono in 'track --help'
+    register_track_batch(tsub)
+
+
 def add_luma_edge_argument(parser, help_text: str = "locate the sphere rims on the luma edge (robust to the "
                            "colour smear of JPEG and video; about halves the tracking speed): auto = on for JPEG "
                            "frames and video files (default auto)") -> None:
