@@ -1,7 +1,6 @@
 """``tudorvision catch``: the catching demo and open-loop prediction on recorded RGB-D throws."""
 from __future__ import annotations
 
-import contextlib
 import csv
 import sys
 from dataclasses import replace
@@ -166,8 +165,6 @@ def _cmd_catch(args) -> int:
     if args.target == "demo":
         from ..lab.catch_demo import DemoOptions, run_demo
 
-        from ..lab.catch.writers import rerun_stream
-
         opts = DemoOptions(throws=args.throws, seed=args.seed, render=not args.no_render, damping=args.damping,
                            compensate=not args.rigid, rerun=not args.no_rerun,
                            params=robot_from_args(args) if args.robot else None)
@@ -180,8 +177,7 @@ def _cmd_catch(args) -> int:
         viewer = open_viewer(args, "tudorvision_catch", default_file=None if args.no_rerun else out / "catch.rrd")
         opts = replace(opts, rerun=viewer is not None)
         try:
-            with contextlib.nullcontext() if viewer is None else rerun_stream(viewer.rec):
-                s = run_demo(out, opts)
+            s = run_demo(out, opts, recording=None if viewer is None else viewer.rec)
         except BaseException:
             if viewer is not None:
                 viewer.close(hold=False)

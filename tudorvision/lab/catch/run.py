@@ -122,7 +122,7 @@ def wall_camera_transform(options: DemoOptions, params, T_base_cam_true, *, verb
     return T, rep
 
 
-def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
+def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> dict:
     """Run the catching demo and write ``summary.json``, ``throws.csv``, ``predictions.csv``, plots, ``catch.rrd``.
 
     Parameters
@@ -131,6 +131,9 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
         Output directory (created).
     options : DemoOptions
         The demo's options.
+    recording : rerun.RecordingStream, optional
+        With ``options.rerun``: log to this stream (the CLI's live or web
+        viewer, its sinks chosen by the caller) instead of ``out/catch.rrd``.
 
     Returns
     -------
@@ -169,7 +172,8 @@ def run_demo(out, options: DemoOptions = DemoOptions()) -> dict:
             t_now += 1.0 / rate
         layer.advance_to(t_now)
 
-    rr_log = writers.RerunLog(out / "catch.rrd", net_radius_m=o.net_radius_m) if o.rerun else None
+    rr_log = (writers.RerunLog(out / "catch.rrd", net_radius_m=o.net_radius_m, recording=recording)
+              if o.rerun else None)
     results = []
     for i in progress(range(o.throws), desc="throws", enabled=o.show_progress):
         throw = world.throw(i, t_now)

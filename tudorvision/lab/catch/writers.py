@@ -14,8 +14,6 @@ Numbers are written with 6 significant digits, missing values (``nan``,
 """
 from __future__ import annotations
 
-import contextlib
-import contextvars
 import csv
 import json
 from pathlib import Path
@@ -25,10 +23,9 @@ import numpy as np
 from .agent import PREDICTION_COLUMNS, SETPOINT_COLUMNS
 from .score import PER_THROW_COLUMNS
 
-__all__ = ["RerunLog", "format_cell", "plot_catch", "rerun_stream", "write_csv", "write_summary_json",
+__all__ = ["RerunLog", "format_cell", "plot_catch", "write_csv", "write_summary_json",
            "write_throws_csv"]
 
-_STREAM = contextvars.ContextVar("tudorvision_catch_rerun_stream", default=None)
 
 
 def format_cell(v):
@@ -205,30 +202,6 @@ def plot_catch(results, predictions, *, net_radius_m: float, params):
     return fig
 
 
-@contextlib.contextmanager
-def rerun_stream(recording):
-    """Send the :class:`RerunLog` opened inside the ``with`` block to ``recording`` instead of its own file.
-
-    The CLI uses it to stream the demo to a live or web viewer (the
-    recording's sinks, chosen by the caller, may include ``catch.rrd``).
-
-    Parameters
-    ----------
-    recording : rerun.RecordingStream
-        The stream to log to; the caller flushes and closes it.
-
-    Returns
-    -------
-    contextmanager
-        Yields ``recording``.
-    """
-    token = _STREAM.set(recording)
-    try:
-        yield recording
-    finally:
-        _STREAM.reset(token)
-
-
 class RerunLog:
     """rerun recording of the catch: detections, intercepts, net, setpoints (rerun 0.41).
 
@@ -241,8 +214,7 @@ class RerunLog:
     Parameters
     ----------
     path : str or Path, optional
-        The ``.rrd`` file; not used when a recording is given or set by
-        :func:`rerun_stream`.
+        The ``.rrd`` file; not used when a recording is given.
     net_radius_m : float
         Radius the net is drawn with, m.
     recording : rerun.RecordingStream, optional
@@ -253,7 +225,6 @@ class RerunLog:
         import rerun as rr
 
         self.rr = rr
-        recording = recording if recording is not None else _STREAM.get()
         self._own = recording is None
         if self._own:
             if path is None:
