@@ -27,32 +27,14 @@ import numpy as np
 from _machine import cpu_model  # benchmarks/ is on sys.path when run as a script
 
 from tudorvision.io.atomic import write_text_atomic
-from tudorvision.lab.ch10 import SEED_TABLE_10_1, Ch10Options, format_table_10_1, reproduce_table_10_1
+from tudorvision.lab.ch10 import (SEED_TABLE_10_1, Ch10Options, format_table_10_1, reproduce_table_10_1,
+                                  summarize_table_10_1, with_current_noise)
 from tudorvision.sim.arm import PlantConfig
 
 PLANTS = {"default": PlantConfig, "seed_measured": PlantConfig.seed_measured}
 
 
-def _mean_fit(fits, key="fit_pct_mean"):
-    return float(np.mean([f[key] for f in fits.values()]))
-
-
-def _summary(res) -> dict:
-    out = {}
-    for model in ("current", "strain"):
-        fits, seed = res[model]["fits"], res[model]["seed"]
-        lab_v, lab_i = _mean_fit(fits), _mean_fit(fits, "fit_pct_id_mean")
-        an_v = float(np.mean(seed["validation"]["fit_pct"]["AN"]))
-        an_i = float(np.mean(seed["identification"]["fit_pct"]["AN"]))
-        per = np.array([f["fit_pct"] for f in fits.values()])
-        out[model] = {"lab_validation_mean": round(lab_v, 1), "lab_identification_mean": round(lab_i, 1),
-                      "seed_AN_validation_mean": round(an_v, 1), "seed_AN_identification_mean": round(an_i, 1),
-                      "ratio_validation": round(lab_v / an_v, 3),
-                      "lab_validation_range_out2": [float(per[:, 0].min()), float(per[:, 0].max())],
-                      "lab_validation_range_out3": [float(per[:, 1].min()), float(per[:, 1].max())],
-                      "seed_AN_validation_range": [min(seed["validation"]["fit_pct"]["AN"]),
-                                                   max(seed["validation"]["fit_pct"]["AN"])]}
-    return out
+_summary = summarize_table_10_1
 
 
 def _strain_levels(runs) -> list:
@@ -97,8 +79,7 @@ def main(argv=None) -> int:
         print("  friction identified / plant (A s/rad, A s/rad, A):", np.round(res["friction"]["identified"], 4).tolist(),
               np.round(res["friction"]["plant"], 4).tolist())
         for sig in noises:
-            rng = np.random.default_rng(123)
-            noisy = [dict(r, i_M=r["i_M"] + rng.normal(0.0, sig, r["i_M"].shape)) for r in res["runs"]]
+            noisy = with_current_noise(res["runs"], sig, 123)
             rn = reproduce_table_10_1(None, opts, runs=noisy)
             sn = _summary(rn)["current"]
             entry["noise"][f"{sig:g}"] = {"summary": sn, "fits": rn["current"]["fits"]}

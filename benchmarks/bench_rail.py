@@ -41,7 +41,6 @@ import json
 import os
 import platform
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -49,115 +48,20 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, ".."))
 
-from tudorvision.cli.stereo import luma_edge_params  # noqa: E402
-from tudorvision.io import open_sequence  # noqa: E402
-from tudorvision._checks import TudorVisionError  # noqa: E402
-from tudorvision.lab.rail import (RAIL_HEIGHTS_M, RAIL_POSITIONS_M, RailOptions, rail_deviation,  # noqa: E402
-                                  record_rail, user_pick_models)
-from tudorvision.robot import load_robot_params  # noqa: E402
-from tudorvision.stereo import PipelineOptions, track_stereo, triangulate_spheres  # noqa: E402
-
-SPHERES = ("red", "green")
-METHODS = ("ours", "moment", "oracle")
-
-
-def workspace_top_m() -> float:
-    p = load_robot_params()
-    return p.link1_height_m + p.link2_length_m + p.link3_length_m
+from tudorvision.lab.rail import RAIL_HEIGHTS_M, RAIL_POSITIONS_M  # noqa: E402
+from tudorvision.lab.rail_eval import RAIL_METHODS as METHODS  # noqa: E402
+from tudorvision.lab.rail_eval import evaluate_rail, render_rail, workspace_top_m  # noqa: E402
 
 
 def render(workdir: Path, seed: int, place: str, frames: int, heights, ext: str, distractors: int = 4) -> Path:
-    out = workdir / (f"rail_{place}_seed{seed}_f{frames}_h{len(heights)}{ext.replace('.', '_')}"
-                     + ("" if distractors == 4 else f"_d{distractors}"))
-    if not (out / "sequence.yaml").is_file():
-        t0 = time.perf_counter()
-        record_rail(out, RailOptions(seed=seed, rail_xy_m=RAIL_POSITIONS_M[place], heights_m=tuple(heights),
-                                     frames_per_height=frames, image_ext=ext, n_distractors=distractors,
-                                     force=True))
-        skipped = open_sequence(out).meta.get("rail_heights_out_of_view_m") or []
-        print(f"  rendered {out.name} in {time.perf_counter() - t0:.0f} s"
-              + (f"; out of view, left out: {skipped} m" if skipped else ""), flush=True)
-    return out
-
-
-def transform(seq, row: int) -> np.ndarray:
-    tr = seq.groundtruth("transforms")
-    return np.array([[tr[f"m{i}{j}"][row] for j in range(4)] for i in range(4)])
-
-
-def run_method(seq, path, method: str, pick_at=None):
-    """(points (N, 3) in the left camera frame, seconds, note) for ``ours``, ``moment`` or ``oracle``."""
-    t0 = time.perf_counter()
-    if method == "oracle":
-        gt = seq.groundtruth("ee")
-        uv = {cam: {s: np.column_stack([gt[f"{cam}_{s}_u_px"], gt[f"{cam}_{s}_v_px"]]) for s in SPHERES}
-              for cam in ("left", "right")}
-        tri = triangulate_spheres(uv["left"], uv["right"], seq.calibration)
-        return np.asarray(tri.ee, float), time.perf_counter() - t0, "exact centroids"
-    tracker, _ = luma_edge_params("auto", path, "circle" if method == "ours" else "centroid")
-    try:
-        models, k, picks = user_pick_models(seq, verify_params=tracker.segment, start_height_m=pick_at)
-    except TudorVisionError as exc:
-        return np.full((len(seq), 3), np.nan), time.perf_counter() - t0, f"pick refused: {exc}"
-    note = f"picked on frame {k}" + (f" ({' '.join(picks)})" if k and pick_at is None else "")
-    off = load_robot_params().sphere_offsets_ee_m
-    sep = float(np.linalg.norm(np.subtract(off["red"], off["green"])))
-    opts = PipelineOptions(tracker=tracker, sphere_separation_m=sep)
-    res = track_stereo(seq, seq.calibration, models, options=opts)
-    p = np.full((len(seq), 3), np.nan)
-    p[res.index] = np.where(res.trajectory.valid[:, None], res.trajectory.p, np.nan)
-    return p, time.perf_counter() - t0, note
+    return render_rail(workdir, seed, place, frames, heights, ext, distractors, log=lambda m: print(m, flush=True))
 
 
 def evaluate(path: Path, pick_at=None) -> dict:
-    seq = open_sequence(path)
-    rail = seq.groundtruth("rail")
-    h = np.asarray(rail["height_m"], float)
-    gt = seq.groundtruth("ee")
-    T_left_base = np.linalg.inv(transform(seq, 0))
-    R, o = T_left_base[:3, :3], T_left_base[:3, 3]
-    p_true = np.column_stack([gt["ee_x_m"], gt["ee_y_m"], gt["ee_z_m"]]) @ R.T + o
-    ax = seq.groundtruth("rail_axis")
-    line_true = (R @ [ax["p0_x_m"][0], ax["p0_y_m"][0], ax["p0_z_m"][0]] + o, R @ [ax["d_x"][0], ax["d_y"][0],
-                                                                                   ax["d_z"][0]])
-    top = workspace_top_m()
-    out = {"frames": len(seq), "heights_m": sorted(set(h.tolist()))}
-    for m in METHODS:
-        p, dt, note = run_method(seq, path, m, pick_at)
-        if not np.isfinite(p).any():
-            raise SystemExit(f"{path.name} {m}: {note}")
-        fit = rail_deviation(p, h)
-        tru = rail_deviation(p, h, line=line_true)
-        err = p - p_true
-        hs = fit.heights_m
-        err_mean = np.array([np.nanmean(err[h == v], axis=0) for v in hs])
-        inside = hs <= top + 1e-9
-        mean_in = fit.mean_m[inside]
-        vh = dict(zip(np.unique(h).tolist(), [float(np.mean(np.all(np.isfinite(p[h == v]), axis=1)))
-                                             for v in np.unique(h)]))
-        good = np.array([vh[v] >= 0.5 for v in hs.tolist()])
-        mean_good = fit.mean_m[good & inside]
-        all_h = np.unique(h)
-        valid_h = [float(np.mean(np.all(np.isfinite(p[h == v]), axis=1))) for v in all_h]
-        out[m] = {
-            "valid_per_height": dict(zip(all_h.tolist(), valid_h)),
-            "heights_without_points_m": [float(v) for v, f in zip(all_h, valid_h) if f == 0.0],
-            "seconds": dt, "note": note, "valid": float(np.mean(np.all(np.isfinite(p), axis=1))),
-            "position_mm": (1e3 * fit.position_m).tolist(), "n": fit.n.tolist(),
-            "heights_m": hs.tolist(),
-            "fit_mean_mm": (1e3 * fit.mean_m).tolist(), "fit_std_mm": (1e3 * fit.std_m).tolist(),
-            "fit_band_mm": (1e3 * fit.band_m).tolist(), "fit_band_std_mm": (1e3 * fit.band_std_m).tolist(),
-            "fit_band_inside_mm": (1e3 * (mean_in.max(0) - mean_in.min(0))).tolist(),
-            "fit_band_inside_good_mm": (1e3 * (mean_good.max(0) - mean_good.min(0))).tolist(),
-            "fit_rms_mm": 1e3 * fit.rms_m,
-            "true_mean_mm": (1e3 * tru.mean_m).tolist(), "true_band_mm": (1e3 * tru.band_m).tolist(),
-            "true_rms_mm": 1e3 * tru.rms_m,
-            "err_mean_mm": (1e3 * err_mean).tolist(),
-            "err_rms_mm": float(1e3 * np.sqrt(np.nanmean(np.sum(err ** 2, axis=1)))),
-            "tilt_vs_true_deg": float(np.degrees(np.arccos(min(1.0, abs(fit.direction @ line_true[1]))))),
-        }
-    seq.close()
-    return out
+    try:
+        return evaluate_rail(path, pick_at)
+    except ValueError as exc:
+        raise SystemExit(str(exc)) from None
 
 
 def fmt3(v) -> str:

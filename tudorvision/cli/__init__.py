@@ -32,6 +32,7 @@ COMMAND_MODULES = (
     "tudorvision.cli.demo",
     "tudorvision.cli.label",
     "tudorvision.cli.robot",
+    "tudorvision.cli.reproduce",
 )
 
 

@@ -29,8 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["SEED_TABLE_10_1", "Ch10Options", "collect_aprbs_run", "reproduce_table_10_1", "format_table_10_1",
-           "reference_friction"]
+__all__ = ["SEED_TABLE_10_1", "Ch10Options", "collect_aprbs_run", "reproduce_table_10_1", "summarize_table_10_1",
+           "with_current_noise", "format_table_10_1", "reference_friction"]
 
 _PAYLOADS_G = (0, 100, 200, 300, 400)
 
@@ -249,6 +249,60 @@ def reproduce_table_10_1(config=None, options: Ch10Options = Ch10Options(), *, j
             "strain_model": s_model, "current_model": c_model,
             "friction": {"identified": c_model.friction().tolist(), "plant": reference_friction(p).tolist()},
             "runs": runs}
+
+
+def summarize_table_10_1(result: dict) -> dict:
+    """Mean fits of both models beside the seed's AN column (validation and identification).
+
+    Parameters
+    ----------
+    result : dict
+        From :func:`reproduce_table_10_1`.
+
+    Returns
+    -------
+    dict
+        Per model (``"current"``, ``"strain"``): ``lab_validation_mean``, ``lab_identification_mean``,
+        ``seed_AN_validation_mean``, ``seed_AN_identification_mean`` (%), ``ratio_validation``,
+        ``lab_validation_range_out2`` / ``_out3`` and ``seed_AN_validation_range`` ([min, max], %).
+    """
+    out = {}
+    for model in ("current", "strain"):
+        fits, seed = result[model]["fits"], result[model]["seed"]
+        lab_v = float(np.mean([f["fit_pct_mean"] for f in fits.values()]))
+        lab_i = float(np.mean([f["fit_pct_id_mean"] for f in fits.values()]))
+        an_v = float(np.mean(seed["validation"]["fit_pct"]["AN"]))
+        an_i = float(np.mean(seed["identification"]["fit_pct"]["AN"]))
+        per = np.array([f["fit_pct"] for f in fits.values()])
+        out[model] = {"lab_validation_mean": round(lab_v, 1), "lab_identification_mean": round(lab_i, 1),
+                      "seed_AN_validation_mean": round(an_v, 1), "seed_AN_identification_mean": round(an_i, 1),
+                      "ratio_validation": round(lab_v / an_v, 3),
+                      "lab_validation_range_out2": [float(per[:, 0].min()), float(per[:, 0].max())],
+                      "lab_validation_range_out3": [float(per[:, 1].min()), float(per[:, 1].max())],
+                      "seed_AN_validation_range": [min(seed["validation"]["fit_pct"]["AN"]),
+                                                   max(seed["validation"]["fit_pct"]["AN"])]}
+    return out
+
+
+def with_current_noise(runs, sigma_A: float, seed: int = 123) -> list:
+    """The recorded runs with white noise added to the motor currents (a real amplifier's measurement noise).
+
+    Parameters
+    ----------
+    runs : list of dict
+        From :func:`collect_aprbs_run` (``i_M``: currents, shape (T, 2), A).
+    sigma_A : float
+        Standard deviation of the noise, A.
+    seed : int
+        Seed of the noise.
+
+    Returns
+    -------
+    list of dict
+        Copies with noisy ``i_M``.
+    """
+    rng = np.random.default_rng(seed)
+    return [dict(r, i_M=r["i_M"] + rng.normal(0.0, sigma_A, np.shape(r["i_M"]))) for r in runs]
 
 
 def format_table_10_1(result: dict, *, title: str = "lab") -> list:

@@ -386,7 +386,8 @@ def record_rail(out, opts: RailOptions = RailOptions()) -> Path:
 
 # --------------------------------------------------------------------------- the simulated user
 
-def _transform(seq, row: int) -> np.ndarray:
+def truth_transform(seq, row: int) -> np.ndarray:
+    """The recorded true transform of row ``row`` (``transforms`` ground truth), shape (4, 4)."""
     tr = seq.groundtruth("transforms")
     return np.array([[tr[f"m{i}{j}"][row] for j in range(4)] for i in range(4)])
 
@@ -440,7 +441,7 @@ def user_pick_models(seq, *, verify_params=None, edge_factors=(0.8, 0.6), start_
         j = int(np.argmin(np.abs(hm - float(start_height_m))))
         firsts = firsts[j:] + firsts[:j][::-1]
     r = load_robot_params().sphere_radius_m
-    T_cam_base = {cam: np.linalg.inv(_transform(seq, row)) for row, cam in enumerate(("left", "right"))}
+    T_cam_base = {cam: np.linalg.inv(truth_transform(seq, row)) for row, cam in enumerate(("left", "right"))}
     last = ""
     for k in firsts:
         frame = seq[k]
