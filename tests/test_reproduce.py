@@ -78,7 +78,7 @@ def test_report_flags_failed_section_and_keeps_the_others(tmp_path, fake_section
     assert "| 9.1 | error | 4 mm | 1.2 mm | met (target ≤ 2) |" in md
     assert "`figures/x.png`" in md and "good: a note" in md
     js = json.loads((tmp_path / "reproduction.json").read_text())
-    assert js["rows"] == res["rows"] and js["quick"] is True
+    assert js["rows"] == res["rows"] and js["quick"] == ["appx", "bad", "good"]
 
 
 def test_rerun_resumes_done_sections_and_retries_failed(tmp_path, fake_sections):
@@ -125,8 +125,18 @@ def test_real_sections_are_registered_with_module_level_functions():
 
 
 def test_format_report_of_a_quick_run_says_so():
-    res = {"quick": True, "seed": 0, "complete": True, "scheduler": "serial", "workers": 1, "wall_s": 1.0,
-           "machine": "x86_64", "python": "3.11", "sections": [],
+    res = {"quick": ["good"], "seed": 0, "complete": True, "scheduler": "serial", "workers": 1, "wall_s": 1.0,
+           "machine": "x86_64", "python": "3.11", "sections": [{"name": "good", "quick": True, "chapter": "4", "title": "t", "status": "done", "error": None, "figures": [], "notes": [], "duration_s": 1.0}],
            "rows": [{**asdict(Row("4.7", "m", 2.0, 1.9, "Hz", "within:0.10")), "chapter": "4", "verdict": "agrees"}]}
     md = format_report(res)
     assert "quick" in md and "| 4.7 | m | 2 Hz | 1.9 Hz | agrees |" in md
+
+
+def test_quick_sections_mix_and_report_mode(tmp_path, fake_sections):
+    res = run_reproduce(tmp_path, quick=["good"], only=["good", "appx"], show_progress=False)
+    assert CALLS == [("good", True, 0)]
+    assert {s["name"]: s["quick"] for s in res["sections"]} == {"good": True, "appx": False}
+    md = (tmp_path / "reproduction.md").read_text()
+    assert "full, except good run small" in md
+    with pytest.raises(ValueError, match="quick-sections"):
+        run_reproduce(tmp_path, quick=["nope"], show_progress=False)

@@ -26,7 +26,11 @@ def _cmd_reproduce(args) -> int:
         raise TudorVisionError(f"--only: unknown section(s) {', '.join(bad)}; choose from {', '.join(names)}")
     if args.seed < 0:
         raise TudorVisionError(f"--seed: expected >= 0, got {args.seed}")
-    res = run_reproduce(args.out, quick=args.quick, only=only or None, seed=args.seed, scheduler=args.scheduler,
+    small = [x for x in (args.quick_sections or "").split(",") if x.strip()]
+    bad = [x for x in small if x not in names]
+    if bad:
+        raise TudorVisionError(f"--quick-sections: unknown section(s) {', '.join(bad)}; choose from {', '.join(names)}")
+    res = run_reproduce(args.out, quick=True if args.quick else small, only=only or None, seed=args.seed, scheduler=args.scheduler,
                         workers=args.workers)
     counts: dict = {}
     for r in res["rows"]:
@@ -52,6 +56,7 @@ def register(sub) -> None:
                                    "written).")
     p.add_argument("--out", help="output folder (required unless --list)")
     p.add_argument("--quick", action="store_true", help="small versions (minutes, numbers indicative)")
+    p.add_argument("--quick-sections", metavar="A,B", help="small versions of these sections only")
     p.add_argument("--only", metavar="A,B", help="run only these sections (see --list)")
     p.add_argument("--list", action="store_true", help="list the sections and exit")
     p.add_argument("--seed", type=int, default=0, help="seed of the experiments (default 0)")

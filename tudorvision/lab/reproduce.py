@@ -177,7 +177,7 @@ def _select(only) -> list:
     return [s for s in secs if s.name in wanted]
 
 
-def run_reproduce(out, *, quick: bool = False, only=None, seed: int = 0, scheduler: str | None = "serial",
+def run_reproduce(out, *, quick=False, only=None, seed: int = 0, scheduler: str | None = "serial",
                   workers: int | None = None, show_progress: bool | None = None, stream=None) -> dict:
     """Run the reproduction's sections and write ``reproduction.md`` and ``reproduction.json`` to ``out``.
 
@@ -185,8 +185,9 @@ def run_reproduce(out, *, quick: bool = False, only=None, seed: int = 0, schedul
     ----------
     out : str or Path
         Output folder (``runs/`` holds one record per section; figures go to ``figures/``).
-    quick : bool
-        Small versions of every experiment (minutes instead of hours); the report says so.
+    quick : bool or sequence of str
+        ``True``: small versions of every experiment (minutes instead of hours); a list of section
+        names: small versions of those only. The report says which sections ran small.
     only : sequence of str, optional
         Section names to run (default all, :func:`section_names`).
     seed : int
@@ -204,7 +205,8 @@ def run_reproduce(out, *, quick: bool = False, only=None, seed: int = 0, schedul
     -------
     dict
         ``rows`` (each row's dict plus ``verdict`` and ``chapter``), ``sections`` (name, chapter,
-        title, status, error, figures, notes, duration_s), ``complete``, ``quick``, ``seed``,
+        title, quick, status, error, figures, notes, duration_s), ``complete``, ``quick`` (the sections
+        run small), ``seed``,
         ``wall_s``, ``paths`` (the written report files).
 
     Raises
@@ -215,16 +217,21 @@ def run_reproduce(out, *, quick: bool = False, only=None, seed: int = 0, schedul
     from .runner import Task, run_tasks
 
     secs = _select(only)
+    small = {s.name for s in secs} if quick is True else set(quick or ())
+    unknown = small - set(section_names())
+    if unknown:
+        raise ValueError(f"--quick-sections: unknown section(s) {', '.join(sorted(unknown))}")
     out = Path(out)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
-    tasks = [Task(f"reproduce-{s.name}", {"section": s.name, "quick": bool(quick)}, int(seed), s.fn,
-                  (str(out), bool(quick), int(seed))) for s in secs]
+    tasks = [Task(f"reproduce-{s.name}", {"section": s.name, "quick": s.name in small}, int(seed), s.fn,
+                  (str(out), s.name in small, int(seed))) for s in secs]
     rep = run_tasks(tasks, out, scheduler=scheduler, workers=workers, show_progress=show_progress,
                     label="reproduce", stream=stream)
     rows, sections = [], []
     for s, rec in zip(secs, rep.records):
-        entry = {"name": s.name, "chapter": s.chapter, "title": s.title, "status": "not run", "error": None,
+        entry = {"name": s.name, "chapter": s.chapter, "title": s.title, "quick": s.name in small,
+                 "status": "not run", "error": None,
                  "figures": [], "notes": [], "duration_s": None}
         if rec is not None:
             entry.update(status=rec["status"], error=rec.get("error"), duration_s=rec.get("duration_s"))
@@ -236,7 +243,7 @@ def run_reproduce(out, *, quick: bool = False, only=None, seed: int = 0, schedul
                     rows.append({**r, "chapter": row_chapter(r["section"], s.chapter), "experiment": s.name,
                                  "verdict": verdict(r)})
         sections.append(entry)
-    result = {"quick": bool(quick), "seed": int(seed), "complete": rep.complete, "interrupted": rep.interrupted,
+    result = {"quick": sorted(small), "seed": int(seed), "complete": rep.complete, "interrupted": rep.interrupted,
               "scheduler": rep.scheduler, "workers": rep.workers, "wall_s": round(time.perf_counter() - t0, 1),
               "machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
               "python": platform.python_version(), "sections": sections, "rows": rows}
@@ -275,7 +282,14 @@ def format_report(result: dict) -> str:
         The report (``reproduction.md``).
     """
     lines = ["# Reproduction of the seed's experiments in the lab", ""]
-    mode = "quick (`--quick`: small versions, numbers are indicative)" if result["quick"] else "full"
+    small = result["quick"]
+    names = [s["name"] for s in result["sections"]]
+    if small and set(names) <= set(small):
+        mode = "quick (`--quick`: small versions, numbers are indicative)"
+    elif small:
+        mode = f"full, except {', '.join(small)} run small (`--quick-sections`: numbers indicative)"
+    else:
+        mode = "full"
     lines += [f"Mode: {mode}; seed {result['seed']}; scheduler {result['scheduler']} ({result['workers']} worker(s));"
               f" {result['wall_s']:.0f} s wall; {result['machine']}, Python {result['python']}.", ""]
     if not result["complete"]:
@@ -295,11 +309,13 @@ def format_report(result: dict) -> str:
             lines.append(f"| {r['section']} | {r['quantity']} | {_fmt(r['seed'], r['unit'])} | "
                          f"{_fmt(r['lab'], r['unit'])} | {r['verdict']}{target} | {r.get('note', '')} |")
         lines.append("")
-    lines += ["## Sections", "", "| section | chapter | what | status | wall | figures |", "|---|---|---|---|---|---|"]
+    lines += ["## Sections", "", "| section | chapter | what | size | status | wall | figures |",
+              "|---|---|---|---|---|---|---|"]
     for s in result["sections"]:
         st = s["status"] + (f": {s['error'].splitlines()[-1]}" if s.get("error") else "")
         wall = "–" if s["duration_s"] is None else f"{s['duration_s']:.0f} s"
-        lines.append(f"| {s['name']} | {s['chapter']} | {s['title']} | {st} | {wall} | "
+        lines.append(f"| {s['name']} | {s['chapter']} | {s['title']} | {'quick' if s.get('quick') else 'full'} | "
+                     f"{st} | {wall} | "
                      f"{', '.join(f'`{f}`' for f in s['figures'])} |")
     notes = [(s["name"], n) for s in result["sections"] for n in s["notes"]]
     if notes:
