@@ -20,11 +20,12 @@ HERE = Path(__file__).resolve().parent
 LABELS = HERE / "data" / "ball_labels" / "labels.csv"
 VIDEOS = Path(__file__).resolve().parents[1].parent / "shared" / "realdata" / "ball_videos"
 PICK_FRAME = {"ball2.mp4": 660, "ball3.mp4": 179, "ball4.mp4": 208}   # as in benchmarks/bench_real_balls.py
-# Regression bounds = figures measured with the stereo segmentation of 2026-11-25 (rim tolerance scaled with
-# the radius; full-frame detection on every clean labelled frame: 95.8 % found, median 2.60 px, p90 6.06 px;
-# see docs/benchmarks.md "Real ball videos, labelled (issue 15)"), plus a margin. Issue 15's TARGET is >= 95 % found, median <= 2 px,
-# p90 <= 4 px; it is NOT met yet (the gap is written in the docs). Tighten to the TARGET_* values once it is.
-MIN_FOUND, MAX_MEDIAN_PX, MAX_P90_PX = 0.93, 3.2, 7.5
+# Regression bounds = figures measured with the chroma-edge rim of 2026-11-25 (full-frame detection on every
+# clean labelled frame: 95.8 % found, median 1.24 px, p90 4.53 px; before it 2.60 / 6.06 px; see
+# docs/benchmarks.md "Issue 15: real balls and the sphere family, chroma edge"), plus a margin. Issue 15's
+# TARGET is >= 95 % found, median <= 2 px, p90 <= 4 px: found and median are met, p90 is NOT (ball4.mp4,
+# large blurred frames, 6.8 px). Tighten MAX_P90_PX to TARGET_P90_PX once it is.
+MIN_FOUND, MAX_MEDIAN_PX, MAX_P90_PX = 0.95, 1.6, 5.2
 TARGET_FOUND, TARGET_MEDIAN_PX, TARGET_P90_PX = 0.95, 2.0, 4.0
 
 needs_videos = pytest.mark.skipif(not VIDEOS.is_dir(), reason=f"real ball videos not found at {VIDEOS} "
@@ -155,7 +156,7 @@ def test_tracker_centre_error_on_labelled_real_frames(labels):
     print(f"found {100 * rate:.1f} %, centre error median {med:.2f} px, p90 {p90:.2f} px "
           f"(issue 15 target: >= {100 * TARGET_FOUND:.0f} %, <= {TARGET_MEDIAN_PX} px, <= {TARGET_P90_PX} px)")
     assert rate >= MIN_FOUND
-    assert med <= MAX_MEDIAN_PX
+    assert med <= min(MAX_MEDIAN_PX, TARGET_MEDIAN_PX)
     assert p90 <= MAX_P90_PX
 
 

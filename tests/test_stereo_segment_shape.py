@@ -21,8 +21,8 @@ from tudorvision.stereo.segment import SegmentParams, detect_sphere
 CENTER = (60.37, 58.71)
 RADIUS = 9.0
 MOMENT = SegmentParams(centroid="moment")
-# the colour-rim circle alone, and with the luma-edge refinement (the default)
-RIM = pytest.mark.parametrize("params, method", [(SegmentParams(edge_refine=False), "shape"),
+# the colour-rim circle alone (no chroma edge), and with the luma-edge refinement
+RIM = pytest.mark.parametrize("params, method", [(SegmentParams(edge_refine=False, chroma_edge_below=0.0), "shape"),
                                                  (SegmentParams(edge_refine=True), "edge")],
                          ids=["colour-rim", "luma-edge"])
 
@@ -123,6 +123,17 @@ def test_saturated_bright_cap_is_completed(model, params, method):
     assert _err(det.uv) < 0.2, det.uv
 
 
+@pytest.mark.parametrize("scene", ["bar0", "bar12", "bar-25", "cap"])
+def test_chroma_edge_takes_over_a_partial_colour_rim(model, scene):
+    """Default parameters: the colour rim explains < 90 % of its points, so the chroma edge along rays is used."""
+    img = _with_white_cap() if scene == "cap" else _with_bar(angle_deg=float(scene[3:]))
+    det = detect_sphere(img, model)
+    off = detect_sphere(img, model, params=SegmentParams(chroma_edge_below=0.0))
+    assert det.valid and det.method == "chroma" and off.method == "shape"
+    assert det.rim_fraction < 0.9
+    assert _err(det.uv) < 0.1, det.uv              # measured 0.00-0.05 px (colour rim alone: 0.11-0.15)
+
+
 def test_blur_streak_keeps_the_moment(model):
     img = _background()
     sphere_patch(CENTER, RADIUS, RED_BGR, img, blur_uv=(14.0, 3.0), n_time=24)
@@ -151,5 +162,7 @@ def test_params_checked():
         SegmentParams(rim_prob=0.999)
     with pytest.raises(TudorVisionError, match="rim_tol_px"):
         SegmentParams(rim_tol_px=0.0)
+    with pytest.raises(TudorVisionError, match="chroma_edge_below"):
+        SegmentParams(chroma_edge_below=1.5)
     with pytest.raises(TudorVisionError, match="edge_min_contrast"):
         SegmentParams(edge_min_contrast=-1.0)

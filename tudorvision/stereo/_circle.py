@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-__all__ = ["circle_lsq", "fit_rim_circle"]
+__all__ = ["circle_lsq", "fit_rim_circle", "fit_rim_circle_multi"]
 
 _TRIPLES: dict = {}
 
@@ -96,3 +96,59 @@ def fit_rim_circle(pts: np.ndarray, tol: float):
             return None
         inl = np.abs(np.hypot(pts[:, 0] - cu, pts[:, 1] - cv_) - r) < tol
     return cu, cv_, r, inl
+
+
+_MANY: dict = {}
+
+
+def _many_triples(n: int, m: int) -> np.ndarray:
+    """Up to ``m`` deterministic index triples into ``n`` points, each pair at least ``n / 8`` apart."""
+    if (n, m) not in _MANY:
+        rng = np.random.default_rng(n)
+        cand = np.sort(rng.integers(0, n, size=(4 * m, 3)), axis=1)
+        gaps = np.diff(np.c_[cand, cand[:, :1] + n], axis=1)
+        _MANY[(n, m)] = np.ascontiguousarray(cand[(gaps >= max(n // 8, 1)).all(axis=1)][:m])
+    return _MANY[(n, m)]
+
+
+def fit_rim_circle_multi(pts: np.ndarray, tol: float, *, n_hyp: int = 400, top: int = 5):
+    """Robust circle through edge points ``pts`` (n x 2, ordered along the rim): ``(cu, cv, r, inliers)``.
+
+    As :func:`fit_rim_circle` (score: points within ``tol`` minus twice those
+    more than ``2 tol`` outside), with ``n_hyp`` candidate triples and the
+    ``top`` best each refined by least squares on its inliers three times and
+    re-scored; the best refined circle wins. For the sparser, noisier points
+    of an edge search along rays, where a fixed 48 triples often miss the rim.
+    None when no circle has five inliers.
+    """
+    tri = _many_triples(len(pts), n_hyp)
+    if len(tri) == 0:
+        return None
+    q = pts[tri]
+    a, b = q[:, 1] - q[:, 0], q[:, 2] - q[:, 0]
+    det = 2.0 * (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    det[np.abs(det) < 1e-9] = np.nan
+    na, nb = (a * a).sum(axis=1), (b * b).sum(axis=1)
+    du = (b[:, 1] * na - a[:, 1] * nb) / det
+    dv = (a[:, 0] * nb - b[:, 0] * na) / det
+    rr = np.hypot(du, dv)
+    res = np.hypot(pts[:, 0] - (du + q[:, 0, 0])[:, None], pts[:, 1] - (dv + q[:, 0, 1])[:, None]) - rr[:, None]
+    score = np.where(np.isfinite(rr), (np.abs(res) < tol).sum(axis=1) - 2 * (res > 2.0 * tol).sum(axis=1), -len(pts))
+    best = None
+    for i in np.argsort(-score, kind="stable")[:top]:
+        inl = np.abs(res[i]) < tol
+        fit = None
+        for _ in range(3):
+            if np.count_nonzero(inl) < 5:
+                fit = None
+                break
+            cu, cv_, r = circle_lsq(pts[inl])
+            if not math.isfinite(r):
+                fit = None
+                break
+            d = np.hypot(pts[:, 0] - cu, pts[:, 1] - cv_) - r
+            inl = np.abs(d) < tol
+            fit = (int(np.count_nonzero(inl)) - 2 * int(np.count_nonzero(d > 2.0 * tol)), cu, cv_, r, inl)
+        if fit is not None and (best is None or fit[0] > best[0]):
+            best = fit
+    return None if best is None else best[1:]

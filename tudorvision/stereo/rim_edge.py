@@ -46,9 +46,10 @@ import math
 import cv2
 import numpy as np
 
-from ._circle import circle_lsq
+from ._circle import circle_lsq, fit_rim_circle_multi
 
-__all__ = ["luma_rim_points", "refine_circle_on_luma", "LOSSY_SUFFIXES", "chroma_subsampled_source"]
+__all__ = ["luma_rim_points", "refine_circle_on_luma", "chroma_rim_points", "refine_circle_on_chroma",
+           "sphere_chroma", "LOSSY_SUFFIXES", "chroma_subsampled_source"]
 
 #: File suffixes whose colour is usually stored at reduced resolution (JPEG; video codecs).
 LOSSY_SUFFIXES = frozenset({".jpg", ".jpeg", ".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg"})
@@ -210,6 +211,188 @@ def refine_circle_on_luma(gray, log_odds, centre, radius: float, *, tol_px: floa
         return None
     res = np.hypot(pts[inl, 0] - fu, pts[inl, 1] - fv) - fr
     return fu, fv, fr, n_in / n, float(np.sqrt(np.mean(res * res)))
+
+
+def sphere_chroma(rgb) -> np.ndarray:
+    """CIE a*, b* of an RGB colour (the sphere's mean colour), shape (2,).
+
+    Parameters
+    ----------
+    rgb : sequence of float, shape (3,)
+        R, G, B in 8-bit levels.
+
+    Returns
+    -------
+    ndarray, shape (2,), float64
+        ``(a*, b*)`` of OpenCV's float Lab (D65; roughly -100..100).
+
+    Examples
+    --------
+    >>> [round(float(x)) for x in sphere_chroma((128, 128, 128))]
+    [0, 0]
+    """
+    px = np.array([[[rgb[2], rgb[1], rgb[0]]]], np.float32) / np.float32(255.0)
+    return cv2.cvtColor(px, cv2.COLOR_BGR2Lab)[0, 0, 1:].astype(np.float64)
+
+
+def chroma_rim_points(bgr, chroma, centre, radius: float, *, lo: float = 0.6, hi: float = 1.35,
+                      step: float = 0.5, sigma: float | None = None, rel: float = 0.3):
+    """Sub-pixel silhouette points of a coloured sphere on its chroma edge, along rays from a first circle.
+
+    The sphere's rim is taken where its colour ends, not where the colour
+    model's thresholds end: a washed-out highlight, the dark shaded limb or a
+    light ring keep the sphere's hue direction at a lower strength, so the
+    colour model leaves them out while the chroma still drops only at the
+    silhouette. Per pixel the feature is the CIE chroma ``(a*, b*)`` (float
+    Lab of the window, lightly smoothed) projected on the
+    sphere's chroma direction; along each ray (radii ``lo * r .. hi * r``,
+    every ``step`` px) the edge is the **outermost** local maximum of the
+    outward drop of that feature that is at least ``rel`` of the ray's largest
+    drop, with sphere-like chroma 2 px inside it (> 25 % of the sphere's),
+    background-like chroma 2 px outside it (< 50 %) and a step between the two
+    of at least 25 %. Its position is the centre of gravity of the drop above
+    30 % of its peak. An occluding finger in front of the sphere gives an
+    edge inside the rim; the circle fit (:func:`refine_circle_on_chroma`)
+    leaves such points out.
+
+    Parameters
+    ----------
+    bgr : ndarray, shape (H, W, 3), uint8
+        Image window (BGR).
+    chroma : array_like, shape (2,)
+        The sphere's ``(a*, b*)`` (:func:`sphere_chroma` of the colour
+        model's mean R, G, B).
+    centre : tuple of float
+        First estimate ``(u, v)`` of the centre, window pixels.
+    radius : float
+        First estimate of the radius, pixels.
+    lo, hi, step, rel : float
+        Ray span (fractions of ``radius``), sample step (px) and the
+        relative strength of an accepted drop.
+    sigma : float, optional
+        Gaussian smoothing of the feature, px (default ``min(1, radius / 20)``:
+        more would merge a small sphere's rim with an occluder's edge).
+
+    Returns
+    -------
+    points : ndarray, shape (K, 2)
+        Edge points ``(u, v)`` in window pixels.
+    n_rays : int
+        Rays cast (about one per 2 px of circumference, a multiple of 4 in 32..128).
+
+    Examples
+    --------
+    >>> import cv2
+    >>> img = np.full((80, 80, 3), 200, np.uint8)
+    >>> _ = cv2.circle(img, (40, 40), 20, (60, 160, 60), -1, cv2.LINE_AA)
+    >>> pts, n = chroma_rim_points(img, sphere_chroma((60, 160, 60)), (41.0, 39.0), 18.0)
+    >>> # cv2.circle's disc of radius 20 reaches to about 20.5 px
+    >>> len(pts) == n, bool(np.abs(np.hypot(pts[:, 0] - 40, pts[:, 1] - 40) - 20.5).max() < 0.35)
+    (True, True)
+    """
+    ab = np.asarray(chroma, np.float64)
+    norm = float(np.hypot(ab[0], ab[1]))
+    r = float(radius)
+    if not norm > 0 or not r > 0:
+        return np.zeros((0, 2)), 0
+    lab = cv2.cvtColor(np.asarray(bgr, np.float32) * np.float32(1.0 / 255.0), cv2.COLOR_BGR2Lab)
+    feat = cv2.addWeighted(lab[..., 1], ab[0] / norm, lab[..., 2], ab[1] / norm, 0.0)
+    sigma = min(1.0, r / 20.0) if sigma is None else float(sigma)
+    if sigma > 0:
+        feat = cv2.GaussianBlur(feat, (0, 0), sigma)
+    fs = norm                                                     # the sphere's own level
+    k = 4 * int(np.clip(round(0.25 * math.pi * r), 8, 32))
+    ca, sa, offsets, j = _rays(k, 0.5 * (hi - lo) * r, step)
+    s = 0.5 * (hi + lo) * r + offsets
+    ns = len(s)
+    cu, cv_ = float(centre[0]), float(centre[1])
+    prof = cv2.remap(feat, (cu + ca * s).astype(np.float32), (cv_ + sa * s).astype(np.float32),
+                     cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)              # (k, ns)
+    g = prof[:, :-1] - prof[:, 1:]                                                   # drop outward, (k, ns - 1)
+    gmax = g.max(axis=1)
+    m = max(int(round(2.0 / step)), 1)
+    inner = prof[:, np.clip(j[0] - m, 0, ns - 1)]                                    # 2 px inside each gap
+    outer = prof[:, np.clip(j[0] + 1 + m, 0, ns - 1)]                                # 2 px outside
+    left = np.concatenate([np.full((k, 1), np.inf), g[:, :-1]], axis=1)             # no peak at either end
+    right = np.concatenate([g[:, 1:], np.full((k, 1), np.inf)], axis=1)
+    cand = ((g >= left) & (g >= right) & (g >= rel * gmax[:, None]) & (g > 0)
+            & (inner - outer >= 0.25 * fs) & (outer < 0.5 * fs) & (inner > 0.25 * fs))
+    has = cand.any(axis=1)
+    peak = (ns - 2) - np.argmax(cand[:, ::-1], axis=1)                               # outermost candidate
+    rows = np.arange(k)
+    gp = g[rows, peak]
+    w = np.clip(g - 0.3 * gp[:, None], 0.0, None)
+    off = w <= 0.0
+    lo_end = np.where(off & (j < peak[:, None]), j, -1).max(axis=1)
+    hi_end = np.where(off & (j > peak[:, None]), j, ns - 1).min(axis=1)
+    w = np.where((j > lo_end[:, None]) & (j < hi_end[:, None]), w, 0.0)
+    wsum = w.sum(axis=1)
+    pos = s[0] + step * (0.5 + (w * j).sum(axis=1) / np.where(wsum > 0, wsum, 1.0))
+    ok = has & (wsum > 0)
+    return np.column_stack([cu + ca[ok, 0] * pos[ok], cv_ + sa[ok, 0] * pos[ok]]), k
+
+
+def refine_circle_on_chroma(bgr, chroma, centre, radius: float, *, tol_frac: float = 0.08,
+                            min_fraction: float = 0.3, max_shift_frac: float = 0.3, passes: int = 2):
+    """Circle fitted robustly to the chroma rim points, or None when it is not trustworthy.
+
+    Rays from the first circle give edge points (:func:`chroma_rim_points`);
+    a circle is fitted to them by :func:`~tudorvision.stereo._circle.fit_rim_circle_multi`
+    (points inside the circle, i.e. an occluder's edge, are not held against
+    it; points outside it are), with the inlier band ``max(0.75, tol_frac * r)``
+    px. The fit is repeated from its own circle (``passes``).
+
+    Parameters
+    ----------
+    bgr : ndarray, shape (H, W, 3), uint8
+        Image window (BGR).
+    chroma : array_like, shape (2,)
+        The sphere's ``(a*, b*)``.
+    centre : tuple of float
+        First estimate ``(u, v)`` of the centre, window pixels.
+    radius : float
+        First estimate of the radius, pixels.
+    tol_frac : float
+        Inlier band as a fraction of the radius.
+    min_fraction : float
+        Smallest fraction of the rays cast whose points must be inliers.
+    max_shift_frac : float
+        Largest move of the centre, as a fraction of the first radius; the
+        radius must stay within 0.7-1.4 times the first.
+    passes : int
+        Ray casts (each from the previous pass's circle).
+
+    Returns
+    -------
+    tuple or None
+        ``(u, v, r, inlier_fraction)`` in window pixels, or None.
+
+    Examples
+    --------
+    >>> import cv2
+    >>> img = np.full((90, 90, 3), 200, np.uint8)
+    >>> _ = cv2.circle(img, (45, 44), 24, (60, 160, 60), -1, cv2.LINE_AA)
+    >>> _ = cv2.rectangle(img, (50, 30), (80, 80), (120, 140, 200), -1)      # a finger over the right
+    >>> u, v, r, frac = refine_circle_on_chroma(img, sphere_chroma((60, 160, 60)), (40.0, 44.0), 20.0)
+    >>> bool(np.hypot(u - 45, v - 44) < 0.2), bool(abs(r - 24.5) < 0.3)
+    (True, True)
+    """
+    cu, cv_, cr = float(centre[0]), float(centre[1]), float(radius)
+    out = None
+    for _ in range(passes):
+        pts, n = chroma_rim_points(bgr, chroma, (cu, cv_), cr)
+        if n == 0 or len(pts) < max(8, min_fraction * n):
+            break
+        fit = fit_rim_circle_multi(pts, max(0.75, tol_frac * cr))
+        if fit is None:
+            break
+        fu, fv, fr, inl = fit
+        frac = int(np.count_nonzero(inl)) / n
+        if (frac < min_fraction or math.hypot(fu - centre[0], fv - centre[1]) > max_shift_frac * radius
+                or not 0.7 * radius <= fr <= 1.4 * radius):
+            break
+        cu, cv_, cr, out = fu, fv, fr, (fu, fv, fr, frac)
+    return out
 
 
 def chroma_subsampled_source(path) -> bool:

@@ -41,7 +41,11 @@ The pipeline of section 2.4, per camera and sphere:
    circle explains fewer than ``min_rim_fraction`` of the rim points or its
    radius does not fit the area, the moment is kept. ``rim_fraction`` and
    ``rim_rms_px`` of the detection give the fit's quality, ``method`` which
-   was used, ``uv_moment`` the moment.
+   was used, ``uv_moment`` the moment. When that circle explains less than
+   ``chroma_edge_below`` (0.9) of the rim or was not used (a highlight, a
+   shaded limb, fingers), the rim is searched again along rays on the
+   sphere's chroma edge (:func:`~tudorvision.stereo.rim_edge.refine_circle_on_chroma`,
+   ``method="chroma"``).
 4c. **Luma edge** (``edge_refine=True``, with ``centroid="shape"``; off by
    default, since it about doubles the cost of a detection; the CLI turns it
    on for JPEG and video recordings, ``--luma-edge``).
@@ -106,7 +110,7 @@ from tudorvision.stereo._circle import circle_lsq, fit_rim_circle
 from tudorvision.stereo._colortables import ColorModel
 from tudorvision.stereo._frame import FramePlanes, check_frame
 from tudorvision.stereo.detection import SegmentParams, SphereDetection
-from tudorvision.stereo.rim_edge import refine_circle_on_luma
+from tudorvision.stereo.rim_edge import refine_circle_on_chroma, refine_circle_on_luma, sphere_chroma
 
 __all__ = [
     "SegmentParams",
@@ -307,11 +311,18 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
             ref = _refine_shape(filled, math.sqrt(area / math.pi), params, (x, y), log_odds,
                                 (mu / mass, mv / mass))
             start = ((mu / mass + x, mv / mass + y), math.sqrt(area / math.pi))
+            used = False
             if ref is not None:
                 ru, rv, rr, rim_frac, rim_rms, used = ref
                 if used:
                     cu, cv_, method = ru + x0, rv + y0, "shape"
                     start = ((ru, rv), rr)
+            below = params.chroma_edge_below
+            if edge_src is not None and below > 0 and not (used and rim_frac >= below):
+                ch = edge_src.refine_chroma((start[0][0] + x0, start[0][1] + y0), start[1])
+                if ch is not None:
+                    cu, cv_, method = ch[0], ch[1], "chroma"
+                    start = ((ch[0] - x0, ch[1] - y0), ch[2])
             if params.edge_refine and edge_src is not None:
                 edge = edge_src.refine((start[0][0] + x0, start[0][1] + y0), start[1], params)
                 if edge is not None:
@@ -400,8 +411,8 @@ def _refine_shape(filled: np.ndarray, r_area: float, params: SegmentParams, box_
 
 
 def _edge_source(frame, model, params, blur):
-    """The frame's :class:`_EdgeSource` when ``params.edge_refine`` asks for the luma edge, else None."""
-    return _EdgeSource(frame, model, blur) if params.edge_refine else None
+    """The frame's :class:`_EdgeSource` when the luma or the chroma edge may be asked for, else None."""
+    return _EdgeSource(frame, model, blur) if params.edge_refine or params.chroma_edge_below > 0 else None
 
 
 class _EdgeSource:
@@ -429,6 +440,17 @@ class _EdgeSource:
         if fit is None:
             return None
         return fit[0] + px0, fit[1] + py0
+
+    def refine_chroma(self, centre: tuple, radius: float):
+        """Circle ``(u, v, r)`` on the sphere's chroma edge in frame pixels (step 4b), or None."""
+        f, m = self.frame, int(math.ceil(1.35 * radius)) + 6
+        px0, py0 = max(int(centre[0]) - m, 0), max(int(centre[1]) - m, 0)
+        px1, py1 = min(int(centre[0]) + m + 1, f.width), min(int(centre[1]) + m + 1, f.height)
+        chroma = sphere_chroma(self.model.mean[:3])
+        if px1 - px0 < 8 or py1 - py0 < 8 or math.hypot(*chroma) < 5.0:   # too small, or a grey sphere
+            return None
+        fit = refine_circle_on_chroma(f.bgr[py0:py1, px0:px1], chroma, (centre[0] - px0, centre[1] - py0), radius)
+        return None if fit is None else (fit[0] + px0, fit[1] + py0, fit[2])
 
 
 def _check_roi(roi, width: int, height: int) -> tuple:
