@@ -33,7 +33,13 @@ damper subtracts the model's expected root strains along the planned reference
 before the double moving average (:class:`tudorvision.joint.damping.StrainDamper`,
 ``strain_model``). Proportional gains then default to ``ASSISTED_GAINS``.
 
-Run:  .venv/bin/python benchmarks/bench_damping_ch8.py [--reps 20] [--plant one-way|two-way|both]
+Plants (``--plant``): ``soft`` the default seed-measured plant (hub springs, dampers, backlash,
+two-way; issue 18), ``one-way`` / ``two-way`` the stiff rigid-hub plant; gains ``GAIN_SETS[plant]``.
+Static strain cancellation (``--filter``): ``seed`` the seed's filter as written (N = 50 at 100 Hz,
+applied twice), ``2khz`` the project's variant (the same window at the 2 kHz control rate).
+
+Run:  .venv/bin/python benchmarks/bench_damping_ch8.py [--reps 20] [--plant soft|one-way|two-way|both|all]
+      [--filter seed|2khz]
       [--noise 2e-6] [--scheduler serial|local|tcp://HOST:8786] [--workers 2] [--tune] [--no-coulomb]
       [--friction-ff SRC:SCALE:BAND] [--model-assist [--model chi.npy] [--id-seconds 30]]
       [--experiments 06,07] [--laws off,proportional] [--horizon 10] [--out out/damping_ch8]
@@ -59,26 +65,26 @@ import numpy as np
 
 from _machine import cpu_model  # benchmarks/ is on sys.path when run as a script
 from tudorvision.io.atomic import write_text_atomic
-from tudorvision.joint.damping import ASSISTED_GAINS, ONE_WAY_GAINS, TWO_WAY_GAINS
+from tudorvision.joint.damping import ASSISTED_GAINS, GAIN_SETS
 from tudorvision.joint.metrics import METRIC_NAMES, iats
-from tudorvision.lab.ch8_experiments import (EXPERIMENTS, HORIZON_S, LAWS, OPS_DEG, evaluate, identify,
-                                             run_damping_study, run_experiment, runs_csv)
+from tudorvision.lab.ch8_experiments import (EXPERIMENTS, FILTERS, HORIZON_S, LAWS, OPS_DEG, PLANTS, evaluate,
+                                             identify, run_damping_study, run_experiment, runs_csv)
 from tudorvision.lab.runner import parse_scheduler
 
 
-def tune(law: str, *, two_way: bool, x0=None, maxiter: int = 40) -> tuple:
+def tune(law: str, *, plant: str, x0=None, maxiter: int = 40, strain_filter: str = "seed") -> tuple:
     """Nelder-Mead on log gains (joints 2, 3) minimising IATS of both root gauges on experiment 06."""
     from scipy.optimize import minimize
 
     def cost(lk):
         k = (0.0, float(np.exp(lk[0])), float(np.exp(lk[1])))
-        r = run_experiment("06", law, k, two_way=two_way, noise=0.0, seed=0, horizon_s=6.0)
+        r = run_experiment("06", law, k, plant=plant, noise=0.0, seed=0, horizon_s=6.0, strain_filter=strain_filter)
         if not np.all(np.isfinite(r["eps_online"])) or abs(r["final_err_deg"][1]) > 1.0:
             return 1e3
         c = iats(r["t"], r["eps_online"]) + iats(r["t"], r["eps3_online"])
         return float(c * 1e6)
 
-    k0 = (TWO_WAY_GAINS if two_way else ONE_WAY_GAINS)[law] if x0 is None else x0
+    k0 = GAIN_SETS[plant][law] if x0 is None else x0
     res = minimize(cost, np.log(np.asarray(k0[1:], float)), method="Nelder-Mead",
                    options={"maxiter": maxiter, "xatol": 0.05, "fatol": 1e-3})
     return (0.0, float(np.exp(res.x[0])), float(np.exp(res.x[1]))), float(res.fun)
@@ -179,7 +185,12 @@ def runner_info(reports, t0: float, a) -> dict:
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reps", type=int, default=20)
-    ap.add_argument("--plant", choices=("one-way", "two-way", "both"), default="both")
+    ap.add_argument("--plant", choices=PLANTS + ("both", "all"), default="soft",
+                    help="soft (the default seed-measured plant), one-way / two-way (the stiff plant), "
+                         "both (the two stiff ones), all")
+    ap.add_argument("--filter", choices=tuple(FILTERS), default="seed",
+                    help="static strain cancellation: seed (N=50 at 100 Hz twice, section 2.2) or 2khz "
+                         "(the same 0.5 s window at the control rate)")
     ap.add_argument("--noise", type=float, default=2e-6, help="strain noise std, m/m")
     scheduler_options(ap)
     ap.add_argument("--experiments", default=",".join(EXPERIMENTS))
@@ -213,25 +224,25 @@ def main(argv=None):
     if a.model and not os.path.isfile(a.model):
         ap.error(f"--model: no such file {a.model}")
     progress = False if a.quiet else None
-    plants = ("one-way", "two-way") if a.plant == "both" else (a.plant,)
+    plants = {"both": ("one-way", "two-way"), "all": PLANTS}.get(a.plant, (a.plant,))
     status = 0
     for plant in plants:
-        two_way = plant == "two-way"
-        table = TWO_WAY_GAINS if two_way else ONE_WAY_GAINS
+        table = GAIN_SETS[plant]
         gains = {law: table.get(law, (0.0, 0.0, 0.0)) for law in LAWS}
         gains["off"] = (0.0, 0.0, 0.0)
-        out = os.path.join(a.out, plant + ("-no-coulomb" if a.no_coulomb else "")
+        out = os.path.join(a.out, plant + ("" if a.filter == "seed" else f"-filter-{a.filter}")
+                           + ("-no-coulomb" if a.no_coulomb else "")
                            + (f"-ff-{a.friction_ff.replace(':', '_')}" if a.friction_ff else "")
                            + ("-model-assist" if a.model_assist else ""))
         t0 = time.time()
         chi, fits = None, None
         if a.model_assist:
-            gains["proportional"] = ASSISTED_GAINS["two-way" if two_way else "one-way"]
+            gains["proportional"] = ASSISTED_GAINS[plant]
             if a.model:
                 chi = np.load(a.model)
             else:
                 try:
-                    model, fits = identify(out, two_way=two_way, seconds=a.id_seconds, noise=a.noise,
+                    model, fits = identify(out, plant=plant, seconds=a.id_seconds, noise=a.noise,
                                            coulomb=not a.no_coulomb, scheduler=a.scheduler, workers=a.workers,
                                            show_progress=progress)
                 except RuntimeError as exc:
@@ -244,14 +255,14 @@ def main(argv=None):
             gains.update({k: tuple(v) for k, v in json.loads(a.gains).get(plant, {}).items()})
         if a.tune:
             for law in LAWS[1:]:
-                gains[law], c = tune(law, two_way=two_way, x0=gains[law])
+                gains[law], c = tune(law, plant=plant, x0=gains[law], strain_filter=a.filter)
                 print(f"[{plant}] tuned {law}: k = {np.round(gains[law], 1).tolist()} (IATS cost {c:.3g})",
                       flush=True)
 
         def run_args(exp, law):
-            return {"exp": exp, "law": law, "k_eps": [float(k) for k in gains[law]], "two_way": two_way,
+            return {"exp": exp, "law": law, "k_eps": [float(k) for k in gains[law]], "plant": plant,
                     "noise": a.noise, "horizon_s": a.horizon, "plates": 3, "coulomb": not a.no_coulomb,
-                    "friction_ff": a.friction_ff, "model_chi": chi}
+                    "friction_ff": a.friction_ff, "model_chi": chi, "strain_filter": a.filter}
 
         results, report = run_damping_study(out, exps, laws, a.reps, run_args, experiment="ch8",
                                              scheduler=a.scheduler, workers=a.workers, show_progress=progress)
@@ -265,7 +276,7 @@ def main(argv=None):
             return 130 if info["interrupted"] else 1
         runs_csv(results, os.path.join(out, "runs.csv"))
         table = evaluate(results, exps, laws, a.reps, horizon_s=a.horizon)
-        meta = {"plant": plant + (" without Coulomb friction" if a.no_coulomb else "")
+        meta = {"plant": plant + f", {a.filter} filter" + (" without Coulomb friction" if a.no_coulomb else "")
                 + (f", Coulomb feed-forward {a.friction_ff}" if a.friction_ff else "")
                 + (", model-assisted static strain cancellation" if a.model_assist else ""), "reps": a.reps,
                 "noise": a.noise, "gains": gains, "experiments": exps, "laws": list(laws), "horizon_s": a.horizon,

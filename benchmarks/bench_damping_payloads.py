@@ -5,9 +5,14 @@ Experiment 06 of chapter 8 ([0, 0, 0] -> [0, 45, -45] deg) with 0-6 test plates
 noise, for the undamped cascade and a damping law with
 
 * ``fixed`` gains: tuned once at 300 g and kept for every payload, as in the
-  seed (``ONE_WAY_GAINS``);
+  seed (``GAIN_SETS[plant]``);
 * ``scheduled`` gains: the link-3 gain follows the known payload
-  (``PAYLOAD_SCHEDULE``, ``default_damping_config(..., payload_kg=m)``).
+  (``PAYLOAD_SCHEDULES[plant]``, ``default_damping_config(..., plant=plant, payload_kg=m)``;
+  the soft plant has no schedule, so there ``scheduled`` equals ``fixed``).
+
+Plants (``--plant``): ``soft`` the default seed-measured plant (issue 18), ``one-way`` the stiff
+rigid-hub plant the schedule was made for. Static strain cancellation ``--filter`` as in
+``bench_damping_ch8.py`` (default ``seed``).
 
 Metrics (B.4) on the link-2 root gauge and joint 2, normalised to the undamped
 case at the same payload (``tudorvision.lab.ch8_experiments.evaluate``), plus the largest
@@ -15,7 +20,7 @@ link-3 root oscillation in the last 2 s of the 10 s horizon (um/m), which shows
 a link-3 oscillation that the damping itself sustains.
 
 Run:  .venv/bin/python benchmarks/bench_damping_payloads.py [--reps 10] [--plates 0,1,2,3,4,5,6]
-      [--law proportional] [--noise 2e-6] [--scheduler serial|local|tcp://HOST:8786] [--workers 2]
+      [--law proportional] [--plant soft|one-way] [--filter seed|2khz] [--noise 2e-6] [--scheduler serial|local|tcp://HOST:8786] [--workers 2]
       [--out out/damping_payloads]
 
 The runs go through the experiment runner (tudorvision.lab.runner, docs/experiments.md): each finished
@@ -36,10 +41,10 @@ import numpy as np
 
 from bench_damping_ch8 import check_scheduler, runner_info, scheduler_options  # benchmarks/ is on sys.path
 from tudorvision.io.atomic import write_text_atomic
-from tudorvision.joint.damping import ONE_WAY_GAINS, default_damping_config
+from tudorvision.joint.damping import GAIN_SETS, default_damping_config
 from tudorvision.joint.metrics import METRIC_NAMES
-from tudorvision.lab.ch8_experiments import (DROP_MOVE_DEG, DROP_POSE_DEG, HORIZON_S, evaluate, payload_change_task,
-                                             run_damping_study, runs_csv)
+from tudorvision.lab.ch8_experiments import (DROP_MOVE_DEG, DROP_POSE_DEG, FILTERS, HORIZON_S, PLANTS, evaluate,
+                                             payload_change_task, run_damping_study, runs_csv)
 from tudorvision.lab.runner import Task, run_tasks
 from tudorvision.robot import load_robot_params
 from tudorvision.sim.arm import Payload
@@ -48,12 +53,12 @@ LABELS = ("off", "fixed", "scheduled")
 COLORS = {"off": "0.5", "fixed": "C0", "scheduled": "C1"}
 
 
-def _gains(label: str, law: str, mass_kg: float):
+def _gains(label: str, law: str, mass_kg: float, plant: str = "soft"):
     if label == "off":
         return "off", (0.0, 0.0, 0.0)
     if label == "fixed":
-        return law, ONE_WAY_GAINS[law]
-    return law, default_damping_config(law, payload_kg=mass_kg).k_eps
+        return law, GAIN_SETS[plant][law]
+    return law, default_damping_config(law, plant=plant, payload_kg=mass_kg).k_eps
 
 
 def main(argv=None):
@@ -62,6 +67,8 @@ def main(argv=None):
     ap.add_argument("--plates", default="0,1,2,3,4,5,6", help="comma-separated plate counts (100 g each)")
     ap.add_argument("--law", default="proportional", choices=("proportional", "integral"))
     ap.add_argument("--noise", type=float, default=2e-6, help="strain noise std, m/m")
+    ap.add_argument("--plant", choices=PLANTS, default="soft")
+    ap.add_argument("--filter", choices=tuple(FILTERS), default="seed")
     scheduler_options(ap)
     ap.add_argument("--out", default="out/damping_payloads")
     a = ap.parse_args(argv)
@@ -80,10 +87,10 @@ def main(argv=None):
     t0 = time.time()
 
     def run_args(group, label):
-        law, k = _gains(label, a.law, mass[int(group)])
-        return {"exp": "06", "law": law, "k_eps": [float(x) for x in k], "two_way": False, "noise": a.noise,
+        law, k = _gains(label, a.law, mass[int(group)], a.plant)
+        return {"exp": "06", "law": law, "k_eps": [float(x) for x in k], "plant": a.plant, "noise": a.noise,
                 "horizon_s": HORIZON_S, "plates": int(group), "coulomb": True, "friction_ff": None,
-                "model_chi": None}
+                "model_chi": None, "strain_filter": a.filter}
 
     exps = [f"{pl}" for pl in plates]
     results, report = run_damping_study(a.out, exps, LABELS, a.reps, run_args, experiment="ch8-payloads",
@@ -91,8 +98,10 @@ def main(argv=None):
     drop_keys = [(lab, s) for lab in LABELS[1:] for s in range(a.reps)]
     reports = [report]
     if report.complete:
-        reports.append(run_tasks([Task("ch8-payload-change", {"label": lab, "law": a.law, "noise": a.noise}, s,
-                                        payload_change_task, (lab, a.law, a.noise, s)) for lab, s in drop_keys],
+        reports.append(run_tasks([Task("ch8-payload-change", {"label": lab, "law": a.law, "noise": a.noise,
+                                                              "plant": a.plant}, s,
+                                        payload_change_task, (lab, a.law, a.noise, s, HORIZON_S, a.plant))
+                                  for lab, s in drop_keys],
                                  a.out, scheduler=a.scheduler, workers=a.workers, show_progress=progress,
                                  label="payload change"))
     info = runner_info(reports, t0, a)
@@ -106,8 +115,8 @@ def main(argv=None):
     table = evaluate(results, exps, LABELS, a.reps)
     tails = {(e, lab): [results[(e, lab, s)]["eps3_tail_max"] for s in range(a.reps)]
              for e in exps for lab in LABELS}
-    gains = {e: {lab: list(_gains(lab, a.law, mass[int(e)])[1]) for lab in LABELS} for e in exps}
-    meta = {"law": a.law, "reps": a.reps, "noise": a.noise, "plates": plates,
+    gains = {e: {lab: list(_gains(lab, a.law, mass[int(e)], a.plant)[1]) for lab in LABELS} for e in exps}
+    meta = {"plant": a.plant, "filter": a.filter, "law": a.law, "reps": a.reps, "noise": a.noise, "plates": plates,
             "payload_kg": {e: mass[int(e)] for e in exps}, "gains": gains, "experiment": "06"}
     drop = {}
     for (lab, _), rec in zip(drop_keys, reports[-1].records):

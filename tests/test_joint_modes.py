@@ -39,7 +39,7 @@ def _run(server, seconds, probe=None):
 def _oscillation_after_move(damping):
     """Peak-to-peak link-2 root strain 3-4.5 s after the command of a 45 deg move (experiment 06, 300 g)."""
     core = SimCore(np.zeros(3), payload=Payload.from_parts(P, plates=3), params=P,
-                   config=PlantConfig(two_way=False))
+                   config=PlantConfig.stiff(two_way=False))
     server, adapter = _lockstep(core)
     assert isinstance(adapter.set_mode(Mode.SETPOINT, damping=damping), Ack)
     assert isinstance(adapter.send_setpoint(np.array([0.0, 45.0, -45.0]) * DEG), Ack)
@@ -181,7 +181,7 @@ def _identify_one_way(seconds=12.0, plates=(1, 3)):
         rng = np.random.default_rng(500 + pl)
         times, levels = aprbs(rng, seconds, np.deg2rad([-5.0, -60.0]), np.deg2rad([185.0, 60.0]))
         arm = ElasticArm([0.0, levels[0, 0], levels[0, 1]], payload=Payload.from_parts(P, plates=pl), params=P,
-                         config=PlantConfig(strain_noise_m_m=2e-6, noise_seed=pl))
+                         config=PlantConfig.stiff(strain_noise_m_m=2e-6, noise_seed=pl))
         ca = ControlledArm(arm)
         ca.set_damper(StrainDamper(DampingConfig(law="proportional", k_eps=ASSISTED_GAINS["one-way"]),
                                    arm.measured_strain(), arm.config.dt))
@@ -212,7 +212,7 @@ def test_model_assisted_damping_through_the_adapter_settles_sooner():
     out = {}
     for name, m in (("plain", None), ("assisted", model)):
         core = SimCore(np.zeros(3), payload=Payload.from_parts(P, plates=3), params=P,
-                       config=PlantConfig(two_way=False, strain_noise_m_m=2e-6, noise_seed=3), damping_model=m)
+                       config=PlantConfig.stiff(two_way=False, strain_noise_m_m=2e-6, noise_seed=3), damping_model=m)
         server, adapter = _lockstep(core)
         adapter.set_mode(Mode.SETPOINT, damping=Damping.PROPORTIONAL)
         adapter.send_setpoint(np.array([0.0, 45.0, -45.0]) * DEG)

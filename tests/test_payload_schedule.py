@@ -1,4 +1,8 @@
-"""Damping gains scheduled on the known payload; the layer learns the payload through the adapter."""
+"""Damping gains scheduled on the known payload; the layer learns the payload through the adapter.
+
+The schedule belongs to the stiff one-way plant (``PlantConfig.stiff()``), whose tuned link-3 gain
+destabilises the bare mount; the soft default plant's gains are stable over the payload range without one.
+"""
 from __future__ import annotations
 
 import numpy as np
@@ -6,29 +10,33 @@ import pytest
 
 from tudorvision.joint import (Ack, InProcessTransport, JointAdapter, JointLayerServer, KinematicCore,
                                LockstepClientTransport, Mode, Reason, Refusal, ServerConfig)
-from tudorvision.joint.damping import (LAWS, ONE_WAY_GAINS, PAYLOAD_SCHEDULE, TWO_WAY_GAINS, DampingConfig,
-                                       StrainDamper, default_damping_config, payload_gain_factor)
+from tudorvision.joint.damping import (LAWS, ONE_WAY_GAINS, PAYLOAD_SCHEDULE, SOFT_GAINS, TWO_WAY_GAINS,
+                                       DampingConfig, StrainDamper, default_damping_config, payload_gain_factor)
 from tudorvision.robot.params import load_robot_params
-from tudorvision.sim.arm import Payload
+from tudorvision.sim.arm import Payload, PlantConfig
 from tudorvision.lab.simulation import SimCore
 
 P = load_robot_params()
 DT = 5e-4
+STIFF = PlantConfig.stiff()          # the one-way plant the schedule was made for
 
 
 def test_schedule_is_one_at_the_tuning_payload_and_lower_at_the_ends():
     m_tuned = Payload.from_parts(P, plates=3).mass_kg            # chapter 8: 300 g + mount
     for law in ("proportional", "integral"):
-        assert payload_gain_factor(law, m_tuned) == 1.0
+        assert payload_gain_factor(law, m_tuned, "one-way") == 1.0
         masses, factors = PAYLOAD_SCHEDULE[law]
         assert list(masses) == sorted(masses) and max(factors) == 1.0
-        assert payload_gain_factor(law, 0.0) < 1.0 and payload_gain_factor(law, 2.0) < 1.0
+        assert payload_gain_factor(law, 0.0, "one-way") < 1.0 and payload_gain_factor(law, 2.0, "one-way") < 1.0
         # piecewise linear between the breakpoints, constant beyond them
         for (m0, f0), (m1, f1) in zip(zip(masses, factors), zip(masses[1:], factors[1:])):
-            assert payload_gain_factor(law, 0.5 * (m0 + m1)) == pytest.approx(0.5 * (f0 + f1))
-        assert payload_gain_factor(law, masses[-1] + 1.0) == factors[-1]
+            assert payload_gain_factor(law, 0.5 * (m0 + m1), "one-way") == pytest.approx(0.5 * (f0 + f1))
+        assert payload_gain_factor(law, masses[-1] + 1.0, "one-way") == factors[-1]
     for m in np.linspace(0, 1, 11):
-        assert payload_gain_factor("half_integrator", m) == 1.0 and payload_gain_factor("off", m) == 1.0
+        assert payload_gain_factor("half_integrator", m, "one-way") == 1.0
+        assert payload_gain_factor("off", m, "one-way") == 1.0
+        for law in LAWS:                                   # the soft plant has no schedule
+            assert payload_gain_factor(law, m) == 1.0 and payload_gain_factor(law, m, "two-way") == 1.0
     with pytest.raises(ValueError, match="payload_kg"):
         payload_gain_factor("proportional", float("nan"))
     with pytest.raises(ValueError, match="law"):
@@ -37,13 +45,19 @@ def test_schedule_is_one_at_the_tuning_payload_and_lower_at_the_ends():
 
 def test_default_config_schedules_only_the_one_way_tuned_link3_gain():
     for law in LAWS[1:]:
-        k = default_damping_config(law, payload_kg=0.05).k_eps
+        k = default_damping_config(law, plant="one-way", payload_kg=0.05).k_eps
         base = ONE_WAY_GAINS[law]
-        assert k[:2] == base[:2] and k[2] == pytest.approx(base[2] * payload_gain_factor(law, 0.05))
-        assert default_damping_config(law).k_eps == base                        # no payload: seed's fixed gains
+        assert k[:2] == base[:2] and k[2] == pytest.approx(base[2] * payload_gain_factor(law, 0.05, "one-way"))
+        assert default_damping_config(law, two_way=False).k_eps == base         # no payload: seed's fixed gains
         assert default_damping_config(law, two_way=True, payload_kg=0.05).k_eps == TWO_WAY_GAINS[law]
-    assert default_damping_config("proportional", assisted=True, payload_kg=0.05).k_eps == (0.0, 1600.0, 100.0)
+        # the lab's default (soft) plant: its own gains, the same at every payload
+        assert default_damping_config(law).k_eps == SOFT_GAINS[law]
+        assert default_damping_config(law, payload_kg=0.05).k_eps == SOFT_GAINS[law]
+    assert default_damping_config("proportional", plant="one-way", assisted=True,
+                                  payload_kg=0.05).k_eps == (0.0, 1600.0, 100.0)
     assert default_damping_config("proportional", payload_kg=0.05, k_eps=(0, 1, 2)).k_eps == (0.0, 1.0, 2.0)
+    with pytest.raises(ValueError, match="plant"):
+        default_damping_config("proportional", plant="rigid")
 
 
 def test_integral_gain_change_is_bumpless():
@@ -67,17 +81,18 @@ def test_integral_gain_change_is_bumpless():
     np.testing.assert_allclose(held_a, held_b, rtol=1e-12)
 
 
-def _eps3_envelope_after_drop(k3):
+def _eps3_envelope_after_drop(k3, config=STIFF, law=1):
     """Largest link-3 oscillation (m/m) 5-5.5 s after the 0.5 kg camera payload is taken off (0.05 kg left)
     and a large move, with link-3 gain ``k3`` or (None) the gain the layer schedules on the payload."""
     pose = np.deg2rad([0.0, 60.4, 61.5])
-    core = SimCore(pose, payload=Payload.from_parts(P, camera=True), params=P)
-    core.set_modes(damping=1, collision=0)
+    core = SimCore(pose, payload=Payload.from_parts(P, camera=True), params=P, config=config)
+    core.set_modes(damping=law, collision=0)
     core.arm.set_payload(Payload.from_parts(P, balls=0))      # the lab takes the camera off
     if k3 is None:
         core.set_payload(0.05)                                  # ... and tells the layer
     else:
-        core.controlled.damper.set_gains((0.0, 1600.0, k3))
+        k = core.controlled.damper.k_eps
+        core.controlled.damper.set_gains((0.0, k[1], k3))
     core.step(1.0)
     core.apply_setpoint(pose + np.deg2rad([0.0, 14.0, -45.0]), max_speed_rad_s=P.max_speed_rad_s,
                         max_accel_rad_s2=P.max_accel_rad_s2)
@@ -90,19 +105,34 @@ def _eps3_envelope_after_drop(k3):
 
 
 def test_tuned_gain_destabilises_the_bare_mount_and_the_schedule_damps_it():
-    # the seed's fixed gains (tuned at 0.35 kg) end in a large joint-3 limit cycle with the mount alone
+    # stiff one-way plant: the seed's fixed gains (tuned at 0.35 kg) end in a large joint-3 limit cycle
+    # with the mount alone
     assert _eps3_envelope_after_drop(300.0) > 1000e-6
     assert _eps3_envelope_after_drop(None) < 50e-6
 
 
+@pytest.mark.parametrize("law", [1, 2])
+def test_soft_plant_gains_damp_the_bare_mount_without_a_schedule(law):
+    """The soft default plant (hub springs and dampers) keeps its 300 g gains stable at the bare mount."""
+    soft = PlantConfig()
+    k3 = SOFT_GAINS[("proportional", "integral")[law - 1]][2]
+    assert _eps3_envelope_after_drop(None, soft, law) < 15e-6
+    assert _eps3_envelope_after_drop(k3, soft, law) < 15e-6
+
+
 def test_sim_core_follows_the_payload_it_is_told_not_the_plant():
-    core = SimCore(payload=Payload.from_parts(P, plates=3), params=P)
+    soft = SimCore(payload=Payload.from_parts(P, plates=3), params=P)
+    soft.set_modes(damping=1, collision=0)
+    soft.set_payload(0.05)
+    assert soft.controlled.damper.k_eps == SOFT_GAINS["proportional"] and soft.payload_kg == 0.05
+    core = SimCore(payload=Payload.from_parts(P, plates=3), params=P, config=STIFF)
     core.set_modes(damping=1, collision=0)
     assert core.controlled.damper.k_eps == ONE_WAY_GAINS["proportional"]
     core.arm.set_payload(Payload.from_parts(P, balls=0))       # the lab changes the plant only
     assert core.controlled.damper.k_eps == ONE_WAY_GAINS["proportional"]
     core.set_payload(0.05)
-    assert core.controlled.damper.k_eps[2] == pytest.approx(300.0 * payload_gain_factor("proportional", 0.05))
+    assert core.controlled.damper.k_eps[2] == pytest.approx(300.0 * payload_gain_factor("proportional", 0.05,
+                                                                                         "one-way"))
     assert core.controlled.damper.payload_kg == 0.05 and core.payload_kg == 0.05
     with pytest.raises(ValueError, match="payload_kg"):
         core.set_payload(-1.0)
@@ -119,7 +149,7 @@ def _lockstep(core):
 
 
 def test_adapter_payload_reaches_the_core_or_is_refused_with_a_reason():
-    core = SimCore(payload=Payload.from_parts(P, plates=3), params=P)
+    core = SimCore(payload=Payload.from_parts(P, plates=3), params=P, config=STIFF)
     _, adapter = _lockstep(core)
     assert isinstance(adapter.set_mode(Mode.SETPOINT, damping=1), Ack)
     assert isinstance(adapter.set_payload(0.05), Ack)

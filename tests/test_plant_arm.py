@@ -13,6 +13,7 @@ from tudorvision.joint.cascade import JointCascade, design_cascade
 from tudorvision.joint.planner import plan_motion
 
 P = load_robot_params()
+STIFF = PlantConfig.stiff()          # rigid hubs, one-way: the BVP and cantilever formulas
 D = np.deg2rad
 G = P.gravity_m_s2
 
@@ -82,7 +83,7 @@ def _expected_static(theta, payload):
 @pytest.mark.parametrize("two_way", [False, True])
 def test_static_sag_after_payload_change_settles_to_cantilever_formula(two_way):
     """Heavy damping: after adding 600 g the links settle on the Euler-Bernoulli static solution."""
-    cfg = PlantConfig(modal_damping_ratio=(0.3, 0.3), two_way=two_way)
+    cfg = PlantConfig.stiff(modal_damping_ratio=(0.3, 0.3), two_way=two_way)     # the rigid-clamp formula
     rng = np.random.default_rng(5)
     thetas = [D([0, 0, 0]), D([20, 40, -70]), rng.uniform([-1, 0, -1.5], [1, 2.5, 1.5])]
     for theta in thetas[:2] if two_way else thetas:
@@ -108,7 +109,7 @@ def test_end_effector_sag_is_centimetres_and_grows_with_payload():
     theta = np.zeros(3)
     sags = []
     for plates in (0, 3, 6):
-        arm = ElasticArm(theta, payload=Payload.from_parts(P, plates=plates))
+        arm = ElasticArm(theta, payload=Payload.from_parts(P, plates=plates), config=STIFF)
         p_rigid = fk_ee(theta)
         p = arm.ee_position()
         tip2, tip3, _ = _expected_static(theta, arm.payload)
@@ -118,7 +119,7 @@ def test_end_effector_sag_is_centimetres_and_grows_with_payload():
         sags.append(p_rigid[2] - p[2])
     assert 0.02 < sags[0] < sags[1] < sags[2] < 0.25
     # the vertical posture is nearly undeformed
-    up = ElasticArm(D([0, 90, 0]), payload=Payload.from_parts(P, plates=6))
+    up = ElasticArm(D([0, 90, 0]), payload=Payload.from_parts(P, plates=6), config=STIFF)
     assert np.linalg.norm(up.ee_position() - fk_ee(D([0, 90, 0]))) < 1e-3
 
 
@@ -137,8 +138,8 @@ def _peak(signal, dt, f_expect):
 def step_log():
     payload = Payload.from_parts(P, plates=3)
     log = simulate_ptp(D([0, 20, 30]), D([0, 50, 30]), 8.0, payload=payload, t_move=0.1,
-                       v_max=P.max_speed_rad_s, a_max=P.max_accel_rad_s2)
-    arm = ElasticArm(D([0, 50, 30]), payload=payload)
+                       v_max=P.max_speed_rad_s, a_max=P.max_accel_rad_s2, config=STIFF)    # BVP spectrum
+    arm = ElasticArm(D([0, 50, 30]), payload=payload, config=STIFF)
     return log, arm
 
 
@@ -171,7 +172,8 @@ def test_point_to_point_tracking_respects_limits():
     vmax = min(P.experiment_speed_rad_s, P.max_speed_rad_s.min())
     assert np.all(np.abs(log.dtheta) < 1.1 * vmax)
     assert np.all(np.abs(log.tau) <= P.max_intermittent_torque_Nm + 1e-9)
-    assert np.all(np.abs(log.theta[-1] - goal) < D(0.05))
+    # the soft default plant's link load makes joint 3 creep back more slowly (0.053 deg left at 4 s)
+    assert np.all(np.abs(log.theta[-1] - goal) < D(0.06))
     overshoot = np.max((log.theta - goal) * np.sign(goal - D([0, 45, -45])), axis=0)
     assert np.all(overshoot < D(0.2))
 

@@ -43,16 +43,17 @@ def test_spring_hinged_modes_are_orthogonal_and_satisfy_the_hub_condition(K):
     assert np.all(B.frequency_hz < modal_basis(P.link2, mL, IL, 3).frequency_hz)      # softer hub, lower
 
 
-def test_default_plant_is_rigid_and_unchanged():
-    arm = ElasticArm(D([0, 30, 20]))
-    assert not arm.hub.active and np.all(arm.link2.basis.hub_slope == 0)
+def test_default_plant_is_the_seed_measured_one_and_stiff_is_rigid_and_unchanged():
+    assert PlantConfig() == SEED and PlantConfig().two_way and ElasticArm(D([0, 30, 20])).hub.active
+    arm = ElasticArm(D([0, 30, 20]), config=PlantConfig.stiff())
+    assert not arm.two_way and not arm.hub.active and np.all(arm.link2.basis.hub_slope == 0)
     assert np.allclose(arm.link2.basis.frequency_hz, modal_basis(P.link2, arm.link2.basis.tip_mass_kg,
                                                                  arm.link2.basis.tip_inertia_kg_m2, 2).frequency_hz)
 
 
 def test_static_tip_includes_the_hub_rotation_and_the_backlash_offset():
     th = D([0, 10, 0])
-    cfg = PlantConfig(hub_stiffness_Nm_rad=(500.0, 400.0), backlash_rad=(D(0.6), 0.0), hub_damping_Nms_rad=(1.0, 0.0))
+    cfg = PlantConfig.stiff(hub_stiffness_Nm_rad=(500.0, 400.0), backlash_rad=(D(0.6), 0.0), hub_damping_Nms_rad=(1.0, 0.0))
     arm = ElasticArm(th, payload=plate_payload(0.3), config=cfg)
     b = arm.bodies
     g = P.gravity_m_s2
@@ -85,7 +86,7 @@ def test_identified_frequencies_match_the_seed_at_300g(theta3_deg, seed):
     if seed[1]:
         assert abs(m["link2_hz"][1] / seed[1] - 1) < 0.10
     assert abs(m["link3_hz"][0] / 6.3 - 1) < 0.10
-    stiff = linear_modes(D([0, 0, theta3_deg]), 0.3, PlantConfig(two_way=True))
+    stiff = linear_modes(D([0, 0, theta3_deg]), 0.3, PlantConfig.stiff(two_way=True))
     assert m["link2_hz"][0] < stiff["link2_hz"][0]
 
 
@@ -121,7 +122,7 @@ def test_backlash_canyon_lowers_the_frequency_where_gravity_leaves_the_gear_unlo
     f_canyon = dominant_frequency_hz(canyon.strain[:, 0], SEED.dt)
     assert f_canyon < 0.92 * f_loaded
     # the hub dampers make the soft plant decay faster than the stiff one at a loaded pose
-    stiff = ring_down(D([0, 0, 90]), 0.3, PlantConfig(two_way=True), duration_s=5.0)
+    stiff = ring_down(D([0, 0, 90]), 0.3, PlantConfig.stiff(two_way=True), duration_s=5.0)
     soft = ring_down(D([0, 0, 90]), 0.3, SEED, duration_s=5.0)
     d_stiff = decay_rate_per_s(stiff.strain[:, 0], SEED.dt, dominant_frequency_hz(stiff.strain[:, 0], SEED.dt))
     d_soft = decay_rate_per_s(soft.strain[:, 0], SEED.dt, dominant_frequency_hz(soft.strain[:, 0], SEED.dt))
@@ -147,8 +148,8 @@ def test_sim_modes_bad_arguments_give_one_line_errors(tmp_path, capsys, args, ms
 
 
 def test_one_way_plant_reports_and_rings_at_its_own_bvp_frequencies():
-    """The default plant: 2.67 / 9.80 Hz at 300 g (issue 18's 'too stiff'), and its ring-down agrees."""
-    cfg = PlantConfig()
+    """The stiff (former default) plant: 2.67 / 9.80 Hz at 300 g (issue 18's 'too stiff'), and its ring-down agrees."""
+    cfg = PlantConfig.stiff()
     m = linear_modes(D([0, 45, 0]), 0.3, cfg)
     assert m["link2_hz"] == pytest.approx([2.665, 9.797], abs=0.01)
     log = ring_down(D([0, 45, 0]), 0.3, cfg, duration_s=4.0)

@@ -58,7 +58,7 @@ def test_ch8_serial_rows_follow_the_runs(ch8_serial):
     assert [r.split(",")[:3] for r in rows[1:]] == [["06", "off", "0"], ["06", "off", "1"],
                                                     ["06", "proportional", "0"], ["06", "proportional", "1"]]
     # the reference frequency is the undamped seed-0 run's own, and every run of the experiment uses it
-    r = run_experiment("06", "off", (0.0, 0.0, 0.0), two_way=False, noise=2e-6, seed=0, horizon_s=3.0)
+    r = run_experiment("06", "off", (0.0, 0.0, 0.0), plant="one-way", noise=2e-6, seed=0, horizon_s=3.0)
     freq = dominant_freq(r["t"], r["eps_dynamic"])
     assert {float(row.split(",")[3]) for row in rows[1:]} == {freq}
     # damping works: the undamped strain never settles within the 3 s, the damped one does
@@ -71,8 +71,8 @@ def test_ch8_serial_rows_follow_the_runs(ch8_serial):
 
 
 def test_ch8_task_is_its_run():
-    a = ch8_task("06", "proportional", (0.0, 2000.0, 2000.0), False, 2e-6, 1, 1.5, 3, True, None, None)
-    r = run_experiment("06", "proportional", (0.0, 2000.0, 2000.0), two_way=False, noise=2e-6, seed=1,
+    a = ch8_task("06", "proportional", (0.0, 2000.0, 2000.0), "one-way", 2e-6, 1, 1.5, 3, True, None, None)
+    r = run_experiment("06", "proportional", (0.0, 2000.0, 2000.0), plant="one-way", noise=2e-6, seed=1,
                        horizon_s=1.5)
     assert a["final_err_deg"] == r["final_err_deg"]
     assert a["metrics"]["online"]["max_strain"] == float(np.max(np.abs(r["eps_online"])))

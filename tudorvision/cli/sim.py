@@ -94,7 +94,7 @@ def _cmd_modes(args) -> int:
         raise TudorVisionError(f"--payload-kg: expected 0 .. 2 kg, got {args.payload_kg}")
     if not (math.isfinite(args.duration) and 2.0 <= args.duration <= 120.0):
         raise TudorVisionError(f"--duration: expected 2 .. 120 s, got {args.duration}")
-    cfg = PlantConfig() if args.stiff else PlantConfig.seed_measured()
+    cfg = PlantConfig.stiff() if args.stiff else PlantConfig()
     r = plant_modes(th, args.payload_kg, cfg, args.duration, params=params)
     out = {"theta_deg": [float(x) for x in np.rad2deg(th)], "payload_kg": args.payload_kg,
            "plant": "stiff" if args.stiff else "seed_measured", **r}

@@ -24,6 +24,7 @@ from .._checks import check_mass, check_vector
 from .cascade import JointCascade, design_cascade
 from .collision import STRATEGY_OF_CODE, CollisionMonitor, reaction_config, root_torque_per_strain
 from .damping import LAWS, StrainDamper, default_damping_config
+from .damping_gains import gain_set_of
 from .plant import Plant
 from .planner import OnlinePlanner, plan_motion
 from .cores import MAX_PAYLOAD_KG, CoreState
@@ -337,14 +338,14 @@ class CascadeCore:
         self.damping, self.collision = damping, collision
 
     def _damping_config(self, law: str):
-        return default_damping_config(law, two_way=self.arm.two_way, assisted=self.damping_model is not None,
+        return default_damping_config(law, plant=gain_set_of(self.arm), assisted=self.damping_model is not None,
                                       payload_kg=self.payload_kg)
 
     def set_payload(self, payload_kg: float) -> None:
         """Tell the layer the payload mass (kg, end effector total: mount, plates, balls).
 
         The installed damper's gains follow the payload schedule
-        (:data:`tudorvision.joint.damping.PAYLOAD_SCHEDULE`), its strain model and
+        (:data:`tudorvision.joint.damping_gains.PAYLOAD_SCHEDULES`), its strain model and
         the collision monitor's momentum observer use the new mass. The plant's
         payload is not touched (that is the lab's :meth:`ElasticArm.set_payload`).
 

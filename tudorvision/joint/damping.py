@@ -25,6 +25,9 @@ link-3 root gauge; joint 1 has no gauge in the bending plane: gain 0)
   ``theta_e = -k P55(s) eps_tilde`` with the shifted Padé approximant of
   ``1 / sqrt(s)`` (7.5.1), discretised by the bilinear (Tustin) transform.
 
+The tuned gains per plant and their payload schedules are in
+:mod:`tudorvision.joint.damping_gains` (re-exported here).
+
 Signs follow the plant's strain convention (top surface, tension positive;
 deflection toward increasing joint angle): positive gains damp. Units: ``k``
 in rad/s per (m/m) for the proportional and integral laws, rad s^-1/2 per
@@ -40,12 +43,14 @@ from scipy import signal
 
 from .._checks import check_array, check_mass
 
+from .damping_gains import (ASSISTED_GAINS, DEFAULT_GAINS, GAIN_SETS, LAWS, ONE_WAY_GAINS, PAYLOAD_SCHEDULE,
+                            PAYLOAD_SCHEDULES, SOFT_GAINS, TWO_WAY_GAINS, payload_gain_factor)
+
 __all__ = ["LAWS", "moving_average_fir", "static_strain_fir", "highpass_response", "StaticStrainFilter",
            "proportional_feedback", "pade_p55", "half_integrator_sos", "SosFilter", "DampingConfig",
            "StrainDamper", "default_damping_config", "GAUGE_OF_JOINT", "ONE_WAY_GAINS", "TWO_WAY_GAINS",
-           "DEFAULT_GAINS", "ASSISTED_GAINS", "PAYLOAD_SCHEDULE", "payload_gain_factor"]
-
-LAWS = ("off", "proportional", "integral", "half_integrator")
+           "SOFT_GAINS", "GAIN_SETS", "DEFAULT_GAINS", "ASSISTED_GAINS", "PAYLOAD_SCHEDULE", "PAYLOAD_SCHEDULES",
+           "payload_gain_factor"]
 
 #: Strain channel feeding each joint's damping law (None: no gauge in the bending plane).
 GAUGE_OF_JOINT = (None, 0, 2)
@@ -358,81 +363,24 @@ class DampingConfig:
         return 0.5 if self.law == "integral" else 1.0
 
 
-#: Gains tuned on experiment 06 (300 g, no noise) by minimising IATS of both root
-#: gauges (Nelder-Mead on log gains, ``benchmarks/bench_damping_ch8.py --tune``, refined
-#: on a grid for the proportional law); fixed for all experiments as in chapter 8.
-#: One-way plant (the seed's independent joint-link modules, ``PlantConfig(two_way=False)``):
-ONE_WAY_GAINS = {
-    "proportional": (0.0, 1600.0, 300.0),
-    "integral": (0.0, 948.0, 1283.0),
-    "half_integrator": (0.0, 245.0, 7.3),
-}
-#: Two-way coupled plant (the joint servo feels the links; used with contacts):
-TWO_WAY_GAINS = {
-    "proportional": (0.0, 400.0, 6400.0),
-    "integral": (0.0, 864.0, 520.0),
-    "half_integrator": (0.0, 245.0, 7.3),
-}
-DEFAULT_GAINS = ONE_WAY_GAINS
-#: Proportional gains with the model-assisted static strain cancellation (``StrainDamper(...,
-#: strain_model=...)``). The link-3 gain is lower than in ``ONE_WAY_GAINS``: 300 rad/s per m/m
-#: is stable for the small strains the plain filter passes but, on the one-way plant, starts a
-#: growing joint-3 oscillation once a larger signal breaks the joint loose (5 deg steps from the
-#: operating points of figure 8.1 with the assisted filter); 100 is stable on all 12 experiments.
-#: Two-way plant: best of a coarse grid k2 in {400, 800, 1600} x k3 in {400, 1600, 3200} on
-#: experiment 06 (2 noise seeds): 4.33 s, i.e. only a 57 % cut on that plant.
-ASSISTED_GAINS = {"one-way": (0.0, 1600.0, 100.0), "two-way": (0.0, 800.0, 1600.0)}
-
-
-#: Payload schedule of the link-3 gain for the one-way plant's tuned gains (``ONE_WAY_GAINS``,
-#: tuned at 300 g of plates + the 50 g mount = 0.35 kg): ``(masses_kg, factors)``, the factor on
-#: ``k_eps[2]`` piecewise linear in the known payload mass and constant beyond the ends. Fixed
-#: gains, as in section 8.3 of the seed, are not robust on the simulated arm: the tuned link-3
-#: gain starts a growing joint-3 oscillation at the mount alone (0.05 kg, link-3 mode ~13.6 Hz)
-#: and from ~0.45 kg (proportional) / ~0.5 kg (integral) once a large motion excites it (e.g. a
-#: payload dropped while the links swing). Breakpoints from a stability sweep (three operating
-#: points, large steps, payloads 0.05-0.65 kg, factors 1/4-1): every scheduled gain decays
-#: there. The half-integrator needs no schedule (stable over the whole range).
-PAYLOAD_SCHEDULE = {
-    "proportional": ((0.05, 0.08, 0.36, 0.45, 0.55), (2.0 / 3.0, 1.0, 1.0, 0.5, 1.0 / 3.0)),
-    "integral": ((0.08, 0.12, 0.45, 0.5, 0.65), (0.5, 1.0, 1.0, 0.5, 0.25)),
-}
-
-
-def payload_gain_factor(law: str, payload_kg: float) -> float:
-    """Factor on the tuned link-3 gain of ``law`` at this payload (``PAYLOAD_SCHEDULE``; 1 if none).
-
-    Examples
-    --------
-    >>> payload_gain_factor("proportional", 0.35), round(payload_gain_factor("proportional", 0.5), 4)
-    (1.0, 0.4167)
-    >>> payload_gain_factor("half_integrator", 0.05)
-    1.0
-    """
-    if law not in LAWS:
-        raise ValueError(f"law: expected one of {LAWS}, got {law!r}")
-    m = check_mass(payload_kg)
-    if law not in PAYLOAD_SCHEDULE:
-        return 1.0
-    masses, factors = PAYLOAD_SCHEDULE[law]
-    return float(np.interp(m, masses, factors))
-
-
-def default_damping_config(law: str, *, two_way: bool = False, assisted: bool = False,
-                           payload_kg: float | None = None, **overrides) -> DampingConfig:
-    """:class:`DampingConfig` with the tuned gains of ``law`` for the one-way or two-way plant.
+def default_damping_config(law: str, *, plant: str | None = None, two_way: bool | None = None,
+                           assisted: bool = False, payload_kg: float | None = None, **overrides) -> DampingConfig:
+    """:class:`DampingConfig` with the tuned gains of ``law`` for a plant.
 
     ``assisted=True`` selects ``ASSISTED_GAINS`` for the proportional law (the gains for a
     damper with a ``strain_model``); the other laws keep their gains. With ``payload_kg``
-    (the known payload mass) the one-way plant's tuned link-3 gain follows
-    ``PAYLOAD_SCHEDULE`` (not for the two-way plant, the assisted gains or given ``k_eps``).
+    (the known payload mass) the tuned link-3 gain follows the plant's payload schedule
+    (:data:`PAYLOAD_SCHEDULES`; not for the assisted gains or given ``k_eps``).
 
     Parameters
     ----------
     law : {"off", "proportional", "integral", "half_integrator"}
         Damping law.
+    plant : {"soft", "one-way", "two-way"}, optional
+        Gain set (:data:`GAIN_SETS`); default ``"soft"`` (the lab's default plant) unless
+        ``two_way`` is given.
     two_way : bool, optional
-        Use the gains tuned for the two-way coupled plant instead of the one-way plant.
+        The stiff plant's sets: ``True`` ``"two-way"``, ``False`` ``"one-way"`` (when ``plant`` is not given).
     assisted : bool, optional
         Proportional law with a model-assisted static strain cancellation
         (``ASSISTED_GAINS``).
@@ -454,24 +402,28 @@ def default_damping_config(law: str, *, two_way: bool = False, assisted: bool = 
 
     Examples
     --------
-    >>> default_damping_config("proportional").k_eps
+    >>> default_damping_config("proportional", two_way=False).k_eps
     (0.0, 1600.0, 300.0)
-    >>> default_damping_config("proportional", assisted=True).k_eps
+    >>> default_damping_config("proportional", plant="one-way", assisted=True).k_eps
     (0.0, 1600.0, 100.0)
-    >>> default_damping_config("proportional", payload_kg=0.05).k_eps
+    >>> default_damping_config("proportional", plant="one-way", payload_kg=0.05).k_eps
     (0.0, 1600.0, 200.0)
     """
     if law not in LAWS:
         raise ValueError(f"law: expected one of {LAWS}, got {law!r}")
-    table = dict(TWO_WAY_GAINS if two_way else ONE_WAY_GAINS)
+    if plant is None:
+        plant = "soft" if two_way is None else ("two-way" if two_way else "one-way")
+    if plant not in GAIN_SETS:
+        raise ValueError(f"plant: expected one of {tuple(GAIN_SETS)}, got {plant!r}")
+    table = dict(GAIN_SETS[plant])
     if assisted:
-        table["proportional"] = ASSISTED_GAINS["two-way" if two_way else "one-way"]
+        table["proportional"] = ASSISTED_GAINS[plant]
     if "k_eps" in overrides:
         k = overrides.pop("k_eps")
     else:
         k = tuple(table.get(law, (0.0, 0.0, 0.0)))
-        if payload_kg is not None and not two_way and not (assisted and law == "proportional"):
-            k = (k[0], k[1], k[2] * payload_gain_factor(law, payload_kg))
+        if payload_kg is not None and not (assisted and law == "proportional"):
+            k = (k[0], k[1], k[2] * payload_gain_factor(law, payload_kg, plant))
     return DampingConfig(law=law, k_eps=k, **overrides)
 
 

@@ -181,7 +181,7 @@ def collect_aprbs_run(plates: int, options: Ch10Options = Ch10Options(), config=
                      params=p, config=cfg)
     ca = ControlledArm(arm, v_max=np.deg2rad(options.v_max_deg_s), a_max=np.deg2rad(options.a_max_deg_s2))
     over = {} if options.k_eps is None else {"k_eps": tuple(float(k) for k in options.k_eps)}
-    dcfg = default_damping_config("proportional", two_way=arm.two_way, assisted=True, **over)
+    dcfg = default_damping_config("proportional", plant=arm.gain_set, assisted=True, **over)
     ca.set_damper(StrainDamper(dcfg, arm.measured_strain(), cfg.dt))
     per_amp = 1.0 / (np.asarray(p.gear_ratio, float) * np.asarray(p.torque_constant_Nm_A, float))
     n = int(round(options.seconds / cfg.dt))

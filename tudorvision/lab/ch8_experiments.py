@@ -28,7 +28,7 @@ import numpy as np
 
 from ..joint.cascade import friction_compensation
 from ..joint.controlled import ControlledArm
-from ..joint.damping import ASSISTED_GAINS, ONE_WAY_GAINS, DampingConfig, StrainDamper
+from ..joint.damping import ASSISTED_GAINS, GAIN_SETS, DampingConfig, StrainDamper
 from ..joint.identification import fit_with_validation
 from ..joint.metrics import METRIC_NAMES, damping_metrics, normalise_metrics, spectral_amplitude
 from ..joint.strain_dynamics import StrainDynamicsModel, aprbs, derivatives
@@ -41,7 +41,8 @@ from .simulation import SimCore
 __all__ = ["OPS_DEG", "EXPERIMENTS", "LAWS", "HORIZON_S", "SIGNALS", "ID_LO_RAD", "ID_HI_RAD",
            "static_strain_link2_root", "friction_feedforward", "run_experiment", "dominant_freq", "ch8_task",
            "resolve_runs", "run_damping_study", "evaluate", "runs_csv", "identification_task", "identify",
-           "DROP_POSE_DEG", "DROP_MOVE_DEG", "payload_change_task", "drive_aprbs"]
+           "DROP_POSE_DEG", "DROP_MOVE_DEG", "payload_change_task", "drive_aprbs", "PLANTS", "FILTERS",
+           "plant_config"]
 
 #: Operating points of figure 8.1, deg (assumed; see ``benchmarks/bench_damping_ch8.py``).
 OPS_DEG = {1: (0.0, 0.0, 0.0), 2: (0.0, 45.0, -45.0), 3: (0.0, 90.0, 0.0), 4: (0.0, 135.0, 45.0),
@@ -59,6 +60,42 @@ LAWS = ("off", "proportional", "integral", "half_integrator")
 HORIZON_S = 10.0
 #: The two strain signals the metrics are taken on.
 SIGNALS = ("online", "dynamic")
+#: Plants of the chapter-8 runs: ``soft`` the default (seed-measured hubs, backlash, two-way),
+#: ``one-way`` / ``two-way`` the stiff rigid-hub plant with either coupling (``PlantConfig.stiff``).
+PLANTS = ("soft", "one-way", "two-way")
+#: Static strain cancellation of the damper (section 2.2): ``seed`` the seed's filter as written
+#: (moving average N = 50 at 100 Hz applied twice: the 2 kHz damper takes every 20th sample and
+#: holds its estimate), ``2khz`` the project's variant (the same 0.5 s window at the 2 kHz control
+#: rate, N = 1000: no 10 ms hold, no aliasing).
+FILTERS = {"seed": {"n_window": 50, "decimation": 20}, "2khz": {"n_window": 1000, "decimation": 1}}
+
+
+def plant_config(plant: str, **fields) -> PlantConfig:
+    """The :class:`PlantConfig` of a chapter-8 plant name (:data:`PLANTS`).
+
+    Parameters
+    ----------
+    plant : {"soft", "one-way", "two-way"}
+        Plant name.
+    **fields
+        Further :class:`PlantConfig` fields (noise, seed, friction).
+
+    Returns
+    -------
+    PlantConfig
+
+    Raises
+    ------
+    ValueError
+        On an unknown plant name.
+    """
+    if plant == "soft":
+        return PlantConfig(**fields)
+    if plant in ("one-way", "two-way"):
+        return PlantConfig.stiff(two_way=plant == "two-way", **fields)
+    raise ValueError(f"plant: expected one of {PLANTS}, got {plant!r}")
+
+
 #: APRBS ranges of the identification for the model-assisted cancellation (joints 2, 3), rad: they
 #: cover the operating points of figure 8.1 (joint 2 from horizontal to horizontal).
 ID_LO_RAD, ID_HI_RAD = np.deg2rad([-5.0, -60.0]), np.deg2rad([185.0, 60.0])
@@ -116,9 +153,9 @@ def friction_feedforward(spec: str | None, params):
     return dataclasses.replace(comp, source=src)
 
 
-def run_experiment(exp: str, law: str, k_eps, *, two_way: bool, noise: float, seed: int,
+def run_experiment(exp: str, law: str, k_eps, *, plant: str, noise: float, seed: int,
                    horizon_s: float = HORIZON_S, plates: int = 3, coulomb: bool = True,
-                   friction_ff: str | None = None, model_chi=None) -> dict:
+                   friction_ff: str | None = None, model_chi=None, strain_filter: str = "seed") -> dict:
     """Simulate one run of an experiment; the series the metrics need, decimated to 500 Hz.
 
     Parameters
@@ -129,8 +166,8 @@ def run_experiment(exp: str, law: str, k_eps, *, two_way: bool, noise: float, se
         Damping law (:data:`LAWS`).
     k_eps : sequence of float, length 3
         Damping gains, rad/s per m/m.
-    two_way : bool
-        Two-way coupled plant.
+    plant : {"soft", "one-way", "two-way"}
+        Plant (:func:`plant_config`).
     noise : float
         Strain noise standard deviation, m/m.
     seed : int
@@ -146,6 +183,8 @@ def run_experiment(exp: str, law: str, k_eps, *, two_way: bool, noise: float, se
     model_chi : array_like or None
         Parameters of a :class:`~tudorvision.joint.strain_dynamics.StrainDynamicsModel` for the
         model-assisted static strain cancellation.
+    strain_filter : {"seed", "2khz"}
+        Static strain cancellation (:data:`FILTERS`).
 
     Returns
     -------
@@ -155,11 +194,12 @@ def run_experiment(exp: str, law: str, k_eps, *, two_way: bool, noise: float, se
     """
     p = load_robot_params()
     start, goal = (np.deg2rad(v) for v in EXPERIMENTS[exp])
-    cfg = PlantConfig(two_way=two_way, strain_noise_m_m=noise, noise_seed=seed, coulomb_friction=coulomb)
+    cfg = plant_config(plant, strain_noise_m_m=noise, noise_seed=seed, coulomb_friction=coulomb)
     arm = ElasticArm(start, payload=Payload.from_parts(p, plates=plates), params=p, config=cfg)
     ca = ControlledArm(arm, friction=friction_feedforward(friction_ff, p))
     model = None if model_chi is None else StrainDynamicsModel(chi=np.asarray(model_chi))
-    damper = StrainDamper(DampingConfig(law=law, k_eps=tuple(k_eps)), arm.measured_strain(), cfg.dt,
+    damper = StrainDamper(DampingConfig(law=law, k_eps=tuple(k_eps), **FILTERS[strain_filter]),
+                          arm.measured_strain(), cfg.dt,
                           strain_model=model, payload_kg=arm.payload.mass_kg)
     ca.set_damper(damper)
     ca.set_goal(goal)
@@ -209,8 +249,8 @@ def _candidate_bins(t) -> np.ndarray:
     return f[(f > 1.0) & (f < 6.0)]
 
 
-def ch8_task(exp: str, law: str, k_eps, two_way: bool, noise: float, seed: int, horizon_s: float, plates: int,
-             coulomb: bool, friction_ff: str | None, model_chi) -> dict:
+def ch8_task(exp: str, law: str, k_eps, plant: str, noise: float, seed: int, horizon_s: float, plates: int,
+             coulomb: bool, friction_ff: str | None, model_chi, strain_filter: str = "seed") -> dict:
     """One run as a runner task: the run's metrics on both strain signals (a few numbers, not the series).
 
     The spectral amplitude needs the experiment's dominant frequency, which only its undamped
@@ -220,7 +260,7 @@ def ch8_task(exp: str, law: str, k_eps, two_way: bool, noise: float, seed: int, 
 
     Parameters
     ----------
-    exp, law, k_eps, two_way, noise, seed, horizon_s, plates, coulomb, friction_ff, model_chi
+    exp, law, k_eps, plant, noise, seed, horizon_s, plates, coulomb, friction_ff, model_chi, strain_filter
         As for :func:`run_experiment`.
 
     Returns
@@ -231,8 +271,9 @@ def ch8_task(exp: str, law: str, k_eps, two_way: bool, noise: float, seed: int, 
         ``bins_hz`` (K,) candidate frequencies, ``spectral_by_bin`` (``{signal: (K,) amplitudes, m/m}``),
         ``eps3_tail_max`` (largest link-3 root online strain in the last 2 s, m/m), ``final_err_deg`` (3,).
     """
-    r = run_experiment(exp, law, k_eps, two_way=two_way, noise=noise, seed=seed, horizon_s=horizon_s,
-                       plates=plates, coulomb=coulomb, friction_ff=friction_ff, model_chi=model_chi)
+    r = run_experiment(exp, law, k_eps, plant=plant, noise=noise, seed=seed, horizon_s=horizon_s,
+                       plates=plates, coulomb=coulomb, friction_ff=friction_ff, model_chi=model_chi,
+                       strain_filter=strain_filter)
     freq = dominant_freq(r["t"], r["eps_dynamic"])
     metrics = {s: damping_metrics(r["t"], r[f"eps_{s}"], r["theta2"], r["ref2"], theta_goal=r["goal2"],
                                   freq_hz=freq, horizon_s=horizon_s) for s in SIGNALS}
@@ -321,8 +362,9 @@ def run_damping_study(out, groups, labels, reps: int, run_args: Callable, *, exp
             chi = kw.pop("model_chi", None)
             params = {"group": g, "label": lab, **kw,
                       "model": None if chi is None else config_digest(np.asarray(chi).tolist())}
-            args = (kw["exp"], kw["law"], tuple(kw["k_eps"]), kw["two_way"], kw["noise"])
-            rest = (kw["horizon_s"], kw["plates"], kw["coulomb"], kw["friction_ff"], chi)
+            args = (kw["exp"], kw["law"], tuple(kw["k_eps"]), kw["plant"], kw["noise"])
+            rest = (kw["horizon_s"], kw["plates"], kw["coulomb"], kw["friction_ff"], chi,
+                    kw.get("strain_filter", "seed"))
             for s in range(reps):
                 keys.append((g, lab, s))
                 tasks.append(Task(experiment, params, s, ch8_task, args + (s,) + rest))
@@ -451,7 +493,7 @@ def drive_aprbs(ca, arm, times, levels, n: int, *, torque: bool = False):
     return th, eps, tau
 
 
-def identification_task(plates: int, seconds: float, two_way: bool, noise: float, seed: int, coulomb: bool) -> dict:
+def identification_task(plates: int, seconds: float, plant: str, noise: float, seed: int, coulomb: bool) -> dict:
     """APRBS motion of joints 2, 3 with proportional damping; 100 Hz samples for the strain-dynamics fit.
 
     Parameters
@@ -460,8 +502,8 @@ def identification_task(plates: int, seconds: float, two_way: bool, noise: float
         Test plates (100 g each).
     seconds : float
         Length of the motion, s.
-    two_way : bool
-        Two-way coupled plant.
+    plant : {"soft", "one-way", "two-way"}
+        Plant (:func:`plant_config`).
     noise : float
         Strain noise, m/m.
     seed : int
@@ -478,13 +520,13 @@ def identification_task(plates: int, seconds: float, two_way: bool, noise: float
     p = load_robot_params()
     rng = np.random.default_rng(seed)
     times, levels = aprbs(rng, seconds, ID_LO_RAD, ID_HI_RAD)
-    cfg = PlantConfig(two_way=two_way, strain_noise_m_m=noise, noise_seed=seed, coulomb_friction=coulomb)
+    cfg = plant_config(plant, strain_noise_m_m=noise, noise_seed=seed, coulomb_friction=coulomb)
     arm = ElasticArm([0.0, levels[0, 0], levels[0, 1]], payload=Payload.from_parts(p, plates=plates), params=p,
                      config=cfg)
     ca = ControlledArm(arm)
     # damped as in the seed's identification (10.4); ONE_WAY_GAINS' link-3 gain lets the long APRBS
     # runs grow joint-3 oscillations (see ASSISTED_GAINS), so the assisted gains damp here
-    k = ASSISTED_GAINS["two-way" if two_way else "one-way"]
+    k = ASSISTED_GAINS[plant]
     ca.set_damper(StrainDamper(DampingConfig(law="proportional", k_eps=k), arm.measured_strain(), cfg.dt))
     n = int(round(seconds / cfg.dt))
     th, eps, _ = drive_aprbs(ca, arm, times, levels, n)
@@ -495,7 +537,7 @@ def identification_task(plates: int, seconds: float, two_way: bool, noise: float
             "m": np.full(t[sl].size, arm.payload.mass_kg), "plates": plates}
 
 
-def identify(out, *, two_way: bool, seconds: float, noise: float, coulomb: bool, scheduler: str | None = "serial",
+def identify(out, *, plant: str, seconds: float, noise: float, coulomb: bool, scheduler: str | None = "serial",
              workers: int | None = None, show_progress=None):
     """Strain-referred dynamics (10.2.8) by least squares on APRBS runs with payloads 0-400 g, via the runner.
 
@@ -506,7 +548,7 @@ def identify(out, *, two_way: bool, seconds: float, noise: float, coulomb: bool,
     ----------
     out : str or Path
         Output folder of the runner's records.
-    two_way, seconds, noise, coulomb
+    plant, seconds, noise, coulomb
         As for :func:`identification_task` (``seconds`` per payload).
     scheduler, workers, show_progress
         As for :func:`~tudorvision.lab.runner.run_tasks`.
@@ -523,9 +565,9 @@ def identify(out, *, two_way: bool, seconds: float, noise: float, coulomb: bool,
     RuntimeError
         When an identification run failed or was interrupted.
     """
-    tasks = [Task("ch8-id", {"plates": pl, "seconds": seconds, "two_way": two_way, "noise": noise,
+    tasks = [Task("ch8-id", {"plates": pl, "seconds": seconds, "plant": plant, "noise": noise,
                              "coulomb": coulomb}, 900 + pl, identification_task,
-                  (pl, seconds, two_way, noise, 900 + pl, coulomb)) for pl in range(5)]
+                  (pl, seconds, plant, noise, 900 + pl, coulomb)) for pl in range(5)]
     rep = run_tasks(tasks, out, scheduler=scheduler, workers=workers, show_progress=show_progress,
                     label="ch8 identification")
     if not rep.complete:
@@ -540,11 +582,12 @@ def identify(out, *, two_way: bool, seconds: float, noise: float, coulomb: bool,
 DROP_POSE_DEG, DROP_MOVE_DEG = (0.0, 60.4, 61.5), (0.0, 14.0, -45.0)
 
 
-def payload_change_task(label: str, law: str, noise: float, seed: int, horizon_s: float = HORIZON_S) -> dict:
+def payload_change_task(label: str, law: str, noise: float, seed: int, horizon_s: float = HORIZON_S,
+                        plant: str = "one-way") -> dict:
     """The payload-change scenario: rig taken off at rest, then a move; link-3 settling afterwards.
 
     ``scheduled`` gains are told the new payload at once (``SimCore.set_payload``), ``fixed``
-    keeps the 300 g gains (``ONE_WAY_GAINS``).
+    keeps the gains tuned at 300 g (``GAIN_SETS[plant]``).
 
     Parameters
     ----------
@@ -558,6 +601,8 @@ def payload_change_task(label: str, law: str, noise: float, seed: int, horizon_s
         Noise seed.
     horizon_s : float
         Time observed after the move command, s.
+    plant : {"soft", "one-way", "two-way"}
+        Plant (:func:`plant_config`); the layer uses that plant's gain set.
 
     Returns
     -------
@@ -569,10 +614,10 @@ def payload_change_task(label: str, law: str, noise: float, seed: int, horizon_s
     p = load_robot_params()
     pose = np.deg2rad(DROP_POSE_DEG)
     core = SimCore(pose, payload=Payload.from_parts(p, camera=True), params=p,
-                   config=PlantConfig(two_way=False, strain_noise_m_m=noise, noise_seed=seed))
+                   config=plant_config(plant, strain_noise_m_m=noise, noise_seed=seed))
     core.set_modes(damping={"proportional": 1, "integral": 2}[law], collision=0)
     if label == "fixed":
-        core.controlled.damper.set_gains(ONE_WAY_GAINS[law])
+        core.controlled.damper.set_gains(GAIN_SETS[plant][law])
     core.step(1.0)
     core.arm.set_payload(Payload.from_parts(p, balls=0))
     if label == "scheduled":

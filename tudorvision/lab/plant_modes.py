@@ -223,7 +223,7 @@ def plant_modes(theta_rad, payload_kg: float, config: PlantConfig | None = None,
     payload_kg : float
         Plate payload, kg.
     config : PlantConfig, optional
-        Default :meth:`PlantConfig.seed_measured`.
+        Default ``PlantConfig()`` (the seed-measured plant).
     duration_s : float, optional
         Ring-down length, s.
     params : RobotParams, optional
@@ -234,7 +234,7 @@ def plant_modes(theta_rad, payload_kg: float, config: PlantConfig | None = None,
     dict
         :func:`linear_modes`'s keys plus ``decay_per_s`` and ``ringdown_hz`` (ring-down, link-2 hub strain).
     """
-    cfg = config or PlantConfig.seed_measured()
+    cfg = config or PlantConfig()
     out = linear_modes(theta_rad, payload_kg, cfg, params)
     log = ring_down(theta_rad, payload_kg, cfg, duration_s, params=params)
     s = log.strain[:, 0]
@@ -272,7 +272,7 @@ def identify_hub_stiffness(candidates_Nm_rad=(float("inf"), 3000.0, 1500.0, 1000
     table = []
     for K2 in candidates_Nm_rad:
         for K3 in candidates_Nm_rad:
-            cfg = PlantConfig(two_way=True, hub_stiffness_Nm_rad=(K2, K3))
+            cfg = PlantConfig.stiff(two_way=True, hub_stiffness_Nm_rad=(K2, K3))
             m0 = linear_modes(np.zeros(3), 0.3, cfg)
             fmax = max(linear_modes(np.deg2rad([0.0, 0.0, s3 * theta3_extreme_deg]), 0.3, cfg)["link2_hz"][0]
                        for s3 in (-1.0, 1.0))

@@ -193,6 +193,13 @@ class ElasticArm:
         return self._two_way
 
     @property
+    def gain_set(self) -> str:
+        """Which tuned damping gains fit this plant: ``"soft"`` (hub springs), ``"two-way"`` or ``"one-way"``."""
+        if self.hub.active:
+            return "soft"
+        return "two-way" if self._two_way else "one-way"
+
+    @property
     def payload_kg(self) -> float:
         """Current payload mass at the end effector, kg."""
         return float(self.payload.mass_kg)

@@ -23,7 +23,7 @@ gravity torque near ``theta2 = 90 deg``, link 3 vertical at
 frequency and decay: the "canyons" of the seed's figure 4.8.
 
 Identification (docs/simulation.md, "Matching the seed's measured modes"):
-:data:`SEED_MEASURED` uses the two-way model. ``K_r`` of links 2 and 3:
+:data:`SEED_MEASURED` (the default ``PlantConfig()``) uses the two-way model. ``K_r`` of links 2 and 3:
 :func:`tudorvision.lab.plant_modes.identify_hub_stiffness` scores every pair
 of {inf, 3000, 1500, 1000, 800, 600} N m/rad by the worst relative error of
 four linearised numbers at 300 g against the seed (link 2's first and second
@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["SEED_MEASURED", "HubCompliance"]
+__all__ = ["SEED_MEASURED", "STIFF", "HubCompliance"]
 
 #: PlantConfig fields of the plant identified on the seed's sections 4.7 and 4.8.
 SEED_MEASURED = {
@@ -50,6 +50,14 @@ SEED_MEASURED = {
     "hub_stiffness_Nm_rad": (1500.0, 800.0),
     "hub_damping_Nms_rad": (6.0, 2.0),
     "backlash_rad": (math.radians(0.6), math.radians(0.6)),
+}
+#: PlantConfig fields of the former default plant (``PlantConfig.stiff()``): rigid hubs, one-way
+#: coupling unless obstacles are present.
+STIFF = {
+    "two_way": None,
+    "hub_stiffness_Nm_rad": (math.inf, math.inf),
+    "hub_damping_Nms_rad": (0.0, 0.0),
+    "backlash_rad": (0.0, 0.0),
 }
 
 

@@ -6,7 +6,7 @@ from scipy.linalg import expm
 
 from .beam import ModalBasis, cantilever_static, gauss_points
 
-__all__ = ["LinkModes"]
+__all__ = ["LinkModes", "coupled_mass_matrix"]
 
 
 class LinkModes:
@@ -95,3 +95,46 @@ class LinkModes:
         vL = float(np.asarray(deta) @ np.asarray(self.phiL))
         svL = float(np.asarray(deta) @ np.asarray(self.dphiL))
         return xg, wg, w, dw, wL, sL, vL, svL
+
+
+def coupled_mass_matrix(m22, m23, m33, coupling, bodies: ArmBodies, link2, link3, c3: float) -> np.ndarray:
+    """Assumed-modes mass matrix of the two-way model over (theta2, theta3, eta2, eta3).
+
+    Parameters
+    ----------
+    m22, m23, m33 : float
+        Rigid joint-2/3 block of the mass matrix, kg m^2.
+    coupling : tuple
+        ``(c2_t2, c2_t3, c3_t2, c3_t3, E)`` mode/joint couplings at the current elbow angle.
+    bodies : ArmBodies
+        Lumped bodies (uses ``s3``, the first moment of the distal body, and ``l2``).
+    link2, link3 : LinkModes
+        Modes of the elastic links (``n``, tip values ``phiL`` and slopes ``dphiL``).
+    c3 : float
+        cos(theta3).
+
+    Returns
+    -------
+    ndarray, shape (2 + n2 + n3, 2 + n2 + n3)
+        Symmetric mass matrix.
+    """
+    b, k2, k3 = bodies, link2, link3
+    n2, n3 = k2.n, k3.n
+    c2_t2, c2_t3, c3_t2, c3_t3, E = coupling
+    sc = b.s3 * c3
+    N = 2 + n2 + n3
+    M = np.zeros((N, N))
+    M[0, 0], M[0, 1], M[1, 0], M[1, 1] = m22, m23, m23, m33
+    for r in range(n2):
+        M[0, 2 + r] = M[2 + r, 0] = c2_t2[r] + sc * (b.l2 * k2.dphiL[r] + k2.phiL[r])
+        M[1, 2 + r] = M[2 + r, 1] = c2_t3[r]
+        for q in range(n2):
+            M[2 + r, 2 + q] = (1.0 if r == q else 0.0) + sc * (k2.phiL[r] * k2.dphiL[q]
+                                                               + k2.dphiL[r] * k2.phiL[q])
+        for q in range(n3):
+            M[2 + r, 2 + n2 + q] = M[2 + n2 + q, 2 + r] = E[r][q]
+    for q in range(n3):
+        M[0, 2 + n2 + q] = M[2 + n2 + q, 0] = c3_t2[q]
+        M[1, 2 + n2 + q] = M[2 + n2 + q, 1] = c3_t3[q]
+        M[2 + n2 + q, 2 + n2 + q] = 1.0
+    return M

@@ -9,11 +9,12 @@ Model (assumptions are listed in full in :data:`ASSUMPTIONS`)
   with lumped bodies (link-2 blade, actuator 3 at its tip, link-3 blade,
   payload at the end effector, base inertia), rotor inertia ``n^2 I_M`` on
   the diagonal, friction (3.1.3) with stick/slip and the merged amplifier
-  gain (3.1.2). By default link oscillations do not feed back into the
-  joints (the seed's independent joint-link-module assumption, section 5.1);
-  with contacts (or ``PlantConfig.two_way=True``) joints and modes share one
-  energy-consistent assumed-modes mass matrix.
-* Links 2 and 3: Euler–Bernoulli blades clamped at their hubs with the
+  gain (3.1.2). In the stiff plant (``PlantConfig.stiff()``) link oscillations
+  do not feed back into the joints (the seed's independent joint-link-module
+  assumption, section 5.1); by default (and always with contacts) joints and
+  modes share one energy-consistent assumed-modes mass matrix.
+* Links 2 and 3: Euler–Bernoulli blades clamped at their hubs (by default
+  on a rotary spring with damper and backlash, :mod:`.joint_compliance`) with the
   distal bodies as tip mass and tip inertia (4.4.6). Deflection
   ``w = w_static + sum_r Phi_r (eta_r - eta_static_r)``: the exact static
   cantilever shape under own weight, tip force and tip moment plus the
@@ -36,6 +37,7 @@ top-surface strain positive in tension).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -44,6 +46,8 @@ from .._checks import check_array, check_vector
 from ..robot.actuators import reflected_inertia
 from ..robot.params import RobotParams, load_robot_params
 from .beam import link_rho
+from .joint_compliance import SEED_MEASURED, STIFF
+from .link_modes import coupled_mass_matrix
 
 __all__ = [
     "coupled_mass_matrix", "zero_config_inertia",
@@ -60,8 +64,9 @@ Simulated TUDOR: assumptions
   dynamics neglected (amplifier merged into k_M).
 - Friction: Zeng's model (3.1.3) with Coulomb terms opposing motion; sticking when the
   Coulomb impulse of one step exceeds the velocity.
-- Links 2 and 3: Euler-Bernoulli blades clamped at the hub, rigidly by default (K_r -> inf) or
-  on a rotary spring with damper and gear backlash (PlantConfig.seed_measured(), joint_compliance),
+- Links 2 and 3: Euler-Bernoulli blades clamped at the hub on a rotary spring with damper and
+  gear backlash (the default PlantConfig(), identified on the seed, joint_compliance) or rigidly
+  (K_r -> inf, PlantConfig.stiff()),
   bending only in the arm's vertical plane (out-of-plane bending, torsion, axial strain neglected).
   Tip load of link 2 = actuator 3 + link 3 + payload with inertia about the tip axis
   (parallel-axis theorem, configuration independent); tip load of link 3 = payload.
@@ -71,9 +76,9 @@ Simulated TUDOR: assumptions
   proportional modal damping (ratios from tudor.yaml), forced by gravity, hub rotational
   and translational accelerations, joint-3 reaction on the link-2 tip and contact forces.
   Gravity stiffening/softening (axial load) is not modelled; the backlash 'canyons' of fig. 4.8
-  appear only with backlash (seed_measured), the theta3 dependence only in the two-way model.
-- Coupling: by default one-way (joints drive the links, link oscillations do not act back on
-  the joints, section 5.1). With obstacles (or two_way=True) the joints and modes share an
+  appear only with backlash (the default plant), the theta3 dependence only in the two-way model.
+- Coupling: by default two-way; PlantConfig.stiff() is one-way (joints drive the links, link
+  oscillations do not act back on the joints, section 5.1). With obstacles (or two_way=True) the joints and modes share an
   assumed-modes mass matrix built from the exact kinetic energy of the lumped bodies; the
   servoed joints then load the links: with 300 g the first held-joint frequency is 2.0-2.6 Hz
   depending on theta3 (ElasticArm.coupled_frequencies_hz; the seed measured 1.56-2.74 Hz over
@@ -120,7 +125,8 @@ class PlantConfig:
         shifts frequencies (the BVP ignores the offset centre of mass of the
         distal bodies) and adds damping. ``None`` (default): two-way only when
         obstacles are present, because contact forces need the consistent
-        model (the one-way coupling is not passive under contact).
+        model (the one-way coupling is not passive under contact). Default
+        ``True`` (the seed-measured plant); :meth:`stiff` gives ``None``.
     strain_noise_m_m : float
         Standard deviation of the white noise on :meth:`ElasticArm.measured_strain`, m/m.
     noise_seed : int
@@ -130,9 +136,18 @@ class PlantConfig:
         keeps only the viscous part (a diagnostic of the damping benchmark).
     hub_stiffness_Nm_rad, hub_damping_Nms_rad, backlash_rad : tuple of 2 floats
         Joint-side compliance of links 2 and 3 (:mod:`tudorvision.sim.joint_compliance`):
-        rotary clamping stiffness ``K_r`` of (4.4.5) (``inf``: rigid clamping, the default),
-        a damper beside it and the full width of the gear backlash, a dead zone of the
-        spring and damper. :meth:`seed_measured` gives the values identified on the seed.
+        rotary clamping stiffness ``K_r`` of (4.4.5) (``inf``: rigid clamping), a damper
+        beside it and the full width of the gear backlash, a dead zone of the spring and
+        damper. The defaults are the values identified on the seed's measured modes
+        (:data:`tudorvision.sim.joint_compliance.SEED_MEASURED`: 1500 / 800 N m/rad,
+        6 / 2 N m s/rad, 0.6 deg); :meth:`stiff` gives rigid hubs.
+
+    Notes
+    -----
+    ``PlantConfig()`` is the seed-measured plant (issue 18: soft hubs, backlash,
+    two-way coupling; :meth:`seed_measured` is an alias). :meth:`stiff` is the
+    former default (rigid hubs, one-way coupling), kept for the BVP checks and
+    for comparisons.
     """
 
     dt: float = 0.0005
@@ -144,17 +159,17 @@ class PlantConfig:
     actuator3_inertia_kg_m2: float = 7.5e-5
     plate_size_m: float = 0.08
     modal_damping_ratio: tuple | None = None
-    two_way: bool | None = None
+    two_way: bool | None = SEED_MEASURED["two_way"]
     strain_noise_m_m: float = 0.0
     noise_seed: int = 0
     coulomb_friction: bool = True
-    hub_stiffness_Nm_rad: tuple = (float("inf"), float("inf"))
-    hub_damping_Nms_rad: tuple = (0.0, 0.0)
-    backlash_rad: tuple = (0.0, 0.0)
+    hub_stiffness_Nm_rad: tuple = SEED_MEASURED["hub_stiffness_Nm_rad"]
+    hub_damping_Nms_rad: tuple = SEED_MEASURED["hub_damping_Nms_rad"]
+    backlash_rad: tuple = SEED_MEASURED["backlash_rad"]
 
     @classmethod
     def seed_measured(cls, **overrides) -> "PlantConfig":
-        """The plant identified on the seed's measured modes (sections 4.7, 4.8; docs/simulation.md).
+        """The plant identified on the seed's measured modes: the default (alias of ``PlantConfig()``).
 
         Parameters
         ----------
@@ -164,10 +179,34 @@ class PlantConfig:
         Returns
         -------
         PlantConfig
-            Hub springs, dampers and backlash of :data:`tudorvision.sim.joint_compliance.SEED_MEASURED`.
+            Hub springs, dampers and backlash of :data:`tudorvision.sim.joint_compliance.SEED_MEASURED`,
+            two-way coupling.
         """
-        from .joint_compliance import SEED_MEASURED
         return cls(**{**SEED_MEASURED, **overrides})
+
+    @classmethod
+    def stiff(cls, **overrides) -> "PlantConfig":
+        """The former default plant: rigidly clamped blades, one-way joint-to-link coupling.
+
+        Links ring at the BVP frequencies of (4.4.6) at every pose (2.67 / 9.80 Hz with 300 g),
+        the seed's independent joint-link modules (section 5.1); two-way only with obstacles.
+
+        Parameters
+        ----------
+        **overrides
+            Other fields, as for the constructor.
+
+        Returns
+        -------
+        PlantConfig
+            ``two_way=None``, ``hub_stiffness_Nm_rad=(inf, inf)``, no hub damper, no backlash.
+        """
+        return cls(**{**STIFF, **overrides})
+
+    @property
+    def is_stiff(self) -> bool:
+        """Whether both blades are rigidly clamped (no hub spring)."""
+        return all(not math.isfinite(float(k)) for k in self.hub_stiffness_Nm_rad)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -464,49 +503,6 @@ class SpringDamperObstacle:
             return np.zeros(3)
         mag = self.stiffness_N_m * depth - self.damping_Ns_m * float(n @ v)
         return max(mag, 0.0) * n
-
-
-def coupled_mass_matrix(m22, m23, m33, coupling, bodies: ArmBodies, link2, link3, c3: float) -> np.ndarray:
-    """Assumed-modes mass matrix of the two-way model over (theta2, theta3, eta2, eta3).
-
-    Parameters
-    ----------
-    m22, m23, m33 : float
-        Rigid joint-2/3 block of the mass matrix, kg m^2.
-    coupling : tuple
-        ``(c2_t2, c2_t3, c3_t2, c3_t3, E)`` mode/joint couplings at the current elbow angle.
-    bodies : ArmBodies
-        Lumped bodies (uses ``s3``, the first moment of the distal body, and ``l2``).
-    link2, link3 : LinkModes
-        Modes of the elastic links (``n``, tip values ``phiL`` and slopes ``dphiL``).
-    c3 : float
-        cos(theta3).
-
-    Returns
-    -------
-    ndarray, shape (2 + n2 + n3, 2 + n2 + n3)
-        Symmetric mass matrix.
-    """
-    b, k2, k3 = bodies, link2, link3
-    n2, n3 = k2.n, k3.n
-    c2_t2, c2_t3, c3_t2, c3_t3, E = coupling
-    sc = b.s3 * c3
-    N = 2 + n2 + n3
-    M = np.zeros((N, N))
-    M[0, 0], M[0, 1], M[1, 0], M[1, 1] = m22, m23, m23, m33
-    for r in range(n2):
-        M[0, 2 + r] = M[2 + r, 0] = c2_t2[r] + sc * (b.l2 * k2.dphiL[r] + k2.phiL[r])
-        M[1, 2 + r] = M[2 + r, 1] = c2_t3[r]
-        for q in range(n2):
-            M[2 + r, 2 + q] = (1.0 if r == q else 0.0) + sc * (k2.phiL[r] * k2.dphiL[q]
-                                                               + k2.dphiL[r] * k2.phiL[q])
-        for q in range(n3):
-            M[2 + r, 2 + n2 + q] = M[2 + n2 + q, 2 + r] = E[r][q]
-    for q in range(n3):
-        M[0, 2 + n2 + q] = M[2 + n2 + q, 0] = c3_t2[q]
-        M[1, 2 + n2 + q] = M[2 + n2 + q, 1] = c3_t3[q]
-        M[2 + n2 + q, 2 + n2 + q] = 1.0
-    return M
 
 
 def zero_config_inertia(arm) -> np.ndarray:
