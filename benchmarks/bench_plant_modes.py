@@ -1,12 +1,12 @@
 """Issue 18: the lab's figure 4.8 — first-mode frequency and decay over (theta2, theta3) at 300 g — beside the seed.
 
-For every grid pose the seed-measured plant (``PlantConfig.seed_measured()``)
+For every grid pose the seed-measured default plant (``PlantConfig()``)
 is hit by the hammer impulse at the end effector while the joint cascade
 holds the pose (``tudorvision.lab.plant_modes.ring_down``); the first
 dominant frequency is the spectral peak of the link-2 hub strain and the
 decay rate its envelope fit, as the seed's figure 4.8 (strain on link 2,
 B.3.26). The linearised first frequency (joints held, springs engaged) and
-the stiff default plant (one-way BVP, and two-way rigid hubs) are listed for
+the stiff plant ``PlantConfig.stiff()`` (one-way BVP, and two-way rigid hubs) are listed for
 comparison. The peer is the seed: its ranges (1.56-2.74 Hz, 0.03-1.24 1/s)
 and figure 4.6 (2.0 / 9.9 Hz link 2, 6.3 Hz link 3); ratios lab / seed are printed.
 
@@ -48,7 +48,7 @@ def main(argv=None) -> int:
         return 0
     t2s = np.arange(-10.0, 190.0 + 1e-9, a.step)
     t3s = np.arange(-100.0, 100.0 + 1e-9, a.step)
-    cfg = PlantConfig.seed_measured()
+    cfg = PlantConfig()                   # the seed-measured default
     F = np.zeros((len(t3s), len(t2s)))
     Z = np.zeros_like(F)
     FL = np.zeros_like(F)
@@ -63,9 +63,9 @@ def main(argv=None) -> int:
             F[i, j], Z[i, j], FL[i, j] = f1, decay_rate_per_s(s, cfg.dt, f1), lin["link2_hz"][0]
     wall = time.perf_counter() - t0
     fig46 = linear_modes(np.deg2rad([0.0, 0.0, 0.0]), a.payload_kg, cfg)
-    stiff_one_way = ElasticArm(np.deg2rad([0.0, 0.0, 0.0]),
+    stiff_one_way = ElasticArm(np.deg2rad([0.0, 0.0, 0.0]), config=PlantConfig.stiff(),
                                payload=plate_payload(a.payload_kg)).link2.basis.frequency_hz
-    stiff2 = [linear_modes(np.deg2rad([0.0, 0.0, t3]), a.payload_kg, PlantConfig(two_way=True))["link2_hz"][0]
+    stiff2 = [linear_modes(np.deg2rad([0.0, 0.0, t3]), a.payload_kg, PlantConfig.stiff(two_way=True))["link2_hz"][0]
               for t3 in t3s]
 
     def row(name, lab, seed):
