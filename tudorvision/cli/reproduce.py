@@ -14,7 +14,7 @@ def _cmd_reproduce(args) -> int:
     if args.list:
         from ..lab.reproduce_sections import SECTIONS
         for s in SECTIONS:
-            print(f"{s.name:12s} chapter {s.chapter:4s} ~{s.minutes_quick:g} min quick, ~{s.minutes_full:g} min full: "
+            print(f"{s.name:14s} chapter {s.chapter:4s} ~{s.minutes_quick:g} min quick, ~{s.minutes_full:g} min full: "
                   f"{s.title}")
         return 0
     if not args.out:
