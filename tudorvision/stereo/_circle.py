@@ -111,7 +111,7 @@ def _many_triples(n: int, m: int) -> np.ndarray:
     return _MANY[(n, m)]
 
 
-def fit_rim_circle_multi(pts: np.ndarray, tol: float, *, n_hyp: int = 400, top: int = 5):
+def fit_rim_circle_multi(pts: np.ndarray, tol: float, *, n_hyp: int = 200, top: int = 3):
     """Robust circle through edge points ``pts`` (n x 2, ordered along the rim): ``(cu, cv, r, inliers)``.
 
     As :func:`fit_rim_circle` (score: points within ``tol`` minus twice those

@@ -60,6 +60,8 @@ class FramePlanes:
         self.height, self.width = bgr.shape[:2]
         self._full = None
         self._coarse = {}
+        #: per-frame memo of refinements keyed by their inputs (segment's chroma edge)
+        self.results = {}
 
     @classmethod
     def checked(cls, frame_bgr, hsv=None) -> "FramePlanes":

@@ -41,6 +41,7 @@ centroid RMS error of single full-frame detections is 0.12 px with PNG and
 """
 from __future__ import annotations
 
+import functools
 import math
 
 import cv2
@@ -213,6 +214,12 @@ def refine_circle_on_luma(gray, log_odds, centre, radius: float, *, tol_px: floa
     return fu, fv, fr, n_in / n, float(np.sqrt(np.mean(res * res)))
 
 
+@functools.lru_cache(maxsize=64)
+def _chroma_of(r: float, g: float, b: float) -> tuple:
+    px = np.array([[[b, g, r]]], np.float32) / np.float32(255.0)
+    return tuple(float(x) for x in cv2.cvtColor(px, cv2.COLOR_BGR2Lab)[0, 0, 1:])
+
+
 def sphere_chroma(rgb) -> np.ndarray:
     """CIE a*, b* of an RGB colour (the sphere's mean colour), shape (2,).
 
@@ -231,8 +238,7 @@ def sphere_chroma(rgb) -> np.ndarray:
     >>> [round(float(x)) for x in sphere_chroma((128, 128, 128))]
     [0, 0]
     """
-    px = np.array([[[rgb[2], rgb[1], rgb[0]]]], np.float32) / np.float32(255.0)
-    return cv2.cvtColor(px, cv2.COLOR_BGR2Lab)[0, 0, 1:].astype(np.float64)
+    return np.array(_chroma_of(float(rgb[0]), float(rgb[1]), float(rgb[2])))
 
 
 def chroma_rim_points(bgr, chroma, centre, radius: float, *, lo: float = 0.6, hi: float = 1.35,
@@ -290,17 +296,25 @@ def chroma_rim_points(bgr, chroma, centre, radius: float, *, lo: float = 0.6, hi
     >>> len(pts) == n, bool(np.abs(np.hypot(pts[:, 0] - 40, pts[:, 1] - 40) - 20.5).max() < 0.35)
     (True, True)
     """
+    r = float(radius)
+    fs = float(np.hypot(*np.asarray(chroma, np.float64)))          # the sphere's own level
+    if not fs > 0 or not r > 0:
+        return np.zeros((0, 2)), 0
+    feat = _chroma_feature(bgr, chroma, min(1.0, r / 20.0) if sigma is None else float(sigma))
+    return _rim_on_feature(feat, fs, centre, r, lo, hi, step, rel)
+
+
+def _chroma_feature(bgr, chroma, sigma: float) -> np.ndarray:
+    """Float Lab chroma of ``bgr`` projected on the unit direction of ``chroma``, smoothed by ``sigma`` px."""
     ab = np.asarray(chroma, np.float64)
     norm = float(np.hypot(ab[0], ab[1]))
-    r = float(radius)
-    if not norm > 0 or not r > 0:
-        return np.zeros((0, 2)), 0
     lab = cv2.cvtColor(np.asarray(bgr, np.float32) * np.float32(1.0 / 255.0), cv2.COLOR_BGR2Lab)
     feat = cv2.addWeighted(lab[..., 1], ab[0] / norm, lab[..., 2], ab[1] / norm, 0.0)
-    sigma = min(1.0, r / 20.0) if sigma is None else float(sigma)
-    if sigma > 0:
-        feat = cv2.GaussianBlur(feat, (0, 0), sigma)
-    fs = norm                                                     # the sphere's own level
+    return cv2.GaussianBlur(feat, (0, 0), sigma) if sigma > 0 else feat
+
+
+def _rim_on_feature(feat, fs, centre, r, lo, hi, step, rel):
+    """:func:`chroma_rim_points` on a feature image from :func:`_chroma_feature` (sphere level ``fs``)."""
     k = 4 * int(np.clip(round(0.25 * math.pi * r), 8, 32))
     ca, sa, offsets, j = _rays(k, 0.5 * (hi - lo) * r, step)
     s = 0.5 * (hi + lo) * r + offsets
@@ -378,9 +392,13 @@ def refine_circle_on_chroma(bgr, chroma, centre, radius: float, *, tol_frac: flo
     (True, True)
     """
     cu, cv_, cr = float(centre[0]), float(centre[1]), float(radius)
+    fs = float(np.hypot(*np.asarray(chroma, np.float64)))
+    if not fs > 0 or not cr > 0:
+        return None
+    feat = _chroma_feature(bgr, chroma, min(1.0, cr / 20.0))      # once for all passes
     out = None
     for _ in range(passes):
-        pts, n = chroma_rim_points(bgr, chroma, (cu, cv_), cr)
+        pts, n = _rim_on_feature(feat, fs, (cu, cv_), cr, 0.6, 1.35, 0.5, 0.3)
         if n == 0 or len(pts) < max(8, min_fraction * n):
             break
         fit = fit_rim_circle_multi(pts, max(0.75, tol_frac * cr))

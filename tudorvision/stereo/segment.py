@@ -41,25 +41,19 @@ The pipeline of section 2.4, per camera and sphere:
    circle explains fewer than ``min_rim_fraction`` of the rim points or its
    radius does not fit the area, the moment is kept. ``rim_fraction`` and
    ``rim_rms_px`` of the detection give the fit's quality, ``method`` which
-   was used, ``uv_moment`` the moment. When that circle explains less than
-   ``chroma_edge_below`` (0.9) of the rim or was not used (a highlight, a
-   shaded limb, fingers), the rim is searched again along rays on the
-   sphere's chroma edge (:func:`~tudorvision.stereo.rim_edge.refine_circle_on_chroma`,
-   ``method="chroma"``).
+   was used, ``uv_moment`` the moment. Below ``chroma_edge_below`` of the rim
+   (a highlight, a shaded limb, fingers) the rim is searched again on the chroma
+   edge along rays (:func:`~tudorvision.stereo.rim_edge.refine_circle_on_chroma`, ``"chroma"``).
 4c. **Luma edge** (``edge_refine=True``, with ``centroid="shape"``; off by
    default, since it about doubles the cost of a detection; the CLI turns it
    on for JPEG and video recordings, ``--luma-edge``).
-   The colour rim is only as sharp as the colour planes: JPEG's 4:2:0 chroma
-   subsampling smears it by about a pixel, unevenly around the sphere (0.43 px
-   centroid RMS on the virtual lab's JPEG frames against 0.13 px on PNG).
-   Starting from that circle (or the moment and the area radius when it was
-   not used), the rim is located again on the full-resolution luma along rays
-   and a circle fitted to it (:mod:`~tudorvision.stereo.rim_edge`); its centre
-   is used when it explains at least half of the rays and stays within 1.5 px
-   of the first circle (``method="edge"``), else the colour result stands. Blurred streaks (``motion_blur``) keep
-   the moment; the tracker switches fast, smoothly moving spheres to the
-   moment of the grown region (``"rim_moment"``), since the core of a streak
-   is a lens whose two arcs each fit a circle at one end of the exposure.
+   JPEG's 4:2:0 chroma subsampling smears the colour rim by about a pixel;
+   from the circle so far the rim is located again on the full-resolution
+   luma along rays (:mod:`~tudorvision.stereo.rim_edge`), used when it
+   explains half of the rays within 1.5 px of that circle (``method="edge"``).
+   Blurred streaks (``motion_blur``) keep the moment; the tracker switches
+   fast, smoothly moving spheres to the moment of the grown region
+   (``"rim_moment"``): a streak's core is a lens of two arcs.
 5. **Quality and plausibility.** Area, mean probability, circularity and a
    fill ratio from the region's second moments; regions outside the limits
    of :class:`SegmentParams` are rejected with a reason. The best region is
@@ -123,7 +117,6 @@ __all__ = [
 ]
 
 _CCL = getattr(cv2, "CCL_GRANA", 1)  # block-based 8-connectivity: fastest on sparse masks
-
 
 _NOTHING = "no pixel above p_seed survives erosion"
 
@@ -443,10 +436,17 @@ class _EdgeSource:
 
     def refine_chroma(self, centre: tuple, radius: float):
         """Circle ``(u, v, r)`` on the sphere's chroma edge in frame pixels (step 4b), or None."""
+        cache = self.frame.results      # the windows of a full-frame search find the same region again
+        key = ("chroma", id(self.model), round(centre[0], 6), round(centre[1], 6), round(radius, 6))
+        if key not in cache:
+            cache[key] = self._refine_chroma(centre, radius)
+        return cache[key]
+
+    def _refine_chroma(self, centre: tuple, radius: float):
         f, m = self.frame, int(math.ceil(1.35 * radius)) + 6
         px0, py0 = max(int(centre[0]) - m, 0), max(int(centre[1]) - m, 0)
         px1, py1 = min(int(centre[0]) + m + 1, f.width), min(int(centre[1]) + m + 1, f.height)
-        chroma = sphere_chroma(self.model.mean[:3])
+        chroma = sphere_chroma(tuple(self.model.mean[:3]))
         if px1 - px0 < 8 or py1 - py0 < 8 or math.hypot(*chroma) < 5.0:   # too small, or a grey sphere
             return None
         fit = refine_circle_on_chroma(f.bgr[py0:py1, px0:px1], chroma, (centre[0] - px0, centre[1] - py0), radius)
