@@ -115,21 +115,30 @@ def main(argv=None):
               f"{v['after_um_m'] / seed['damped_um_m']:.2f}, {v['reduction'] / seed['reduction']:.2f}")
     for name in ("drop_8_4", "drop_8_4_at_rest"):
         d = res[name]
-        print(f"8.4 step ({name}, drop {d['drop_height_m']} m, impulse {d['impulse_Ns']:.2f} N s): settling into "
-              f"15 um/m after landing, horizon {d['horizon_s']:.0f} s; seed: damped in ~{d['seed']['damped_settle_s']} s")
+        print(f"8.4 step ({name}, drop {d['drop_height_m']} m, impulse {d['impulse_Ns']:.2f} N s, static strain "
+              f"{d['static_um_m'][0]:.0f} -> {d['static_um_m'][1]:.0f} um/m): settling into 15 um/m after landing, "
+              f"horizon {d['horizon_s']:.0f} s; seed: damped in ~{d['seed']['damped_settle_s']} s")
         off = d["laws"]["off"]["settle_s"]
         for law, v in d["laws"].items():
-            print(f"  {law:16s} {v['settle_s']:6.2f} s (online {v['settle_online_s']:5.2f} s), peak {v['max_um_m']:6.0f} "
-                  f"um/m, 2-3 s {v['residual_2s_um_m']:5.0f} um/m | /undamped {v['settle_s'] / off:.2f}, "
-                  f"/seed {v['settle_s'] / d['seed']['damped_settle_s']:.2f}")
+            print(f"  {law:16s} {v['settle_s']:6.2f} s (online {v['settle_online_s']:5.2f} s), peak "
+                  f"{v['max_um_m']:5.0f} um/m, 2-3 s {v['residual_2s_um_m']:5.0f} um/m, "
+                  f"decay {v['decay_per_s']:6.3f} 1/s"
+                  f" | /undamped {v['settle_s'] / off:.2f}, /seed {v['settle_s'] / d['seed']['damped_settle_s']:.2f}")
     o = res["one_actuator_8_5"]
-    print(f"8.5 one actuator (experiment 06, link-2 strain settling, horizon {o['horizon_s']:.0f} s); seed: "
+    print(f"8.5 one actuator (experiment 06, link-2 strain, settling horizon {o['horizon_s']:.0f} s); seed: "
           f"{o['seed']['ordering']}")
-    print(f"  off              {o['off']['settle_s']:6.2f} s cut {o['off']['cut_pct']:5.1f} %")
+    print(f"  off              {o['off']['settle_s']:5.2f} s, IATS {o['off']['iats']:.2e} (m/m) s^2")
     for law, v in o["laws"].items():
         b, j = v["both"], v["joint3_only"]
-        print(f"  {law:16s} both {b['settle_s']:5.2f} s cut {b['cut_pct']:5.1f} % | joint 3 only {j['settle_s']:5.2f} s "
-              f"cut {j['cut_pct']:5.1f} % | one/both {o['fraction'][law]:.2f}  gains {o['gains'][law]}")
+        print(f"  {law:16s} both: {b['settle_s']:5.2f} s cut {b['cut_pct']:5.1f} %, IATS {b['iats_pct']:5.1f} % | "
+              f"joint 3 only: {j['settle_s']:5.2f} s cut {j['cut_pct']:5.1f} %, IATS {j['iats_pct']:5.1f} % | "
+              f"one/both (IATS cut) {o['iats_fraction'][law]:.2f}; gains {o['gains'][law]}")
+        if "joint3_tuned" in v:
+            tj = v["joint3_tuned"]
+            print(f"  {'':16s} joint 3 alone, gain scanned {[round(k, 1) for k in v['joint3_scan']['k3']]}: IATS % "
+                  f"{[round(x, 1) for x in v['joint3_scan']['iats_pct']]}; best k3 {tj['k3']:.1f}: "
+                  f"{tj['settle_s']:.2f} s "
+                  f"cut {tj['cut_pct']:.1f} %, IATS {tj['iats_pct']:.1f} %")
     meta = {"quick": a.quick, "wall_s": wall, "machine": cpu_model(), "date": time.strftime("%Y-%m-%d %H:%M UTC",
                                                                                              time.gmtime())}
     write_text_atomic(os.path.join(a.out, "results.json"),

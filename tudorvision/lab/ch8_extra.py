@@ -49,10 +49,9 @@ from ..robot import load_robot_params
 from ..sim.arm import ElasticArm, Payload, PlantConfig
 from .ch8_experiments import EXPERIMENTS, FILTERS, HORIZON_S, OPS_DEG, static_strain_link2_root
 
-__all__ = ["SEED_8_4_PERIODIC_UM_M", "SEED_8_4_DROP_SETTLE_S", "PERIODIC_POSE_DEG",
-           "NET_POSE_DEG", "NET_MASS_KG", "DROP_MASS_KG", "DROP_HEIGHT_M", "CATCH_TIME_S",
-           "PERIODIC_FORCE_N", "EndEffectorForce", "damped_arm", "hold_run", "periodic_disturbance_8_4", "payload_drop_8_4",
-           "one_actuator_damping_8_5"]
+__all__ = ["SEED_8_4_PERIODIC_UM_M", "SEED_8_4_DROP_SETTLE_S", "PERIODIC_POSE_DEG", "NET_POSE_DEG", "NET_MASS_KG",
+           "DROP_MASS_KG", "DROP_HEIGHT_M", "CATCH_TIME_S", "PERIODIC_FORCE_N", "EndEffectorForce", "damped_arm",
+           "hold_run", "envelope_decay", "periodic_disturbance_8_4", "payload_drop_8_4", "one_actuator_damping_8_5"]
 
 #: Section 8.4, periodic excitation: strain amplitude without and with damping (either law), um/m.
 SEED_8_4_PERIODIC_UM_M = (400.0, 100.0)
@@ -68,6 +67,8 @@ NET_POSE_DEG = OPS_DEG[5]
 NET_MASS_KG, DROP_MASS_KG, DROP_HEIGHT_M = 0.12, 0.6, 0.5
 #: Duration of the net's braking pulse (half sine), s: assumed (the seed gives no number).
 CATCH_TIME_S = 0.05
+#: Joint-3 gains scanned for damping by joint 3 alone, factors on the larger tuned gain of the law.
+_K3_SCAN = (0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
 #: Laws the seed compares in 8.4 and 8.5 (the integral law is left out there: its drift).
 _SEED_LAWS = ("proportional", "half_integrator")
 
@@ -331,6 +332,38 @@ def periodic_disturbance_8_4(quick: bool = False, *, config: PlantConfig | None 
     return out
 
 
+def envelope_decay(t, x, *, window_s: float = 1.0, floor: float = 2.0 * STRAIN_BAND) -> float:
+    """Decay rate of an oscillation from a log-linear fit of its peak per window (negative: growing).
+
+    Parameters
+    ----------
+    t : ndarray, shape (N,)
+        Sample times, s.
+    x : ndarray, shape (N,)
+        Oscillating signal about zero (e.g. dynamic strain, m/m).
+    window_s : float
+        Window of each peak, s (longer than a period).
+    floor : float
+        Windows whose peak is below this are left out (noise, quantisation), same unit as ``x``.
+
+    Returns
+    -------
+    float
+        ``-d ln(peak) / dt``, 1/s; ``nan`` with fewer than three windows above ``floor``.
+    """
+    edges = np.arange(t[0], t[-1] - window_s + 1e-9, window_s)
+    tc, pk = [], []
+    for a in edges:
+        m = (t >= a) & (t < a + window_s)
+        v = float(np.max(np.abs(x[m])))
+        if v > floor:
+            tc.append(a + 0.5 * window_s)
+            pk.append(math.log(v))
+    if len(tc) < 3:
+        return float("nan")
+    return float(-np.polyfit(tc, pk, 1)[0])
+
+
 def _catch_pulse(t_drop_s: float, impulse_Ns: float, duration_s: float):
     """Downward half-sine force pulse of ``impulse_Ns`` starting at ``t_drop_s`` (the net braking the mass)."""
     peak = impulse_Ns * math.pi / (2.0 * duration_s)
@@ -368,6 +401,7 @@ def _drop_run(law: str, config: PlantConfig, *, rest_s: float, horizon_s: float,
             "max_um_m": 1e6 * float(np.max(np.abs(dyn))),
             "static_um_m": [1e6 * float(x) for x in static],
             "residual_2s_um_m": 1e6 * float(np.max(np.abs(dyn[(t >= 2.0) & (t < 3.0)]))),
+            "decay_per_s": envelope_decay(t[t >= 1.0], dyn[t >= 1.0]),
             "impulse_Ns": impulse}
 
 
@@ -406,11 +440,12 @@ def payload_drop_8_4(quick: bool = False, *, config: PlantConfig | None = None, 
     Returns
     -------
     dict
-        ``laws``: ``{"off" and each law: {"settle_s", "settle_online_s", "max_um_m", "residual_2s_um_m"}}``
-        (``residual_2s_um_m``: largest strain 2-3 s after landing), ``speedup`` ``{law: undamped
-        settle_s / damped settle_s}``, ``impulse_Ns``, ``static_um_m`` (static strain of the pose
-        before and after the landing), ``seed``
-        (``{"damped_settle_s": 2.0}``), ``pose_deg``, ``horizon_s``; with ``keep_series`` also
+        ``laws``: ``{"off" and each law: {"settle_s", "settle_online_s", "max_um_m", "residual_2s_um_m",
+        "decay_per_s"}}`` (``residual_2s_um_m``: largest strain 2-3 s after landing; ``decay_per_s``:
+        :func:`envelope_decay` from 1 s after landing, negative when the oscillation grows),
+        ``speedup`` ``{law: undamped settle_s / damped settle_s}``, ``impulse_Ns``, ``static_um_m``
+        (static strain of the pose before and after the landing), ``seed`` (``{"damped_settle_s":
+        2.0}``), ``pose_deg``, ``horizon_s``; with ``keep_series`` also
         ``series`` ``{law: {"t", "eps_dyn", "dtheta2"}}``.
     """
     cfg = config or PlantConfig.seed_measured()
@@ -423,7 +458,8 @@ def payload_drop_8_4(quick: bool = False, *, config: PlantConfig | None = None, 
     for law in ("off",) + laws:
         r = _drop_run(law, cfg, rest_s=1.0, horizon_s=horizon_s, drop_height_m=drop_height_m,
                       catch_time_s=catch_time_s)
-        out["laws"][law] = {k: float(r[k]) for k in ("settle_s", "settle_online_s", "max_um_m", "residual_2s_um_m")}
+        keys = ("settle_s", "settle_online_s", "max_um_m", "residual_2s_um_m", "decay_per_s")
+        out["laws"][law] = {k: float(r[k]) for k in keys}
         out["impulse_Ns"], out["static_um_m"] = r["impulse_Ns"], r["static_um_m"]
         series[law] = {k: r[k] for k in ("t", "eps_dyn", "dtheta2")}
     base = out["laws"]["off"]["settle_s"]
@@ -434,12 +470,13 @@ def payload_drop_8_4(quick: bool = False, *, config: PlantConfig | None = None, 
     return out
 
 
-def _exp06_run(law: str, joint3_only: bool, config: PlantConfig, horizon_s: float) -> dict:
+def _exp06_run(law: str, joint3_only: bool, config: PlantConfig, horizon_s: float,
+               k3: float | None = None) -> dict:
     start, goal = EXPERIMENTS["06"]
     p = load_robot_params()
     arm, ca, damper, gains = damped_arm(start, Payload.from_parts(p, plates=3), law, config=config)
     if joint3_only:
-        damper.set_gains((0.0, 0.0, gains[2]))
+        damper.set_gains((0.0, 0.0, gains[2] if k3 is None else k3))
     ca.set_goal(np.deg2rad(goal))
     r = hold_run(arm, ca, damper, horizon_s)
     t = r["t"]
@@ -447,6 +484,7 @@ def _exp06_run(law: str, joint3_only: bool, config: PlantConfig, horizon_s: floa
             "settle_s": settling_time(t, r["eps_dyn"], band=STRAIN_BAND, horizon_s=horizon_s),
             "settle_online_s": settling_time(t, r["eps_tilde"], band=STRAIN_BAND, horizon_s=horizon_s),
             "max_um_m": 1e6 * float(np.max(np.abs(r["eps_dyn"]))),
+            "eps3_tail_um_m": 1e6 * _amplitude(r["eps3"][t > horizon_s - 2.0]),
             "iats": iats(t, r["eps_dyn"])}
 
 
@@ -464,7 +502,7 @@ def one_actuator_damping_8_5(quick: bool = False, *, config: PlantConfig | None 
     Parameters
     ----------
     quick : bool
-        No effect (five runs of 10 s simulated time are quick already); kept for a uniform call.
+        Without the scan of the joint-3 gain (``joint3_scan``, ``joint3_tuned``).
     config : PlantConfig, optional
         Plant; default :meth:`PlantConfig.seed_measured`.
     laws : sequence of str
@@ -478,10 +516,14 @@ def one_actuator_damping_8_5(quick: bool = False, *, config: PlantConfig | None 
     -------
     dict
         ``off`` and per law ``laws[law]["both"]`` / ``laws[law]["joint3_only"]``: ``{"settle_s",
-        "settle_online_s", "cut_pct", "max_um_m", "iats", "iats_pct"}`` (``iats`` the B.4 integral
-        absolute time-weighted strain, (m/m) s^2, ``iats_pct`` in percent of the undamped);
+        "settle_online_s", "cut_pct", "max_um_m", "iats", "iats_pct", "eps3_tail_um_m"}`` (``iats`` the
+        B.4 integral absolute time-weighted strain, (m/m) s^2, ``iats_pct`` in percent of the undamped;
+        ``eps3_tail_um_m`` the link-3 root oscillation in the last 2 s, half peak-to-peak);
         ``gains`` per law; ``fraction`` ``{law: (settling cut, joint 3 only) / (cut, both)}``,
-        ``iats_fraction`` the same for the IATS cut; ``seed`` (the seed's ordering).
+        ``iats_fraction`` the same for the IATS cut; ``seed`` (the seed's ordering). Unless ``quick``,
+        per law also ``joint3_scan`` (``k3``, ``iats_pct``, ``cut_pct``, ``eps3_tail_um_m`` over joint-3
+        gains of 0.5-32 times the law's larger tuned gain, joint 2 off) and ``joint3_tuned`` (the
+        scan's best IATS among the gains that leave link 3 within 15 um/m at the end).
     """
     cfg = config or PlantConfig.seed_measured()
     laws = tuple(laws)
@@ -489,7 +531,7 @@ def one_actuator_damping_8_5(quick: bool = False, *, config: PlantConfig | None 
     off = _exp06_run("off", False, cfg, horizon_s)
 
     def summary(r):
-        d = {k: float(r[k]) for k in ("settle_s", "settle_online_s", "max_um_m", "iats")}
+        d = {k: float(r[k]) for k in ("settle_s", "settle_online_s", "max_um_m", "iats", "eps3_tail_um_m")}
         d["cut_pct"] = 100.0 * (1.0 - d["settle_s"] / horizon_s)
         d["iats_pct"] = 100.0 * d["iats"] / float(off["iats"])
         return d
@@ -507,6 +549,15 @@ def one_actuator_damping_8_5(quick: bool = False, *, config: PlantConfig | None 
         out["fraction"][law] = v["joint3_only"]["cut_pct"] / cut_both if cut_both > 0 else float("nan")
         out["iats_fraction"][law] = (100.0 - v["joint3_only"]["iats_pct"]) / (100.0 - v["both"]["iats_pct"])
         series[law + "_both"], series[law + "_joint3"] = both, one
+        if not quick:           # can joint 3 damp link 2 at all? its gain scanned for this case
+            ref = max(both["gains"][1], both["gains"][2])
+            scan = {k3: summary(_exp06_run(law, True, cfg, horizon_s, k3=k3))
+                    for k3 in (ref * f for f in _K3_SCAN)}
+            calm = [k3 for k3 in scan if scan[k3]["eps3_tail_um_m"] <= 1e6 * STRAIN_BAND] or list(scan)
+            best = min(calm, key=lambda k3: scan[k3]["iats"])
+            v["joint3_scan"] = {"k3": [float(k) for k in scan],
+                                **{m: [scan[k][m] for k in scan] for m in ("iats_pct", "cut_pct", "eps3_tail_um_m")}}
+            v["joint3_tuned"] = {"k3": float(best), **scan[best]}
     if keep_series:
         out["series"] = {k: {kk: v[kk] for kk in ("t", "eps_dyn", "dtheta3")} for k, v in series.items()}
     return out
