@@ -32,7 +32,7 @@ in place of an obstacle (``force(p_base, v_base)``, ``probe_link``,
 acts from the step after it is evaluated (0.5 ms late).
 
 Results are plain numbers (dicts of floats and lists); ``quick=True`` runs a
-shorter version of each (fewer phases or laws, shorter horizons).
+shorter version of each (shorter runs, one switching phase, no scan of the joint-3 gain).
 """
 from __future__ import annotations
 
