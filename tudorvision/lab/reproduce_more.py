@@ -13,7 +13,7 @@ import math
 from dataclasses import asdict
 from pathlib import Path
 
-from .reproduce import Row, Section
+from .reproduce_table import Row, Section
 
 __all__ = ["MORE_SECTIONS", "damping_section", "damping_extra_section", "deflection_section", "catch_section"]
 

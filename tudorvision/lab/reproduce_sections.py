@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .reproduce import Row, Section
+from .reproduce_table import Row, Section
 
 __all__ = ["SECTIONS", "plant_section", "servo_section", "depth_noise_section", "models_section",
            "collision_section", "rail_section"]
