@@ -33,10 +33,18 @@ run with the true transform beside it (``--skip-true`` leaves them out).
    for the demo's collection (stereo tracker on rendered pairs, the seed's
    grid) and for the noise-model collection.
 
+Issue 18's run (``--sessions-throws N``): the demo's default options (the seed-measured plant, the
+wall camera calibrated from the disc sweep, the intercept profile timed against the arm's first mode)
+as sessions of 30 throws on the experiment runner (serial), detection-noise model; the peer is the
+agent before those profile rules (``mode_f0_hz=0``: always the full profile speed; refinements at once)
+on the first ``--peer-throws`` of the same throws; strict and centre rates with 95 % Wilson intervals,
+misses by reason, the ratio.
+
 Run::
 
     .venv/bin/python benchmarks/bench_catch.py [--min-crossing 200] [--throws-render 30] [--seed 0] [--skip-rigid]
                                                [--skip-true]
+    .venv/bin/python benchmarks/bench_catch.py --sessions-throws 1920 --peer-throws 480 --seed 0 [--plant stiff]
     .venv/bin/python benchmarks/bench_catch.py --latency-only      # part 3b alone, about a minute
 
 ``--latency-only`` renders a few throws first, then times each stage per
@@ -258,6 +266,53 @@ def kinematics_report(cache_dir: str) -> None:
               f"(max {1e3 * r['compensated_m'].max():.2f}), rigid {rms(r['rigid_m']):.1f} mm")
 
 
+def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """95 % Wilson score interval of a rate ``k / n``."""
+    if n == 0:
+        return float("nan"), float("nan")
+    p = k / n
+    d = 1.0 + z * z / n
+    c = (p + z * z / (2 * n)) / d
+    h = z * np.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / d
+    return c - h, c + h
+
+
+def sessions_run(args) -> None:
+    """Issue 18: the default demo on the runner (serial) against the agent before the profile rules."""
+    from dataclasses import replace
+
+    from tudorvision.lab.catch.sessions import run_sessions
+
+    ours = DemoOptions(render=False, throws=args.sessions_throws, seed=args.seed, plant=args.plant,
+                       cache_dir=args.cache)
+    runs = {"ours (profile timed to the first mode)": (ours, args.out + "/sessions")}
+    if args.peer_throws:
+        peer = replace(ours, throws=args.peer_throws, mode_f0_hz=0.0, overshoot_tol_rad=float("inf"),
+                       refine_min_joint_rad=0.0)
+        runs["peer (full profile speed, refinements at once)"] = (peer, args.out + "/sessions_peer")
+    rates = {}
+    print(f"plant {args.plant}, seed {args.seed} (session seeds seed * 1000 + b), wall camera at "
+          f"{ours.camera_distance_m} m, {ours.camera_height_m} m high, calibrated from the disc sweep")
+    print(f"{'run':48s} {'throws':>6s} {'cross':>6s} {'strict':>14s} {'95 % CI':>14s} {'centre':>14s}  misses, wall")
+    for name, (o, out) in runs.items():
+        t0 = time.perf_counter()
+        s = run_sessions(out, o, scheduler="serial")
+        n, k, kc = s["crossing_workspace"], s["caught_in_workspace"], s["caught_centre_in_workspace"]
+        lo, hi = wilson(k, n)
+        rates[name] = (k / max(n, 1))
+        rows = [r for r in s["per_throw"] if r["crossing_workspace"]]
+        first = np.array([r["t_first_setpoint_s"] for r in rows], float)
+        print(f"{name:48s} {o.throws:6d} {n:6d} {k:5d} {100 * k / max(n, 1):6.1f} % "
+              f"{100 * lo:5.1f}-{100 * hi:4.1f} % {kc:5d} {100 * kc / max(n, 1):6.1f} %  {s['misses']}, "
+              f"{time.perf_counter() - t0:.0f} s")
+        print(f"{'':48s} first setpoint after the release: median {np.nanmedian(first):.2f} s, p90 "
+              f"{np.nanpercentile(first, 90):.2f} s; rim contacts {s['rim_contacts_in_workspace']}; layer faults "
+              f"cleared {s['layer_faults_cleared']}")
+    if len(rates) == 2:
+        a, b = rates.values()
+        print(f"ratio ours / peer (strict): {a / b:.2f}" if b else "ratio: peer caught none")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--min-crossing", type=int, default=200)
@@ -270,8 +325,16 @@ def main() -> None:
                     help="no runs with the true camera-to-base transform (the comparison for issue 18)")
     ap.add_argument("--cache", default="out/catch/cache", help="kinematics collections cache")
     ap.add_argument("--latency-only", action="store_true", help="only the per-frame latency (part 3b)")
+    ap.add_argument("--sessions-throws", type=int, default=0,
+                    help="issue 18: this many throws of the default demo on the runner (serial), nothing else")
+    ap.add_argument("--peer-throws", type=int, default=0,
+                    help="with --sessions-throws: the first this many throws with the agent before the profile rules")
+    ap.add_argument("--plant", default="seed_measured", help="with --sessions-throws: seed_measured or stiff")
     args = ap.parse_args()
     print(f"machine: {cpu_model()}, {os.cpu_count()} cores, Python {platform.python_version()}")
+    if args.sessions_throws:
+        sessions_run(args)
+        return
     if args.latency_only:
         latency_only(6, args.seed + 7)
         return

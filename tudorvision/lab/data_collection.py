@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -44,8 +45,47 @@ import numpy as np
 
 from .._progress import progress
 
-__all__ = ["CollectionOptions", "DEMO_COLLECTION", "PACKAGED_DIR", "collect_settled_poses", "load_or_collect", "robot_key",
-           "remap_errors", "StereoLab"]
+__all__ = ["CollectionOptions", "DEMO_COLLECTION", "PLANTS", "plant_config", "PACKAGED_DIR",
+           "collect_settled_poses", "load_or_collect", "robot_key", "remap_errors", "StereoLab"]
+
+#: Simulated plants the catch demo and its data collection run on: the seed-measured, softer one
+#: (hub springs, dampers and backlash of :meth:`tudorvision.sim.model.PlantConfig.seed_measured`) and
+#: the earlier stiff one (rigid link clamping, one-way coupling: the default plant before issue 18).
+PLANTS = ("seed_measured", "stiff")
+
+
+def plant_config(plant: str):
+    """The :class:`~tudorvision.sim.model.PlantConfig` of a plant name of :data:`PLANTS`.
+
+    Parameters
+    ----------
+    plant : str
+        ``"seed_measured"`` or ``"stiff"``.
+
+    Returns
+    -------
+    PlantConfig
+        ``PlantConfig.seed_measured()`` or the rigidly clamped ``PlantConfig(hub_stiffness_Nm_rad=(inf, inf))``
+        (given explicitly, whatever ``PlantConfig``'s default is).
+
+    Raises
+    ------
+    ValueError
+        On an unknown name.
+
+    Examples
+    --------
+    >>> plant_config("seed_measured").hub_stiffness_Nm_rad
+    (1500.0, 800.0)
+    """
+    from ..sim.model import PlantConfig
+
+    if plant == "seed_measured":
+        return PlantConfig.seed_measured()
+    if plant == "stiff":
+        return PlantConfig(hub_stiffness_Nm_rad=(math.inf, math.inf), hub_damping_Nms_rad=(0.0, 0.0),
+                           backlash_rad=(0.0, 0.0), two_way=None)
+    raise ValueError(f"plant: expected one of {', '.join(PLANTS)}, got {plant!r}")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -66,6 +106,9 @@ class CollectionOptions:
         Measurement noise seed (and the stereo lab's lighting and clutter).
     measure : str
         ``"noise"`` (truth + Gaussian noise) or ``"stereo"`` (rendered pairs, stereo tracker).
+    plant : str
+        The simulated arm the poses settle on (:data:`PLANTS`, :func:`plant_config`); ``"stiff"`` (the
+        plant the shipped stereo collection was made on) leaves the key as it was.
     """
 
     theta2_deg: tuple = (0.0, 180.0, 10.0)
@@ -75,13 +118,20 @@ class CollectionOptions:
     strain_sigma: float = 1e-7
     seed: int = 0
     measure: str = "noise"
+    plant: str = "stiff"
 
     def __post_init__(self):
         if self.measure not in ("noise", "stereo"):
             raise ValueError(f"measure: expected 'noise' or 'stereo', got {self.measure!r}")
+        if self.plant not in PLANTS:
+            raise ValueError(f"plant: expected one of {', '.join(PLANTS)}, got {self.plant!r}")
 
     def key(self) -> str:
-        return hashlib.sha1(json.dumps(asdict(self), sort_keys=True).encode()).hexdigest()[:12]
+        """Short hash of the options (the cache file's name); the stiff plant hashes as before the field existed."""
+        d = asdict(self)
+        if d["plant"] == "stiff":
+            del d["plant"]
+        return hashlib.sha1(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]
 
 
 #: The demo's collection: the seed's grid (1805 poses) measured through the stereo tracker on
@@ -126,7 +176,8 @@ def collect_settled_poses(options: CollectionOptions = CollectionOptions(), para
     for m in options.payloads_kg:
         # one plant per payload (building the modal model is the expensive part); each pose is then
         # the static equilibrium at that configuration (what ElasticArm(theta) starts in)
-        arm = ElasticArm([0.0, 0.0, 0.0], payload=Payload(mass_kg=mount + float(m)), params=p)
+        arm = ElasticArm([0.0, 0.0, 0.0], payload=Payload(mass_kg=mount + float(m)), params=p,
+                         config=plant_config(options.plant))
         for t2 in _grid(options.theta2_deg):
             for t3 in _grid(options.theta3_deg):
                 arm.reset_at_rest([0.0, t2, t3])
@@ -276,13 +327,15 @@ class StereoLab:
 
 
 def remap_errors(ikm, params=None, *, n: int = 50, seed: int = 0, payload_range_kg=(0.0, 0.4),
-                 near_deg=(0.0, 60.0, 60.0)) -> dict:
+                 near_deg=(0.0, 60.0, 60.0), plant: str = "stiff") -> dict:
     """Remap error of compensated vs rigid inverse kinematics on the simulated arm (seed: 2.6 mm).
 
     Random targets in the working plane (r in [-0.5, 0.5] m, z in [0.6, 1.1] m)
     and payloads; each is solved by ``ikm`` (compensated, told the payload)
     and by the rigid :func:`tudorvision.robot.ik`; the settled elastic arm at
     each solution is compared with the target (ground truth, evaluation only).
+
+    ``plant`` names the simulated arm (:data:`PLANTS`).
 
     Returns
     -------
@@ -305,8 +358,9 @@ def remap_errors(ikm, params=None, *, n: int = 50, seed: int = 0, payload_range_
         except ValueError:
             continue
         pay = Payload(mass_kg=p.end_effector_mount_mass_kg + mass)
-        e_c.append(np.linalg.norm(ElasticArm(th_c, payload=pay, params=p).ee_position() - tgt))
-        e_r.append(np.linalg.norm(ElasticArm(th_r, payload=pay, params=p).ee_position() - tgt))
+        cfg = plant_config(plant)
+        e_c.append(np.linalg.norm(ElasticArm(th_c, payload=pay, params=p, config=cfg).ee_position() - tgt))
+        e_r.append(np.linalg.norm(ElasticArm(th_r, payload=pay, params=p, config=cfg).ee_position() - tgt))
     return {"compensated_m": np.array(e_c), "rigid_m": np.array(e_r)}
 
 

@@ -16,10 +16,12 @@
 
 :func:`~.run.run_demo` wires them (``tudorvision catch demo``); its options are
 :class:`~.options.DemoOptions`. :mod:`.sessions` splits many throws into
-independent sessions on the experiment runner (``catch demo --scheduler ...``).
+independent sessions on the experiment runner (``catch demo --scheduler ...``);
+:func:`~.reproduce_rows.catch_success` is the success-rate row of ``tudorvision reproduce``.
 """
-from .agent import WEIGH_REST_SPEED_RAD_S, CatchAgent, CatchIK, pause_and_weigh
-from .options import DemoOptions, trained_payload_range_kg
+from .agent import WEIGH_REST_SPEED_RAD_S, CatchAgent, CatchIK, ReferenceMirror, pause_and_weigh
+from .options import PLANTS, DemoOptions, plant_config, trained_payload_range_kg
+from .reproduce_rows import catch_success
 from .run import demo_kinematics, run_demo
 from .scenario import CatchScenario, simulated_detection, true_crossing
 from .score import PER_THROW_COLUMNS, ThrowResult, summarize_throws
@@ -27,4 +29,5 @@ from .sessions import plan_sessions, run_sessions
 
 __all__ = ["DemoOptions", "run_demo", "demo_kinematics", "simulated_detection", "PER_THROW_COLUMNS", "ThrowResult",
            "summarize_throws", "trained_payload_range_kg", "CatchScenario", "CatchAgent", "CatchIK",
-           "pause_and_weigh", "true_crossing", "WEIGH_REST_SPEED_RAD_S", "plan_sessions", "run_sessions"]
+           "pause_and_weigh", "true_crossing", "WEIGH_REST_SPEED_RAD_S", "plan_sessions", "run_sessions",
+           "PLANTS", "plant_config", "ReferenceMirror", "catch_success"]

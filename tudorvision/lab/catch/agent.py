@@ -25,9 +25,10 @@ import numpy as np
 
 from ...catch.intercept import net_target
 from ...catch.perception import detection_to_base
+from .profile import ReferenceMirror, mode_frequency_hz
 
-__all__ = ["CatchAgent", "CatchIK", "ThrowLog", "WEIGH_REST_SPEED_RAD_S", "pause_and_weigh", "profile_limits",
-           "PREDICTION_COLUMNS", "SETPOINT_COLUMNS"]
+__all__ = ["CatchAgent", "CatchIK", "ThrowLog", "WEIGH_REST_SPEED_RAD_S", "pause_and_weigh",
+           "profile_limits", "PREDICTION_COLUMNS", "SETPOINT_COLUMNS"]
 
 WEIGH_REST_SPEED_RAD_S = 0.02   # joints slower than this throughout the weighing window: the arm rests
 ARRIVED_TOL_RAD = float(np.deg2rad(1.0))
@@ -151,6 +152,8 @@ class ThrowLog:
         When the joints came within 1 deg of it, s.
     payload_est_kg : float
         The payload estimate used during the throw, kg.
+    deferred : int
+        Frames a refinement waited because sending it would have made a joint pass its goal.
     """
 
     detections: int = 0
@@ -160,6 +163,7 @@ class ThrowLog:
     setpoint: np.ndarray | None = None
     t_arrived_s: float | None = None
     payload_est_kg: float = 0.0
+    deferred: int = 0
 
 
 class CatchAgent:
@@ -227,11 +231,14 @@ class CatchAgent:
         self.setpoints: list[list] = []
         self._last_sent = None
         self._throw = -1
+        self._pending = False
+        self.mirror = ReferenceMirror(self.max_speed, self.max_accel)
+        self._speed = self.max_speed
         self.log = ThrowLog()
 
     # ------------------------------------------------------------------ commands
     def _setpoint(self, theta):
-        return self.adapter.send_setpoint(theta, max_speed=self.max_speed, max_accel=self.max_accel, timeout=5.0)
+        return self.adapter.send_setpoint(theta, max_speed=self._speed, max_accel=self.max_accel, timeout=5.0)
 
     def _clear_fault_and_resend(self, theta, t: float):
         # the layer stopped the arm (speed or range fault): log it, clear it (a FaultReset: since protocol v2 a
@@ -239,10 +246,15 @@ class CatchAgent:
         self.faults.append(float(t))
         self.adapter.reset_fault()
         self.adapter.set_mode(self._mode, damping=self.damping)
-        return self._setpoint(theta)
+        self.mirror.reset(self.layer.state().theta, t)      # the stop left the reference where the arm is
+        reply = self._setpoint(theta)
+        self.mirror.sent(theta, t, v_max=self._speed)
+        return reply
 
-    def send(self, theta, t: float) -> bool:
+    def send(self, theta, t: float, speed: float | None = None) -> bool:
         """Send a joint setpoint (rad, (3,)) at time ``t`` (s); a fault stop is cleared and the setpoint resent.
+
+        ``speed``: the profile speed, rad/s (default the demo's, :func:`profile_limits`).
 
         Returns
         -------
@@ -252,7 +264,9 @@ class CatchAgent:
         from ...joint import Ack, Reason, Refusal
 
         self._last_sent = np.asarray(theta, float)
+        self._speed = self.max_speed if speed is None else float(min(speed, self.max_speed))
         reply = self._setpoint(theta)
+        self.mirror.sent(theta, t, theta_now=self.layer.state().theta, v_max=self._speed)
         if isinstance(reply, Refusal) and reply.code == Reason.FAULT:
             reply = self._clear_fault_and_resend(theta, t)
         ok = isinstance(reply, Ack)
@@ -274,6 +288,7 @@ class CatchAgent:
     def begin_throw(self, index: int) -> None:
         """Start a new throw's log (the filter notices a new throw by itself)."""
         self._throw = index
+        self._pending = False
         self.log = ThrowLog(payload_est_kg=self.payload_est_kg)
 
     def step(self, t: float, frame):
@@ -319,7 +334,9 @@ class CatchAgent:
             log.last_ballistic_base = bal
             self.predictions.append([self._throw, t, rec["status"], *rec["x"], it.t_cross, *it.p_base, it.sigma_m,
                                      int(it.reachable), int(it.send), *(bal if bal is not None else [np.nan] * 3)])
-            if it.send:        # the planner releases only for a crossing still ahead (its own estimate)
+            if (it.send or self._pending) and it.t_cross > t:
+                # the planner releases only for a crossing still ahead (its own estimate); a refinement that
+                # waited goes out with the latest estimate
                 self._intercept(t, it, np.asarray(st.theta))
         return p_b, rec
 
@@ -333,7 +350,18 @@ class CatchAgent:
         # the joints overshoot by up to 8 deg on fast moves: a setpoint near the edge of a range tripped the
         # layer's range fault (1 deg tolerance)
         th = np.clip(th, self.lims[:, 0] + o.setpoint_margin_rad, self.lims[:, 1] - o.setpoint_margin_rad)
-        self.send(th, t)
+        if self.log.setpoint is not None:
+            if np.max(np.abs(th - self.log.setpoint)) < o.refine_min_joint_rad:
+                self._pending = False         # nothing worth a new profile
+                return
+            if np.max(self.mirror.overshoot_rad(th, t)) > o.overshoot_tol_rad:
+                self._pending = True          # a joint brakes: wait for a frame where the new plan stops in time
+                self.log.deferred += 1
+                return
+        self._pending = False
+        f = mode_frequency_hz(self.payload_est_kg, o.mode_f0_hz, o.mode_mass_kg) if o.mode_f0_hz > 0 else 0.0
+        speed = self.mirror.choose_speed(th, t, it.t_cross - o.arrive_before_s, f) if self.mirror.motion else None
+        self.send(th, t, speed)
         self.log.setpoint, self.log.t_arrived_s = th, None
         self.setpoints.append([self._throw, t, *th, *it.p_base])
         if self.log.t_first_setpoint_s is None:

@@ -7,9 +7,9 @@ import numpy as np
 
 from ...catch.ekf import EKFOptions
 from ...robot import RobotParams
-from ..data_collection import DEMO_COLLECTION, CollectionOptions
+from ..data_collection import DEMO_COLLECTION, PLANTS, CollectionOptions, plant_config
 
-__all__ = ["DemoOptions", "DAMPING_LAWS", "trained_payload_range_kg"]
+__all__ = ["DemoOptions", "DAMPING_LAWS", "PLANTS", "plant_config", "trained_payload_range_kg"]
 
 DAMPING_LAWS = ("off", "proportional", "integral", "half_integrator")
 
@@ -55,6 +55,23 @@ class DemoOptions:
     refine_sigma_factor : float
         A refinement is sent only if the intercept moved more than this many of its current
         standard deviations (and more than 2 cm); 0: the 2 cm rule alone.
+    refine_min_joint_rad : float
+        A refinement whose joint setpoint differs from the last one by less than this in every joint is
+        not sent (a new setpoint re-plans the layer's profile, which costs more than it corrects), rad.
+    overshoot_tol_rad : float
+        A refinement that would make a joint pass its goal by more than this (the layer's planner
+        restarts the acceleration from zero: sent while a joint brakes, it brakes too late;
+        :class:`~tudorvision.lab.catch.agent.ReferenceMirror`) waits for a later frame, rad;
+        ``inf``: refinements go out at once (the behaviour before).
+    mode_f0_hz, mode_mass_kg : float
+        The arm's first bending mode for the intercept profile (:func:`~tudorvision.lab.catch.profile.mode_frequency_hz`:
+        ``mode_f0_hz`` with the bare net, Hz, falling with the estimated payload over ``mode_mass_kg``, kg):
+        each intercept setpoint gets the profile speed whose accelerations excite it least and still
+        arrive ``arrive_before_s`` before the predicted crossing
+        (:meth:`~tudorvision.lab.catch.profile.ReferenceMirror.choose_speed`); ``mode_f0_hz=0``: always the
+        full profile speed (the behaviour before).
+    arrive_before_s : float
+        The profile must end this long before the crossing the agent predicts, s.
     speed_fraction : float
         Setpoint profile speed as a fraction of the slowest joint's limit (at
         the limit, the links' swing trips the layer's over-speed fault).
@@ -106,6 +123,10 @@ class DemoOptions:
         placement, shared by all throws and sessions; cached).
     params : RobotParams or None
         The robot (``--robot``: arm, kinematics, limits); None: the packaged ``tudor.yaml``.
+    plant : str
+        The simulated arm (:data:`PLANTS`): ``"seed_measured"`` (default, the softer plant identified
+        on the seed's measured modes) or ``"stiff"`` (rigid link clamping); passed explicitly to every
+        elastic arm the demo builds (:func:`plant_config`), and the kinematics are learnt on the same plant.
 
     Raises
     ------
@@ -132,6 +153,11 @@ class DemoOptions:
     ball_radius_m: float = 0.045
     release_sigma_m: float = 0.1
     refine_sigma_factor: float = 2.0
+    refine_min_joint_rad: float = float(np.deg2rad(0.5))
+    overshoot_tol_rad: float = float(np.deg2rad(0.5))
+    mode_f0_hz: float = 2.6
+    mode_mass_kg: float = 0.26
+    arrive_before_s: float = 0.05
     speed_fraction: float = 0.75
     accel_fraction: float = 1.0
     layer_rate_hz: float = 500.0
@@ -151,12 +177,15 @@ class DemoOptions:
     camera_height_m: float = 2.0
     true_calibration: bool = False
     calibration_seed: int = 0
+    plant: str = "seed_measured"
 
     def __post_init__(self):
         if int(self.throws) != self.throws or self.throws < 1:
             raise ValueError(f"throws: expected a positive integer, got {self.throws}")
         if self.damping not in DAMPING_LAWS:
             raise ValueError(f"damping: expected off, proportional, integral or half_integrator, got {self.damping!r}")
+        if self.plant not in PLANTS:
+            raise ValueError(f"plant: expected one of {', '.join(PLANTS)}, got {self.plant!r}")
         if not self.net_radius_m > 0 or not self.gap_s >= 0:
             raise ValueError("net_radius_m, gap_s: expected > 0 and >= 0")
         if not 0 < self.ball_radius_m < self.net_radius_m:

@@ -59,7 +59,7 @@ def demo_kinematics(options: DemoOptions, params):
     Parameters
     ----------
     options : DemoOptions
-        ``collection`` and ``cache_dir``.
+        ``collection`` (collected on the demo's ``plant``) and ``cache_dir``.
     params : RobotParams
         The robot's parameters.
 
@@ -70,10 +70,12 @@ def demo_kinematics(options: DemoOptions, params):
         (test payload 100 g held out) and the compensated
         :class:`~tudorvision.catch.kinematics.InverseKinematics` (1 deg inside the joint ranges).
     """
+    from dataclasses import replace
+
     from ...catch.kinematics import InverseKinematics, fit_kinematics
     from ..data_collection import load_or_collect
 
-    data = load_or_collect(options.cache_dir, options.collection, params)
+    data = load_or_collect(options.cache_dir, replace(options.collection, plant=options.plant), params)
     km = fit_kinematics(data, test_payloads_kg=[0.1], params=params)
     return km, InverseKinematics(km.deflection, params, margin_rad=np.deg2rad(1.0))
 

@@ -229,7 +229,9 @@ class CatchScenario:
         self.mount_kg = float(params.end_effector_mount_mass_kg)
         self.balls, self.emptied = 0, 0
         self._payload = Payload.from_parts(params, balls=0)
-        self.sim = SimCore(theta_start, payload=self._payload, params=params)
+        from ..data_collection import plant_config
+
+        self.sim = SimCore(theta_start, payload=self._payload, params=params, config=plant_config(o.plant))
         self.layer = LockstepLayer(self.sim, rate_hz=o.layer_rate_hz)
         self._T_world_base = T_WORLD_BASE
         self._flight = None          # (times_s, points_base) of the ball in the air

@@ -1,0 +1,201 @@
+"""The joint layer's profile as the catching agent sees it: mirrored reference, overshoot, residual swing.
+
+The layer plans every setpoint with its documented sin^2-acceleration planner
+(:func:`tudorvision.joint.planner.plan_motion`) from its current reference
+angle and velocity. :class:`ReferenceMirror` plans the same motions from the
+setpoints the agent sent, so the agent knows the reference without reading
+the layer's internals, and can ask two questions before it sends a setpoint:
+
+* :meth:`ReferenceMirror.overshoot_rad`: a new setpoint restarts the
+  acceleration from zero; sent while a joint brakes, it brakes later than the
+  motion it replaces and passes its goal (by up to about 2 deg at the demo's
+  profile). The agent lets such a refinement wait.
+* :meth:`ReferenceMirror.residual_rad`: how strongly the reference's
+  acceleration since the arm last rested excites the arm's first bending mode
+  (the spectrum of the joint accelerations at the mode's frequency, divided
+  by its angular frequency: an equivalent joint angle, rad). On the
+  seed-measured plant a 23 deg joint-3 move at the full profile speed leaves
+  the net swinging by +-5 cm for more than 0.6 s (the strain damping hardly
+  shortens it); the same move with its acceleration pulses one mode period
+  (two, here) apart leaves 0.7 cm. :meth:`ReferenceMirror.choose_speed`
+  picks the profile speed with the least residual that still arrives before
+  the ball.
+
+The first mode's frequency comes from :func:`mode_frequency_hz`: about 2.6 Hz
+with the bare net at the catching poses (the lab's step responses, close to
+0.8 times the linearised, spring-engaged modes of
+:func:`tudorvision.lab.plant_modes.linear_modes`: backlash and the joint servo
+lower it), falling with the payload like a mass on a spring.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["ReferenceMirror", "mode_frequency_hz", "SPEED_CANDIDATES"]
+
+#: Profile speeds tried by :meth:`ReferenceMirror.choose_speed`, fractions of the demo's profile speed.
+SPEED_CANDIDATES = (1.0, 0.85, 0.72, 0.62, 0.54, 0.47, 0.41, 0.36, 0.31, 0.27, 0.23)
+
+
+def mode_frequency_hz(payload_kg: float, f0_hz: float = 2.6, mass_kg: float = 0.26) -> float:
+    """First bending mode of the loaded arm at the catching poses, Hz: ``f0 / sqrt(1 + m / mass_kg)``.
+
+    Parameters
+    ----------
+    payload_kg : float
+        Payload on top of the end-effector mount, kg (the agent's estimate).
+    f0_hz : float
+        Frequency with the bare mount, Hz.
+    mass_kg : float
+        Effective modal mass at the end effector, kg (the linearised modes fall from 3.2 to 2.3 Hz
+        with 240 g at the catching poses).
+
+    Returns
+    -------
+    float
+        Hz.
+
+    Examples
+    --------
+    >>> round(mode_frequency_hz(0.0), 2), round(mode_frequency_hz(0.24), 2)
+    (2.6, 1.87)
+    """
+    return float(f0_hz) / math.sqrt(1.0 + max(float(payload_kg), 0.0) / float(mass_kg))
+
+
+class ReferenceMirror:
+    """The joint layer's planned reference, mirrored from the setpoints sent (see the module notes).
+
+    Parameters
+    ----------
+    v_max : float
+        Default profile speed, rad/s (the demo's scalar bound, every joint).
+    a_max : float
+        Profile acceleration, rad/s^2.
+
+    Attributes
+    ----------
+    motion : JointMotion or None
+        The reference motion now (None before the first setpoint).
+    segments : list of tuple
+        ``(motion, t_from, t_to)`` since the arm last rested: the reference's acceleration history, s.
+
+    Examples
+    --------
+    >>> m = ReferenceMirror(1.0, 2.0)
+    >>> m.sent([1.0, 0.0, 0.0], 0.0, theta_now=[0.0, 0.0, 0.0])
+    >>> bool(m.overshoot_rad([1.0, 0.0, 0.0], 1.5)[0] > 0.05)     # mid-braking: a new plan passes the goal
+    True
+    >>> m.overshoot_rad([1.0, 0.0, 0.0], 0.5).round(3).tolist()     # accelerating: it still stops in time
+    [0.0, 0.0, 0.0]
+    """
+
+    def __init__(self, v_max: float, a_max: float):
+        self.v_max, self.a_max = float(v_max), float(a_max)
+        self.motion = None
+        self.segments: list = []
+
+    def reset(self, theta, t: float) -> None:
+        """The reference rests at ``theta`` (rad, (3,)) from ``t`` (s) on (after a fault stop)."""
+        from ...joint.planner import plan_motion
+
+        th = np.asarray(theta, float)
+        self.motion = plan_motion(th, th, v_max=self.v_max, a_max=self.a_max, t0=float(t))
+        self.segments = []
+
+    def state(self, t: float):
+        """Reference angle (rad, (3,)) and velocity (rad/s, (3,)) at ``t`` (s); None before the first setpoint."""
+        if self.motion is None:
+            return None
+        th, dth, _ = self.motion.sample(float(t))
+        return np.asarray(th, float), np.asarray(dth, float)
+
+    def plan(self, goal, t: float, v_max: float | None = None):
+        """The motion the layer would plan for ``goal`` (rad, (3,)) sent at ``t`` (s) with speed ``v_max`` (rad/s)."""
+        from ...joint.planner import plan_motion
+
+        th, dth = self.state(t)
+        return plan_motion(th, np.asarray(goal, float), v_max=self.v_max if v_max is None else float(v_max),
+                           a_max=self.a_max, dtheta_start=dth, t0=float(t))
+
+    def sent(self, goal, t: float, *, theta_now=None, v_max: float | None = None) -> None:
+        """A setpoint ``goal`` (rad, (3,)) went out at ``t`` (s) with speed ``v_max`` (rad/s; default the mirror's).
+
+        ``theta_now``: the rest pose before any setpoint (rad, (3,)).
+        """
+        if self.motion is None:
+            self.reset(theta_now if theta_now is not None else goal, t)
+        at_rest = t >= self.motion.t0 + self.motion.duration_s
+        new = self.plan(goal, t, v_max)
+        if at_rest:
+            self.segments = []
+        elif self.segments:
+            m, t_from, _ = self.segments[-1]
+            self.segments[-1] = (m, t_from, float(t))
+        self.segments.append((new, float(t), float(t) + new.duration_s))
+        self.motion = new
+
+    def overshoot_rad(self, goal, t: float, *, v_max: float | None = None, samples: int = 200) -> np.ndarray:
+        """How far each joint would pass ``goal`` (rad, (3,)) if it were sent at ``t`` (s), rad (>= 0).
+
+        The layer's re-plan from the mirrored reference, sampled at ``samples`` points: its largest
+        excursion beyond the goal, against the direction it approaches from.
+        """
+        if self.motion is None:
+            return np.zeros(3)
+        th, _ = self.state(t)
+        g = np.asarray(goal, float)
+        m = self.plan(g, t, v_max)
+        path = np.asarray(m.sample(m.t0 + np.linspace(0.0, m.duration_s, max(int(samples), 2)))[0], float)
+        ahead = np.sign(g - th)               # the side of the goal the joint comes from
+        past = np.max((path - g) * ahead, axis=0)
+        return np.where(ahead != 0.0, np.maximum(past, 0.0), 0.0)
+
+    def residual_rad(self, goal, t: float, f_hz: float, *, v_max: float | None = None, samples: int = 160):
+        """Residual excitation of a mode at ``f_hz`` (Hz) if ``goal`` were sent at ``t`` (s) with ``v_max``.
+
+        ``sum_j |integral a_j(s) exp(-i w s) ds| / w`` over joints 2 and 3, ``a_j`` the reference's
+        acceleration (rad/s^2) since the arm last rested up to the end of the new motion, ``w = 2 pi f``.
+
+        Returns
+        -------
+        tuple
+            ``(residual_rad, t_end_s)``: the excitation (an equivalent joint angle, rad) and when the
+            new motion ends (s).
+        """
+        w = 2.0 * math.pi * float(f_hz)
+        new = self.plan(goal, t, v_max)
+        segs = [s for s in self.segments if s[2] > s[1]]
+        if segs and segs[-1][2] > t:
+            segs[-1] = (segs[-1][0], segs[-1][1], float(t))
+        segs.append((new, float(t), float(t) + new.duration_s))
+        A = np.zeros(3, complex)
+        for m, a, b in segs:
+            if b <= a:
+                continue
+            tt = np.linspace(a, b, max(int(samples), 2))
+            acc = np.asarray(m.sample(tt)[2], float)
+            A += np.trapezoid(acc * np.exp(-1j * w * tt)[:, None], tt, axis=0)
+        return float(np.sum(np.abs(A[1:])) / w), float(t) + new.duration_s
+
+    def choose_speed(self, goal, t: float, deadline_s: float, f_hz: float,
+                     candidates=SPEED_CANDIDATES) -> float:
+        """Profile speed (rad/s) for ``goal`` sent at ``t`` (s): the least residual swing arriving by ``deadline_s``.
+
+        Among ``candidates`` (fractions of the mirror's speed) that end by ``deadline_s`` the one with the
+        least :meth:`residual_rad` at ``f_hz`` (the faster on a tie within 2 %); if none ends in time, the
+        fastest. ``f_hz <= 0``: the mirror's speed.
+        """
+        if not f_hz > 0 or self.motion is None:
+            return self.v_max
+        best, fastest = None, None
+        for c in candidates:
+            v = c * self.v_max
+            r, t_end = self.residual_rad(goal, t, f_hz, v_max=v)
+            if fastest is None or t_end < fastest[1] - 1e-9:
+                fastest = (v, t_end)
+            if t_end <= deadline_s and (best is None or r < 0.98 * best[1]):
+                best = (v, r)
+        return best[0] if best is not None else fastest[0]
