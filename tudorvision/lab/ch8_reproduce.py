@@ -152,7 +152,11 @@ def integral_drift(quick: bool = True, *, plant: str = "soft", strain_filter: st
     One continuous run per law: experiment 06 out and back ((1) -> (2) -> (1)), ``cycles`` times,
     resting ``rest_s`` after every move; the joint-2/3 error (measured joint angle minus goal) at the
     end of each rest. The seed: the integral law's error grows with each repetition ("integration of
-    the imperfectly mean liberated strain", figure 6.3), the other laws have none.
+    the imperfectly mean liberated strain", figure 6.3; "frequently charging and discharging the
+    feedback integrator state", 8.6), the other laws have none. In the lab the integral law's error
+    appears with the seed's filter (up to ~0.17 deg over 10 cycles, wandering from move to move
+    rather than growing steadily) and not with the ``2khz`` one (< 0.005 deg): the 100 Hz held
+    estimate lags the motion's ramp and the law integrates that lag.
 
     Parameters
     ----------
