@@ -347,7 +347,8 @@ def _rim_on_feature(feat, fs, centre, r, lo, hi, step, rel):
 
 
 def refine_circle_on_chroma(bgr, chroma, centre, radius: float, *, tol_frac: float = 0.08,
-                            min_fraction: float = 0.3, max_shift_frac: float = 0.3, passes: int = 2):
+                            min_fraction: float = 0.3, max_shift_frac: float = 0.3, passes: int = 2,
+                            max_grow: float = 1.4):
     """Circle fitted robustly to the chroma rim points, or None when it is not trustworthy.
 
     Rays from the first circle give edge points (:func:`chroma_rim_points`);
@@ -372,9 +373,12 @@ def refine_circle_on_chroma(bgr, chroma, centre, radius: float, *, tol_frac: flo
         Smallest fraction of the rays cast whose points must be inliers.
     max_shift_frac : float
         Largest move of the centre, as a fraction of the first radius; the
-        radius must stay within 0.7-1.4 times the first.
+        radius must stay within 0.7 and ``max_grow`` times the first.
     passes : int
         Ray casts (each from the previous pass's circle).
+    max_grow : float
+        Largest radius as a multiple of the first; the rays reach to
+        ``max_grow - 0.05`` of it (1.7 was tried on the sphere family: mixed).
 
     Returns
     -------
@@ -398,7 +402,7 @@ def refine_circle_on_chroma(bgr, chroma, centre, radius: float, *, tol_frac: flo
     feat = _chroma_feature(bgr, chroma, min(1.0, cr / 20.0))      # once for all passes
     out = None
     for _ in range(passes):
-        pts, n = _rim_on_feature(feat, fs, (cu, cv_), cr, 0.6, 1.35, 0.5, 0.3)
+        pts, n = _rim_on_feature(feat, fs, (cu, cv_), cr, 0.6, max_grow - 0.05, 0.5, 0.3)
         if n == 0 or len(pts) < max(8, min_fraction * n):
             break
         fit = fit_rim_circle_multi(pts, max(0.75, tol_frac * cr))
@@ -407,7 +411,7 @@ def refine_circle_on_chroma(bgr, chroma, centre, radius: float, *, tol_frac: flo
         fu, fv, fr, inl = fit
         frac = int(np.count_nonzero(inl)) / n
         if (frac < min_fraction or math.hypot(fu - centre[0], fv - centre[1]) > max_shift_frac * radius
-                or not 0.7 * radius <= fr <= 1.4 * radius):
+                or not 0.7 * radius <= fr <= max_grow * radius):
             break
         cu, cv_, cr, out = fu, fv, fr, (fu, fv, fr, frac)
     return out

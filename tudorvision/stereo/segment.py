@@ -443,7 +443,7 @@ class _EdgeSource:
         return cache[key]
 
     def _refine_chroma(self, centre: tuple, radius: float):
-        f, m = self.frame, int(math.ceil(1.35 * radius)) + 6
+        f, m = self.frame, int(math.ceil(1.4 * radius)) + 6
         px0, py0 = max(int(centre[0]) - m, 0), max(int(centre[1]) - m, 0)
         px1, py1 = min(int(centre[0]) + m + 1, f.width), min(int(centre[1]) + m + 1, f.height)
         chroma = sphere_chroma(tuple(self.model.mean[:3]))
