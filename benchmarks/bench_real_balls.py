@@ -9,6 +9,8 @@ from the hand). Then
 * ours, tracking: ``track_mono`` over the whole video (window search around
   the prediction), scored at the labelled frames;
 * ours, full frame: ``detect_sphere`` on each labelled frame alone;
+* full frame with the colour-rim circle alone (``SegmentParams(chroma_edge_below=0)``:
+  the segmentation before the chroma edge of issue 15);
 * the same two with the luma-edge rim (``SegmentParams(edge_refine=True)``,
   what the CLI's ``--luma-edge auto`` chooses for videos);
 * peer: ``benchmarks/peer_hsv.detect_peer`` (Gaussian blur, HSV ``cv2.inRange``,
@@ -44,6 +46,7 @@ from tudorvision.stereo import (SegmentParams, TrackerParams, detect_sphere, fit
                                 track_mono)
 
 LUMA = SegmentParams(edge_refine=True)   # what `tudorvision track mono --luma-edge auto` uses for videos
+COLOUR_RIM = SegmentParams(chroma_edge_below=0.0)   # the colour-rim circle alone (before the chroma edge)
 
 VIDEOS = ROOT.parent / "shared" / "realdata" / "ball_videos"
 LABELS = ROOT / "tests" / "data" / "ball_labels" / "labels.csv"
@@ -116,7 +119,7 @@ def run_video(name, labels, *, tracking=True):
         rr = np.array([tr.detections[pos[f]].radius_px if f in pos and tr.detections[pos[f]].valid else np.nan
                        for f in frames])
         res[f"ours, tracking{tag}"] = score(labels, uv, rr) | {"s_per_frame": dt / len(seq)}
-    uv_f, r_f, uv_l, r_l, uv_p, uv_q = [], [], [], [], [], []
+    uv_f, r_f, uv_l, r_l, uv_p, uv_q, uv_c = [], [], [], [], [], [], []
     t_ours = t_peer = 0.0
     for f in frames:
         img = np.asarray(seq[f].image)
@@ -125,6 +128,8 @@ def run_video(name, labels, *, tracking=True):
         t_ours += time.perf_counter() - t0
         uv_f.append(d.uv if d.valid else (np.nan, np.nan))
         r_f.append(d.radius_px if d.valid else np.nan)
+        d = detect_sphere(img, model, params=COLOUR_RIM)
+        uv_c.append(d.uv if d.valid else (np.nan, np.nan))
         d = detect_sphere(img, model, params=LUMA)
         uv_l.append(d.uv if d.valid else (np.nan, np.nan))
         r_l.append(d.radius_px if d.valid else np.nan)
@@ -138,6 +143,7 @@ def run_video(name, labels, *, tracking=True):
     n = len(frames)
     res["ours, full frame"] = score(labels, np.array(uv_f, float), np.array(r_f, float)) | {"s_per_frame": t_ours / n}
     res["ours, full frame, luma edge"] = score(labels, np.array(uv_l, float), np.array(r_l, float))
+    res["ours, full frame, colour rim only"] = score(labels, np.array(uv_c, float))
     res["peer HSV, tutorial range"] = score(labels, np.array(uv_p, float)) | {"s_per_frame": t_peer / n}
     res["peer HSV, range from pick"] = score(labels, np.array(uv_q, float))
     return res

@@ -14,7 +14,7 @@ import pytest
 
 from test_stereo_segment_scenes import RED_BGR, SS, sphere_patch
 from tudorvision._checks import TudorVisionError
-from tudorvision.stereo._circle import circle_lsq, fit_rim_circle
+from tudorvision.stereo._circle import circle_lsq, fit_rim_circle, fit_rim_circle_multi
 from tudorvision.stereo.colormodel import fit_color_model
 from tudorvision.stereo.segment import SegmentParams, detect_sphere
 
@@ -153,6 +153,14 @@ def test_circle_fits():
     assert (cu, cv_, r) == pytest.approx((10, 20, 6), abs=1e-9)
     assert not inl[:13].any() and inl[13:].all()
     assert np.hypot(*(np.subtract(circle_lsq(bad)[:2], (10, 20)))) > 0.5  # plain least squares is pulled
+    # the many-hypothesis fit of the chroma edge: the same with noise and a third of the rim 2.5 px inside
+    rng = np.random.default_rng(0)
+    noisy = pts + rng.normal(0, 0.05, pts.shape)
+    noisy[:13] = np.c_[10 + 3.5 * np.cos(t[:13]), 20 + 3.5 * np.sin(t[:13])]
+    cu, cv_, r, inl = fit_rim_circle_multi(noisy, 0.3)
+    assert np.hypot(cu - 10, cv_ - 20) < 0.1 and abs(r - 6) < 0.1
+    assert not inl[:13].any() and inl[13:].all()
+    assert fit_rim_circle_multi(noisy[:4], 0.3) is None        # too few points for five inliers
 
 
 def test_params_checked():
