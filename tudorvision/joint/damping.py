@@ -43,6 +43,7 @@ from scipy import signal
 
 from .._checks import check_array, check_mass
 
+from .iir_filter import ExponentialStrainFilter
 from .damping_gains import (ASSISTED_GAINS, DEFAULT_GAINS, GAIN_SETS, LAWS, ONE_WAY_GAINS, PAYLOAD_SCHEDULE,
                             PAYLOAD_SCHEDULES, SOFT_GAINS, TWO_WAY_GAINS, payload_gain_factor)
 
@@ -336,6 +337,10 @@ class DampingConfig:
     pd_gain_scale : float or None
         Factor on the position-loop gain ``k_PD`` while the law is active;
         ``None``: 0.5 for the integral law (6.5), 1 otherwise.
+    iir_alpha : float or None
+        If given, the IIR variant of the static strain cancellation (2.2.3,
+        :class:`~tudorvision.joint.iir_filter.ExponentialStrainFilter`) with this
+        discount factor replaces the moving averages (``n_window`` unused).
     gauge_of_joint : tuple
         Strain channel per joint (``None`` for none).
     """
@@ -347,6 +352,7 @@ class DampingConfig:
     pade_shift_rad_s: float = 2.0 * math.pi * 3.0
     pd_gain_scale: float | None = None
     gauge_of_joint: tuple = field(default=GAUGE_OF_JOINT)
+    iir_alpha: float | None = None
 
     def __post_init__(self):
         if self.law not in LAWS:
@@ -490,7 +496,9 @@ class StrainDamper:
         self._model0 = None         # model strains at the first referenced step
         self.config = config
         self.dt = float(dt)
-        self.filter = StaticStrainFilter(eps0, n_window=config.n_window, decimation=config.decimation)
+        self.filter = StaticStrainFilter(eps0, n_window=config.n_window, decimation=config.decimation) \
+            if config.iir_alpha is None else ExponentialStrainFilter(eps0, alpha=config.iir_alpha,
+                                                                     decimation=config.decimation)
         self.eps_tilde = [0.0] * self.filter.channels
         self.mu = list(self.filter.mu)
         self._k = list(config.k_eps)

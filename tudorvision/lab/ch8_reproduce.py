@@ -8,8 +8,9 @@ with the seed's value beside them where the seed gives one:
   strain settling cut of experiment 06 per law and the maximum strain of the
   small, medium and large steps, with the seed's static strain filter as the
   reference (``"seed"``: moving average N = 50 at 100 Hz applied twice,
-  section 2.2) and the project's variant (``"2khz"``: the same 0.5 s window at
-  the 2 kHz control rate) beside it;
+  section 2.2), the project's variant (``"2khz"``: the same 0.5 s window at
+  the 2 kHz control rate) and the seed's IIR variant (``"seed-iir"``, 2.2.3,
+  alpha = 0.02 at 100 Hz) beside it;
 * :func:`integral_drift`: the integral law's steady-state joint error under
   gravity (sections 6.6, 8.6) over repeated out-and-back moves, beside the
   proportional and half-integrator laws;
@@ -73,13 +74,13 @@ def _study(groups, laws, reps, run_args, out, scheduler, workers, experiment):
 
 
 def table_8_2(quick: bool = True, scheduler: str = "serial", *, out=None, workers: int | None = None,
-              plant: str = "soft") -> dict:
+              plant: str = "soft", filters=("seed", "2khz", "seed-iir")) -> dict:
     """Figure 8.2 on the soft plant: exp-06 settling cut per law, max strain per step size, both filters.
 
     Parameters
     ----------
     quick : bool
-        ``True``: experiments 02, 06, 12 (one per step size), one noise seed (about a minute);
+        ``True``: experiments 02, 06, 12 (one per step size), one noise seed (about a minute for three filters);
         ``False``: all 12 experiments, 5 noise seeds.
     scheduler : str
         Runner scheduler (``"serial"``, ``"local"`` or an address).
@@ -89,13 +90,15 @@ def table_8_2(quick: bool = True, scheduler: str = "serial", *, out=None, worker
         Local worker processes.
     plant : {"soft", "one-way", "two-way"}
         Plant (default the soft, seed-measured one); gains ``GAIN_SETS[plant]``.
+    filters : sequence of str
+        Static strain cancellations (keys of :data:`~tudorvision.lab.ch8_experiments.FILTERS`).
 
     Returns
     -------
     dict
         ``filters``: ``{filter: {"exp06_settling_cut_pct": {law: %}, "exp06_settling_s": {law: s},
         "settling_cut_pct": {group: {law: %}}, "max_strain_pct": {group: {law: %}},
-        "final_joint_error_deg_max": {law: deg}}}`` for the ``seed`` and ``2khz`` filters (online
+        "final_joint_error_deg_max": {law: deg}}}`` for each filter (online
         strain, link-2 root gauge, mean over the group's experiments), ``seed`` (:data:`SEED_8_2`),
         ``gains``, ``experiments``, ``reps``, ``noise``, ``plant``.
     """
@@ -103,7 +106,7 @@ def table_8_2(quick: bool = True, scheduler: str = "serial", *, out=None, worker
     reps = 1 if quick else 5
     gains = {law: (0.0, 0.0, 0.0) if law == "off" else GAIN_SETS[plant][law] for law in LAWS_8}
     out_filters = {}
-    for filt in FILTERS:
+    for filt in filters:
         def run_args(exp, law, filt=filt):
             return {"exp": exp, "law": law, "k_eps": list(gains[law]), "plant": plant, "noise": _NOISE,
                     "horizon_s": HORIZON_S, "plates": 3, "coulomb": True, "friction_ff": None, "model_chi": None,
