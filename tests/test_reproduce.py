@@ -140,3 +140,15 @@ def test_quick_sections_mix_and_report_mode(tmp_path, fake_sections):
     assert "full, except good run small" in md
     with pytest.raises(ValueError, match="quick-sections"):
         run_reproduce(tmp_path, quick=["nope"], show_progress=False)
+
+
+def test_sections_record_the_code_they_ran_with(tmp_path, fake_sections, monkeypatch):
+    monkeypatch.setattr(rp, "code_version", lambda: "9.9 (git abc1234)")
+    res = run_reproduce(tmp_path, only=["good"], show_progress=False)
+    assert res["sections"][0]["code"] == "9.9 (git abc1234)"
+    rec = json.loads(next((tmp_path / "runs").glob("reproduce-good-*.json")).read_text())
+    assert rec["code"] == "9.9 (git abc1234)" and rec["status"] == "done" and "ran_now" not in rec
+    monkeypatch.setattr(rp, "code_version", lambda: "10.0 (git def5678)")
+    res = run_reproduce(tmp_path, only=["good"], show_progress=False)      # resumed: the earlier code
+    assert res["sections"][0]["code"] == "9.9 (git abc1234)"
+    assert "| 9.9 (git abc1234) |" in (tmp_path / "reproduction.md").read_text()

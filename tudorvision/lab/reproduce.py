@@ -59,6 +59,30 @@ def _select(only) -> list:
     return [s for s in secs if s.name in wanted]
 
 
+def code_version() -> str:
+    """The package version and, in a git checkout, the commit (``+dirty`` with uncommitted changes).
+
+    Returns
+    -------
+    str
+        E.g. ``"0.1.0 (git 7442782+dirty)"``; the version alone outside a checkout.
+    """
+    import subprocess
+
+    from .. import __version__
+    root = Path(__file__).resolve().parents[2]
+    try:
+        head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, timeout=5)
+        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, timeout=5)
+    except (OSError, subprocess.SubprocessError):
+        return __version__
+    if head.returncode != 0:
+        return __version__
+    return f"{__version__} (git {head.stdout.strip()}{'+dirty' if dirty.stdout.strip() else ''})"
+
+
 def run_reproduce(out, *, quick=False, only=None, seed: int = 0, scheduler: str | None = "serial",
                   workers: int | None = None, show_progress: bool | None = None, stream=None) -> dict:
     """Run the reproduction's sections and write ``reproduction.md`` and ``reproduction.json`` to ``out``.
@@ -96,7 +120,7 @@ def run_reproduce(out, *, quick=False, only=None, seed: int = 0, scheduler: str 
     ValueError
         On an unknown section name or a bad scheduler.
     """
-    from .runner import Task, run_tasks
+    from .runner import RUNS_DIR, Task, run_tasks
 
     secs = _select(only)
     small = {s.name for s in secs} if quick is True else set(quick or ())
@@ -108,15 +132,23 @@ def run_reproduce(out, *, quick=False, only=None, seed: int = 0, scheduler: str 
     t0 = time.perf_counter()
     tasks = [Task(f"reproduce-{s.name}", {"section": s.name, "quick": s.name in small}, int(seed), s.fn,
                   (str(out), s.name in small, int(seed))) for s in secs]
+    code = code_version()
+
+    def stamp(rec):      # the code a section ran with, kept in its record for later (resumed) reports
+        rec["code"] = code
+        write_text_atomic(out / RUNS_DIR / f"{rec['key']}.json",
+                          json.dumps({k: v for k, v in rec.items() if k != "ran_now"}, indent=1))
+
     rep = run_tasks(tasks, out, scheduler=scheduler, workers=workers, show_progress=show_progress,
-                    label="reproduce", stream=stream)
+                    label="reproduce", stream=stream, on_record=stamp)
     rows, sections = [], []
     for s, rec in zip(secs, rep.records):
         entry = {"name": s.name, "chapter": s.chapter, "title": s.title, "quick": s.name in small,
-                 "status": "not run", "error": None,
+                 "status": "not run", "error": None, "code": None,
                  "figures": [], "notes": [], "duration_s": None}
         if rec is not None:
-            entry.update(status=rec["status"], error=rec.get("error"), duration_s=rec.get("duration_s"))
+            entry.update(status=rec["status"], error=rec.get("error"), duration_s=rec.get("duration_s"),
+                         code=code if rec.get("ran_now") else rec.get("code", "an earlier run"))
             if rec["status"] == "done":
                 res = rec["result"] or {}
                 entry["figures"] = list(res.get("figures", []))

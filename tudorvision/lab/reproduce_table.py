@@ -190,13 +190,13 @@ def format_report(result: dict) -> str:
             lines.append(f"| {r['section']} | {r['quantity']} | {_fmt(r['seed'], r['unit'])} | "
                          f"{_fmt(r['lab'], r['unit'])} | {r['verdict']}{target} | {r.get('note', '')} |")
         lines.append("")
-    lines += ["## Sections", "", "| section | chapter | what | size | status | wall | figures |",
-              "|---|---|---|---|---|---|---|"]
+    lines += ["## Sections", "", "| section | chapter | what | size | status | wall | code | figures |",
+              "|---|---|---|---|---|---|---|---|"]
     for s in result["sections"]:
         st = s["status"] + (f": {s['error'].splitlines()[-1]}" if s.get("error") else "")
         wall = "–" if s["duration_s"] is None else f"{s['duration_s']:.0f} s"
         lines.append(f"| {s['name']} | {s['chapter']} | {s['title']} | {'quick' if s.get('quick') else 'full'} | "
-                     f"{st} | {wall} | "
+                     f"{st} | {wall} | {s.get('code') or '–'} | "
                      f"{', '.join(f'`{f}`' for f in s['figures'])} |")
     notes = [(s["name"], n) for s in result["sections"] for n in s["notes"]]
     if notes:
