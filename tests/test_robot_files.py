@@ -168,12 +168,14 @@ def test_longer_link_in_urdf_moves_sim_ptp_end_effector(tmp_path):
     longer.write_text(text.replace(old, '<origin xyz="0.53 0.0 0.0" rpy="0 0 0"/>'))
     base, long_ = _ptp(tmp_path, "base"), _ptp(tmp_path, "long", "--robot", str(longer))
     ee_b, ee_l = base[:, 8:11], long_[:, 8:11]
-    # upright at rest: gravity along both links, so the tip rises by exactly the extra 0.1 m
+    # upright at rest: gravity along both links, so the tip rises by exactly the extra 0.1 m; sideways the
+    # soft plant's hub springs and backlash tilt both arms alike, the longer tip a little farther (~0.5 mm)
     assert ee_l[0, 2] - ee_b[0, 2] == pytest.approx(0.1, abs=5e-4)
-    assert np.allclose(ee_l[0, :2], ee_b[0, :2], atol=5e-4)
+    assert np.allclose(ee_l[0, :2], ee_b[0, :2], atol=1.0e-3)
     # throughout the motion the longer arm's tip follows its own rigid kinematics within the elastic sag
+    # (the soft default plant: hub springs and blades sag up to ~3.5 cm on this 0.94 m arm)
     p_long = load_robot(longer)
-    assert np.abs(ee_l - fk_ee(long_[:, 1:4], p_long)).max() < 0.02
+    assert np.abs(ee_l - fk_ee(long_[:, 1:4], p_long)).max() < 0.045
     assert np.abs(ee_l - fk_ee(long_[:, 1:4], load_robot_params())).max() > 0.08
     # the default run is unchanged by exporting and reading back the packaged robot
     same = _ptp(tmp_path, "same", "--robot", path)
