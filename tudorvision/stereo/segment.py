@@ -41,7 +41,7 @@ The pipeline of section 2.4, per camera and sphere:
    circle explains fewer than ``min_rim_fraction`` of the rim points or its
    radius does not fit the area, the moment is kept. ``rim_fraction`` and
    ``rim_rms_px`` of the detection give the fit's quality, ``method`` which
-   was used, ``uv_moment`` the moment. Below ``chroma_edge_below`` of the rim
+   was used, ``uv_moment`` the moment. Below ``chroma_edge_below`` (0.8) of the rim
    (a highlight, a shaded limb, fingers) the rim is searched again on the chroma
    edge along rays (:func:`~tudorvision.stereo.rim_edge.refine_circle_on_chroma`, ``"chroma"``).
 4c. **Luma edge** (``edge_refine=True``, with ``centroid="shape"``; off by
