@@ -1,7 +1,8 @@
 """Issue 18, chapter 10: table 10.1 (motor-current and strain models) on the lab's plants beside the seed.
 
-For each plant (the default stiff plant ``PlantConfig()`` and the plant
-identified on the seed's measured modes ``PlantConfig.seed_measured()``) one
+For each plant (``soft``: the default plant ``PlantConfig()``, identified on
+the seed's measured modes; ``stiff``: the earlier rigid-hub one-way plant
+``PlantConfig.stiff()``) one
 APRBS run per payload 0-400 g drives joints 2 and 3 through the joint layer's
 cascade with proportional strain damping (``tudorvision.lab.ch10``); the
 motor-current model (10.1.2) and the strain model (10.2.8) are identified on
@@ -31,7 +32,7 @@ from tudorvision.lab.ch10 import (SEED_TABLE_10_1, Ch10Options, format_table_10_
                                   summarize_table_10_1, with_current_noise)
 from tudorvision.sim.arm import PlantConfig
 
-PLANTS = {"default": PlantConfig, "seed_measured": PlantConfig.seed_measured}
+PLANTS = {"soft": PlantConfig, "stiff": PlantConfig.stiff}
 
 
 _summary = summarize_table_10_1
@@ -44,7 +45,7 @@ def _strain_levels(runs) -> list:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seconds", type=float, default=60.0, help="APRBS seconds per payload (seed: 10 x 80 s)")
-    ap.add_argument("--plants", default="default,seed_measured", help="comma list of " + ", ".join(PLANTS))
+    ap.add_argument("--plants", default="soft,stiff", help="comma list of " + ", ".join(PLANTS))
     ap.add_argument("--current-noise", default="0.15", help="comma list of extra current noise levels, A")
     ap.add_argument("--k-eps", help="proportional damping gains k1,k2,k3 (default: the joint layer's assisted gains)")
     ap.add_argument("--jobs", type=int, default=2)
