@@ -1,7 +1,8 @@
 """Damping gains scheduled on the known payload; the layer learns the payload through the adapter.
 
 The schedule belongs to the stiff one-way plant (``PlantConfig.stiff()``), whose tuned link-3 gain
-destabilises the bare mount; the soft default plant's gains are stable over the payload range without one.
+destabilises the bare mount; the soft default plant's gains are stable over the payload range without one
+(the proportional law there with its softer position loop, ``PD_SCALES``; issue 18).
 """
 from __future__ import annotations
 
@@ -10,8 +11,9 @@ import pytest
 
 from tudorvision.joint import (Ack, InProcessTransport, JointAdapter, JointLayerServer, KinematicCore,
                                LockstepClientTransport, Mode, Reason, Refusal, ServerConfig)
-from tudorvision.joint.damping import (LAWS, ONE_WAY_GAINS, PAYLOAD_SCHEDULE, SOFT_GAINS, TWO_WAY_GAINS,
-                                       DampingConfig, StrainDamper, default_damping_config, payload_gain_factor)
+from tudorvision.joint.damping import (LAWS, ONE_WAY_GAINS, PAYLOAD_SCHEDULE, PD_SCALES, SOFT_GAINS, TWO_WAY_GAINS,
+                                       DampingConfig, StrainDamper, default_damping_config, payload_gain_factor,
+                                       pd_scale_of)
 from tudorvision.robot.params import load_robot_params
 from tudorvision.sim.arm import Payload, PlantConfig
 from tudorvision.lab.simulation import SimCore
@@ -162,3 +164,73 @@ def test_adapter_payload_reaches_the_core_or_is_refused_with_a_reason():
     assert isinstance(reply, Refusal) and reply.code == Reason.UNSUPPORTED
     with pytest.raises(ValueError, match="payload_kg"):
         adapter.set_payload(float("inf"))
+
+
+# ----------------------------------------------------------------- the proportional law on the soft plant (issue 18)
+def test_soft_proportional_law_runs_with_the_softer_position_loop():
+    """The soft set scales k_PD for the proportional law (PD_SCALES); the other sets and laws keep theirs."""
+    assert pd_scale_of("proportional") == PD_SCALES["soft"]["proportional"] == 0.04
+    assert default_damping_config("proportional").pd_scale == 0.04
+    assert default_damping_config("proportional", k_eps=(0, 1, 2)).pd_scale == 0.04     # the plant's, not the gains'
+    assert default_damping_config("proportional", pd_gain_scale=1.0).pd_scale == 1.0
+    assert default_damping_config("proportional", plant="soft", assisted=True).pd_scale == 0.04
+    assert default_damping_config("integral").pd_scale == 0.5
+    assert default_damping_config("half_integrator").pd_scale == 1.0
+    for plant in ("one-way", "two-way"):
+        assert pd_scale_of("proportional", plant) is None
+        assert default_damping_config("proportional", plant=plant).pd_scale == 1.0
+    with pytest.raises(ValueError, match="plant"):
+        pd_scale_of("proportional", "rigid")
+    with pytest.raises(ValueError, match="law"):
+        pd_scale_of("pid")
+    # the layer's damper on the soft plant carries it (ControlledArm.set_damper scales k_PD by it)
+    core = SimCore(payload=Payload.from_parts(P, plates=3), params=P)
+    core.set_modes(damping=1, collision=0)
+    assert core.controlled.damper.pd_scale == 0.04
+    core.set_payload(0.85)                                  # no payload schedule on the soft plant
+    assert core.controlled.damper.k_eps == SOFT_GAINS["proportional"] and core.controlled.damper.pd_scale == 0.04
+
+
+def _soft_move(start_deg, goal_deg, kg, cfg, seconds):
+    """Link-2 strain settling time (s) and largest oscillation in the last 2 s (m/m) of a move on the soft plant."""
+    from tudorvision.joint.controlled import ControlledArm
+    from tudorvision.joint.metrics import settling_time
+    from tudorvision.sim.arm import ElasticArm
+    payload = Payload(mass_kg=kg, inertia_kg_m2=Payload.from_parts(P, plates=3).inertia_kg_m2)
+    arm = ElasticArm(np.deg2rad(start_deg), payload=payload, params=P, config=PlantConfig())
+    ca = ControlledArm(arm)
+    if cfg is not None:
+        ca.set_damper(StrainDamper(cfg, arm.measured_strain(), arm.dt))
+    ca.set_goal(np.deg2rad(goal_deg))
+    t, e = [], []
+    for k in range(int(round(seconds / arm.dt))):
+        ca.step()
+        if k % 4 == 0:
+            t.append(arm.t)
+            e.append(ca.damper.eps_tilde[0] if cfg is not None else arm.strain[0])
+    t, e = np.asarray(t) - t[0], np.asarray(e)
+    if cfg is None:                                   # undamped: about the final static strain
+        e = e - np.mean(e[t > seconds - 2.0])
+    return settling_time(t, e, band=15e-6, horizon_s=seconds), float(np.max(np.abs(e[t > seconds - 2.0])))
+
+
+def test_soft_proportional_damping_settles_experiment_06_and_needs_the_softer_position_loop():
+    """Experiment 06 at 300 g (0.35 kg), the seed's filter: the tuned law settles the link-2 strain in < 3 s
+    (undamped: rings past 10 s); with the designed k_PD the same gains damp far less (issue 18)."""
+    seed_filter = {"n_window": 50, "decimation": 20}
+    off, _ = _soft_move((0, 0, 0), (0, 45, -45), 0.35, None, 10.0)
+    tuned, tail = _soft_move((0, 0, 0), (0, 45, -45), 0.35, default_damping_config("proportional", **seed_filter), 10.0)
+    stiff_pd, _ = _soft_move((0, 0, 0), (0, 45, -45), 0.35,
+                             default_damping_config("proportional", pd_gain_scale=1.0, **seed_filter), 10.0)
+    assert off == 10.0 and tuned < 3.0 and tail < 15e-6
+    assert stiff_pd > 2.0 * tuned
+
+
+def test_soft_proportional_gains_leave_no_limit_cycle_at_the_vertical_with_a_heavy_payload():
+    """0.85 kg, vertical -> 80 deg (the backlash canyon): the fixed gains settle; with the designed k_PD they
+    start a joint-2 limit cycle (~3000 um/m) -- the 8.3 / 8.4 failure of issue 18."""
+    ts, tail = _soft_move((0, 90, 0), (0, 80, 0), 0.85, default_damping_config("proportional"), 10.0)
+    assert ts < 9.0 and tail < 15e-6
+    _, tail_old = _soft_move((0, 90, 0), (0, 80, 0), 0.85, default_damping_config("proportional", pd_gain_scale=1.0),
+                             10.0)
+    assert tail_old > 500e-6

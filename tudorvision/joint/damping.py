@@ -25,7 +25,9 @@ link-3 root gauge; joint 1 has no gauge in the bending plane: gain 0)
   ``theta_e = -k P55(s) eps_tilde`` with the shifted Padé approximant of
   ``1 / sqrt(s)`` (7.5.1), discretised by the bilinear (Tustin) transform.
 
-The tuned gains per plant and their payload schedules are in
+The tuned gains per plant, their payload schedules and the position-loop scale a
+law needs on a plant (``PD_SCALES``: the proportional law on the soft plant runs
+with ``k_PD`` scaled by 0.04, see there) are in
 :mod:`tudorvision.joint.damping_gains` (re-exported here).
 
 Signs follow the plant's strain convention (top surface, tension positive;
@@ -45,13 +47,14 @@ from .._checks import check_array, check_mass
 
 from .iir_filter import ExponentialStrainFilter
 from .damping_gains import (ASSISTED_GAINS, DEFAULT_GAINS, GAIN_SETS, LAWS, ONE_WAY_GAINS, PAYLOAD_SCHEDULE,
-                            PAYLOAD_SCHEDULES, SOFT_GAINS, TWO_WAY_GAINS, payload_gain_factor)
+                            PAYLOAD_SCHEDULES, PD_SCALES, SOFT_GAINS, TWO_WAY_GAINS, payload_gain_factor,
+                            pd_scale_of)
 
 __all__ = ["LAWS", "moving_average_fir", "static_strain_fir", "highpass_response", "StaticStrainFilter",
            "proportional_feedback", "pade_p55", "half_integrator_sos", "SosFilter", "DampingConfig",
            "StrainDamper", "default_damping_config", "GAUGE_OF_JOINT", "ONE_WAY_GAINS", "TWO_WAY_GAINS",
            "SOFT_GAINS", "GAIN_SETS", "DEFAULT_GAINS", "ASSISTED_GAINS", "PAYLOAD_SCHEDULE", "PAYLOAD_SCHEDULES",
-           "payload_gain_factor"]
+           "PD_SCALES", "payload_gain_factor", "pd_scale_of"]
 
 #: Strain channel feeding each joint's damping law (None: no gauge in the bending plane).
 GAUGE_OF_JOINT = (None, 0, 2)
@@ -377,6 +380,9 @@ def default_damping_config(law: str, *, plant: str | None = None, two_way: bool 
     damper with a ``strain_model``); the other laws keep their gains. With ``payload_kg``
     (the known payload mass) the tuned link-3 gain follows the plant's payload schedule
     (:data:`PAYLOAD_SCHEDULES`; not for the assisted gains or given ``k_eps``).
+    The plant's position-loop scale for the law (:data:`PD_SCALES`, e.g. 0.04 for the
+    proportional law on the soft plant) is set unless ``pd_gain_scale`` is given, also
+    with given ``k_eps``.
 
     Parameters
     ----------
@@ -414,6 +420,8 @@ def default_damping_config(law: str, *, plant: str | None = None, two_way: bool 
     (0.0, 1600.0, 100.0)
     >>> default_damping_config("proportional", plant="one-way", payload_kg=0.05).k_eps
     (0.0, 1600.0, 200.0)
+    >>> default_damping_config("proportional").pd_scale, default_damping_config("proportional", two_way=False).pd_scale
+    (0.04, 1.0)
     """
     if law not in LAWS:
         raise ValueError(f"law: expected one of {LAWS}, got {law!r}")
@@ -422,6 +430,8 @@ def default_damping_config(law: str, *, plant: str | None = None, two_way: bool 
     if plant not in GAIN_SETS:
         raise ValueError(f"plant: expected one of {tuple(GAIN_SETS)}, got {plant!r}")
     table = dict(GAIN_SETS[plant])
+    if "pd_gain_scale" not in overrides:
+        overrides["pd_gain_scale"] = pd_scale_of(law, plant)
     if assisted:
         table["proportional"] = ASSISTED_GAINS[plant]
     if "k_eps" in overrides:

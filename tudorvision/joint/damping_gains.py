@@ -15,7 +15,7 @@ import numpy as np
 from .._checks import check_mass
 
 __all__ = ["LAWS", "ONE_WAY_GAINS", "TWO_WAY_GAINS", "SOFT_GAINS", "GAIN_SETS", "DEFAULT_GAINS", "ASSISTED_GAINS",
-           "PAYLOAD_SCHEDULE", "PAYLOAD_SCHEDULES", "payload_gain_factor", "gain_set_of"]
+           "PAYLOAD_SCHEDULE", "PAYLOAD_SCHEDULES", "PD_SCALES", "payload_gain_factor", "pd_scale_of", "gain_set_of"]
 
 #: The damping laws (``"off"``: the bare cascade).
 LAWS = ("off", "proportional", "integral", "half_integrator")
@@ -37,12 +37,15 @@ TWO_WAY_GAINS = {
 }
 #: The default soft plant (``PlantConfig()``, seed-measured; ``docs/joint_layer.md``, "Chapter 8 on the
 #: soft plant"), chosen on grids over all 12 experiments (no noise, the seed's filter), not by
-#: Nelder-Mead: proportional, the largest k2 of {100, 200, 300, 400, 600} that leaves no limit cycle near
-#: the vertical pose (the backlash canyon; with it the law barely shortens experiment 06); integral, the
-#: one-way gains (all 12 settle, mean 3.2 s); half-integrator, k2 halved from 245 (a tail at
-#: experiment 10), all 12 settle.
+#: Nelder-Mead. Integral: the one-way gains (all 12 settle, mean 3.2 s); half-integrator: k2 halved
+#: from 245 (a tail at experiment 10), all 12 settle. Proportional (issue 18): together with the
+#: position-loop scale of :data:`PD_SCALES` (0.04); grid pd scale in {0.04 ... 1} x k2 in {150 ... 1600} x
+#: k3 in {300 ... 1500} on experiment 06 with 0.05 / 0.35 / 0.65 / 0.85 kg, then all 12 experiments,
+#: holds near the vertical (backlash canyon) with 0.05 / 0.35 / 0.85 kg and the 600 g drop
+#: (``docs/benchmarks.md``, "Proportional damping on the soft plant"): all 12 settle (mean 2.8 s, no
+#: noise), no tail at the vertical, no growing oscillation from 0.05 to 0.85 kg with the fixed gains.
 SOFT_GAINS = {
-    "proportional": (0.0, 200.0, 300.0),
+    "proportional": (0.0, 250.0, 800.0),
     "integral": (0.0, 948.0, 1283.0),
     "half_integrator": (0.0, 120.0, 7.3),
 }
@@ -56,8 +59,24 @@ DEFAULT_GAINS = SOFT_GAINS
 #: operating points of figure 8.1 with the assisted filter); 100 is stable on all 12 experiments.
 #: Two-way plant: best of a coarse grid k2 in {400, 800, 1600} x k3 in {400, 1600, 3200} on
 #: experiment 06 (2 noise seeds): 4.33 s, i.e. only a 57 % cut on that plant.
-#: Soft plant: the soft plant's proportional gains (not re-tuned with a strain model).
-ASSISTED_GAINS = {"one-way": (0.0, 1600.0, 100.0), "two-way": (0.0, 800.0, 1600.0), "soft": (0.0, 200.0, 300.0)}
+#: Soft plant: the soft plant's proportional gains (not re-tuned with a strain model; the
+#: position-loop scale of :data:`PD_SCALES` applies as well).
+ASSISTED_GAINS = {"one-way": (0.0, 1600.0, 100.0), "two-way": (0.0, 800.0, 1600.0), "soft": SOFT_GAINS["proportional"]}
+
+#: Factor on the position-loop gain ``k_PD`` while a law acts, per gain set (``DampingConfig.pd_gain_scale``;
+#: a law not listed keeps ``DampingConfig``'s default: 0.5 for the integral law (section 6.5), else 1).
+#: Soft plant, proportional law: 0.04 (``k_PD`` 25 -> 1 1/s). The velocity the law adds at the
+#: velocity-loop input (5.2.1) is pulled back by the position loop: with an ideal velocity loop the
+#: joint answers it as ``s / (s + k_PD)``, so the link sees its root held by a spring ``k_PD / k`` beside
+#: the damper ``1 / k`` the law makes. For one mode of ``omega`` this bounds the decay rate the law can
+#: give, whatever ``k``, to about ``omega^2 / (2 k_PD)``: 0.79 1/s at 2.0 Hz and 0.42 1/s at 1.45 Hz with
+#: ``k_PD = 25`` (the soft plant rings ~10x longer after a move than the stiff one, and its heavy-payload
+#: mode is lower), ~12 1/s with ``k_PD = 1``, where the mode's poles can reach the real axis as in the
+#: seed's root locus (figure 5.2 (d)); the stiff plant (2.67 Hz, little residual ringing) hid it. With
+#: ``k_PD = 25`` larger gains only lower the frequency, and near the vertical (backlash canyon) and with
+#: heavy payloads they start joint-2 limit cycles. The joints still reach their goals without error
+#: (the PI velocity loop holds the load; the position error decays at ``k_PD``, ~1 s).
+PD_SCALES = {"soft": {"proportional": 0.04}, "one-way": {}, "two-way": {}}
 
 
 #: Payload schedule of the link-3 gain for the one-way plant's tuned gains (``ONE_WAY_GAINS``,
@@ -73,7 +92,8 @@ PAYLOAD_SCHEDULE = {
     "proportional": ((0.05, 0.08, 0.36, 0.45, 0.55), (2.0 / 3.0, 1.0, 1.0, 0.5, 1.0 / 3.0)),
     "integral": ((0.08, 0.12, 0.45, 0.5, 0.65), (0.5, 1.0, 1.0, 0.5, 0.25)),
 }
-#: Payload schedules by gain set (a set without one keeps its gains at every payload).
+#: Payload schedules by gain set (a set without one keeps its gains at every payload). The soft plant
+#: needs none: with :data:`PD_SCALES` its fixed gains damp from the bare mount to 0.85 kg.
 PAYLOAD_SCHEDULES = {"one-way": PAYLOAD_SCHEDULE, "soft": {}}
 
 
@@ -132,3 +152,35 @@ def payload_gain_factor(law: str, payload_kg: float, plant: str = "soft") -> flo
         return 1.0
     masses, factors = schedule[law]
     return float(np.interp(m, masses, factors))
+
+
+def pd_scale_of(law: str, plant: str = "soft") -> float | None:
+    """Factor on the position-loop gain while ``law`` acts on ``plant`` (:data:`PD_SCALES`).
+
+    Parameters
+    ----------
+    law : str
+        Damping law (:data:`LAWS`).
+    plant : str
+        Gain set (:data:`GAIN_SETS`).
+
+    Returns
+    -------
+    float or None
+        The factor; ``None`` where the set lists none (``DampingConfig``'s default applies).
+
+    Raises
+    ------
+    ValueError
+        On an unknown law or gain set.
+
+    Examples
+    --------
+    >>> pd_scale_of("proportional"), pd_scale_of("proportional", "one-way"), pd_scale_of("integral")
+    (0.04, None, None)
+    """
+    if law not in LAWS:
+        raise ValueError(f"law: expected one of {LAWS}, got {law!r}")
+    if plant not in GAIN_SETS:
+        raise ValueError(f"plant: expected one of {tuple(GAIN_SETS)}, got {plant!r}")
+    return PD_SCALES.get(plant, {}).get(law)
