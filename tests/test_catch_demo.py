@@ -37,8 +37,9 @@ def test_modelled_detections_several_throws_add_payload_and_weigh_it(tmp_path):
     s = run_demo(tmp_path / "c", DemoOptions(throws=6, seed=3, render=False, rerun=False, plots=False,
                                              cache_dir=str(tmp_path / "cache")))
     rows = s["per_throw"]
-    # the joint layer runs in lockstep with the simulation: the outcome does not depend on the machine's load
-    assert s["crossing_workspace"] >= 2 and s["caught_in_workspace"] == s["crossing_workspace"]
+    # the joint layer runs in lockstep with the simulation: the outcome does not depend on the machine's load;
+    # on the seed-measured plant (the default since issue 18) not every crossing ball goes through the ring
+    assert s["crossing_workspace"] >= 2 and s["caught_in_workspace"] >= 1
     assert s["balls_in_net"] == s["caught"]
     assert s["kinematics"]["n_unmeasured"] > 0      # the stereo-measured collection (some poses hide a sphere)
     again = run_demo(tmp_path / "c2", DemoOptions(throws=2, seed=3, render=False, rerun=False, plots=False,
@@ -278,19 +279,23 @@ def test_the_agent_never_reaches_the_simulation_or_the_truth():
     import ast
 
     import tudorvision.lab.catch.agent as agent_module
+    import tudorvision.lab.catch.profile as profile_module
 
-    tree = ast.parse(Path(agent_module.__file__).read_text())
-    imported = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom):
-            imported.add(("." * node.level) + (node.module or ""))
-        elif isinstance(node, ast.Import):
-            imported |= {a.name for a in node.names}
-    allowed = ("...catch.", "...joint", "...robot", "numpy", "time", "dataclasses", "__future__")
-    assert imported and all(m.startswith(allowed) for m in imported), imported
-    names = {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)} | \
-        {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
-    assert not names & {"sim", "arm", "ball_world", "net_position", "p_cross_base", "scenario"}
+    # the agent and the profile model it uses (the layer's planner mirrored) see no simulation and no truth
+    for module in (agent_module, profile_module):
+        tree = ast.parse(Path(module.__file__).read_text())
+        imported = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom):
+                imported.add(("." * node.level) + (node.module or ""))
+            elif isinstance(node, ast.Import):
+                imported |= {a.name for a in node.names}
+        allowed = ("...catch.", "...joint", "...robot", "numpy", "time", "math", "dataclasses", "__future__",
+                   ".profile")
+        assert imported and all(m.startswith(allowed) for m in imported), imported
+        names = {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)} | \
+            {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
+        assert not names & {"sim", "arm", "ball_world", "net_position", "p_cross_base", "scenario"}
 
 
 def test_the_plot_draws_on_a_figure_with_the_net_radius():
