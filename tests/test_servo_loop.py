@@ -88,7 +88,11 @@ def test_run_stops_early_when_no_command_can_be_sent(small_lab):
     assert r.end_reason == "stalled" and not r.converged
     assert not h["ok"].any()
     assert 0.5 <= h["t"][-1] < 0.6                         # stopped one frame after 0.5 s without a command
-    assert np.ptp(h["p_cam_world"], axis=0).max() < 5e-3      # zero commands: only the mode-switch transient
+    # zero commands: only the mode-switch transient. The proportional law on the soft plant runs with
+    # k_PD scaled by 0.04 (joint.damping_gains.PD_SCALES, issue 18): the arm's start-up ringing makes
+    # the law break joint 2 loose from stiction and it sags ~0.65 deg before the PI loop holds it
+    # (~5.5 mm at the camera; 1.2 mm with the designed k_PD)
+    assert np.ptp(h["p_cam_world"], axis=0).max() < 8e-3
     # the recorded true camera poses are the positions reported
     np.testing.assert_allclose(h["T_world_cam"][:, :3, 3], h["p_cam_world"])
 
