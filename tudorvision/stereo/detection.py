@@ -30,7 +30,9 @@ class SegmentParams:
     min_mean_prob : float
         Smallest mean posterior over the region.
     min_circularity : float
-        Smallest ``sqrt(lam2 / lam1)`` without motion blur.
+        Smallest ``sqrt(lam2 / lam1)`` without motion blur. A sphere whose colour model misses
+        its shaded half (lit from one side, picked under other light) shows a half disc,
+        ``sqrt(1/4 - 16/(9 pi^2)) / (1/2) = 0.53``: the default 0.5 keeps it.
     motion_blur : bool
         Blur is expected: use ``min_circularity_blur`` instead.
     min_circularity_blur : float
@@ -102,7 +104,9 @@ class SegmentParams:
         sees the sphere (spheres of radius >= about ``coarse_step`` px).
         1 searches the full frame at full resolution.
     max_candidates : int
-        Coarse candidates refined at full resolution.
+        Coarse candidates refined at full resolution (the heaviest first); while none of them is a
+        valid sphere, up to three times as many more are tried (a large object of the sphere's
+        colour, such as a box, must not hide it).
     """
 
     p_seed: float = 0.999
@@ -111,7 +115,7 @@ class SegmentParams:
     min_area_px: float = 8.0
     max_area_px: float = 40000.0
     min_mean_prob: float = 0.6
-    min_circularity: float = 0.55
+    min_circularity: float = 0.5
     motion_blur: bool = False
     min_circularity_blur: float = 0.12
     min_fill: float = 0.7

@@ -106,15 +106,8 @@ from tudorvision.stereo._frame import FramePlanes, check_frame
 from tudorvision.stereo.detection import SegmentParams, SphereDetection
 from tudorvision.stereo.rim_edge import refine_circle_on_chroma, refine_circle_on_luma, sphere_chroma
 
-__all__ = [
-    "SegmentParams",
-    "SphereDetection",
-    "hsv_from_bgr",
-    "log_odds_image",
-    "probability_image",
-    "detect_sphere",
-    "detect_spheres",
-]
+__all__ = ["SegmentParams", "SphereDetection", "hsv_from_bgr", "log_odds_image", "probability_image", "detect_sphere",
+           "detect_spheres"]
 
 _CCL = getattr(cv2, "CCL_GRANA", 1)  # block-based 8-connectivity: fastest on sparse masks
 
@@ -122,8 +115,8 @@ _NOTHING = "no pixel above p_seed survives erosion"
 
 
 def _none(reason: str = _NOTHING) -> SphereDetection:
-    return SphereDetection(uv=(float("nan"), float("nan")), area_px=0.0, mean_prob=0.0, circularity=0.0,
-                           valid=False, reason=reason)
+    return SphereDetection(uv=(math.nan, math.nan), area_px=0.0, mean_prob=0.0, circularity=0.0, valid=False,
+                           reason=reason)
 
 
 def _logit(p: float) -> float:
@@ -200,9 +193,7 @@ _KERNELS = {}
 
 
 def _erode_kernel(r: int):
-    if r not in _KERNELS:
-        _KERNELS[r] = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
-    return _KERNELS[r]
+    return _KERNELS.setdefault(r, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
 
 
 def _fill_holes(mask: np.ndarray) -> np.ndarray:
@@ -516,8 +507,10 @@ def _detect_full(frame: FramePlanes, model: ColorModel, params: SegmentParams, b
     lo = _log_odds_planes(frame.coarse_planes(step), model, blur)
     coarse = _candidates(lo, params, (0, 0), (frame.width, frame.height), blur, erode=0, scale=step)
     coarse.sort(key=lambda d: d.area_px * d.mean_prob, reverse=True)
-    best = []
-    for cand in coarse[:params.max_candidates]:
+    best = []   # the heaviest max_candidates, then further ones (up to 4x) while none is valid
+    for k, cand in enumerate(coarse[:4 * params.max_candidates]):
+        if k >= params.max_candidates and any(d.valid and not d.touches_window for d in best):
+            break
         margin = 2 * step + int(params.erode_radius_px) + 2
         for _ in range(4):  # widen the window until the full-resolution region fits
             roi = _grow_roi(cand.bbox, margin, frame.width, frame.height)
@@ -526,7 +519,7 @@ def _detect_full(frame: FramePlanes, model: ColorModel, params: SegmentParams, b
                 break
             cand = found[0]
         best.extend(found[:1])
-    best.sort(key=lambda d: (d.valid, d.area_px * d.mean_prob), reverse=True)
+    best.sort(key=lambda d: (d.valid and not d.touches_window, d.valid, d.area_px * d.mean_prob), reverse=True)
     return best[0] if best else _none()
 
 
