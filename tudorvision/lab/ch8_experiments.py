@@ -28,7 +28,7 @@ import numpy as np
 
 from ..joint.cascade import friction_compensation
 from ..joint.controlled import ControlledArm
-from ..joint.damping import ASSISTED_GAINS, GAIN_SETS, DampingConfig, StrainDamper
+from ..joint.damping import ASSISTED_GAINS, GAIN_SETS, DampingConfig, StrainDamper, pd_scale_of
 from ..joint.identification import fit_with_validation
 from ..joint.metrics import METRIC_NAMES, damping_metrics, normalise_metrics, spectral_amplitude
 from ..joint.strain_dynamics import StrainDynamicsModel, aprbs, derivatives
@@ -200,7 +200,8 @@ def run_experiment(exp: str, law: str, k_eps, *, plant: str, noise: float, seed:
     arm = ElasticArm(start, payload=Payload.from_parts(p, plates=plates), params=p, config=cfg)
     ca = ControlledArm(arm, friction=friction_feedforward(friction_ff, p))
     model = None if model_chi is None else StrainDynamicsModel(chi=np.asarray(model_chi))
-    damper = StrainDamper(DampingConfig(law=law, k_eps=tuple(k_eps), **FILTERS[strain_filter]),
+    damper = StrainDamper(DampingConfig(law=law, k_eps=tuple(k_eps), pd_gain_scale=pd_scale_of(law, plant),
+                                        **FILTERS[strain_filter]),
                           arm.measured_strain(), cfg.dt,
                           strain_model=model, payload_kg=arm.payload.mass_kg)
     ca.set_damper(damper)

@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from ..joint.controlled import ControlledArm
-from ..joint.damping import GAIN_SETS, DampingConfig, StrainDamper
+from ..joint.damping import GAIN_SETS, DampingConfig, StrainDamper, pd_scale_of
 from ..robot import load_robot_params
 from ..sim.arm import ElasticArm, Payload, PlantConfig
 from .ch8_experiments import (EXPERIMENTS, FILTERS, HORIZON_S, OPS_DEG, evaluate, plant_config,
@@ -137,7 +137,8 @@ def _drift_run(law: str, k_eps, cycles: int, rest_s: float, plates: int, plant: 
     arm = ElasticArm(a, payload=Payload.from_parts(p, plates=plates), params=p,
                      config=plant_config(plant, strain_noise_m_m=_NOISE, noise_seed=7))
     ca = ControlledArm(arm)
-    ca.set_damper(StrainDamper(DampingConfig(law=law, k_eps=tuple(k_eps), **FILTERS[strain_filter]),
+    ca.set_damper(StrainDamper(DampingConfig(law=law, k_eps=tuple(k_eps), pd_gain_scale=pd_scale_of(law, plant),
+                                             **FILTERS[strain_filter]),
                                arm.measured_strain(), arm.dt))
     errs = []
     for _ in range(cycles):
