@@ -243,12 +243,14 @@ def _periodic_runs(law: str, freq_hz: float, amp_N: float, config: PlantConfig, 
     push = EndEffectorForce(_vertical_sine(amp_N, freq_hz), config.dt)
     arm, ca, damper, gains = damped_arm(PERIODIC_POSE_DEG, payload, law, config=config, forces=(push,),
                                         gains_on=False)
+    ca.controller.set_pd_scale(1.0)     # the bare cascade until the law is switched on (with its PD scale)
     warm = hold_run(arm, ca, damper, warm_s)
     runs = []
     for phase_s in phases:
         arm_c, ca_c, damper_c = copy.deepcopy((arm, ca, damper))
         k_on = int(round(phase_s / config.dt))
-        r = hold_run(arm_c, ca_c, damper_c, phase_s + on_s, events={k_on: lambda d=damper_c: d.set_gains(gains)})
+        on = {k_on: lambda d=damper_c, c=ca_c: (d.set_gains(gains), c.controller.set_pd_scale(d.pd_scale))}
+        r = hold_run(arm_c, ca_c, damper_c, phase_s + on_s, events=on)
         t = r["t"] + warm_s
         series = {k: np.concatenate([warm[k], t if k == "t" else r[k]]) for k in warm}
         t_on = warm_s + phase_s
