@@ -91,10 +91,13 @@ def test_collection_and_models_on_the_simulated_arm_beat_rigid_ik(tmp_path):
 def test_collected_poses_are_the_plants_static_equilibria():
     from tudorvision.sim.arm import ElasticArm, Payload
     p = load_robot_params()
-    d = collect_settled_poses(CollectionOptions(theta2_deg=(20, 160, 70), theta3_deg=(-60, 60, 60),
-                                                payloads_kg=(0.3,), measurement_sigma_m=0.0, strain_sigma=0.0), p)
+    from tudorvision.lab.data_collection import plant_config
+    opts = CollectionOptions(theta2_deg=(20, 160, 70), theta3_deg=(-60, 60, 60), payloads_kg=(0.3,),
+                             measurement_sigma_m=0.0, strain_sigma=0.0, plant="seed_measured")
+    d = collect_settled_poses(opts, p)
     for th, eps, pt in zip(d["theta"], d["strains"], d["p_true_base"]):
-        arm = ElasticArm(th, payload=Payload(mass_kg=p.end_effector_mount_mass_kg + 0.3), params=p)
+        arm = ElasticArm(th, payload=Payload(mass_kg=p.end_effector_mount_mass_kg + 0.3), params=p,
+                         config=plant_config(opts.plant))
         np.testing.assert_allclose(eps, arm.strain, rtol=1e-9, atol=1e-15)
         np.testing.assert_allclose(pt, arm.ee_position(), atol=1e-12)
     assert np.max(np.linalg.norm(d["p_true_base"] - fk_ee(d["theta"]), axis=1)) > 0.01   # it deflects
