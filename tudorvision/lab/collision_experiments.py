@@ -27,7 +27,7 @@ import numpy as np
 from ..joint.collision import (DEFAULT_K_I, CollisionMonitor, ResidualCoupling, reaction_config,
                                root_torque_per_strain)
 from ..joint.controlled import ControlledArm
-from ..joint.damping import DampingConfig, StrainDamper
+from ..joint.damping import DampingConfig, StrainDamper, default_damping_config
 from ..joint.strain_dynamics import StrainDynamicsModel, aprbs, derivatives
 from ..robot import load_robot_params
 from ..sim.arm import ElasticArm, Payload, PlantConfig, SpringDamperObstacle
@@ -64,7 +64,10 @@ class CollisionSetup:
     k_eps : tuple of float, length 3
         Proportional damping gains, rad/s per m/m. ``TWO_WAY_GAINS`` (tuned on experiment 06 at
         300 g) drive the 400 g arm into bursts of large oscillation during long APRBS runs; these
-        were tuned for the smallest collision-free residual over 0-400 g on tuning seeds.
+        were tuned for the smallest collision-free residual over 0-400 g on tuning seeds (stiff
+        plants). On the soft default plant the joint layer's own proportional configuration is
+        used instead (``default_damping_config("proportional", plant="soft")``: its gains and its
+        scaled position loop; these gains at the full position gain start limit cycles there).
     n_window : int
         Window of the damping's static strain filter, samples at 2 kHz (the seed's 0.5 s).
     heavy_from : int
@@ -138,8 +141,11 @@ def make_arm(setup: CollisionSetup, plates: int, theta0, *, seed: int, obstacles
     ca = ControlledArm(arm, v_max=V_ID_RAD_S, a_max=A_ID_RAD_S2)
     heavy = plates >= setup.heavy_from
     k, nw = (setup.heavy_k_eps, setup.heavy_n_window) if heavy else (setup.k_eps, setup.n_window)
-    ca.set_damper(StrainDamper(DampingConfig(law="proportional", k_eps=tuple(float(x) for x in k), n_window=nw),
-                               arm.measured_strain(), cfg.dt))
+    if arm.gain_set == "soft":     # the joint layer's proportional law for the soft plant (gains, PD scale)
+        dcfg = default_damping_config("proportional", plant="soft", n_window=nw)
+    else:
+        dcfg = DampingConfig(law="proportional", k_eps=tuple(float(x) for x in k), n_window=nw)
+    ca.set_damper(StrainDamper(dcfg, arm.measured_strain(), cfg.dt))
     return arm, ca
 
 
