@@ -141,18 +141,8 @@ def luma_rim_points(gray, log_odds, centre, radius: float, *, span: float = 3.0,
     diff = (prof[:, -3:].sum(axis=1) - prof[:, :3].sum(axis=1)) * (1.0 / 3.0)    # outer - inner level
     g = np.diff(prof, axis=1) * np.sign(diff)[:, None]                           # (k, ns - 1), at s + step/2
     peak = np.argmax(g, axis=1)
-    rows = np.arange(k)
-    gmax = g[rows, peak]
-    # centre of gravity of the derivative's excess over 30 % of its peak, over the run of samples
-    # around the peak where it is positive: the weights vanish at the run's ends, so the position
-    # changes continuously with the image (ties at the peak, common on bilinear profiles, do not matter)
-    w = np.clip(g - 0.3 * gmax[:, None], 0.0, None)
-    off = w <= 0.0
-    lo_end = np.where(off & (j < peak[:, None]), j, -1).max(axis=1)
-    hi_end = np.where(off & (j > peak[:, None]), j, ns - 1).min(axis=1)
-    w = np.where((j > lo_end[:, None]) & (j < hi_end[:, None]), w, 0.0)
-    wsum = w.sum(axis=1)
-    pos = s[0] + step * (0.5 + (w * j).sum(axis=1) / np.where(wsum > 0, wsum, 1.0))
+    gmax = g[np.arange(k), peak]
+    pos, wsum, lo_end, hi_end = _peak_centroid(g, peak, j, s[0], step)
     ok = (np.abs(diff) >= min_contrast) & (gmax > 0) & (wsum > 0)
     ok &= (lo_end >= 0) & (hi_end < ns - 1)       # an edge at the end of the span is no edge
     if log_odds is not None:
@@ -313,6 +303,26 @@ def _chroma_feature(bgr, chroma, sigma: float) -> np.ndarray:
     return cv2.GaussianBlur(feat, (0, 0), sigma) if sigma > 0 else feat
 
 
+def _peak_centroid(g, peak, j, s0: float, step: float):
+    """Sub-sample edge positions along rays from the profile derivative ``g`` (k, n) around ``peak`` (k,).
+
+    The centre of gravity of the derivative's excess over 30 % of its value at the peak, over the run
+    of samples around the peak where it is positive: the weights vanish at the run's ends, so the
+    position changes continuously with the image (ties at the peak, common on bilinear profiles, do
+    not matter). ``j`` (1, n) are the sample indices, ``s0`` the first sample's distance and ``step``
+    the sample spacing, px. Returns the positions (k,) px, the weight sums (k,; 0: no edge) and the
+    run's ends (k,; -1 / n: the run reaches the span's end).
+    """
+    ns = g.shape[1] + 1
+    w = np.clip(g - 0.3 * g[np.arange(len(peak)), peak][:, None], 0.0, None)
+    off = w <= 0.0
+    lo_end = np.where(off & (j < peak[:, None]), j, -1).max(axis=1)
+    hi_end = np.where(off & (j > peak[:, None]), j, ns - 1).min(axis=1)
+    w = np.where((j > lo_end[:, None]) & (j < hi_end[:, None]), w, 0.0)
+    wsum = w.sum(axis=1)
+    return s0 + step * (0.5 + (w * j).sum(axis=1) / np.where(wsum > 0, wsum, 1.0)), wsum, lo_end, hi_end
+
+
 def _rim_on_feature(feat, fs, centre, r, lo, hi, step, rel):
     """:func:`chroma_rim_points` on a feature image from :func:`_chroma_feature` (sphere level ``fs``)."""
     k = 4 * int(np.clip(round(0.25 * math.pi * r), 8, 32))
@@ -333,15 +343,7 @@ def _rim_on_feature(feat, fs, centre, r, lo, hi, step, rel):
             & (inner - outer >= 0.25 * fs) & (outer < 0.5 * fs) & (inner > 0.25 * fs))
     has = cand.any(axis=1)
     peak = (ns - 2) - np.argmax(cand[:, ::-1], axis=1)                               # outermost candidate
-    rows = np.arange(k)
-    gp = g[rows, peak]
-    w = np.clip(g - 0.3 * gp[:, None], 0.0, None)
-    off = w <= 0.0
-    lo_end = np.where(off & (j < peak[:, None]), j, -1).max(axis=1)
-    hi_end = np.where(off & (j > peak[:, None]), j, ns - 1).min(axis=1)
-    w = np.where((j > lo_end[:, None]) & (j < hi_end[:, None]), w, 0.0)
-    wsum = w.sum(axis=1)
-    pos = s[0] + step * (0.5 + (w * j).sum(axis=1) / np.where(wsum > 0, wsum, 1.0))
+    pos, wsum, _, _ = _peak_centroid(g, peak, j, s[0], step)
     ok = has & (wsum > 0)
     return np.column_stack([cu + ca[ok, 0] * pos[ok], cv_ + sa[ok, 0] * pos[ok]]), k
 
