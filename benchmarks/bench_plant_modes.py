@@ -22,8 +22,7 @@ import time
 
 import numpy as np
 
-from tudorvision.lab.plant_modes import (decay_rate_per_s, dominant_frequency_hz, identify_hub_stiffness, linear_modes,
-                                         plate_payload, ring_down)
+from tudorvision.lab.plant_modes import identify_hub_stiffness, linear_modes, modes_map, plate_payload
 from tudorvision.sim.arm import ElasticArm, PlantConfig
 
 SEED = {"f1_range_hz": (1.56, 2.74), "decay_range_per_s": (0.03, 1.24), "link2_hz": (2.0, 9.9), "link3_hz": 6.3}
@@ -46,22 +45,12 @@ def main(argv=None) -> int:
             print(f"{row[0]:6g} {row[1]:6g} | {row[2]:.3f} {row[3]:.3f} {row[4]:.3f} | {row[5]:.3f} | {row[6]:.3f}")
         print(f"best {best}")
         return 0
-    t2s = np.arange(-10.0, 190.0 + 1e-9, a.step)
-    t3s = np.arange(-100.0, 100.0 + 1e-9, a.step)
     cfg = PlantConfig()                   # the seed-measured default
-    F = np.zeros((len(t3s), len(t2s)))
-    Z = np.zeros_like(F)
-    FL = np.zeros_like(F)
     t0 = time.perf_counter()
-    for i, t3 in enumerate(t3s):
-        for j, t2 in enumerate(t2s):
-            th = np.deg2rad([0.0, t2, t3])
-            lin = linear_modes(th, a.payload_kg, cfg)
-            log = ring_down(th, a.payload_kg, cfg, a.duration)
-            s = log.strain[:, 0]
-            f1 = dominant_frequency_hz(s, cfg.dt, 0.5, 0.5 * sum(lin["link2_hz"]))
-            F[i, j], Z[i, j], FL[i, j] = f1, decay_rate_per_s(s, cfg.dt, f1), lin["link2_hz"][0]
+    m = modes_map(a.step, a.payload_kg, cfg, a.duration)
     wall = time.perf_counter() - t0
+    t2s, t3s = np.array(m["theta2_deg"]), np.array(m["theta3_deg"])
+    F, Z, FL = np.array(m["ringdown_hz"]), np.array(m["decay_per_s"]), np.array(m["linear_hz"])
     fig46 = linear_modes(np.deg2rad([0.0, 0.0, 0.0]), a.payload_kg, cfg)
     stiff_one_way = ElasticArm(np.deg2rad([0.0, 0.0, 0.0]), config=PlantConfig.stiff(),
                                payload=plate_payload(a.payload_kg)).link2.basis.frequency_hz

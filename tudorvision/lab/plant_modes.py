@@ -29,7 +29,7 @@ from ..sim.mode_analysis import held_joint_matrices, held_joint_modes
 from .simulation import simulate
 
 __all__ = ["plate_payload", "linear_modes", "ring_down", "dominant_frequency_hz", "decay_rate_per_s",
-           "plant_modes", "identify_hub_stiffness", "HAMMER_IMPULSE_NS", "SEED_MODES_300G"]
+           "plant_modes", "identify_hub_stiffness", "HAMMER_IMPULSE_NS", "SEED_MODES_300G", "modes_map"]
 
 #: The seed's numbers at 300 g: figure 4.6 (link 2 first, second; link 3 first) and the top of figure 4.8, Hz.
 SEED_MODES_300G = {"link2_hz": (2.0, 9.9), "link3_hz": 6.3, "f1_max_hz": 2.74}
@@ -242,6 +242,41 @@ def plant_modes(theta_rad, payload_kg: float, config: PlantConfig | None = None,
     out["ringdown_hz"] = f1
     out["decay_per_s"] = decay_rate_per_s(s, cfg.dt, f1)
     return out
+
+
+def modes_map(step_deg: float, payload_kg: float = 0.3, config=None, duration_s: float = 6.0) -> dict:
+    """Ring-down first frequency and decay of link 2 over a grid of the workspace (the lab's figure 4.8).
+
+    Parameters
+    ----------
+    step_deg : float
+        Grid step over theta2 in [-10, 190] deg and theta3 in [-100, 100] deg.
+    payload_kg : float
+        Plate payload, kg.
+    config : PlantConfig, optional
+        Default ``PlantConfig()`` (the seed-measured plant).
+    duration_s : float
+        Ring-down length per pose, s.
+
+    Returns
+    -------
+    dict
+        ``theta2_deg`` (n2,), ``theta3_deg`` (n3,), ``ringdown_hz`` and ``decay_per_s`` (n3, n2),
+        ``linear_hz`` (n3, n2): the linearised first frequency.
+    """
+    cfg = config or PlantConfig()
+    t2s = np.arange(-10.0, 190.0 + 1e-9, step_deg)
+    t3s = np.arange(-100.0, 100.0 + 1e-9, step_deg)
+    F, Z, FL = (np.zeros((len(t3s), len(t2s))) for _ in range(3))
+    for i, t3 in enumerate(t3s):
+        for j, t2 in enumerate(t2s):
+            th = np.deg2rad([0.0, t2, t3])
+            lin = linear_modes(th, payload_kg, cfg)
+            s = ring_down(th, payload_kg, cfg, duration_s).strain[:, 0]
+            f1 = dominant_frequency_hz(s, cfg.dt, 0.5, 0.5 * sum(lin["link2_hz"]))
+            F[i, j], Z[i, j], FL[i, j] = f1, decay_rate_per_s(s, cfg.dt, f1), lin["link2_hz"][0]
+    return {"theta2_deg": t2s.tolist(), "theta3_deg": t3s.tolist(), "ringdown_hz": F.tolist(),
+            "decay_per_s": Z.tolist(), "linear_hz": FL.tolist()}
 
 
 def identify_hub_stiffness(candidates_Nm_rad=(float("inf"), 3000.0, 1500.0, 1000.0, 800.0, 600.0),

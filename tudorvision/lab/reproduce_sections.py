@@ -30,43 +30,6 @@ def _rows(*rows: Row) -> list:
 
 # --------------------------------------------------------------------------- chapter 4
 
-def modes_map(step_deg: float, payload_kg: float = 0.3, config=None, duration_s: float = 6.0) -> dict:
-    """Ring-down first frequency and decay of link 2 over a grid of the workspace (the lab's figure 4.8).
-
-    Parameters
-    ----------
-    step_deg : float
-        Grid step over theta2 in [-10, 190] deg and theta3 in [-100, 100] deg.
-    payload_kg : float
-        Plate payload, kg.
-    config : PlantConfig, optional
-        Default :meth:`~tudorvision.sim.arm.PlantConfig.seed_measured`.
-    duration_s : float
-        Ring-down length per pose, s.
-
-    Returns
-    -------
-    dict
-        ``theta2_deg`` (n2,), ``theta3_deg`` (n3,), ``ringdown_hz`` and ``decay_per_s`` (n3, n2),
-        ``linear_hz`` (n3, n2): the linearised first frequency.
-    """
-    from ..sim.arm import PlantConfig
-    from .plant_modes import decay_rate_per_s, dominant_frequency_hz, linear_modes, ring_down
-    cfg = config or PlantConfig.seed_measured()
-    t2s = np.arange(-10.0, 190.0 + 1e-9, step_deg)
-    t3s = np.arange(-100.0, 100.0 + 1e-9, step_deg)
-    F, Z, FL = (np.zeros((len(t3s), len(t2s))) for _ in range(3))
-    for i, t3 in enumerate(t3s):
-        for j, t2 in enumerate(t2s):
-            th = np.deg2rad([0.0, t2, t3])
-            lin = linear_modes(th, payload_kg, cfg)
-            s = ring_down(th, payload_kg, cfg, duration_s).strain[:, 0]
-            f1 = dominant_frequency_hz(s, cfg.dt, 0.5, 0.5 * sum(lin["link2_hz"]))
-            F[i, j], Z[i, j], FL[i, j] = f1, decay_rate_per_s(s, cfg.dt, f1), lin["link2_hz"][0]
-    return {"theta2_deg": t2s.tolist(), "theta3_deg": t3s.tolist(), "ringdown_hz": F.tolist(),
-            "decay_per_s": Z.tolist(), "linear_hz": FL.tolist()}
-
-
 def _plot_modes_map(path: Path, m: dict) -> None:
     from matplotlib.figure import Figure
 
@@ -105,7 +68,7 @@ def plant_section(out_dir: str, quick: bool, seed: int) -> dict:
         ``rows``, ``figures``, ``notes``.
     """
     from ..sim.arm import PlantConfig
-    from .plant_modes import linear_modes
+    from .plant_modes import linear_modes, modes_map
     cfg = PlantConfig.seed_measured()
     fig46 = linear_modes(np.deg2rad([0.0, 0.0, 0.0]), 0.3, cfg)
     step = 45.0 if quick else 10.0

@@ -193,7 +193,9 @@ _KERNELS = {}
 
 
 def _erode_kernel(r: int):
-    return _KERNELS.setdefault(r, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1)))
+    if r not in _KERNELS:   # built once per radius, not per frame
+        _KERNELS[r] = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    return _KERNELS[r]
 
 
 def _fill_holes(mask: np.ndarray) -> np.ndarray:
