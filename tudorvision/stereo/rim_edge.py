@@ -50,13 +50,16 @@ import numpy as np
 from ._circle import circle_lsq, fit_rim_circle_multi
 
 __all__ = ["luma_rim_points", "refine_circle_on_luma", "chroma_rim_points", "refine_circle_on_chroma",
-           "sphere_chroma", "LOSSY_SUFFIXES", "chroma_subsampled_source"]
+           "chroma_circle", "sphere_chroma", "MIN_INSIDE", "LOSSY_SUFFIXES", "chroma_subsampled_source"]
 
 #: File suffixes whose colour is usually stored at reduced resolution (JPEG; video codecs).
 LOSSY_SUFFIXES = frozenset({".jpg", ".jpeg", ".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg"})
 
 
 _GATE = np.array([-1.5, 2.0])
+
+#: Smallest chroma 2 px inside a chroma rim point, as a fraction of the sphere's own (see chroma_rim_points).
+MIN_INSIDE = 0.4
 _RAYS: dict = {}
 
 
@@ -232,7 +235,7 @@ def sphere_chroma(rgb) -> np.ndarray:
 
 
 def chroma_rim_points(bgr, chroma, centre, radius: float, *, lo: float = 0.6, hi: float = 1.35,
-                      step: float = 0.5, sigma: float | None = None, rel: float = 0.3):
+                      step: float = 0.5, sigma: float | None = None, rel: float = 0.3, min_inside: float = MIN_INSIDE):
     """Sub-pixel silhouette points of a coloured sphere on its chroma edge, along rays from a first circle.
 
     The sphere's rim is taken where its colour ends, not where the colour
@@ -244,7 +247,7 @@ def chroma_rim_points(bgr, chroma, centre, radius: float, *, lo: float = 0.6, hi
     sphere's chroma direction; along each ray (radii ``lo * r .. hi * r``,
     every ``step`` px) the edge is the **outermost** local maximum of the
     outward drop of that feature that is at least ``rel`` of the ray's largest
-    drop, with sphere-like chroma 2 px inside it (> 25 % of the sphere's),
+    drop, with sphere-like chroma 2 px inside it (> ``min_inside``, 40 %, of the sphere's),
     background-like chroma 2 px outside it (< 50 %) and a step between the two
     of at least 25 %. Its position is the centre of gravity of the drop above
     30 % of its peak. An occluding finger in front of the sphere gives an
@@ -265,6 +268,10 @@ def chroma_rim_points(bgr, chroma, centre, radius: float, *, lo: float = 0.6, hi
     lo, hi, step, rel : float
         Ray span (fractions of ``radius``), sample step (px) and the
         relative strength of an accepted drop.
+    min_inside : float
+        Smallest chroma 2 px inside an accepted edge, as a fraction of the
+        sphere's (0.25 until 2026-11-26: the edge of a weakly tinted band
+        outside the ball, e.g. a hand under a blurred ball, was taken).
     sigma : float, optional
         Gaussian smoothing of the feature, px (default ``min(1, radius / 20)``:
         more would merge a small sphere's rim with an occluder's edge).
@@ -291,7 +298,7 @@ def chroma_rim_points(bgr, chroma, centre, radius: float, *, lo: float = 0.6, hi
     if not fs > 0 or not r > 0:
         return np.zeros((0, 2)), 0
     feat = _chroma_feature(bgr, chroma, min(1.0, r / 20.0) if sigma is None else float(sigma))
-    return _rim_on_feature(feat, fs, centre, r, lo, hi, step, rel)
+    return _rim_on_feature(feat, fs, centre, r, lo, hi, step, rel, min_inside)
 
 
 def _chroma_feature(bgr, chroma, sigma: float) -> np.ndarray:
@@ -323,7 +330,7 @@ def _peak_centroid(g, peak, j, s0: float, step: float):
     return s0 + step * (0.5 + (w * j).sum(axis=1) / np.where(wsum > 0, wsum, 1.0)), wsum, lo_end, hi_end
 
 
-def _rim_on_feature(feat, fs, centre, r, lo, hi, step, rel):
+def _rim_on_feature(feat, fs, centre, r, lo, hi, step, rel, min_inside=None):
     """:func:`chroma_rim_points` on a feature image from :func:`_chroma_feature` (sphere level ``fs``)."""
     k = 4 * int(np.clip(round(0.25 * math.pi * r), 8, 32))
     ca, sa, offsets, j = _rays(k, 0.5 * (hi - lo) * r, step)
@@ -340,7 +347,8 @@ def _rim_on_feature(feat, fs, centre, r, lo, hi, step, rel):
     left = np.concatenate([np.full((k, 1), np.inf), g[:, :-1]], axis=1)             # no peak at either end
     right = np.concatenate([g[:, 1:], np.full((k, 1), np.inf)], axis=1)
     cand = ((g >= left) & (g >= right) & (g >= rel * gmax[:, None]) & (g > 0)
-            & (inner - outer >= 0.25 * fs) & (outer < 0.5 * fs) & (inner > 0.25 * fs))
+            & (inner - outer >= 0.25 * fs) & (outer < 0.5 * fs)
+            & (inner > (MIN_INSIDE if min_inside is None else min_inside) * fs))
     has = cand.any(axis=1)
     peak = (ns - 2) - np.argmax(cand[:, ::-1], axis=1)                               # outermost candidate
     pos, wsum, _, _ = _peak_centroid(g, peak, j, s[0], step)
@@ -350,7 +358,7 @@ def _rim_on_feature(feat, fs, centre, r, lo, hi, step, rel):
 
 def refine_circle_on_chroma(bgr, chroma, centre, radius: float, *, tol_frac: float = 0.08,
                             min_fraction: float = 0.3, max_shift_frac: float = 0.3, passes: int = 2,
-                            max_grow: float = 1.4):
+                            max_grow: float = 1.4, confirm: float | None = None):
     """Circle fitted robustly to the chroma rim points, or None when it is not trustworthy.
 
     Rays from the first circle give edge points (:func:`chroma_rim_points`);
@@ -381,6 +389,13 @@ def refine_circle_on_chroma(bgr, chroma, centre, radius: float, *, tol_frac: flo
     max_grow : float
         Largest radius as a multiple of the first; the rays reach to
         ``max_grow - 0.05`` of it (1.7 was tried on the sphere family: mixed).
+    confirm : float, optional
+        Fixed-point mode, for a first circle that may be far off (see
+        :func:`chroma_circle`): only the first pass reaches ``max_grow``,
+        later ones ``min(max_grow, 1.4) - 0.05`` of their circle, and a circle
+        is returned only once a pass moves it (centre plus radius) by less
+        than ``confirm`` times its radius, i.e. the rays cast from the circle
+        found give that circle again; None when no pass does.
 
     Returns
     -------
@@ -403,8 +418,9 @@ def refine_circle_on_chroma(bgr, chroma, centre, radius: float, *, tol_frac: flo
         return None
     feat = _chroma_feature(bgr, chroma, min(1.0, cr / 20.0))      # once for all passes
     out = None
-    for _ in range(passes):
-        pts, n = _rim_on_feature(feat, fs, (cu, cv_), cr, 0.6, max_grow - 0.05, 0.5, 0.3)
+    for i in range(passes):
+        reach = max_grow if confirm is None or i == 0 else min(max_grow, 1.4)
+        pts, n = _rim_on_feature(feat, fs, (cu, cv_), cr, 0.6, reach - 0.05, 0.5, 0.3)
         if n == 0 or len(pts) < max(8, min_fraction * n):
             break
         fit = fit_rim_circle_multi(pts, max(0.75, tol_frac * cr))
@@ -415,8 +431,73 @@ def refine_circle_on_chroma(bgr, chroma, centre, radius: float, *, tol_frac: flo
         if (frac < min_fraction or math.hypot(fu - centre[0], fv - centre[1]) > max_shift_frac * radius
                 or not 0.7 * radius <= fr <= max_grow * radius):
             break
-        cu, cv_, cr, out = fu, fv, fr, (fu, fv, fr, frac)
+        moved = math.hypot(fu - cu, fv - cv_) + abs(fr - cr)
+        cu, cv_, cr = fu, fv, fr
+        if confirm is None:
+            out = (fu, fv, fr, frac)
+        elif i >= 1 and moved < confirm * fr:
+            return fu, fv, fr, frac
     return out
+
+
+def chroma_circle(bgr, chroma, centre, radius: float):
+    """The sphere's circle on its chroma edge in a full frame, from a first circle that may be poor.
+
+    :func:`refine_circle_on_chroma` in a window of ``1.4 radius + 6`` px
+    around ``centre``, up to 3 passes, in the fixed-point mode
+    (``confirm=0.15``: a circle that the next ray cast still moves by more
+    than 0.15 of its radius is not taken). When that finds no trustworthy
+    circle (the first circle was far off: the colour model's region was a
+    third of the ball, or fingers split it), the search is made once more in a window of
+    ``2.4 radius + 6`` px with looser limits (centre move up to 0.6 r,
+    radius up to 1.8 r, first rays to 1.75 r) but in the fixed-point mode
+    (``confirm=0.1``, up to 3 passes): the rays cast from the circle found
+    must find it again. The second search runs only where the first fails,
+    so fully visible spheres and most partly hidden ones cost nothing more.
+
+    Parameters
+    ----------
+    bgr : ndarray, shape (H, W, 3), uint8
+        The full frame (BGR).
+    chroma : array_like, shape (2,)
+        The sphere's ``(a*, b*)`` (:func:`sphere_chroma`).
+    centre : tuple of float
+        First estimate ``(u, v)`` of the centre, frame pixels.
+    radius : float
+        First estimate of the radius, pixels.
+
+    Returns
+    -------
+    tuple or None
+        ``(u, v, r)`` in frame pixels, or None (also for grey spheres,
+        chroma below 5, and windows under 8 px).
+
+    Examples
+    --------
+    >>> import cv2
+    >>> img = np.full((120, 160, 3), 200, np.uint8)
+    >>> _ = cv2.circle(img, (80, 60), 30, (60, 160, 60), -1, cv2.LINE_AA)
+    >>> green = sphere_chroma((60, 160, 60))
+    >>> refine_circle_on_chroma(img, green, (74.0, 68.0), 20.0) is None      # a poor first circle
+    True
+    >>> u, v, r = chroma_circle(img, green, (74.0, 68.0), 20.0)
+    >>> bool(np.hypot(u - 80, v - 60) < 0.2), bool(abs(r - 30.5) < 0.3)
+    (True, True)
+    """
+    h, w = bgr.shape[:2]
+    if not math.hypot(*chroma) >= 5.0:          # a grey sphere has no chroma edge
+        return None
+    for span, kw in ((1.4, dict(passes=3, confirm=0.15)),
+                     (2.4, dict(max_shift_frac=0.6, max_grow=1.8, passes=3, confirm=0.1))):
+        m = int(math.ceil(span * radius)) + 6
+        x0, y0 = max(int(centre[0]) - m, 0), max(int(centre[1]) - m, 0)
+        x1, y1 = min(int(centre[0]) + m + 1, w), min(int(centre[1]) + m + 1, h)
+        if x1 - x0 < 8 or y1 - y0 < 8:
+            return None
+        fit = refine_circle_on_chroma(bgr[y0:y1, x0:x1], chroma, (centre[0] - x0, centre[1] - y0), radius, **kw)
+        if fit is not None:
+            return fit[0] + x0, fit[1] + y0, fit[2]
+    return None
 
 
 def chroma_subsampled_source(path) -> bool:

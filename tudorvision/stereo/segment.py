@@ -104,7 +104,7 @@ from tudorvision.stereo._circle import circle_lsq, fit_rim_circle
 from tudorvision.stereo._colortables import ColorModel
 from tudorvision.stereo._frame import FramePlanes, check_frame
 from tudorvision.stereo.detection import SegmentParams, SphereDetection
-from tudorvision.stereo.rim_edge import refine_circle_on_chroma, refine_circle_on_luma, sphere_chroma
+from tudorvision.stereo.rim_edge import chroma_circle, refine_circle_on_luma, sphere_chroma
 
 __all__ = ["SegmentParams", "SphereDetection", "hsv_from_bgr", "log_odds_image", "probability_image", "detect_sphere",
            "detect_spheres"]
@@ -436,14 +436,7 @@ class _EdgeSource:
         return cache[key]
 
     def _refine_chroma(self, centre: tuple, radius: float):
-        f, m = self.frame, int(math.ceil(1.4 * radius)) + 6
-        px0, py0 = max(int(centre[0]) - m, 0), max(int(centre[1]) - m, 0)
-        px1, py1 = min(int(centre[0]) + m + 1, f.width), min(int(centre[1]) + m + 1, f.height)
-        chroma = sphere_chroma(tuple(self.model.mean[:3]))
-        if px1 - px0 < 8 or py1 - py0 < 8 or math.hypot(*chroma) < 5.0:   # too small, or a grey sphere
-            return None
-        fit = refine_circle_on_chroma(f.bgr[py0:py1, px0:px1], chroma, (centre[0] - px0, centre[1] - py0), radius)
-        return None if fit is None else (fit[0] + px0, fit[1] + py0, fit[2])
+        return chroma_circle(self.frame.bgr, sphere_chroma(tuple(self.model.mean[:3])), centre, radius)
 
 
 def _check_roi(roi, width: int, height: int) -> tuple:
