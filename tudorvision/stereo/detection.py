@@ -259,6 +259,12 @@ class SphereDetection:
         circle fitted to the colour rim), ``"chroma"`` (the circle fitted to
         the chroma edge along rays), ``"edge"`` (the circle fitted to
         the luma edge) or ``"rim_moment"`` (see :class:`SegmentParams`).
+    circle_radius_px : float
+        Radius of the circle whose centre is ``uv`` (px; NaN for
+        ``"moment"`` and ``"rim_moment"``). Unlike :attr:`radius_px` (the
+        region's area) it is the sphere's apparent radius even when part of
+        the sphere is hidden or outside the colour model; the stereo
+        pipeline compares it between the two cameras.
     """
 
     uv: tuple
@@ -274,6 +280,7 @@ class SphereDetection:
     rim_fraction: float = float("nan")
     rim_rms_px: float = float("nan")
     method: str = "moment"
+    circle_radius_px: float = float("nan")
 
     @property
     def radius_px(self) -> float:

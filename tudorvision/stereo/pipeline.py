@@ -36,7 +36,8 @@ The pipeline never reads ground truth.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+from dataclasses import dataclass, field, replace
 from typing import Mapping
 
 import numpy as np
@@ -44,7 +45,9 @@ import numpy as np
 from .._checks import TudorVisionError, check_transform
 from ._frame import FramePlanes
 from .colormodel import ColorModelSet
+from .rim_edge import chroma_circle, sphere_chroma
 from .segment import SphereDetection, detect_spheres, regions_in_window
+from .stereo_radius import predicted_radius_px, radius_ratio
 from .tracker2d import FrameTracker, TrackerParams
 from .triangulate import SphereTriangulation, triangulate_spheres
 
@@ -85,6 +88,19 @@ class PipelineOptions:
         sphere is flagged missing. A sphere found in one camera only is
         looked for among the other camera's candidate regions the same way. None disables the check. The default
         leaves room for rolling-shutter skew of fast motion.
+    max_radius_mismatch : float or None
+        Stereo consistency of the apparent radii (issue 15): once a sphere's
+        centre is triangulated, its fitted circle radii must agree between
+        the cameras up to their ``f / Z`` (:func:`~tudorvision.stereo.stereo_radius.radius_ratio`),
+        within this log ratio (0.12: 13 %) and 0.75 px. When they do not
+        (one view took part of the sphere: a link across it, a background of
+        its colour), the view with the smaller radius is measured again on
+        the sphere's chroma edge from the radius the other view predicts
+        (:func:`~tudorvision.stereo.rim_edge.chroma_circle`); if the two
+        still disagree the sphere is flagged missing in that frame
+        ("stereo-inconsistent (radius)") rather than triangulated wrong.
+        Only pairs where both views have a fitted circle are checked. None
+        disables it.
     sphere_separation_m : float or None
         Known distance between the sphere centres (two spheres); a frame
         whose triangulated distance differs by more than
@@ -99,6 +115,7 @@ class PipelineOptions:
     rolling_shutter: bool = True
     max_gap_frames: float = 2.5
     max_epipolar_px: float | None = 6.0
+    max_radius_mismatch: float | None = 0.12
     sphere_separation_m: float | None = None
     separation_tol_m: float = 0.03
 
@@ -111,6 +128,8 @@ class PipelineOptions:
             raise TudorVisionError(f"max_gap_frames: must exceed 1, got {self.max_gap_frames}")
         if self.max_epipolar_px is not None and not (self.max_epipolar_px > 0):
             raise TudorVisionError(f"max_epipolar_px: must be positive or None, got {self.max_epipolar_px}")
+        if self.max_radius_mismatch is not None and not (self.max_radius_mismatch > 0):
+            raise TudorVisionError(f"max_radius_mismatch: must be positive or None, got {self.max_radius_mismatch}")
         if self.sphere_separation_m is not None and not (self.sphere_separation_m > 0):
             raise TudorVisionError(f"sphere_separation_m: must be positive or None, got {self.sphere_separation_m}")
         if not (self.separation_tol_m > 0):
@@ -273,10 +292,13 @@ class StereoPipeline:
         self._trackers = {cam: FrameTracker(m, params=self.options.tracker) for cam, m in self._models.items()}
         tx, ty, tz = stereo.T
         self._E = np.array([[0.0, -tz, ty], [tz, 0.0, -tx], [-ty, tx, 0.0]]) @ stereo.R  # x_r^T E x_l = 0
-        self._f_right = 0.5 * (self.cameras["right"].fx + self.cameras["right"].fy)
+        self._f = {c: 0.5 * (cm.fx + cm.fy) for c, cm in self.cameras.items()}
+        self._f_right = self._f["right"]
         self._last_left = {s: None for s in self.spheres}   # last consistent sphere centre, left frame
         self.n_repaired = 0
         self.n_inconsistent = 0
+        self.n_radius_repaired = 0
+        self.n_radius_refused = 0
 
     @property
     def rolling_shutter(self) -> bool:
@@ -375,6 +397,45 @@ class StereoPipeline:
             self.n_repaired += best is not None
         return dets
 
+    def _check_radii(self, dets: dict, images: dict) -> dict:
+        """Compare each sphere's circle radii between the cameras; re-measure or refuse a view that disagrees."""
+        tol = self.options.max_radius_mismatch
+        both = [s for s in self.spheres if all(dets[c][s].valid and math.isfinite(dets[c][s].circle_radius_px)
+                                               for c in ("left", "right"))]
+        if tol is None or not both:
+            return dets
+        stereo, f = self.calibration.stereo, self._f
+        pts = self._left_points([dets["left"][s].uv for s in both], [dets["right"][s].uv for s in both])
+        for s, p in zip(both, pts):
+            r = {c: dets[c][s].circle_radius_px for c in ("left", "right")}
+            rho = radius_ratio(p, r["left"], r["right"], f["left"], f["right"], stereo.R, stereo.T)
+            if not abs(math.log(rho)) > tol:    # NaN (no depth) passes: nothing to compare
+                continue
+            bad = "left" if rho < 1.0 else "right"
+            other = "right" if bad == "left" else "left"
+            want = predicted_radius_px(p, r[other], f[other], f[bad], stereo.R, stereo.T, this=bad)
+            if abs(want - r[bad]) <= 0.75:
+                continue
+            model = self._models[bad][s]
+            circle = chroma_circle(np.asarray(images[bad]), sphere_chroma(tuple(model.mean[:3])), dets[bad][s].uv, want)
+            new = None
+            if circle is not None:
+                uv = {other: dets[other][s].uv, bad: (circle[0], circle[1])}
+                r[bad] = circle[2]
+                p2 = self._left_points([uv["left"]], [uv["right"]])[0]
+                rho2 = radius_ratio(p2, r["left"], r["right"], f["left"], f["right"], stereo.R, stereo.T)
+                if abs(math.log(rho2)) <= tol and self.epipolar_px([uv["left"]], [uv["right"]])[0] <= \
+                        (self.options.max_epipolar_px or math.inf):
+                    new = replace(dets[bad][s], uv=uv[bad], method="chroma", circle_radius_px=circle[2])
+            if new is not None:
+                dets[bad] = {**dets[bad], s: new}
+                self.n_radius_repaired += 1
+            else:
+                why = f"stereo-inconsistent (radius: {r['left']:.1f} px left, {r['right']:.1f} px right)"
+                dets = {c: {**dets[c], s: _invalid(dets[c][s], why)} for c in dets}
+                self.n_radius_refused += 1
+        return dets
+
     def _check_image(self, img, cam: str, index: int) -> np.ndarray:
         arr = np.asarray(img)
         if arr.dtype != np.uint8 or arr.ndim != 3 or arr.shape[2] != 3:
@@ -443,6 +504,7 @@ class StereoPipeline:
         index = int(getattr(frame, "index", 0))
         dets = self.detect(frame.left, frame.right, index=index)
         dets = self._make_consistent(dets, {"left": frame.left, "right": frame.right})
+        dets = self._check_radii(dets, {"left": frame.left, "right": frame.right})
         opt = self.options
         if opt.sphere_separation_m is not None and len(self.spheres) == 2 and \
                 all(dets[c][s].valid for c in ("left", "right") for s in self.spheres):
@@ -492,5 +554,4 @@ class StereoPipeline:
 
 def _invalid(det: SphereDetection, reason: str) -> SphereDetection:
     """``det`` marked invalid with ``reason`` (the region is kept for diagnostics)."""
-    from dataclasses import replace
     return replace(det, valid=False, reason=reason)

@@ -286,7 +286,7 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
             reason = f"fill {fill:.2f} outside [{params.min_fill:g}, {params.max_fill:g}] (not a compact blob)"
         elif params.reject_border and at_image:
             reason = "region touches the image border (sphere partly out of view)"
-        rim_frac = rim_rms = float("nan")
+        rim_frac = rim_rms = r_fit = float("nan")
         method = "moment"
         if params.centroid == "rim_moment" and not reason:
             rm = _rim_mask(filled, params, (x, y), log_odds)
@@ -301,23 +301,23 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
             if ref is not None:
                 ru, rv, rr, rim_frac, rim_rms, used = ref
                 if used:
-                    cu, cv_, method = ru + x0, rv + y0, "shape"
+                    cu, cv_, method, r_fit = ru + x0, rv + y0, "shape", rr
                     start = ((ru, rv), rr)
             below = params.chroma_edge_below
             if edge_src is not None and below > 0 and not (used and rim_frac >= below):
                 ch = edge_src.refine_chroma((start[0][0] + x0, start[0][1] + y0), start[1])
                 if ch is not None:
-                    cu, cv_, method = ch[0], ch[1], "chroma"
+                    cu, cv_, method, r_fit = ch[0], ch[1], "chroma", ch[2]
                     start = ((ch[0] - x0, ch[1] - y0), ch[2])
             if params.edge_refine and edge_src is not None:
                 edge = edge_src.refine((start[0][0] + x0, start[0][1] + y0), start[1], params)
                 if edge is not None:
-                    cu, cv_, method = edge[0], edge[1], "edge"
+                    cu, cv_, method, r_fit = edge[0], edge[1], "edge", edge[2]
         out.append(SphereDetection(uv=(cu, cv_), area_px=float(area), mean_prob=mean_prob, circularity=circ,
                                    valid=not reason, reason=reason, fill=fill,
                                    bbox=(x + x0, y + y0, w, h), touches_window=at_window,
                                    uv_moment=uv_moment, rim_fraction=rim_frac, rim_rms_px=rim_rms,
-                                   method=method))
+                                   method=method, circle_radius_px=r_fit))
     out.sort(key=lambda d: (d.valid, d.area_px * d.mean_prob), reverse=True)
     return out
 
@@ -412,7 +412,7 @@ class _EdgeSource:
         self.frame, self.model, self.blur = frame, model, blur
 
     def refine(self, centre: tuple, radius: float, params: SegmentParams):
-        """Circle centre ``(u, v)`` on the luma edge in frame pixels, or None."""
+        """Circle ``(u, v, r)`` on the luma edge in frame pixels, or None."""
         f = self.frame
         m = int(math.ceil(radius)) + 7
         px0, py0 = max(int(centre[0]) - m, 0), max(int(centre[1]) - m, 0)
@@ -425,7 +425,7 @@ class _EdgeSource:
                                     min_contrast=params.edge_min_contrast)
         if fit is None:
             return None
-        return fit[0] + px0, fit[1] + py0
+        return fit[0] + px0, fit[1] + py0, fit[2]
 
     def refine_chroma(self, centre: tuple, radius: float):
         """Circle ``(u, v, r)`` on the sphere's chroma edge in frame pixels (step 4b), or None."""
