@@ -162,12 +162,23 @@ def _write(path, cols, rows):
 def _cmd_catch(args) -> int:
     if args.target != "demo" and (args.scheduler or args.workers or args.session_throws):
         raise TudorVisionError("--scheduler, --workers, --session-throws: only with 'catch demo'")
+    if args.target != "demo" and (args.plant is not None or args.camera_distance_m is not None):
+        raise TudorVisionError("--plant, --camera-distance-m: only with 'catch demo'")
     if args.target == "demo":
         from ..lab.catch_demo import DemoOptions, run_demo
 
+        more = {}
+        if args.plant is not None:
+            more["plant"] = args.plant
+        if args.camera_distance_m is not None:
+            d = args.camera_distance_m
+            if not (np.isfinite(d) and 1.0 <= d <= 7.8):
+                raise TudorVisionError(f"--camera-distance-m: expected 1-7.8 m in front of the robot (the wall "
+                                       f"camera's depth reaches 8 m, the arm must stay in range), got {d:g}")
+            more["camera_distance_m"] = float(d)
         opts = DemoOptions(throws=args.throws, seed=args.seed, render=not args.no_render, damping=args.damping,
                            compensate=not args.rigid, rerun=not args.no_rerun,
-                           params=robot_from_args(args) if args.robot else None)
+                           params=robot_from_args(args) if args.robot else None, **more)
         out = Path(args.out or "out/catch/demo")
         if args.scheduler or args.workers or args.session_throws:
             if viewer_requested(args):
@@ -257,6 +268,12 @@ def register(subparsers) -> None:
                    help="demo: damping law of the joint layer (default proportional)")
     p.add_argument("--rigid", action="store_true", help="demo: rigid inverse kinematics (no deflection compensation)")
     p.add_argument("--no-rerun", action="store_true", help="demo: do not write OUT/catch.rrd")
+    p.add_argument("--plant", default=None, choices=["seed_measured", "stiff"],
+                   help="demo: the simulated arm: seed_measured (default; hub springs, dampers, backlash) or "
+                        "stiff (rigid clamping, the plant before issue 18)")
+    p.add_argument("--camera-distance-m", type=float, default=None, metavar="M",
+                   help="demo: the wall camera stands M metres in front of the robot, for the throws and its "
+                        "disc-sweep calibration (default 6.8: behind the thrower, as in the seed; 1-7.8)")
     add_viewer_arguments(p, file_help="rerun recording (.rrd) of detections, intercepts, net and setpoints "
                                       "(demo default: OUT/catch.rrd; SEQ: none)")
     p.add_argument("--scheduler", default=None, metavar="serial|local|ADDRESS",

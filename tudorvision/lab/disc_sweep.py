@@ -158,7 +158,8 @@ def _tilt(T_ee, tilt, axis_angle):
 
 
 def render_disc_sweep(params: DiscSweepParams, rng: np.random.Generator, *, width: int = 640, height: int = 480,
-                      noise: DepthNoiseModel | None = None, robot=None) -> DiscSweep:
+                      noise: DepthNoiseModel | None = None, robot=None,
+                      sensor: DepthSensorModel | None = None) -> DiscSweep:
     """Render the sweep of a set-up as depth frames (each pose ray-cast once, noise drawn per frame).
 
     Parameters
@@ -174,6 +175,11 @@ def render_disc_sweep(params: DiscSweepParams, rng: np.random.Generator, *, widt
         :mod:`tudorvision.sensors` reads it).
     robot : RobotParams, optional
         The simulated arm (``--robot``); default the packaged ``tudor.yaml``.
+    sensor : tudorvision.sim.depth_sensor.DepthSensorModel, optional
+        The depth sensor (range, noise, invalid edges); default
+        ``DepthSensorModel()``, the Kinect's 0.6-6 m. The catching demo's wall
+        camera passes one reaching 8 m (:func:`tudorvision.lab.catch.calibration.wall_depth_sensor`).
+        ``noise``, when given too, replaces its noise.
 
     Returns
     -------
@@ -192,7 +198,9 @@ def render_disc_sweep(params: DiscSweepParams, rng: np.random.Generator, *, widt
                         camera_roll_rad=params.camera_roll_rad, aim_offset_m=params.aim_offset_m,
                         background=params.background, near_gap_m=params.near_gap_m, width=width, height=height)
     cam = setup.cameras["rgbd"]
-    model = DepthSensorModel() if noise is None else DepthSensorModel(noise=noise)
+    model = sensor if sensor is not None else DepthSensorModel()
+    if noise is not None:
+        model = replace(model, noise=noise)
     T_cam_base = np.linalg.inv(setup.meta["T_base_cam"])
     frames, thetas, vertical, truth = [], [], [], []
     for k in range(len(poses)):

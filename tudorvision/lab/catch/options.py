@@ -110,10 +110,23 @@ class DemoOptions:
         Ball filter options (its ball model is replaced by one with ``drag_k_per_m``).
     camera_distance_m : float
         The wall camera stands this far in front of the robot base (base -y), m, for the throws and
-        for its calibration sweep alike (the disc must stay within the Kinect's 6 m range; nearer than
-        about 5.8 m the thrower, 6 m away, releases behind the camera and the ball is seen late).
+        for its calibration sweep alike. Default 6.8 m: on the wall behind the thrower, as in the seed
+        (the thrower releases 5.7-6.3 m in front of the base); nearer than about 6 m the thrower
+        releases behind the camera and the first part of the flight is not seen.
     camera_height_m : float
         Height of the wall camera above the floor, m (it looks at the point 1 m above the base).
+    camera_max_depth_m : float
+        End of the wall camera's depth range, m (:func:`~tudorvision.lab.catch.calibration.wall_depth_sensor`;
+        the sensor reports depth up to here, with the seed's cubic sigma_z(z) extrapolated beyond its 6 m
+        fit, 96 mm at 6.8 m). Must exceed the disc's distance for the calibration sweep. The package's
+        :data:`~tudorvision.sensors.KINECT_RANGE_M` (0.6-6 m, the fit's range) is unchanged.
+    calibration_frames_per_pose : int
+        Depth frames per pose of the calibration sweep (theta2 every 10 deg; the vertical posture gets six
+        times as many): at 6.8 m one disc centre has about 1 cm of noise, four frames per pose average it.
+    calibration_method : str
+        ``"seed+deflection"`` (default): the seed's sweep construction, then its in-plane angle and origin
+        fitted to the agent's learnt deflection model (:func:`~tudorvision.lab.catch.calibration.refine_in_plane`;
+        the arm's vertical posture leans 0.45 deg); ``"seed"``: the seed's construction alone.
     true_calibration : bool
         Give the agent the true camera-to-base transform instead of the one calibrated from the
         simulated disc sweep (:func:`~tudorvision.lab.catch.calibration.calibrate_wall_camera`); for
@@ -173,8 +186,11 @@ class DemoOptions:
     show_progress: bool | None = None
     ekf: EKFOptions = field(default_factory=EKFOptions)
     params: RobotParams | None = None
-    camera_distance_m: float = 5.8
+    camera_distance_m: float = 6.8
     camera_height_m: float = 2.0
+    camera_max_depth_m: float = 8.0
+    calibration_frames_per_pose: int = 4
+    calibration_method: str = "seed+deflection"
     true_calibration: bool = False
     calibration_seed: int = 0
     plant: str = "seed_measured"
@@ -194,6 +210,14 @@ class DemoOptions:
         if not 1.0 <= self.camera_distance_m <= 8.0 or not 0.5 <= self.camera_height_m <= 3.0:
             raise ValueError(f"camera_distance_m, camera_height_m: expected 1-8 m and 0.5-3 m, got "
                              f"{self.camera_distance_m}, {self.camera_height_m}")
+        if self.calibration_method not in ("seed", "seed+deflection"):
+            raise ValueError(f"calibration_method: expected 'seed' or 'seed+deflection', got {self.calibration_method!r}")
+        if not 0.6 < self.camera_max_depth_m <= 10.0:
+            raise ValueError(f"camera_max_depth_m: expected 0.6-10 m, got {self.camera_max_depth_m}")
+        if int(self.calibration_frames_per_pose) != self.calibration_frames_per_pose \
+                or self.calibration_frames_per_pose < 1:
+            raise ValueError(f"calibration_frames_per_pose: expected a positive integer, "
+                             f"got {self.calibration_frames_per_pose}")
 
 
 def trained_payload_range_kg(collection: CollectionOptions) -> tuple[float, float]:

@@ -89,7 +89,8 @@ def _net_at_cross(layer, world, t_cross_s):
     return p1, ((p1 - p0) / (t1 - t0) if t1 > t0 else None)
 
 
-def wall_camera_transform(options: DemoOptions, params, T_base_cam_true, *, verbose: bool = True):
+def wall_camera_transform(options: DemoOptions, params, T_base_cam_true, *, verbose: bool = True,
+                          deflection=None):
     """The ``T_base_cam`` the agent gets: calibrated from the disc sweep, or the truth if asked for.
 
     Parameters
@@ -102,6 +103,9 @@ def wall_camera_transform(options: DemoOptions, params, T_base_cam_true, *, verb
         The wall camera's true pose in the base frame (lab side: the calibration's error).
     verbose : bool
         Print the calibration's error against the truth (one line).
+    deflection : callable, optional
+        The agent's learnt deflection model, for ``options.calibration_method == "seed+deflection"``
+        (default: learnt here, :func:`demo_kinematics`).
 
     Returns
     -------
@@ -114,7 +118,9 @@ def wall_camera_transform(options: DemoOptions, params, T_base_cam_true, *, verb
     """
     if options.true_calibration:
         return np.asarray(T_base_cam_true, float), {"source": "true"}
-    T, rep = calibrate_wall_camera(options, params, T_base_cam_true)
+    if deflection is None and options.calibration_method == "seed+deflection":
+        deflection = demo_kinematics(options, params)[0].deflection
+    T, rep = calibrate_wall_camera(options, params, T_base_cam_true, deflection=deflection)
     rep = {"source": "disc sweep", **rep}
     if verbose:
         print(f"wall camera calibrated from the disc sweep ({rep['frames']} frames, circle RMSE "
@@ -161,7 +167,8 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
 
     world = CatchScenario(o, params, ik(np.asarray(o.ready_point_base, float), 0.0, elbow="up"))
     layer = world.layer
-    T_base_cam, calib = wall_camera_transform(o, params, world.T_base_cam, verbose=o.show_progress is not False)
+    T_base_cam, calib = wall_camera_transform(o, params, world.T_base_cam, verbose=o.show_progress is not False,
+                                              deflection=km.deflection)
     detector = BallDetector(world.intrinsics, world.detector_options, n_background=N_BACKGROUND_FRAMES)
     agent = CatchAgent(layer, ik, km.strain, CatchPerception(ekf_opts, iopts, params), detector, T_base_cam,
                        options=o, params=params, payload_range_kg=trained_payload_range_kg(o.collection))
@@ -229,6 +236,7 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
         "caught_centre_in_workspace": score["caught_centre_in_workspace"],
         "rim_contacts_in_workspace": score["rim_contacts_in_workspace"],
         "calibration": calib, "camera_position_world_m": [float(x) for x in wall_camera_position_world(o)],
+        "camera_max_depth_m": o.camera_max_depth_m, "plant": o.plant,
         "seed": o.seed, "render": o.render, "damping": o.damping, "compensate": o.compensate,
         "net_radius_m": o.net_radius_m, "balls_in_net": world.balls, "net_emptied": world.emptied,
         "median_pred_error_m": score["median_pred_error_m"],

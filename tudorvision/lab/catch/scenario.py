@@ -209,6 +209,9 @@ class CatchScenario:
         calibration's error and ``DemoOptions.true_calibration`` only.
     intrinsics : Intrinsics
         The wall camera's intrinsics.
+    depth_sensor : tudorvision.sim.depth_sensor.DepthSensorModel
+        The wall camera's depth sensor (:func:`~tudorvision.lab.catch.calibration.wall_depth_sensor`),
+        the same for the throws and the calibration sweep.
     balls : int
         Balls in the net now.
     emptied : int
@@ -251,6 +254,9 @@ class CatchScenario:
         self._T_cam_world = np.linalg.inv(self.camera.T_world_cam)
         self.intrinsics = Intrinsics.from_matrix(self.camera.K, self.camera.width, self.camera.height)
         self.detector_options = BallDetectorOptions(ball_radius_m=o.ball_radius_m)
+        from .calibration import wall_depth_sensor
+
+        self.depth_sensor = wall_depth_sensor(o)        # 0.6-8 m: the arm is in range from behind the thrower
 
     # ---------------------------------------------------------------- ground truth
     def ball_world(self, t: float) -> np.ndarray:
@@ -301,7 +307,8 @@ class CatchScenario:
         """Render the wall camera's depth image at ``t`` (s), uint16 millimetres, shape (H, W)."""
         from ...sim.render import render_rgbd
 
-        _, depth, _ = render_rgbd(self.camera, self.setup.scene, t, rng=self._rng_render)
+        _, depth, _ = render_rgbd(self.camera, self.setup.scene, t, rng=self._rng_render,
+                                  depth_model=self.depth_sensor)
         return depth
 
     def observe(self, t: float) -> CameraFrame | None:
