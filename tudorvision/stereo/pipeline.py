@@ -411,30 +411,50 @@ class StereoPipeline:
             rho = radius_ratio(p, r["left"], r["right"], f["left"], f["right"], stereo.R, stereo.T)
             if not abs(math.log(rho)) > tol:    # NaN (no depth) passes: nothing to compare
                 continue
-            bad = "left" if rho < 1.0 else "right"
-            other = "right" if bad == "left" else "left"
-            want = predicted_radius_px(p, r[other], f[other], f[bad], stereo.R, stereo.T, this=bad)
-            if abs(want - r[bad]) <= 0.75:
+            small = "left" if rho < 1.0 else "right"
+            big = "right" if small == "left" else "left"
+            want = predicted_radius_px(p, r[big], f[big], f[small], stereo.R, stereo.T, this=small)
+            if abs(want - r[small]) <= 0.75:
                 continue
-            model = self._models[bad][s]
-            circle = chroma_circle(np.asarray(images[bad]), sphere_chroma(tuple(model.mean[:3])), dets[bad][s].uv, want)
-            new = None
-            if circle is not None:
-                uv = {other: dets[other][s].uv, bad: (circle[0], circle[1])}
-                r[bad] = circle[2]
-                p2 = self._left_points([uv["left"]], [uv["right"]])[0]
-                rho2 = radius_ratio(p2, r["left"], r["right"], f["left"], f["right"], stereo.R, stereo.T)
-                if abs(math.log(rho2)) <= tol and self.epipolar_px([uv["left"]], [uv["right"]])[0] <= \
-                        (self.options.max_epipolar_px or math.inf):
-                    new = replace(dets[bad][s], uv=uv[bad], method="chroma", circle_radius_px=circle[2])
-            if new is not None:
-                dets[bad] = {**dets[bad], s: new}
-                self.n_radius_repaired += 1
+            # most often the smaller view took part of the sphere; else the larger one took some background
+            for bad, other in ((small, big), (big, small)):
+                want = predicted_radius_px(p, r[other], f[other], f[bad], stereo.R, stereo.T, this=bad)
+                new = self._remeasure(images[bad], bad, other, s, dets, want, r[other])
+                if new is not None:
+                    dets[bad] = {**dets[bad], s: new}
+                    self.n_radius_repaired += 1
+                    break
             else:
                 why = f"stereo-inconsistent (radius: {r['left']:.1f} px left, {r['right']:.1f} px right)"
                 dets = {c: {**dets[c], s: _invalid(dets[c][s], why)} for c in dets}
                 self.n_radius_refused += 1
         return dets
+
+    def _remeasure(self, img, bad: str, other: str, s: str, dets: dict, want: float, r_other: float):
+        """The ``bad`` view of sphere ``s`` measured again on its chroma edge at radius ``want``, or None.
+
+        Started at the detection and at four points ``want / 2`` from it (a
+        detection of the half of a sphere split by a link lies about that far
+        from its centre); the candidate kept agrees with the other view in
+        radius and epipolar line, closest in radius.
+        """
+        stereo, f, tol = self.calibration.stereo, self._f, self.options.max_radius_mismatch
+        chroma = sphere_chroma(tuple(self._models[bad][s].mean[:3]))
+        u0, v0 = dets[bad][s].uv
+        best, seen = None, []
+        for du, dv in ((0.0, 0.0), (0.5, 0.0), (-0.5, 0.0), (0.0, 0.5), (0.0, -0.5)):
+            circle = chroma_circle(np.asarray(img), chroma, (u0 + du * want, v0 + dv * want), want)
+            if circle is None or any(math.hypot(circle[0] - a, circle[1] - b) < 0.05 for a, b in seen):
+                continue
+            seen.append(circle[:2])
+            uv = {other: dets[other][s].uv, bad: (circle[0], circle[1])}
+            rr = {other: r_other, bad: circle[2]}
+            p2 = self._left_points([uv["left"]], [uv["right"]])[0]
+            mis = abs(math.log(radius_ratio(p2, rr["left"], rr["right"], f["left"], f["right"], stereo.R, stereo.T)))
+            if mis <= tol and self.epipolar_px([uv["left"]], [uv["right"]])[0] <= \
+                    (self.options.max_epipolar_px or math.inf) and (best is None or mis < best[0]):
+                best = (mis, replace(dets[bad][s], uv=uv[bad], method="chroma", circle_radius_px=circle[2]))
+        return None if best is None else best[1]
 
     def _check_image(self, img, cam: str, index: int) -> np.ndarray:
         arr = np.asarray(img)

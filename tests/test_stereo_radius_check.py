@@ -1,0 +1,128 @@
+"""Stereo consistency of the apparent radii (issue 15): a view that took background or part of a sphere.
+
+Oracle: a parallel stereo rig (f = 500 px, baseline 0.2 m) with two spheres
+of radius 35 mm at about 2 m drawn as supersampled (8 x 8) discs at their
+exact projections; colour models picked on a clean pair.
+"""
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from tudorvision._checks import TudorVisionError
+from tudorvision.io import Calibration, CameraModel, StereoExtrinsics
+from tudorvision.io.frames import StereoFrame
+from tudorvision.stereo import ColorModelSet, PipelineOptions, StereoPipeline, fit_color_model
+from tudorvision.stereo.stereo_radius import predicted_radius_px, radius_ratio
+
+SS, F, R_M = 8, 500.0, 0.035
+CAM = CameraModel(K=[[F, 0, 160], [0, F, 120], [0, 0, 1]], width=320, height=240)
+CAL = Calibration(cameras={"left": CAM, "right": CAM}, stereo=StereoExtrinsics(R=np.eye(3), T=[-0.2, 0.0, 0.0]))
+CENTRES = {"red": np.array([-0.083, 0.011, 2.0]), "green": np.array([0.077, 0.013, 2.05])}
+COLOURS = {"red": (40, 40, 200), "green": (50, 190, 40)}      # BGR
+
+
+def _proj(p, cam):
+    x = p + (np.array([-0.2, 0.0, 0.0]) if cam == "right" else 0.0)
+    return 160.0 + F * x[0] / x[2], 120.0 + F * x[1] / x[2]
+
+
+def _radius(p):
+    return F * R_M / p[2]
+
+
+def _coverage(cu, cv_, r, h=240, w=320):
+    xs = -0.5 + (np.arange(w * SS) + 0.5) / SS
+    ys = -0.5 + (np.arange(h * SS) + 0.5) / SS
+    X, Y = np.meshgrid(xs, ys)
+    return cv2.resize(((X - cu) ** 2 + (Y - cv_) ** 2 <= r * r).astype(np.float32), (w, h),
+                      interpolation=cv2.INTER_AREA).astype(np.float64)[..., None]
+
+
+def _pair(patch=None, bar=None):
+    """Left and right images; ``patch`` (x0, x1) in green radii right of the green sphere in the right image,
+    in its own colour; ``bar`` (width px, offset px) a grey vertical bar across the right image's green sphere."""
+    imgs = {}
+    for cam in ("left", "right"):
+        img = np.full((240, 320, 3), 90.0)
+        u, v = _proj(CENTRES["green"], cam)
+        r = _radius(CENTRES["green"])
+        if cam == "right" and patch is not None:
+            img[int(v - 2 * r):int(v + 2 * r), int(u + patch[0] * r):int(u + patch[1] * r)] = COLOURS["green"]
+        for s, p in CENTRES.items():
+            k = _coverage(*_proj(p, cam), _radius(p))
+            img = img * (1.0 - k) + k * np.array(COLOURS[s], float)
+        if cam == "right" and bar is not None:
+            x0 = u + bar[1] - 0.5 * bar[0]
+            cols = np.arange(320)
+            k = np.clip(np.minimum(cols + 0.5 - x0, x0 + bar[0] - (cols - 0.5)), 0.0, 1.0)[None, :, None]
+            img = img * (1.0 - k) + k * np.array((150.0, 150.0, 150.0))
+        noise = np.random.default_rng(0).normal(0.0, 1.0, img.shape)
+        imgs[cam] = np.clip(np.rint(img + noise), 0, 255).astype(np.uint8)
+    return imgs
+
+
+@pytest.fixture(scope="module")
+def models():
+    clean = _pair()
+    out = {}
+    for cam in clean:
+        out[cam] = {}
+        for s, p in CENTRES.items():
+            u, v = _proj(p, cam)
+            out[cam][s] = fit_color_model(clean[cam], (round(u), round(v)), (round(u + 0.8 * _radius(p)), round(v)))
+    return ColorModelSet(out)
+
+
+def _run(models, imgs, **kw):
+    pipe = StereoPipeline(CAL, models, options=PipelineOptions(tracking=False, **kw))
+    return pipe, pipe.process(StereoFrame(t=0.0, index=0, left=imgs["left"], right=imgs["right"]))
+
+
+def test_ratio_and_prediction_on_the_rig():
+    p = CENTRES["green"]
+    rl, rr = _radius(p), F * R_M / (p[2])      # parallel rig: the same depth in both cameras
+    assert radius_ratio(p, rl, rr, F, F, np.eye(3), [-0.2, 0, 0]) == pytest.approx(1.0)
+    assert radius_ratio(p, 0.6 * rl, rr, F, F, np.eye(3), [-0.2, 0, 0]) == pytest.approx(0.6)
+    assert predicted_radius_px(p, rr, F, 2 * F, np.eye(3), [-0.2, 0, 0], this="left") == pytest.approx(2 * rl)
+    assert math.isnan(radius_ratio([0, 0, -1.0], rl, rr, F, F, np.eye(3), [-0.2, 0, 0]))   # behind the camera
+
+
+def test_clean_pair_passes_and_is_accurate(models):
+    pipe, res = _run(models, _pair())
+    assert res.valid and pipe.n_radius_refused == 0 and pipe.n_radius_repaired == 0
+    for s, p in CENTRES.items():
+        assert np.linalg.norm(res.spheres[s] - p) < 0.004
+        # the colour rim's circle runs through the boundary pixels' centres, inside the silhouette (-0.7 px
+        # here), alike in both cameras: the ratio is what is checked
+        rl, rr = (res.detections[cam][s].circle_radius_px for cam in ("left", "right"))
+        assert abs(rl - _radius(p)) < 1.0 and abs(rl - rr) < 0.2
+
+
+def test_a_sphere_split_by_a_thin_bar_is_found_on_its_chroma_edge(models):
+    _, res = _run(models, _pair(bar=(2.0, 2.0)))
+    d = res.detections["right"]["green"]
+    assert d.valid and d.method == "chroma"
+    assert math.hypot(d.uv[0] - _proj(CENTRES["green"], "right")[0], d.uv[1] - _proj(CENTRES["green"], "right")[1]) \
+        < 0.1
+    assert np.linalg.norm(res.spheres["green"] - CENTRES["green"]) < 0.005
+
+
+def test_a_sphere_bleeding_into_a_ground_of_its_colour_is_refused_not_triangulated_wrong(models):
+    imgs = _pair(patch=(0.6, 2.6))
+    _, naive = _run(models, imgs, max_radius_mismatch=None)
+    assert np.linalg.norm(naive.spheres["green"] - CENTRES["green"]) > 0.2      # 0.5 m off in depth
+    pipe, res = _run(models, imgs)
+    assert pipe.n_radius_refused == 1
+    assert not res.detections["left"]["green"].valid and not res.detections["right"]["green"].valid
+    assert "stereo-inconsistent (radius" in res.detections["right"]["green"].reason
+    assert np.isnan(res.spheres["green"]).all()
+    assert res.detections["left"]["red"].valid and np.linalg.norm(res.spheres["red"] - CENTRES["red"]) < 0.004
+
+
+def test_option_is_checked():
+    with pytest.raises(TudorVisionError, match="max_radius_mismatch"):
+        PipelineOptions(max_radius_mismatch=0.0)
