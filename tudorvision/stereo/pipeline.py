@@ -397,16 +397,25 @@ class StereoPipeline:
             self.n_repaired += best is not None
         return dets
 
-    def _check_radii(self, dets: dict, images: dict) -> dict:
-        """Compare each sphere's circle radii between the cameras; re-measure or refuse a view that disagrees."""
+    def _triangulate(self, dets: dict) -> SphereTriangulation:
+        """The valid detections' sphere centres in the left camera frame (NaN where a view is missing)."""
+        uvl = {s: np.array([dets["left"][s].uv if dets["left"][s].valid else _NAN2]) for s in self.spheres}
+        uvr = {s: np.array([dets["right"][s].uv if dets["right"][s].valid else _NAN2]) for s in self.spheres}
+        return triangulate_spheres(uvl, uvr, self.calibration, T_base_left=None, method=self.options.method)
+
+    def _check_radii(self, dets: dict, images: dict, tri: SphereTriangulation) -> dict:
+        """Compare each sphere's circle radii between the cameras; re-measure or refuse a view that disagrees.
+
+        ``tri``: the detections triangulated (left camera frame). Returns ``dets`` itself when nothing changed.
+        """
         tol = self.options.max_radius_mismatch
         both = [s for s in self.spheres if all(dets[c][s].valid and math.isfinite(dets[c][s].circle_radius_px)
                                                for c in ("left", "right"))]
         if tol is None or not both:
             return dets
         stereo, f = self.calibration.stereo, self._f
-        pts = self._left_points([dets["left"][s].uv for s in both], [dets["right"][s].uv for s in both])
-        for s, p in zip(both, pts):
+        for s in both:
+            p = tri.spheres[s][0]
             r = {c: dets[c][s].circle_radius_px for c in ("left", "right")}
             rho = radius_ratio(p, r["left"], r["right"], f["left"], f["right"], stereo.R, stereo.T)
             if not abs(math.log(rho)) > tol:    # NaN (no depth) passes: nothing to compare
@@ -421,7 +430,7 @@ class StereoPipeline:
                 want = predicted_radius_px(p, r[other], f[other], f[bad], stereo.R, stereo.T, this=bad)
                 new = self._remeasure(images[bad], bad, other, s, dets, want, r[other])
                 if new is not None:
-                    dets[bad] = {**dets[bad], s: new}
+                    dets = {**dets, bad: {**dets[bad], s: new}}     # a new dict: the caller sees the change
                     self.n_radius_repaired += 1
                     break
             else:
@@ -524,7 +533,6 @@ class StereoPipeline:
         index = int(getattr(frame, "index", 0))
         dets = self.detect(frame.left, frame.right, index=index)
         dets = self._make_consistent(dets, {"left": frame.left, "right": frame.right})
-        dets = self._check_radii(dets, {"left": frame.left, "right": frame.right})
         opt = self.options
         if opt.sphere_separation_m is not None and len(self.spheres) == 2 and \
                 all(dets[c][s].valid for c in ("left", "right") for s in self.spheres):
@@ -535,9 +543,10 @@ class StereoPipeline:
             if not abs(sep - opt.sphere_separation_m) <= opt.separation_tol_m:
                 why = f"sphere separation {sep:.3f} m, expected {opt.sphere_separation_m:.3f} m"
                 dets = {c: {s: _invalid(d, why) for s, d in dets[c].items()} for c in dets}
-        uvl = {s: np.array([dets["left"][s].uv if dets["left"][s].valid else _NAN2]) for s in self.spheres}
-        uvr = {s: np.array([dets["right"][s].uv if dets["right"][s].valid else _NAN2]) for s in self.spheres}
-        tri = triangulate_spheres(uvl, uvr, self.calibration, T_base_left=None, method=opt.method)
+        tri = self._triangulate(dets)
+        checked = self._check_radii(dets, {"left": frame.left, "right": frame.right}, tri)
+        if checked is not dets:     # a view re-measured or a sphere refused
+            dets, tri = checked, self._triangulate(checked)
         for s in self.spheres:
             if tri.sphere_valid[s][0]:
                 self._last_left[s] = tri.spheres[s][0]
