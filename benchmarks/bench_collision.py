@@ -1,9 +1,12 @@
 """Benchmark: collision detection, isolation and reaction on the simulated TUDOR (chapter 11).
 
-Steps (two-way coupled plant, the contact-consistent model; proportional
-damping on as in the seed, gains scheduled on the known payload, see
-``tudorvision.lab.collision_experiments.CollisionSetup``;
-strain noise on the gauges; joint 1 held at 0):
+Steps (two-way coupled plant, the contact-consistent model: by default the
+lab's soft plant ``PlantConfig()`` (hub springs, dampers, backlash) with the
+collision runs' proportional damping ``SOFT_COLLISION_K_EPS`` at the joint
+layer's scaled position loop; ``--plant stiff`` the former stiff plant with
+the gains scheduled on the known payload, see
+``tudorvision.lab.collision_experiments.CollisionSetup``; proportional
+damping on as in the seed; strain noise on the gauges; joint 1 held at 0):
 
 1. identification (10.4): APRBS setpoints for joints 2 and 3 (70 deg/s,
    200 deg/s^2) with payloads 0, 100, 200, 300, 400 g (plates on the 50 g
@@ -24,7 +27,8 @@ strain noise on the gauges; joint 1 held at 0):
    reflex, interaction): contact onset, detection delay, isolated link,
    direction, contact force peak and force at the end.
 
-Run:  .venv/bin/python benchmarks/bench_collision.py [--id-seconds 60] [--thr-seconds 60]
+Run:  .venv/bin/python benchmarks/bench_collision.py [--plant soft|stiff] [--soft-k-eps 500 1600]
+      [--id-seconds 60] [--thr-seconds 60]
       [--fp-minutes 10] [--noise 2e-6] [--k-i 200] [--reuse | --reuse-model] [--out out/collision]
       [--scheduler serial|local|tcp://HOST:8786] [--workers 2]
       [--k-eps 800 3200] [--n-window 1000] [--no-decouple] [--tune-damping K2,K3 ...]
@@ -52,10 +56,11 @@ from bench_damping_ch8 import check_scheduler, scheduler_options
 from tudorvision.io.atomic import write_text_atomic
 from tudorvision.joint.collision import (DEFAULT_K_I, ResidualCoupling, fit_residual_coupling,
                                          thresholds_from_residuals)
+from tudorvision.joint.collision_thresholds import payload_thresholds
 from tudorvision.joint.identification import fit_with_validation
 from tudorvision.joint.strain_dynamics import StrainDynamicsModel, fit_report, fit_strain_dynamics
-from tudorvision.lab.collision_experiments import (CONTACT_PLATES, PLATES, STRATEGIES, CollisionSetup, contact_run,
-                                                   identification_run, residual_run, thr_of)
+from tudorvision.lab.collision_experiments import (CONTACT_PLATES, PLANTS, PLATES, STRATEGIES, CollisionSetup,
+                                                   contact_run, identification_run, residual_run, thr_of)
 from tudorvision.lab.runner import Task, config_digest, run_tasks
 
 _DEFAULT = CollisionSetup()
@@ -104,6 +109,11 @@ def main(argv=None):
     ap.add_argument("--thr-seconds", type=float, default=60.0, help="seconds per payload for the thresholds")
     ap.add_argument("--fp-minutes", type=float, default=10.0, help="collision-free minutes for false positives")
     ap.add_argument("--noise", type=float, default=_DEFAULT.noise)
+    ap.add_argument("--plant", choices=PLANTS, default=_DEFAULT.plant,
+                    help="soft: the lab's default plant PlantConfig() (default); stiff: PlantConfig.stiff(two_way=True)")
+    ap.add_argument("--soft-k-eps", type=float, nargs=2, default=list(_DEFAULT.soft_k_eps[1:]), metavar=("K2", "K3"),
+                    help="soft plant: proportional damping gains of joints 2, 3 (rad/s per m/m) at the joint layer's "
+                         "scaled position loop; 0 0: the layer's own soft gains (SOFT_GAINS)")
     scheduler_options(ap)
     ap.add_argument("--out", default="out/collision")
     ap.add_argument("--k-i", type=float, default=DEFAULT_K_I, help="observer gain K_I of the residual, 1/s")
@@ -116,7 +126,7 @@ def main(argv=None):
     ap.add_argument("--input-lag", type=float, default=0.0,
                     help="lag (s) of the observer's angle/strain inputs, matched to the velocity filter")
     ap.add_argument("--k-eps", type=float, nargs=2, default=list(_DEFAULT.k_eps[1:]), metavar=("K2", "K3"),
-                    help="proportional damping gains of joints 2, 3 (rad/s per m/m)")
+                    help="stiff plant: proportional damping gains of joints 2, 3 (rad/s per m/m)")
     ap.add_argument("--n-window", type=int, default=_DEFAULT.n_window,
                     help="moving-average window of the damping's static strain filter (samples at 2 kHz)")
     ap.add_argument("--heavy-from", type=int, default=_DEFAULT.heavy_from,
@@ -151,14 +161,16 @@ def main(argv=None):
     if bad or not a.strategies:
         ap.error(f"--strategies: unknown {bad}; expected some of {list(STRATEGIES)}")
     a.per_payload_thresholds = not a.pooled_thresholds
-    setup = CollisionSetup(noise=a.noise, k_i=a.k_i, k_eps=(0.0, *map(float, a.k_eps)), n_window=a.n_window,
+    soft_k = (0.0, *map(float, a.soft_k_eps)) if any(a.soft_k_eps) else ()
+    setup = CollisionSetup(plant=a.plant, soft_k_eps=soft_k, noise=a.noise, k_i=a.k_i, k_eps=(0.0, *map(float, a.k_eps)), n_window=a.n_window,
                            heavy_from=a.heavy_from, heavy_k_eps=(0.0, *map(float, a.heavy_k_eps)),
                            heavy_n_window=a.heavy_n_window, isolation_window_s=a.isolation_window,
                            detect_decoupled=a.detect_decoupled, input_lag_s=a.input_lag,
                            detect_highpass_hz=a.detect_highpass)
     if a.tune_damping:
         for pair in a.tune_damping:
-            tuned = dataclasses.replace(setup, k_eps=(0.0, *(float(x) for x in pair.split(","))))
+            gains = (0.0, *(float(x) for x in pair.split(",")))
+            tuned = dataclasses.replace(setup, **{"soft_k_eps" if a.plant == "soft" else "k_eps": gains})
             print(json.dumps(tune_damping(tuned)), flush=True)
         return 0
     if (a.reuse or a.reuse_model) and not os.path.isfile(os.path.join(a.out, "collision.json")):
@@ -190,7 +202,8 @@ def _runner_info(st, t0, a) -> dict:
 
 def _benchmark(a, setup: CollisionSetup, st: _Stages) -> dict:
     """Steps 1-4; the report (collision.json) without timing."""
-    report = {"noise": a.noise, "k_eps": list(setup.k_eps), "n_window": setup.n_window,
+    report = {"plant": setup.plant, "soft_k_eps": list(setup.soft_k_eps),
+              "noise": a.noise, "k_eps": list(setup.k_eps), "n_window": setup.n_window,
               "heavy": {"from_plates": setup.heavy_from, "k_eps": list(setup.heavy_k_eps),
                         "n_window": setup.heavy_n_window},
               "isolation_window_s": setup.isolation_window_s, "detect_decoupled": a.detect_decoupled,
@@ -270,7 +283,8 @@ def _identify(st, a, report):
               200 + pl, (pl, a.thr_seconds, 200 + pl, chi, inf, "none", None, True)) for pl in PLATES]
     rs = [_arrays(r) for r in st.run("thr", specs, residual_run)]
     res = np.concatenate([r["res"] for r in rs])
-    thr = thresholds_from_residuals(res)
+    # pooled 6 sigma and per payload max(own 6 sigma, pooled) (runs in PLATES order)
+    thr, thr_pl = payload_thresholds([r["res"] for r in sorted(rs, key=lambda r: r["plates"])])
     # isolation: the link-3 residual less its share of the common arm mode, from the same data
     coupling = fit_residual_coupling(res, np.concatenate([np.full(r["res"].shape[0], r["payload"]) for r in rs]))
     report["thresholds_um_m"] = np.round(thr * 1e6, 2).tolist()
@@ -284,9 +298,6 @@ def _identify(st, a, report):
     print("thresholds (um/m):", report["thresholds_um_m"], "coupling:", report["coupling"], flush=True)
     np.save(os.path.join(a.out, "thr.npy"), thr)
     np.save(os.path.join(a.out, "coupling.npy"), np.array([coupling.c0, coupling.c1, coupling.threshold]))
-    # per payload: 6 sigma of the payload's own collision-free data, never below the pooled 6 sigma
-    own = np.array([thresholds_from_residuals(r["res"]) for r in sorted(rs, key=lambda r: r["plates"])])
-    thr_pl = np.maximum(own, thr)
     np.save(os.path.join(a.out, "thr_per_payload.npy"), thr_pl)
     report["thresholds_per_payload_um_m"] = {f"{100 * pl} g": np.round(thr_pl[pl] * 1e6, 1).tolist()
                                              for pl in PLATES}
@@ -307,7 +318,8 @@ def tune_damping(setup: CollisionSetup, seconds=20.0, seed0=5000):
           for pl in PLATES]
     res = np.concatenate([r["res"] for r in rs])
     thr = thresholds_from_residuals(res)
-    return {"k_eps": list(setup.k_eps), "n_window": setup.n_window, "fit_pct_in_sample": np.round(fits, 1).tolist(),
+    return {"plant": setup.plant, "k_eps": list(setup.soft_k_eps if setup.plant == "soft" else setup.k_eps),
+            "n_window": setup.n_window, "fit_pct_in_sample": np.round(fits, 1).tolist(),
             "max_speed_rad_s": [round(float(np.abs(d["d"][:, 1:]).max()), 2) for d in data],
             "sigma_um_m": np.round(res.std(0) * 1e6, 1).tolist(), "thr_um_m": np.round(thr * 1e6).tolist(),
             "sigma_per_payload": [np.round(r["res"].std(0) * 1e6, 1).tolist() for r in rs],
@@ -335,7 +347,8 @@ def _markdown(rep, path):
              f"(per payload {fp.get('per_payload', '-')}; peak residual / threshold {fp.get('peak_over_threshold', '-')})."
              , "", "Per-payload thresholds (max of own and pooled 6 sigma) used: "
              f"{json.dumps(rep.get('thresholds_per_payload_um_m')) if rep.get('per_payload_thresholds') else 'no'}.",
-             "", f"Damping k_eps {rep['k_eps']}, static-filter window {rep.get('n_window', 1000)}; heavy payloads "
+             "", f"Plant {rep.get('plant', 'stiff')}; damping k_eps "
+             f"{rep['soft_k_eps'] if rep.get('plant') == 'soft' else rep['k_eps']}, static-filter window {rep.get('n_window', 1000)}; heavy payloads "
              f"{json.dumps(rep.get('heavy'))}; isolation window {rep.get('isolation_window_s')} s on "
              f"{'r3 - c(m) r2, coupling ' + json.dumps(rep.get('coupling')) if rep.get('decouple') else 'r3'}.", "",
              "Validation fit (B.4): " + json.dumps(

@@ -1,8 +1,9 @@
 """The collision benchmark of chapter 11 as runner tasks: identification, residual and contact runs.
 
-Every run builds its own two-way coupled plant with proportional damping
-(gains scheduled on the known payload, :class:`CollisionSetup`) and strain
-noise drawn from its seed, so the runs are independent tasks for
+Every run builds its own two-way coupled plant (the soft default plant,
+``PlantConfig()``, or the former stiff one, ``CollisionSetup(plant="stiff")``)
+with proportional damping (:class:`CollisionSetup`) and strain noise drawn
+from its seed, so the runs are independent tasks for
 :mod:`tudorvision.lab.runner`:
 
 * :func:`identification_run`: APRBS motion of joints 2 and 3, 100 Hz samples
@@ -32,7 +33,8 @@ from ..joint.strain_dynamics import StrainDynamicsModel, aprbs, derivatives
 from ..robot import load_robot_params
 from ..sim.arm import ElasticArm, Payload, PlantConfig, SpringDamperObstacle
 
-__all__ = ["PLATES", "LO_RAD", "HI_RAD", "V_ID_RAD_S", "A_ID_RAD_S2", "ARMED_AFTER_S", "CONTACT_PLATES",
+__all__ = ["PLANTS", "SOFT_COLLISION_K_EPS",
+           "PLATES", "LO_RAD", "HI_RAD", "V_ID_RAD_S", "A_ID_RAD_S2", "ARMED_AFTER_S", "CONTACT_PLATES",
            "STRATEGIES", "CollisionSetup", "make_arm", "random_motion", "identification_run", "residual_run",
            "contact_scenario", "contact_run", "thr_of"]
 
@@ -49,6 +51,20 @@ ARMED_AFTER_S = 1.0
 CONTACT_PLATES = 3
 #: Reaction strategies of the contact scenarios.
 STRATEGIES = ("no detection", "stop", "reflex", "interaction")
+#: Plants of the benchmark: the soft default plant (``PlantConfig()``) and the former stiff one.
+PLANTS = ("soft", "stiff")
+#: Proportional damping gains of the collision runs on the soft plant, rad/s per m/m, with the joint
+#: layer's position-loop scale for that law (``PD_SCALES``, 0.04). The layer's own soft gains
+#: (``SOFT_GAINS``, (0, 250, 800), tuned for settling in chapter 8) leave the link-2 impact's residual
+#: at 0.55-0.63 of its 6-sigma threshold in the first 20 ms (the contact moment reaches the root gauge
+#: only through the link's inertia and hub spring; detection came at 28-32 ms, from the link-3 residual,
+#: as link 3); with larger gains the damper's answer to the impact strain decelerates the joints at once,
+#: which the model sees. Chosen on tuning seeds 5000+ (20 s identification and residual per payload,
+#: thresholds per payload, contacts at 300 / 400 g): (400, 800) still misses link 2 (0.76 / 0.82 of the
+#: threshold); (500, 800) 10.5 / 8.0 ms; (500, 1600) 7.5 / 6.5 ms with the collision-free peaks at most
+#: 0.74 of the thresholds; (600, 1200), (700, 800) 0.79-0.81; (1000, 800) 0.97; (1000, 1600) over
+#: (docs/benchmarks.md, "Collision detection on the soft plant").
+SOFT_COLLISION_K_EPS = (0.0, 500.0, 1600.0)
 
 
 @dataclass(frozen=True)
@@ -57,17 +73,24 @@ class CollisionSetup:
 
     Parameters
     ----------
+    plant : {"soft", "stiff"}
+        ``"soft"``: the lab's default plant (``PlantConfig()``: hub springs, dampers, backlash,
+        two-way coupling) with the damping of ``soft_k_eps``; ``"stiff"``: the former plant
+        (``PlantConfig.stiff(two_way=True)``) with ``k_eps`` and the heavy-payload schedule.
+    soft_k_eps : tuple of float, length 3
+        Proportional damping gains on the soft plant, rad/s per m/m, run with the joint layer's
+        position-loop scale for the law (:data:`SOFT_COLLISION_K_EPS`); ``()``: the layer's own
+        soft gains (``SOFT_GAINS``).
     noise : float
         Strain noise standard deviation, m/m.
     k_i : float
         Observer gain K_I of the momentum residual, 1/s.
     k_eps : tuple of float, length 3
-        Proportional damping gains, rad/s per m/m. ``TWO_WAY_GAINS`` (tuned on experiment 06 at
-        300 g) drive the 400 g arm into bursts of large oscillation during long APRBS runs; these
-        were tuned for the smallest collision-free residual over 0-400 g on tuning seeds (stiff
-        plants). On the soft default plant the joint layer's own proportional configuration is
-        used instead (``default_damping_config("proportional", plant="soft")``: its gains and its
-        scaled position loop; these gains at the full position gain start limit cycles there).
+        Proportional damping gains on the stiff plant, rad/s per m/m. ``TWO_WAY_GAINS`` (tuned on
+        experiment 06 at 300 g) drive the 400 g arm into bursts of large oscillation during long
+        APRBS runs; these were tuned for the smallest collision-free residual over 0-400 g on
+        tuning seeds. Not used on the soft plant (``soft_k_eps``; these gains at the full position
+        gain start limit cycles there).
     n_window : int
         Window of the damping's static strain filter, samples at 2 kHz (the seed's 0.5 s).
     heavy_from : int
@@ -86,6 +109,8 @@ class CollisionSetup:
         Corner of the high-pass on the detection residual, Hz (0: off).
     """
 
+    plant: str = "soft"
+    soft_k_eps: tuple = SOFT_COLLISION_K_EPS
     noise: float = 2e-6
     k_i: float = DEFAULT_K_I
     k_eps: tuple = (0.0, 800.0, 3200.0)
@@ -97,6 +122,12 @@ class CollisionSetup:
     detect_decoupled: bool = False
     input_lag_s: float = 0.0
     detect_highpass_hz: float = 0.0
+
+    def __post_init__(self):
+        if self.plant not in PLANTS:
+            raise ValueError(f"plant: expected one of {PLANTS}, got {self.plant!r}")
+        if len(self.soft_k_eps) not in (0, 3):
+            raise ValueError(f"soft_k_eps: expected 3 gains or (), got {self.soft_k_eps!r}")
 
     def params(self) -> dict:
         """The setup as JSON values (part of every task's key).
@@ -135,14 +166,16 @@ def make_arm(setup: CollisionSetup, plates: int, theta0, *, seed: int, obstacles
         Its controller.
     """
     p = load_robot_params()
-    cfg = PlantConfig(two_way=two_way, strain_noise_m_m=setup.noise, noise_seed=seed)
+    make_cfg = PlantConfig if setup.plant == "soft" else PlantConfig.stiff
+    cfg = make_cfg(two_way=two_way, strain_noise_m_m=setup.noise, noise_seed=seed)
     arm = ElasticArm(theta0, payload=Payload.from_parts(p, plates=plates), params=p, config=cfg,
                      obstacles=obstacles)
     ca = ControlledArm(arm, v_max=V_ID_RAD_S, a_max=A_ID_RAD_S2)
     heavy = plates >= setup.heavy_from
     k, nw = (setup.heavy_k_eps, setup.heavy_n_window) if heavy else (setup.k_eps, setup.n_window)
-    if arm.gain_set == "soft":     # the joint layer's proportional law for the soft plant (gains, PD scale)
-        dcfg = default_damping_config("proportional", plant="soft", n_window=nw)
+    if arm.gain_set == "soft":     # the joint layer's proportional law for the soft plant (its PD scale)
+        gains = {"k_eps": tuple(float(x) for x in setup.soft_k_eps)} if setup.soft_k_eps else {}
+        dcfg = default_damping_config("proportional", plant="soft", n_window=nw, **gains)
     else:
         dcfg = DampingConfig(law="proportional", k_eps=tuple(float(x) for x in k), n_window=nw)
     ca.set_damper(StrainDamper(dcfg, arm.measured_strain(), cfg.dt))
