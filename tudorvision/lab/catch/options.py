@@ -121,8 +121,9 @@ class DemoOptions:
         fit, 96 mm at 6.8 m). Must exceed the disc's distance for the calibration sweep. The package's
         :data:`~tudorvision.sensors.KINECT_RANGE_M` (0.6-6 m, the fit's range) is unchanged.
     calibration_frames_per_pose : int
-        Depth frames per pose of the calibration sweep (theta2 every 10 deg; the vertical posture gets six
-        times as many): at 6.8 m one disc centre has about 1 cm of noise, four frames per pose average it.
+        Depth frames per pose of the calibration sweep (theta2 10-170 deg every 10 deg,
+        :data:`~tudorvision.lab.catch.calibration.SWEEP_THETA2_DEG`; the vertical posture gets six times as
+        many): at 6.8 m one disc centre has about 1.2 cm of depth noise, eight frames per pose average it.
     calibration_method : str
         ``"seed+deflection"`` (default): the seed's sweep construction, then its in-plane angle and origin
         fitted to the agent's learnt deflection model (:func:`~tudorvision.lab.catch.calibration.refine_in_plane`;
@@ -189,7 +190,7 @@ class DemoOptions:
     camera_distance_m: float = 6.8
     camera_height_m: float = 2.0
     camera_max_depth_m: float = 8.0
-    calibration_frames_per_pose: int = 4
+    calibration_frames_per_pose: int = 8
     calibration_method: str = "seed+deflection"
     true_calibration: bool = False
     calibration_seed: int = 0
