@@ -92,7 +92,7 @@ class PipelineOptions:
         Stereo consistency of the apparent radii (issue 15): once a sphere's
         centre is triangulated, its fitted circle radii must agree between
         the cameras up to their ``f / Z`` (:func:`~tudorvision.stereo.stereo_radius.radius_ratio`),
-        within this log ratio (0.12: 13 %) and 0.75 px. When they do not
+        within this log ratio (0.12: 13 %) or 1.5 px. When they do not
         (one view took part of the sphere: a link across it, a background of
         its colour), the view with the smaller radius is measured again on
         the sphere's chroma edge from the radius the other view predicts
@@ -423,7 +423,7 @@ class StereoPipeline:
             small = "left" if rho < 1.0 else "right"
             big = "right" if small == "left" else "left"
             want = predicted_radius_px(p, r[big], f[big], f[small], stereo.R, stereo.T, this=small)
-            if abs(want - r[small]) <= 0.75:
+            if abs(want - r[small]) <= 1.5:    # below that, radius noise of a small sphere's rim (seeds 0, 1)
                 continue
             # most often the smaller view took part of the sphere; else the larger one took some background
             for bad, other in ((small, big), (big, small)):
