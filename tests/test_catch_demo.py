@@ -435,6 +435,7 @@ def test_wall_camera_reaches_the_arm_from_behind_the_thrower(tmp_path):
     world = CatchScenario(o, p, np.deg2rad([0.0, 90.0, 0.0]))
     assert world.depth_sensor == sensor
     T, rep = wall_camera_transform(o, p, world.T_base_cam, verbose=False)
+    assert rep["cached"]            # the default placement's calibration is shipped (package data), not rendered
     assert rep["skipped_frames"] == 0 and rep["frames"] == 17 * 8 + 48          # theta2 10-170 deg, 8 frames each
     assert rep["position_error_m"] < 0.01 and rep["rotation_error_deg"] < 0.25 and rep["error_at_arm_m"] < 0.01
     assert rep["rotation_error_deg"] < rep["seed_method"]["rotation_error_deg"] - 0.1     # the lean removed

@@ -14,7 +14,8 @@ lab clicks the projected disc centre) reach perception. The true transform is
 used afterwards, lab side, to report the calibration's error.
 
 A calibration depends only on the camera placement and the sweep's seed, not
-on the throws: it is cached in memory and as JSON in ``DemoOptions.cache_dir``.
+on the throws: it is cached in memory and as JSON in ``DemoOptions.cache_dir``; the default
+placement's is shipped in ``tudorvision/catch/data`` (:func:`ship_calibration`).
 """
 from __future__ import annotations
 
@@ -25,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["wall_camera_position_world", "calibrate_wall_camera", "wall_depth_sensor", "refine_in_plane",
-           "WALL_CAMERA_AIM_HEIGHT_M", "CALIBRATION_METHODS", "SWEEP_THETA2_DEG"]
+           "WALL_CAMERA_AIM_HEIGHT_M", "CALIBRATION_METHODS", "SWEEP_THETA2_DEG", "ship_calibration"]
 
 #: ``DemoOptions.calibration_method``: the seed's sweep construction alone, or refined in the sweep plane
 #: with the agent's learnt deflection model (:func:`refine_in_plane`).
@@ -204,6 +205,52 @@ def refine_in_plane(T_base_cam, centres_cam, theta_rad, deflection, payload_kg: 
                     "in_plane_rmse_m": float(np.sqrt(np.mean(res ** 2))), "points": int(use.sum())}
 
 
+def _packaged_path(key: str) -> Path:
+    from ..data_collection import PACKAGED_DIR
+
+    return PACKAGED_DIR / f"wall_calibration_{key}.npz"
+
+
+def _packaged(key: str):
+    """The calibration shipped with the package for this key (the default placement), or None."""
+    path = _packaged_path(key)
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {"T_base_cam": z["T_base_cam"].tolist(), "T_base_cam_seed": z["T_base_cam_seed"].tolist(),
+                    "report": json.loads(str(z["report_json"]))}
+    except (OSError, ValueError, KeyError):
+        return None
+
+
+def ship_calibration(cache_file) -> Path:
+    """Copy a cached calibration (``wall_calibration_<key>.json`` in a ``cache_dir``) into the package data.
+
+    For maintainers: the default placement's calibration is shipped, so that ``make demo`` and a fresh
+    checkout read it instead of rendering and tracking the 184-frame sweep (the key names the sweep, its
+    seed, the sensor range, the method and the kinematics; any change gives a new key).
+
+    Parameters
+    ----------
+    cache_file : str or Path
+        A cache file written by :func:`calibrate_wall_camera`.
+
+    Returns
+    -------
+    Path
+        The written ``tudorvision/catch/data/wall_calibration_<key>.npz``.
+    """
+    src = Path(cache_file)
+    entry = json.loads(src.read_text())
+    key = src.stem.removeprefix("wall_calibration_")
+    path = _packaged_path(key)
+    np.savez(path, T_base_cam=np.asarray(entry["T_base_cam"], float),
+             T_base_cam_seed=np.asarray(entry["T_base_cam_seed"], float),
+             report_json=np.array(json.dumps(entry["report"], sort_keys=True)))
+    return path
+
+
 def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) -> tuple[np.ndarray, dict]:
     """``T_base_cam`` of the demo's wall camera from a simulated disc sweep, and its error against the truth.
 
@@ -266,6 +313,8 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
             cached = json.loads(path.read_text())
         except (OSError, ValueError):
             cached = None
+    if cached is None:
+        cached = _packaged(key)
     if cached is not None:
         T = np.asarray(cached["T_base_cam"], float)
         rep = dict(cached["report"])
