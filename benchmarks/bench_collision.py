@@ -162,7 +162,8 @@ def main(argv=None):
         ap.error(f"--strategies: unknown {bad}; expected some of {list(STRATEGIES)}")
     a.per_payload_thresholds = not a.pooled_thresholds
     soft_k = (0.0, *map(float, a.soft_k_eps)) if any(a.soft_k_eps) else ()
-    setup = CollisionSetup(plant=a.plant, soft_k_eps=soft_k, noise=a.noise, k_i=a.k_i, k_eps=(0.0, *map(float, a.k_eps)), n_window=a.n_window,
+    setup = CollisionSetup(plant=a.plant, soft_k_eps=soft_k, noise=a.noise, k_i=a.k_i,
+                           k_eps=(0.0, *map(float, a.k_eps)), n_window=a.n_window,
                            heavy_from=a.heavy_from, heavy_k_eps=(0.0, *map(float, a.heavy_k_eps)),
                            heavy_n_window=a.heavy_n_window, isolation_window_s=a.isolation_window,
                            detect_decoupled=a.detect_decoupled, input_lag_s=a.input_lag,
@@ -348,8 +349,9 @@ def _markdown(rep, path):
              , "", "Per-payload thresholds (max of own and pooled 6 sigma) used: "
              f"{json.dumps(rep.get('thresholds_per_payload_um_m')) if rep.get('per_payload_thresholds') else 'no'}.",
              "", f"Plant {rep.get('plant', 'stiff')}; damping k_eps "
-             f"{rep['soft_k_eps'] if rep.get('plant') == 'soft' else rep['k_eps']}, static-filter window {rep.get('n_window', 1000)}; heavy payloads "
-             f"{json.dumps(rep.get('heavy'))}; isolation window {rep.get('isolation_window_s')} s on "
+             + (f"{rep['soft_k_eps']} (layer's position-loop scale)" if rep.get('plant') == 'soft' else
+                f"{rep['k_eps']}, heavy payloads {json.dumps(rep.get('heavy'))}")
+             + f", static-filter window {rep.get('n_window', 1000)}; isolation window {rep.get('isolation_window_s')} s on "
              f"{'r3 - c(m) r2, coupling ' + json.dumps(rep.get('coupling')) if rep.get('decouple') else 'r3'}.", "",
              "Validation fit (B.4): " + json.dumps(
                  rep["identification"]["validation"]), "",
