@@ -45,6 +45,7 @@ Run::
     .venv/bin/python benchmarks/bench_catch.py [--min-crossing 200] [--throws-render 30] [--seed 0] [--skip-rigid]
                                                [--skip-true]
     .venv/bin/python benchmarks/bench_catch.py --sessions-throws 1920 --peer-throws 480 --seed 0 [--plant stiff]
+                                               [--camera-distance-m 5.8]    # default 6.8: behind the thrower
     .venv/bin/python benchmarks/bench_catch.py --latency-only      # part 3b alone, about a minute
 
 ``--latency-only`` renders a few throws first, then times each stage per

@@ -247,7 +247,7 @@ def ship_calibration(cache_file) -> Path:
     path = _packaged_path(key)
     np.savez(path, T_base_cam=np.asarray(entry["T_base_cam"], float),
              T_base_cam_seed=np.asarray(entry["T_base_cam_seed"], float),
-             report_json=np.array(json.dumps(entry["report"], sort_keys=True)))
+             report_json=np.array(json.dumps(entry["report"])))        # key order as computed (summary.json)
     return path
 
 
