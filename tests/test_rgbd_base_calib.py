@@ -255,3 +255,33 @@ def test_virtual_lab_disc_scene_has_no_tracking_spheres():
     assert not names & {"red_sphere", "green_sphere", "ee_bar"}
     drawn = set(wall_disc([0.8, 0.0, 0.9], np.random.default_rng(0), arm=geom, draw_spheres=True).scene.object_ids(0.0))
     assert {"red_sphere", "green_sphere"} <= drawn
+
+
+def test_refine_sweep_in_plane_recovers_a_tilted_frame_and_drops_an_outlier():
+    """A calibration off by a rotation about base y and a shift is pulled back onto the model's
+    end-effector positions; a disc centre 10 cm off is dropped; the circle plane is untouched."""
+    from tudorvision.rgbd.base_calib import refine_sweep_in_plane
+
+    rng = np.random.default_rng(7)
+    th = np.radians([[0.0, a, 0.0] for a in np.arange(10.0, 171.0, 10.0)])
+
+    def model(t23, m):          # reach and height of a sagging arm (any smooth curve will do)
+        return np.stack([0.8 * np.cos(t23[:, 0]), 0.3 + 0.8 * np.sin(t23[:, 0]) - 0.01 * np.cos(t23[:, 0]) ** 2],
+                        axis=1)
+
+    rz = model(th[:, 1:], 0.0)
+    p_base = np.stack([rz[:, 0], np.zeros(len(rz)), rz[:, 1]], axis=1) + rng.normal(0.0, 0.001, (len(rz), 3))
+    p_base[4] += [0.1, 0.0, 0.0]                                   # one bad disc centre
+    T_base_cam = np.eye(4)                                         # camera frame = base frame
+    c, s = np.cos(np.radians(0.8)), np.sin(np.radians(0.8))
+    T_off = np.eye(4)
+    T_off[:3, :3] = [[c, 0, s], [0, 1, 0], [-s, 0, c]]
+    T_off[:3, 3] = [0.01, 0.0, -0.02]
+    T_ref, info = refine_sweep_in_plane(T_off @ T_base_cam, p_base, th, model)
+    assert info["points"] == len(rz) - 1
+    assert abs(abs(info["in_plane_rotation_deg"]) - 0.8) < 0.05
+    assert np.allclose(T_ref[:3, :3], np.eye(3), atol=1e-3)
+    assert np.allclose(T_ref[:3, 3], 0.0, atol=2e-3)
+    assert info["in_plane_rmse_m"] < 0.003
+    with pytest.raises(ValueError, match="centres_cam"):
+        refine_sweep_in_plane(T_off, np.full((5, 3), np.nan), th[:5], model)

@@ -25,11 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["wall_camera_position_world", "calibrate_wall_camera", "wall_depth_sensor", "refine_in_plane",
+__all__ = ["wall_camera_position_world", "calibrate_wall_camera", "wall_depth_sensor",
            "WALL_CAMERA_AIM_HEIGHT_M", "CALIBRATION_METHODS", "SWEEP_THETA2_DEG", "ship_calibration"]
 
 #: ``DemoOptions.calibration_method``: the seed's sweep construction alone, or refined in the sweep plane
-#: with the agent's learnt deflection model (:func:`refine_in_plane`).
+#: with the agent's learnt deflection model (:func:`tudorvision.rgbd.base_calib.refine_sweep_in_plane`).
 CALIBRATION_METHODS = ("seed", "seed+deflection")
 #: The calibration sweep's theta2 poses, degrees. 10-170 deg: at 6.9 m the disc's depth in the horizontal
 #: poses (0 and 180 deg, the disc 29 cm above the base plate) came out 4-23 mm too far (a tilt of the
@@ -121,90 +121,6 @@ def _errors(T_est, T_true):
     return {"position_error_m": pos, "rotation_error_deg": rot, "error_at_arm_m": at_arm}
 
 
-def _fit_plane_2d(a, b):
-    """Rotation (2, 2) and translation (2,) with ``b ~ R a + t`` (2D Kabsch)."""
-    ca, cb = a.mean(axis=0), b.mean(axis=0)
-    U, _, Vt = np.linalg.svd((a - ca).T @ (b - cb))
-    R = Vt.T @ np.diag([1.0, np.sign(np.linalg.det(Vt.T @ U.T))]) @ U.T
-    return R, cb - R @ ca
-
-
-def refine_in_plane(T_base_cam, centres_cam, theta_rad, deflection, payload_kg: float = 0.0):
-    """Refine a sweep calibration's in-plane angle and origin with the arm's learnt deflection model.
-
-    The seed's construction (:func:`tudorvision.rgbd.base_calib.base_frame_from_theta2_sweep`) takes z
-    from the circle centre to the disc in the vertical posture [0, 90, 0] deg. The elastic arm does not
-    stand exactly vertical there (the lab's arm leans 6.5 mm, 0.45 deg, at the disc), so that z leans with
-    it, and over the 2-6 m a ball is extrapolated a 0.45 deg tilt of gravity moves the predicted crossing
-    by centimetres. Here the disc centres, mapped into the base frame by ``T_base_cam``, are fitted in the
-    sweep plane (a rotation about base y and a shift in x and z, 2D Kabsch, points beyond three robust
-    sigmas dropped once) to the end-effector positions the agent's own data-based kinematics predict at
-    the sweep's joint angles (:class:`tudorvision.catch.kinematics.DeflectionModel`, the model its
-    inverse kinematics use). The circle plane (base y) is kept from ``T_base_cam``.
-
-    Parameters
-    ----------
-    T_base_cam : array_like, shape (4, 4)
-        The sweep calibration (``p_base = T_base_cam @ p_cam``), base-plate origin.
-    centres_cam : array_like, shape (N, 3)
-        Measured disc centres, metres, camera frame; NaN rows are skipped.
-    theta_rad : array_like, shape (N, 3)
-        Joint angles per frame, rad (theta1 = 0 in the sweep).
-    deflection : callable
-        ``deflection(theta23 (N, 2), payload_kg) -> (N, 2)`` reach and height of the deflected end
-        effector, metres (a :class:`~tudorvision.catch.kinematics.DeflectionModel`).
-    payload_kg : float
-        Payload added to the end-effector mount during the sweep, kg.
-
-    Returns
-    -------
-    T_base_cam : ndarray, shape (4, 4)
-        The refined transform.
-    info : dict
-        ``in_plane_rotation_deg`` (the correction), ``in_plane_rmse_m`` (residual against the model),
-        ``points`` used.
-
-    Raises
-    ------
-    ValueError
-        Fewer than three measured centres.
-
-    Examples
-    --------
-    >>> th = np.radians([[0, a, 0] for a in (0.0, 45.0, 90.0, 135.0, 180.0)])
-    >>> model = lambda t23, m: np.stack([0.8 * np.cos(t23[:, 0]), 0.3 + 0.8 * np.sin(t23[:, 0])], axis=1)
-    >>> rz = model(th[:, 1:], 0.0)
-    >>> pts = np.stack([rz[:, 0], np.zeros(5), rz[:, 1]], axis=1)       # camera frame = base frame here
-    >>> c, s = np.cos(np.radians(0.5)), np.sin(np.radians(0.5))
-    >>> T0 = np.eye(4); T0[:3, :3] = [[c, 0, s], [0, 1, 0], [-s, 0, c]]  # a calibration 0.5 deg off about y
-    >>> T, info = refine_in_plane(T0, pts, th, model)
-    >>> bool(np.allclose(T, np.eye(4), atol=1e-9)), round(abs(info["in_plane_rotation_deg"]), 3)
-    (True, 0.5)
-    """
-    T0 = np.asarray(T_base_cam, float)
-    pc = np.asarray(centres_cam, float)
-    th = np.asarray(theta_rad, float)
-    ok = np.all(np.isfinite(pc), axis=1)
-    if ok.sum() < 3:
-        raise ValueError(f"refine_in_plane: expected at least 3 measured disc centres, got {int(ok.sum())}")
-    pb = pc[ok] @ T0[:3, :3].T + T0[:3, 3]
-    rz = np.asarray(deflection(th[ok, 1:], payload_kg), float)
-    a, b = pb[:, [0, 2]], rz
-    use = np.ones(len(a), bool)
-    for _ in range(2):
-        R, t = _fit_plane_2d(a[use], b[use])
-        res = np.linalg.norm(a @ R.T + t - b, axis=1)
-        scale = 1.4826 * float(np.median(res[use])) + 1e-9
-        use = res <= 3.0 * scale
-    R, t = _fit_plane_2d(a[use], b[use])
-    C = np.eye(4)
-    C[np.ix_([0, 2], [0, 2])] = R
-    C[[0, 2], 3] = t
-    res = np.linalg.norm(a[use] @ R.T + t - b[use], axis=1)
-    return C @ T0, {"in_plane_rotation_deg": float(np.degrees(np.arctan2(R[1, 0], R[0, 0]))),
-                    "in_plane_rmse_m": float(np.sqrt(np.mean(res ** 2))), "points": int(use.sum())}
-
-
 def _packaged_path(key: str) -> Path:
     from ..data_collection import PACKAGED_DIR
 
@@ -267,7 +183,7 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
     deflection : callable, optional
         The agent's learnt deflection model (:class:`~tudorvision.catch.kinematics.DeflectionModel`); with
         ``options.calibration_method == "seed+deflection"`` (default) the seed's frame is refined in the
-        sweep plane against it (:func:`refine_in_plane`). Must be the model of ``options.collection`` on
+        sweep plane against it (:func:`~tudorvision.rgbd.base_calib.refine_sweep_in_plane`). Must be the model of ``options.collection`` on
         ``options.plant`` (the cache key names those).
 
     Returns
@@ -279,7 +195,7 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
         above the base mapped through the calibrated against the true transform), ``circle_rmse_m``,
         ``circle_radius_m``, ``frames``, ``skipped_frames``, ``sweep_camera_offset_m`` (sweep
         camera against the throws' camera; 0 up to rounding), ``method``, ``seed_method`` (the errors of the
-        seed's construction alone, before :func:`refine_in_plane`), ``in_plane_rotation_deg``, ``cached`` (bool).
+        seed's construction alone, before the refinement), ``in_plane_rotation_deg``, ``cached`` (bool).
 
     Raises
     ------
@@ -287,7 +203,7 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
         When the sweep's camera does not stand where the throws' does, or the disc is lost.
     """
     from ..._checks import TudorVisionError
-    from ...rgbd.base_calib import base_frame_from_theta2_sweep
+    from ...rgbd.base_calib import base_frame_from_theta2_sweep, refine_sweep_in_plane
     from ...rgbd.disc3d import Disc3DOptions
     from ...rgbd.disc_track import track_disc_sweep
     from ...rgbd.frames import Intrinsics
@@ -347,7 +263,7 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
            "calibration_seed": int(options.calibration_seed), "method": method}
     T_seed = np.asarray(T, float)
     if method == "seed+deflection":
-        T, info = refine_in_plane(T_seed, pts, sweep.theta_rad, deflection, payload_kg=0.0)
+        T, info = refine_sweep_in_plane(T_seed, pts, sweep.theta_rad, deflection, payload_kg=0.0)
         rep.update(info)
     entry = {"T_base_cam": np.asarray(T, float).tolist(), "T_base_cam_seed": T_seed.tolist(), "report": rep}
     _MEMORY[key] = entry

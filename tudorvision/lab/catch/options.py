@@ -126,7 +126,7 @@ class DemoOptions:
         many): at 6.8 m one disc centre has about 1.2 cm of depth noise, eight frames per pose average it.
     calibration_method : str
         ``"seed+deflection"`` (default): the seed's sweep construction, then its in-plane angle and origin
-        fitted to the agent's learnt deflection model (:func:`~tudorvision.lab.catch.calibration.refine_in_plane`;
+        fitted to the agent's learnt deflection model (:func:`~tudorvision.rgbd.base_calib.refine_sweep_in_plane`;
         the arm's vertical posture leans 0.45 deg); ``"seed"``: the seed's construction alone.
     true_calibration : bool
         Give the agent the true camera-to-base transform instead of the one calibrated from the
