@@ -170,3 +170,24 @@ def test_serve_model_errors_are_one_line_and_name_the_file(tmp_path, capsys, cas
     assert len(err.splitlines()) == 1
     named = {"wrong_shape": "chi.npy", "not_npy": "x.npy", "missing": "absent.npy", "kinematic": "--core sim"}[case]
     assert named in err
+
+
+def test_collision_model_folder_whose_gains_differ_from_the_served_layer_is_named(tmp_path):
+    import json
+
+    from tudorvision.cli.joint import collision_model_mismatch
+    from tudorvision.joint.damping_gains import SOFT_GAINS
+
+    meta = tmp_path / "collision.json"
+    meta.write_text(json.dumps({"plant": "soft", "soft_k_eps": [0.0, 500.0, 1600.0]}))
+    note = collision_model_mismatch(str(meta))
+    assert note is not None and "(0.0, 500.0, 1600.0)" in note and "collision.json" in note
+    meta.write_text(json.dumps({"plant": "soft", "soft_k_eps": list(SOFT_GAINS["proportional"])}))
+    assert collision_model_mismatch(str(meta)) is None
+    meta.write_text(json.dumps({"plant": "stiff", "k_eps": [0.0, 800.0, 3200.0]}))
+    assert "'stiff' plant" in collision_model_mismatch(str(meta))
+    meta.write_text("{not json")                                      # hostile file: no crash, no claim
+    assert collision_model_mismatch(str(meta)) is None
+    meta.write_text(json.dumps([1, 2, 3]))
+    assert collision_model_mismatch(str(meta)) is None
+    assert collision_model_mismatch(str(tmp_path / "absent.json")) is None

@@ -228,6 +228,9 @@ def _core_options(args) -> dict:
         cp = os.path.join(d, "coupling.npy")
         if os.path.exists(cp):
             opts["collision_coupling"] = ResidualCoupling(*_load_npy(cp, "--collision-model", (3,)))
+        note = collision_model_mismatch(os.path.join(d, "collision.json"))
+        if note:
+            print(f"warning: --collision-model: {note}", file=sys.stderr)
     if args.damping_model:
         opts["damping_model"] = StrainDynamicsModel(
             chi=_load_npy(args.damping_model, "--damping-model", chi_shape))
@@ -493,3 +496,46 @@ def _wait_with_progress(joints, target, args, recording=None):
                 print(_status_line(now - t0, st, target, _oscillation_mm(history, mm_per_strain)), flush=True)
                 next_line = now + args.progress
         time.sleep(max(0.0, min(0.02, deadline - time.monotonic())))
+
+
+def collision_model_mismatch(meta_path) -> str | None:
+    """Why a collision model folder's thresholds may not fit the served soft arm, or None.
+
+    The thresholds hold for the plant and the damping gains they were identified with
+    (``collision.json`` of ``benchmarks/bench_collision.py``: ``plant``, ``soft_k_eps``). The
+    ``sim`` core runs the soft default plant with the layer's own proportional gains
+    (:data:`tudorvision.joint.damping_gains.SOFT_GAINS`); a model identified on another plant or
+    with other gains detects later or raises false alarms. A missing or unreadable file says nothing.
+
+    Parameters
+    ----------
+    meta_path : str
+        The folder's ``collision.json``.
+
+    Returns
+    -------
+    str or None
+        A one-line reason, or None when the file is absent, unreadable or matches.
+    """
+    import json
+
+    from ..joint.damping_gains import SOFT_GAINS
+    try:
+        with open(meta_path, encoding="utf-8") as f:
+            meta = json.load(f)
+        plant = meta.get("plant")
+        gains = meta.get("soft_k_eps")
+    except (OSError, ValueError, AttributeError):
+        return None
+    layer = tuple(float(g) for g in SOFT_GAINS["proportional"])
+    if plant is not None and plant != "soft":
+        return (f"{meta_path} was identified on the {plant!r} plant; the sim core is the soft plant "
+                f"(expect false alarms or late detection)")
+    try:
+        model = tuple(float(g) for g in gains)
+    except (TypeError, ValueError):
+        return None
+    if plant == "soft" and model != layer:
+        return (f"{meta_path}: thresholds identified with damping gains {model}; the served layer damps "
+                f"with {layer} (the link-2 contact is then detected late)")
+    return None
