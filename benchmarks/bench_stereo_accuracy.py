@@ -36,11 +36,13 @@ Run::
     .venv/bin/python benchmarks/bench_stereo_accuracy.py --seeds 0 1 2
 
 (``--image-ext .jpg`` renders JPEG frames, the lab's default, instead of
-lossless PNG; ``--workdir`` keeps the renders between runs.)
+lossless PNG; ``--workdir`` keeps the renders between runs, keyed by a hash of
+the lab's sources, so a changed lab renders anew.)
 """
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
 import platform
@@ -75,8 +77,34 @@ def _inliers_px(e):
     return e[np.isfinite(e) & (e <= GROSS_PX)]
 
 
+#: the sources a recording depends on; the render cache is keyed by their content
+LAB_SOURCES = ("tudorvision/sim", "tudorvision/robot", "tudorvision/sensors.py", "tudorvision/lab/record.py",
+               "tudorvision/lab/simulation.py")
+
+
+def lab_fingerprint(root: str = os.path.join(HERE, "..")) -> str:
+    """Short hash (12 hex digits) of the lab's sources and data under ``root`` (see ``LAB_SOURCES``).
+
+    Renders cached under an older lab (e.g. before the soft plant became the
+    default, 3f152f5: every static pose sags 2-12 mm more) must not be scored
+    as the current lab's.
+    """
+    h = hashlib.sha1()
+    for rel in LAB_SOURCES:
+        base = Path(root) / rel
+        if not base.exists():
+            raise FileNotFoundError(f"lab source {rel} not under {root}")
+        files = sorted(base.rglob("*")) if base.is_dir() else [base]
+        for f in files:
+            if f.is_file() and "__pycache__" not in f.parts:
+                h.update(f.relative_to(root).as_posix().encode())
+                h.update(f.read_bytes())
+    return h.hexdigest()[:12]
+
+
 def render(workdir: Path, kind: str, seed: int, ext: str, rolling: bool, frames) -> Path:
-    name = f"{kind}{'-rs' if rolling else ''}_seed{seed}{ext.replace('.', '_')}" + (f"_{frames}" if frames else "")
+    name = (f"{kind}{'-rs' if rolling else ''}_seed{seed}{ext.replace('.', '_')}" + (f"_{frames}" if frames else "")
+            + f"_lab{lab_fingerprint()}")
     out = workdir / name
     if not (out / "sequence.yaml").is_file():
         t0 = time.perf_counter()
