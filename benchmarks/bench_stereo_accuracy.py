@@ -42,6 +42,7 @@ the lab's sources, so a changed lab renders anew.)
 from __future__ import annotations
 
 import argparse
+import functools
 import hashlib
 import json
 import os
@@ -102,9 +103,15 @@ def lab_fingerprint(root: str = os.path.join(HERE, "..")) -> str:
     return h.hexdigest()[:12]
 
 
+@functools.lru_cache(maxsize=1)
+def _this_lab() -> str:
+    """:func:`lab_fingerprint` of this checkout, read once per run (not once per recording)."""
+    return lab_fingerprint()
+
+
 def render(workdir: Path, kind: str, seed: int, ext: str, rolling: bool, frames) -> Path:
     name = (f"{kind}{'-rs' if rolling else ''}_seed{seed}{ext.replace('.', '_')}" + (f"_{frames}" if frames else "")
-            + f"_lab{lab_fingerprint()}")
+            + f"_lab{_this_lab()}")
     out = workdir / name
     if not (out / "sequence.yaml").is_file():
         t0 = time.perf_counter()

@@ -330,7 +330,7 @@ def _peak_centroid(g, peak, j, s0: float, step: float):
     return s0 + step * (0.5 + (w * j).sum(axis=1) / np.where(wsum > 0, wsum, 1.0)), wsum, lo_end, hi_end
 
 
-def _rim_on_feature(feat, fs, centre, r, lo, hi, step, rel, min_inside=None):
+def _rim_on_feature(feat, fs, centre, r, lo, hi, step, rel, min_inside=MIN_INSIDE):
     """:func:`chroma_rim_points` on a feature image from :func:`_chroma_feature` (sphere level ``fs``)."""
     k = 4 * int(np.clip(round(0.25 * math.pi * r), 8, 32))
     ca, sa, offsets, j = _rays(k, 0.5 * (hi - lo) * r, step)
@@ -348,7 +348,7 @@ def _rim_on_feature(feat, fs, centre, r, lo, hi, step, rel, min_inside=None):
     right = np.concatenate([g[:, 1:], np.full((k, 1), np.inf)], axis=1)
     cand = ((g >= left) & (g >= right) & (g >= rel * gmax[:, None]) & (g > 0)
             & (inner - outer >= 0.25 * fs) & (outer < 0.5 * fs)
-            & (inner > (MIN_INSIDE if min_inside is None else min_inside) * fs))
+            & (inner > min_inside * fs))
     has = cand.any(axis=1)
     peak = (ns - 2) - np.argmax(cand[:, ::-1], axis=1)                               # outermost candidate
     pos, wsum, _, _ = _peak_centroid(g, peak, j, s[0], step)

@@ -8,6 +8,7 @@ import numpy as np
 from ...catch.ekf import EKFOptions
 from ...robot import RobotParams
 from ..data_collection import DEMO_COLLECTION, PLANTS, CollectionOptions, plant_config
+from .calibration import CALIBRATION_METHODS
 
 __all__ = ["DemoOptions", "DAMPING_LAWS", "PLANTS", "plant_config", "trained_payload_range_kg"]
 
@@ -211,8 +212,8 @@ class DemoOptions:
         if not 1.0 <= self.camera_distance_m <= 8.0 or not 0.5 <= self.camera_height_m <= 3.0:
             raise ValueError(f"camera_distance_m, camera_height_m: expected 1-8 m and 0.5-3 m, got "
                              f"{self.camera_distance_m}, {self.camera_height_m}")
-        if self.calibration_method not in ("seed", "seed+deflection"):
-            raise ValueError(f"calibration_method: expected 'seed' or 'seed+deflection', got {self.calibration_method!r}")
+        if self.calibration_method not in CALIBRATION_METHODS:
+            raise ValueError(f"calibration_method: expected one of {CALIBRATION_METHODS}, got {self.calibration_method!r}")
         if not 0.6 < self.camera_max_depth_m <= 10.0:
             raise ValueError(f"camera_max_depth_m: expected 0.6-10 m, got {self.camera_max_depth_m}")
         if int(self.calibration_frames_per_pose) != self.calibration_frames_per_pose \
