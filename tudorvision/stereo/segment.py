@@ -112,6 +112,9 @@ __all__ = ["SegmentParams", "SphereDetection", "hsv_from_bgr", "log_odds_image",
 _CCL = getattr(cv2, "CCL_GRANA", 1)  # block-based 8-connectivity: fastest on sparse masks
 
 _NOTHING = "no pixel above p_seed survives erosion"
+#: In a full-frame search, coarse candidates lighter (area x mean probability) than a valid region already
+#: found divided by this factor are not examined at full resolution: they could not be picked over it.
+_LIGHTER_CANDIDATE = 4.0
 
 
 def _none(reason: str = _NOTHING) -> SphereDetection:
@@ -505,9 +508,11 @@ def _detect_full(frame: FramePlanes, model: ColorModel, params: SegmentParams, b
     coarse = _candidates(lo, params, (0, 0), (frame.width, frame.height), blur, erode=0, scale=step)
     coarse.sort(key=lambda d: d.area_px * d.mean_prob, reverse=True)
     best = []   # the heaviest max_candidates, then further ones (up to 4x) while none is valid
+    heaviest_valid = 0.0
     for k, cand in enumerate(coarse[:4 * params.max_candidates]):
-        if k >= params.max_candidates and any(d.valid and not d.touches_window for d in best):
-            break
+        if heaviest_valid > 0.0 and (k >= params.max_candidates
+                                     or cand.area_px * cand.mean_prob * _LIGHTER_CANDIDATE < heaviest_valid):
+            break   # the rest are lighter still: none of them would be picked over the valid one found
         margin = 2 * step + int(params.erode_radius_px) + 2
         for _ in range(4):  # widen the window until the full-resolution region fits
             roi = _grow_roi(cand.bbox, margin, frame.width, frame.height)
@@ -516,6 +521,8 @@ def _detect_full(frame: FramePlanes, model: ColorModel, params: SegmentParams, b
                 break
             cand = found[0]
         best.extend(found[:1])
+        if found and found[0].valid and not found[0].touches_window:
+            heaviest_valid = max(heaviest_valid, found[0].area_px * found[0].mean_prob)
     best.sort(key=lambda d: (d.valid and not d.touches_window, d.valid, d.area_px * d.mean_prob), reverse=True)
     return best[0] if best else _none()
 

@@ -347,9 +347,10 @@ class CatchAgent:
                          self.payload_est_kg, near=theta_now)
         except ValueError:
             return
-        # the joints overshoot by up to 8 deg on fast moves: a setpoint near the edge of a range tripped the
-        # layer's range fault (1 deg tolerance)
-        th = np.clip(th, self.lims[:, 0] + o.setpoint_margin_rad, self.lims[:, 1] - o.setpoint_margin_rad)
+        # the joints overshoot (joint 2 by up to 8 deg) on fast moves: a setpoint near the edge of a range
+        # tripped the layer's range fault (1 deg tolerance); margins per joint
+        margin = np.asarray(o.setpoint_margin_rad, float)
+        th = np.clip(th, self.lims[:, 0] + margin, self.lims[:, 1] - margin)
         if self.log.setpoint is not None:
             if np.max(np.abs(th - self.log.setpoint)) < o.refine_min_joint_rad:
                 self._pending = False         # nothing worth a new profile

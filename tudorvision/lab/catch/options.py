@@ -55,7 +55,9 @@ class DemoOptions:
         Intercept release threshold (largest in-plane standard deviation), m.
     refine_sigma_factor : float
         A refinement is sent only if the intercept moved more than this many of its current
-        standard deviations (and more than 2 cm); 0: the 2 cm rule alone.
+        standard deviations (and more than 2 cm); 0 (default since the camera stands behind the
+        thrower): the 2 cm rule alone. The 2-sigma rule held back refinements that the better-seen
+        flights made worth sending (the net went to an older estimate, 1-2.5 cm worse than the last).
     refine_min_joint_rad : float
         A refinement whose joint setpoint differs from the last one by less than this in every joint is
         not sent (a new setpoint re-plans the layer's profile, which costs more than it corrects), rad.
@@ -82,9 +84,11 @@ class DemoOptions:
         Control rate of the lockstep joint layer (its over-speed and range checks run every period).
     reach_margin_m : float
         Net targets are kept this far inside full stretch (:func:`~tudorvision.catch.intercept.net_target`).
-    setpoint_margin_rad : float
-        Setpoints are clipped this far inside the joint ranges (the joints overshot by up to
-        8 deg on fast moves, and the layer faults 1 deg outside a range, then cannot clear it).
+    setpoint_margin_rad : float or tuple of 3 floats
+        Setpoints are clipped this far inside the joint ranges, one value or one per joint, rad
+        (joint 2 overshot by up to 8 deg on fast moves, and the layer faults 1 deg outside a
+        range). Default 10, 10, 3 deg: joint 3's 10 deg cut every crossing nearer than 0.58 m to
+        the shoulder (the elbow folded to 92 of its 102 deg), leaving the net 3-5 cm too far out.
     empty_pause_s : float
         Extra pause after the net is emptied, before the payload is weighed again, s.
     net_capacity_balls : int
@@ -167,7 +171,7 @@ class DemoOptions:
     net_radius_m: float = 0.09
     ball_radius_m: float = 0.045
     release_sigma_m: float = 0.1
-    refine_sigma_factor: float = 2.0
+    refine_sigma_factor: float = 0.0
     refine_min_joint_rad: float = float(np.deg2rad(0.5))
     overshoot_tol_rad: float = float(np.deg2rad(0.5))
     mode_f0_hz: float = 2.6
@@ -177,7 +181,7 @@ class DemoOptions:
     accel_fraction: float = 1.0
     layer_rate_hz: float = 500.0
     reach_margin_m: float = 0.05
-    setpoint_margin_rad: float = float(np.deg2rad(10.0))
+    setpoint_margin_rad: float | tuple = tuple(float(x) for x in np.deg2rad([10.0, 10.0, 3.0]))
     empty_pause_s: float = 1.0
     net_capacity_balls: int = 8
     drag_k_per_m: float = 0.012
@@ -216,6 +220,10 @@ class DemoOptions:
             raise ValueError(f"calibration_method: expected one of {CALIBRATION_METHODS}, got {self.calibration_method!r}")
         if not 0.6 < self.camera_max_depth_m <= 10.0:
             raise ValueError(f"camera_max_depth_m: expected 0.6-10 m, got {self.camera_max_depth_m}")
+        margin = np.asarray(self.setpoint_margin_rad, float)
+        if margin.shape not in ((), (3,)) or not np.all(np.isfinite(margin)) or np.any(margin < 0):
+            raise ValueError(f"setpoint_margin_rad: expected one or three angles >= 0, rad, "
+                             f"got {self.setpoint_margin_rad!r}")
         if int(self.calibration_frames_per_pose) != self.calibration_frames_per_pose \
                 or self.calibration_frames_per_pose < 1:
             raise ValueError(f"calibration_frames_per_pose: expected a positive integer, "
