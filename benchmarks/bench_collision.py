@@ -121,6 +121,9 @@ def main(argv=None):
                     help="load the identified model from --out and recompute the thresholds (e.g. for another K_I)")
     ap.add_argument("--reuse", action="store_true",
                     help="load the model and thresholds of an earlier run from --out (skip steps 1-2)")
+    ap.add_argument("--transient-gain", type=float, default=0.0,
+                    help="widen the thresholds by this multiple of the inertial transient after a change of planned "
+                         "acceleration (joint.collision_transient; 0: off)")
     ap.add_argument("--detect-highpass", type=float, default=0.0,
                     help="corner (Hz) of the high-pass on the detection residual; 0: off (the seed's rule)")
     ap.add_argument("--input-lag", type=float, default=0.0,
@@ -167,7 +170,7 @@ def main(argv=None):
                            heavy_from=a.heavy_from, heavy_k_eps=(0.0, *map(float, a.heavy_k_eps)),
                            heavy_n_window=a.heavy_n_window, isolation_window_s=a.isolation_window,
                            detect_decoupled=a.detect_decoupled, input_lag_s=a.input_lag,
-                           detect_highpass_hz=a.detect_highpass)
+                           detect_highpass_hz=a.detect_highpass, transient_gain=a.transient_gain)
     if a.tune_damping:
         for pair in a.tune_damping:
             gains = (0.0, *(float(x) for x in pair.split(",")))
@@ -210,7 +213,8 @@ def _benchmark(a, setup: CollisionSetup, st: _Stages) -> dict:
               "isolation_window_s": setup.isolation_window_s, "detect_decoupled": a.detect_decoupled,
               "per_payload_thresholds": a.per_payload_thresholds,
               "decouple": not a.no_decouple, "k_i": a.k_i,
-              "detect_highpass_hz": a.detect_highpass, "input_lag_s": a.input_lag}
+              "detect_highpass_hz": a.detect_highpass, "input_lag_s": a.input_lag,
+              "transient_gain": a.transient_gain}
     prev = {}
     if a.reuse:
         prev = json.load(open(os.path.join(a.out, "collision.json")))

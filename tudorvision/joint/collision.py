@@ -60,6 +60,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._checks import check_array, check_mass
+from .collision_transient import TransientAllowance
 from .strain_dynamics import StrainDynamicsModel
 
 __all__ = ["STRATEGIES", "MomentumObserver", "thresholds_from_residuals", "isolate",
@@ -174,6 +175,7 @@ class MomentumObserver:
             theta = (0.0, thf[0], thf[1])
             eps2 = ef
         I, dI, cor, g = StrainDynamicsModel.terms(self._chi, theta[2], theta[1], dtheta[1], dtheta[2])
+        self.inertia = I            # I_eps at this sample (the monitor's transient allowance)
         d2, d3 = dtheta[1], dtheta[2]
         p = [I[0, 0] * d2 + I[0, 1] * d3, I[1, 0] * d2 + I[1, 1] * d3]
         f = [eps2[i] - cor[i] - g[i] + (dI[i, 0] * d2 + dI[i, 1] * d3) * d3 for i in range(2)]
@@ -406,6 +408,10 @@ class CollisionMonitor:
     detect_decoupled : bool
         Also flag a collision when the decoupled residual exceeds its
         threshold (needs ``isolation_coupling``); isolation as above.
+    transient_gain : float
+        Detection thresholds widened by this multiple of the inertial transient due after a change
+        of planned acceleration (:class:`~tudorvision.joint.collision_transient.TransientAllowance`);
+        0: fixed thresholds (the seed's rule).
 
     Attributes
     ----------
@@ -426,7 +432,8 @@ class CollisionMonitor:
     def __init__(self, model: StrainDynamicsModel, thresholds, payload_kg: float, dt: float,
                  config: ReactionConfig = ReactionConfig(), *, k_i: float | None = None,
                  isolation_window_s: float = 0.015, armed_after_s: float = 0.0, input_lag_s: float = 0.0,
-                 detect_highpass_hz: float = 0.0, isolation_coupling=None, detect_decoupled: bool = False):
+                 detect_highpass_hz: float = 0.0, isolation_coupling=None, detect_decoupled: bool = False,
+                 transient_gain: float = 0.0):
         if not isolation_window_s >= 0 or not armed_after_s >= 0 or not detect_highpass_hz >= 0:
             raise ValueError(f"isolation_window_s, armed_after_s, detect_highpass_hz: expected >= 0, got "
                              f"{isolation_window_s}, {armed_after_s}, {detect_highpass_hz}")
@@ -443,6 +450,7 @@ class CollisionMonitor:
         self.isolation_window_s = float(isolation_window_s)
         self._window_k = int(round(self.isolation_window_s / float(dt)))
         self.observer = MomentumObserver(model, payload_kg, k_i=k_i, dt=dt, input_lag_s=input_lag_s)
+        self.transient = TransientAllowance(dt, gain=transient_gain) if transient_gain > 0 else None
         self.thresholds = [float(x) for x in check_array(thresholds, "thresholds", (2,), finite=False)]
         self.config = config
         self.dt = float(dt)
@@ -525,8 +533,12 @@ class CollisionMonitor:
             r = [r_full[0] - lp[0], r_full[1] - lp[1]]
         self.residual = [0.0, r[0], r[1]]
         self._k += 1
+        thr = self.thresholds
+        if self.transient is not None:
+            extra_thr = self.transient.step(self.observer.inertia, dtheta_ref)
+            thr = [thr[0] + extra_thr[0], thr[1] + extra_thr[1]]
         if not self.collision and self._k > self._armed_k:
-            link, direction = isolate(r, self.thresholds)
+            link, direction = isolate(r, thr)
             if link is None and self.detect_decoupled:
                 cp = self.isolation_coupling
                 r3d = r[1] - cp.at_payload(self.observer.payload_kg) * r[0]

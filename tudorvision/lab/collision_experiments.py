@@ -107,6 +107,9 @@ class CollisionSetup:
         Lag of the observer's angle and strain inputs, s (0: raw inputs).
     detect_highpass_hz : float
         Corner of the high-pass on the detection residual, Hz (0: off).
+    transient_gain : float
+        Thresholds widened by this multiple of the inertial transient due after a change of planned
+        acceleration (:class:`~tudorvision.joint.collision_transient.TransientAllowance`; 0: off).
     """
 
     plant: str = "soft"
@@ -122,6 +125,7 @@ class CollisionSetup:
     detect_decoupled: bool = False
     input_lag_s: float = 0.0
     detect_highpass_hz: float = 0.0
+    transient_gain: float = 0.0
 
     def __post_init__(self):
         if self.plant not in PLANTS:
@@ -185,6 +189,7 @@ def make_arm(setup: CollisionSetup, plates: int, theta0, *, seed: int, obstacles
 def _monitor(setup: CollisionSetup, model, thr, mass_kg: float, dt: float, reaction, coupling, **kw):
     return CollisionMonitor(model, thr, mass_kg, dt, reaction, k_i=setup.k_i, input_lag_s=setup.input_lag_s,
                             detect_highpass_hz=setup.detect_highpass_hz, isolation_coupling=coupling,
+                            transient_gain=setup.transient_gain,
                             isolation_window_s=setup.isolation_window_s,
                             detect_decoupled=setup.detect_decoupled and coupling is not None, **kw)
 
