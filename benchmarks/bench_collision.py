@@ -121,9 +121,9 @@ def main(argv=None):
                     help="load the identified model from --out and recompute the thresholds (e.g. for another K_I)")
     ap.add_argument("--reuse", action="store_true",
                     help="load the model and thresholds of an earlier run from --out (skip steps 1-2)")
-    ap.add_argument("--transient-gain", type=float, default=0.0,
+    ap.add_argument("--transient-gain", type=float, default=None,
                     help="widen the thresholds by this multiple of the inertial transient after a change of planned "
-                         "acceleration (joint.collision_transient; 0: off)")
+                         "acceleration (joint.collision_transient; 0: off; default 1 on the soft plant, 0 stiff)")
     ap.add_argument("--detect-highpass", type=float, default=0.0,
                     help="corner (Hz) of the high-pass on the detection residual; 0: off (the seed's rule)")
     ap.add_argument("--input-lag", type=float, default=0.0,
@@ -214,7 +214,7 @@ def _benchmark(a, setup: CollisionSetup, st: _Stages) -> dict:
               "per_payload_thresholds": a.per_payload_thresholds,
               "decouple": not a.no_decouple, "k_i": a.k_i,
               "detect_highpass_hz": a.detect_highpass, "input_lag_s": a.input_lag,
-              "transient_gain": a.transient_gain}
+              "transient_gain": setup.transient_gain}
     prev = {}
     if a.reuse:
         prev = json.load(open(os.path.join(a.out, "collision.json")))

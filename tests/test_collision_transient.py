@@ -82,3 +82,26 @@ def test_monitor_ignores_the_transient_of_a_replan_and_still_detects_a_contact_i
     fixed = _run(_monitor(0.0), speed, contact)
     assert fixed == pytest.approx(2.5, abs=0.002)
     assert _run(_monitor(1.0), speed, contact) == pytest.approx(fixed, abs=1e-9)
+
+
+def test_setup_default_gain_follows_the_plant_and_the_served_folder_says_its_gain(tmp_path):
+    from tudorvision._checks import TudorVisionError
+    from tudorvision.cli.joint import collision_transient_gain
+    from tudorvision.joint.collision_transient import SOFT_TRANSIENT_GAIN
+    from tudorvision.lab.collision_experiments import CollisionSetup
+
+    assert CollisionSetup().transient_gain == SOFT_TRANSIENT_GAIN > 0
+    assert CollisionSetup(plant="stiff").transient_gain == 0.0
+    assert CollisionSetup(plant="stiff", transient_gain=0.5).transient_gain == 0.5
+    with pytest.raises(ValueError, match="transient_gain"):
+        CollisionSetup(transient_gain=-1.0)
+    meta = tmp_path / "collision.json"
+    assert collision_transient_gain(str(meta)) == 0.0                      # no file: fixed thresholds
+    meta.write_text('{"plant": "soft"}')
+    assert collision_transient_gain(str(meta)) == 0.0                      # written before the key existed
+    meta.write_text('{"transient_gain": 1.0}')
+    assert collision_transient_gain(str(meta)) == 1.0
+    for bad in ('{"transient_gain": -2}', '{"transient_gain": "x"}', "not json"):
+        meta.write_text(bad)
+        with pytest.raises(TudorVisionError, match="collision.json"):
+            collision_transient_gain(str(meta))

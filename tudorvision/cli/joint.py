@@ -231,6 +231,7 @@ def _core_options(args) -> dict:
         note = collision_model_mismatch(os.path.join(d, "collision.json"))
         if note:
             print(f"warning: --collision-model: {note}", file=sys.stderr)
+        opts["collision_transient_gain"] = collision_transient_gain(os.path.join(d, "collision.json"))
     if args.damping_model:
         opts["damping_model"] = StrainDynamicsModel(
             chi=_load_npy(args.damping_model, "--damping-model", chi_shape))
@@ -496,6 +497,43 @@ def _wait_with_progress(joints, target, args, recording=None):
                 print(_status_line(now - t0, st, target, _oscillation_mm(history, mm_per_strain)), flush=True)
                 next_line = now + args.progress
         time.sleep(max(0.0, min(0.02, deadline - time.monotonic())))
+
+
+def collision_transient_gain(meta_path) -> float:
+    """The transient allowance a collision model folder was evaluated with (``collision.json``), or 0.
+
+    Parameters
+    ----------
+    meta_path : str
+        The folder's ``collision.json`` (``transient_gain``; absent in folders written before it existed).
+
+    Returns
+    -------
+    float
+        The gain, 0 when the file or the key is absent.
+
+    Raises
+    ------
+    TudorVisionError
+        The file is unreadable JSON, or the gain is not a number >= 0 (naming the file).
+    """
+    import json
+    import math
+    import os
+
+    from .._checks import TudorVisionError
+
+    if not os.path.exists(meta_path):
+        return 0.0
+    try:
+        with open(meta_path, encoding="utf-8") as f:
+            gain = json.load(f).get("transient_gain", 0.0)
+        gain = float(0.0 if gain is None else gain)
+    except (OSError, ValueError, TypeError, AttributeError) as e:
+        raise TudorVisionError(f"--collision-model: {meta_path}: transient_gain unreadable ({e})") from None
+    if not (math.isfinite(gain) and gain >= 0):
+        raise TudorVisionError(f"--collision-model: {meta_path}: transient_gain must be a number >= 0, got {gain}")
+    return gain
 
 
 def collision_model_mismatch(meta_path) -> str | None:

@@ -241,6 +241,9 @@ class CascadeCore:
         same collision-free data as the thresholds); isolation then runs on
         the decoupled residual ``r3 - c(m) r2`` with a 20 ms window
         (:class:`tudorvision.joint.collision.CollisionMonitor`).
+    collision_transient_gain : float
+        Thresholds widened after changes of planned acceleration by this multiple of the inertial
+        transient due (:class:`~tudorvision.joint.collision_transient.TransientAllowance`); 0: fixed.
     damping_model : StrainDynamicsModel, optional
         Identified strain-referred dynamics for the model-assisted static
         strain cancellation of the installed damper (``StrainDamper(...,
@@ -259,8 +262,12 @@ class CascadeCore:
     """
 
     def __init__(self, arm: Plant, *, settle_band: float = 15e-6,
-                 collision_model=None, collision_thresholds=None, collision_coupling=None, damping_model=None):
+                 collision_model=None, collision_thresholds=None, collision_coupling=None, damping_model=None,
+                 collision_transient_gain: float = 0.0):
         self.damping_model = damping_model
+        if not collision_transient_gain >= 0:
+            raise ValueError(f"collision_transient_gain: expected >= 0, got {collision_transient_gain!r}")
+        self.collision_transient_gain = float(collision_transient_gain)
         if collision_coupling is not None and collision_model is None:
             raise ValueError("collision_coupling: needs collision_model and collision_thresholds")
         self.collision_coupling = collision_coupling
@@ -334,7 +341,8 @@ class CascadeCore:
                                                strategy, torque_per_strain=root_torque_per_strain(arm.params)),
                                            armed_after_s=0.1 if arm.t < 0.1 else 0.0,   # start-up sag
                                            isolation_coupling=self.collision_coupling,
-                                           isolation_window_s=0.015 if self.collision_coupling is None else 0.02)
+                                           isolation_window_s=0.015 if self.collision_coupling is None else 0.02,
+                                           transient_gain=self.collision_transient_gain)
         self.damping, self.collision = damping, collision
 
     def _damping_config(self, law: str):

@@ -107,9 +107,11 @@ class CollisionSetup:
         Lag of the observer's angle and strain inputs, s (0: raw inputs).
     detect_highpass_hz : float
         Corner of the high-pass on the detection residual, Hz (0: off).
-    transient_gain : float
+    transient_gain : float or None
         Thresholds widened by this multiple of the inertial transient due after a change of planned
-        acceleration (:class:`~tudorvision.joint.collision_transient.TransientAllowance`; 0: off).
+        acceleration (:class:`~tudorvision.joint.collision_transient.TransientAllowance`; 0: off);
+        None: :data:`~tudorvision.joint.collision_transient.SOFT_TRANSIENT_GAIN` on the soft plant, 0 on
+        the stiff one.
     """
 
     plant: str = "soft"
@@ -125,13 +127,19 @@ class CollisionSetup:
     detect_decoupled: bool = False
     input_lag_s: float = 0.0
     detect_highpass_hz: float = 0.0
-    transient_gain: float = 0.0
+    transient_gain: float | None = None
 
     def __post_init__(self):
         if self.plant not in PLANTS:
             raise ValueError(f"plant: expected one of {PLANTS}, got {self.plant!r}")
         if len(self.soft_k_eps) not in (0, 3):
             raise ValueError(f"soft_k_eps: expected 3 gains or (), got {self.soft_k_eps!r}")
+        if self.transient_gain is None:
+            from ..joint.collision_transient import SOFT_TRANSIENT_GAIN
+
+            object.__setattr__(self, "transient_gain", SOFT_TRANSIENT_GAIN if self.plant == "soft" else 0.0)
+        if not self.transient_gain >= 0:
+            raise ValueError(f"transient_gain: expected >= 0, got {self.transient_gain!r}")
 
     def params(self) -> dict:
         """The setup as JSON values (part of every task's key).
