@@ -70,7 +70,7 @@ from tudorvision.stereo import (ColorModelSet, PipelineOptions, SegmentParams, S
                                 TrackerParams, fit_color_model, triangulate_spheres)
 
 BINS = [(3, 5), (5, 8), (8, 15), (15, 30), (30, 80)]
-METHODS = ("ours", "ours, clear views", "seed centroid", "peer HSV", "oracle", "0.25 px bound")
+METHODS = ("ours", "ours, clear views", "ours, known radius", "seed centroid", "peer HSV", "oracle", "0.25 px bound")
 #: "0.25 px bound": the 3D RMS implied by image centres off by exactly the issue's 2D target (isotropic Gaussian
 #: per camera whose median radial error is TARGET_PX), from the triangulation's Jacobian at the true centres.
 PICK_SIGMA_PX = 0.7
@@ -110,7 +110,7 @@ def fit_models(scene, picks):
     return ColorModelSet({cam: {s: models[cam][s] for s in both} for cam in models}), refused
 
 
-def run_ours(scene, cal, models, centroid):
+def run_ours(scene, cal, models, centroid, known_radius=False):
     """{cam: {sphere: uv}}, {sphere: p_left} from one pipeline frame (NaN where not found)."""
     nan2, nan3 = np.full(2, np.nan), np.full(3, np.nan)
     uv = {cam: {s: nan2 for s in SPHERES} for cam in ("left", "right")}
@@ -118,10 +118,12 @@ def run_ours(scene, cal, models, centroid):
     if models is None:
         return uv, p
     seg = SegmentParams(centroid=centroid, edge_refine=scene.params.jpeg_quality is not None)
-    opts = PipelineOptions(tracker=TrackerParams(segment=seg))   # tracking mode, as the CLI: first frame full search
+    opts = PipelineOptions(tracker=TrackerParams(segment=seg),   # tracking mode, as the CLI: first frame full search
+                           sphere_radius_m=scene.params.sphere_radius_m if known_radius else None)
     pipe = StereoPipeline(cal, models, options=opts)
     res = pipe.process(StereoFrame(t=0.0, index=0, left=scene.frames["left"], right=scene.frames["right"]))
-    RADIUS_CHECK[centroid] = [a + b for a, b in zip(RADIUS_CHECK.get(centroid, (0, 0)),
+    key = {"shape": "ours", "moment": "seed centroid"}[centroid] + (", known radius" if known_radius else "")
+    RADIUS_CHECK[key] = [a + b for a, b in zip(RADIUS_CHECK.get(key, (0, 0)),
                                                     (pipe.n_radius_repaired, pipe.n_radius_refused))]
     for s in res.spheres:
         p[s] = np.asarray(res.spheres[s], float)
@@ -148,6 +150,7 @@ def evaluate(scene):
     t0 = time.perf_counter()
     results = {"ours": run_ours(scene, cal, models, "shape")}
     t_ours = time.perf_counter() - t0
+    results["ours, known radius"] = run_ours(scene, cal, models, "shape", known_radius=True)
     results["seed centroid"] = run_ours(scene, cal, models, "moment")
     t0 = time.perf_counter()
     results["peer HSV"] = run_peer(scene, cal)
@@ -276,8 +279,8 @@ def main(argv=None) -> int:
     print(f"render {t_render:.0f} s; tracking (not a speed benchmark: one frame per set-up, model set-up "
           f"included) ours {1e3 * t_ours / args.n:.1f} ms/pair, peer {1e3 * t_peer / args.n:.1f} ms/pair")
     print(f"picks refused by fit_color_model: {len(refusals)} of {4 * args.n}")
-    for centroid, (fixed, refused_n) in RADIUS_CHECK.items():
-        print(f"stereo radius check ({'ours' if centroid == 'shape' else 'seed centroid'}): {fixed} sphere views "
+    for key, (fixed, refused_n) in RADIUS_CHECK.items():
+        print(f"stereo radius check ({key}): {fixed} sphere views "
               f"re-measured, {refused_n} spheres refused (counted as not found)")
     for line in refusals[:12]:
         print("  ", line[:160])

@@ -126,3 +126,21 @@ def test_a_sphere_bleeding_into_a_ground_of_its_colour_is_refused_not_triangulat
 def test_option_is_checked():
     with pytest.raises(TudorVisionError, match="max_radius_mismatch"):
         PipelineOptions(max_radius_mismatch=0.0)
+
+
+def test_known_radius_refuses_a_sphere_both_views_measure_the_same_wrong_size(models):
+    """The true 35 mm passes; told 50 mm (or 25 mm) the same clean views are refused, the other sphere kept."""
+    pipe, res = _run(models, _pair(), sphere_radius_m=R_M)
+    assert res.valid and pipe.n_radius_refused == 0
+    for wrong in (0.050, 0.025):
+        pipe, res = _run(models, _pair(), sphere_radius_m={"green": wrong})
+        assert pipe.n_radius_refused == 1
+        assert not res.detections["left"]["green"].valid
+        assert f"the sphere's is {1e3 * wrong:.1f} mm" in res.detections["right"]["green"].reason
+        assert np.isnan(res.spheres["green"]).all() and res.detections["left"]["red"].valid
+    # within the tolerance (a circle through the boundary pixels' centres reads a little small): accepted
+    _, res = _run(models, _pair(), sphere_radius_m=R_M * 1.1)
+    assert res.detections["left"]["green"].valid
+    for bad in (0.0, -0.03, float("nan"), {"green": 0.0}):
+        with pytest.raises(TudorVisionError, match="sphere_radius_m"):
+            PipelineOptions(sphere_radius_m=bad)

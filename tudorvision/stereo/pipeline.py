@@ -54,6 +54,10 @@ from .triangulate import SphereTriangulation, triangulate_spheres
 __all__ = ["PipelineOptions", "StereoFrameResult", "StereoPipeline"]
 
 _NAN2 = (float("nan"), float("nan"))
+#: Log-ratio tolerance of the known-radius check (``PipelineOptions.sphere_radius_m``): 0.2, 22 %, and at least
+#: 1.5 px (the rim circle of a small sphere reads about 0.7 px small); a circle fitted to an off-axis sphere's
+#: elliptic silhouette reads up to about 7 % large at 30 deg off the axis.
+KNOWN_RADIUS_TOL = 0.2
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -101,6 +105,12 @@ class PipelineOptions:
         ("stereo-inconsistent (radius)") rather than triangulated wrong.
         Only pairs where both views have a fitted circle are checked. None
         disables it.
+    sphere_radius_m : float or dict or None
+        Known metric radius of the spheres (one value, or ``{sphere: radius}``), metres. A sphere whose
+        two views imply another radius (``r Z / f`` per camera, averaged) by more than
+        :data:`KNOWN_RADIUS_TOL` in log ratio and 1.5 px is flagged missing in that frame ("radius ... mm, the
+        sphere's is ... mm"): both views took part of the sphere, or background of its colour, in the
+        same way, which the two-view check above cannot see. None (default) disables it.
     sphere_separation_m : float or None
         Known distance between the sphere centres (two spheres); a frame
         whose triangulated distance differs by more than
@@ -116,6 +126,7 @@ class PipelineOptions:
     max_gap_frames: float = 2.5
     max_epipolar_px: float | None = 6.0
     max_radius_mismatch: float | None = 0.12
+    sphere_radius_m: float | dict | None = None
     sphere_separation_m: float | None = None
     separation_tol_m: float = 0.03
 
@@ -130,6 +141,11 @@ class PipelineOptions:
             raise TudorVisionError(f"max_epipolar_px: must be positive or None, got {self.max_epipolar_px}")
         if self.max_radius_mismatch is not None and not (self.max_radius_mismatch > 0):
             raise TudorVisionError(f"max_radius_mismatch: must be positive or None, got {self.max_radius_mismatch}")
+        radii = self.sphere_radius_m.values() if isinstance(self.sphere_radius_m, dict) else \
+            ([] if self.sphere_radius_m is None else [self.sphere_radius_m])
+        if not all(isinstance(r, (int, float)) and math.isfinite(r) and r > 0 for r in radii):
+            raise TudorVisionError(f"sphere_radius_m: must be positive metres (one or per sphere), "
+                                   f"got {self.sphere_radius_m!r}")
         if self.sphere_separation_m is not None and not (self.sphere_separation_m > 0):
             raise TudorVisionError(f"sphere_separation_m: must be positive or None, got {self.sphere_separation_m}")
         if not (self.separation_tol_m > 0):
@@ -439,6 +455,27 @@ class StereoPipeline:
                 self.n_radius_refused += 1
         return dets
 
+    def _check_known_radius(self, dets: dict, tri: SphereTriangulation) -> dict:
+        """Refuse a sphere whose views imply another metric radius than the known one (``sphere_radius_m``)."""
+        known = self.options.sphere_radius_m
+        if known is None:
+            return dets
+        stereo = self.calibration.stereo
+        for s in self.spheres:
+            R_s = known.get(s) if isinstance(known, dict) else known
+            views = [dets[c][s] for c in ("left", "right")]
+            if R_s is None or not all(d.valid and math.isfinite(d.circle_radius_px) for d in views):
+                continue
+            p = np.asarray(tri.spheres[s][0], float)
+            z = {"left": p[2], "right": float((np.asarray(stereo.R) @ p + np.asarray(stereo.T).reshape(3))[2])}
+            r_m = float(np.mean([dets[c][s].circle_radius_px * z[c] / self._f[c] for c in ("left", "right")]))
+            off_px = np.mean([abs(dets[c][s].circle_radius_px - self._f[c] * float(R_s) / z[c]) for c in z])
+            if r_m > 0 and abs(math.log(r_m / float(R_s))) > KNOWN_RADIUS_TOL and off_px > 1.5:
+                why = f"radius {1e3 * r_m:.1f} mm, the sphere's is {1e3 * float(R_s):.1f} mm"
+                dets = {c: {**dets[c], s: _invalid(dets[c][s], why)} for c in dets}
+                self.n_radius_refused += 1
+        return dets
+
     def _remeasure(self, img, bad: str, other: str, s: str, dets: dict, want: float, r_other: float):
         """The ``bad`` view of sphere ``s`` measured again on its chroma edge at radius ``want``, or None.
 
@@ -544,7 +581,8 @@ class StereoPipeline:
                 why = f"sphere separation {sep:.3f} m, expected {opt.sphere_separation_m:.3f} m"
                 dets = {c: {s: _invalid(d, why) for s, d in dets[c].items()} for c in dets}
         tri = self._triangulate(dets)
-        checked = self._check_radii(dets, {"left": frame.left, "right": frame.right}, tri)
+        checked = self._check_known_radius(self._check_radii(dets, {"left": frame.left, "right": frame.right}, tri),
+                                           tri)
         if checked is not dets:     # a view re-measured or a sphere refused
             dets, tri = checked, self._triangulate(checked)
         for s in self.spheres:
