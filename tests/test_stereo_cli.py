@@ -238,3 +238,17 @@ def test_track_mono_real_video(tmp_path, capsys):
     line = _one_line_error(*_run(capsys, "track", "mono", BALL_VIDEO, "--colormodel", models, "--sphere", "red",
                                  "--out", out)[::2])
     assert "red" in line
+
+
+def test_track_stereo_known_sphere_radius(lab, static_models, tmp_path, capsys):
+    """The lab's 35 mm spheres: the true radius keeps every frame; a wrong one flags every frame; bad input exits 2."""
+    for mm, want_valid in ((35.0, True), (60.0, False)):
+        out = tmp_path / f"r{mm:.0f}.csv"
+        rc, stdout, err = _run(capsys, "track", "stereo", lab["static"], "--colormodel", static_models,
+                               "--out", out, "--sphere-radius-mm", mm)
+        assert rc == (0 if want_valid else 3), err          # 3: written, but no valid frame (a warning says why)
+        valid = read_trajectory_csv(out).valid
+        assert valid.all() == want_valid and valid.any() == want_valid
+    rc, _, err = _run(capsys, "track", "stereo", lab["static"], "--colormodel", static_models,
+                      "--out", tmp_path / "x.csv", "--sphere-radius-mm", "-3")
+    assert "--sphere-radius-mm" in _one_line_error(rc, err)

@@ -6,6 +6,7 @@ frames are skipped, counted and listed, and the partial result is written.
 """
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -75,6 +76,9 @@ def register(subparsers) -> None:
     s.add_argument("--sphere-separation", type=float, default=None, metavar="M",
                    help="known sphere distance in metres; frames whose triangulated distance is off by more "
                         "than 3 cm are flagged invalid (default: from the robot parameters; 0 disables)")
+    s.add_argument("--sphere-radius-mm", type=float, default=None, metavar="MM",
+                   help="known radius of the spheres in mm: a sphere whose two views imply another size (by "
+                        "more than 22 %% and 1.5 px) is flagged missing in that frame (default: no check)")
     s.add_argument("--strict", action="store_true", help="stop at the first corrupt frame instead of skipping it")
     add_sequence_options(s)
     add_luma_edge_argument(s)
@@ -335,10 +339,14 @@ def run_track_stereo(args) -> int:
     sep = _sphere_separation(models) if args.sphere_separation is None else args.sphere_separation
     if sep is not None and sep < 0:
         raise TudorVisionError(f"--sphere-separation: must be a non-negative distance in metres, got {sep}")
+    radius_mm = args.sphere_radius_mm
+    if radius_mm is not None and not (math.isfinite(radius_mm) and radius_mm > 0):
+        raise TudorVisionError(f"--sphere-radius-mm: must be a positive radius in mm, got {radius_mm}")
     tracker, edge_note = luma_edge_params(args.luma_edge, args.seq, getattr(args, "centre", "circle"))
     print(edge_note)
     options = PipelineOptions(tracking=not args.full_frame, method=args.method, tracker=tracker,
-                              rolling_shutter=not args.no_rolling_shutter, sphere_separation_m=sep or None)
+                              rolling_shutter=not args.no_rolling_shutter, sphere_separation_m=sep or None,
+                              sphere_radius_m=None if radius_mm is None else radius_mm / 1000.0)
     log = None
     viewer = open_viewer(args, "tudorvision_stereo")
     if viewer is not None:
