@@ -78,7 +78,7 @@ def register(subparsers) -> None:
                         "than 3 cm are flagged invalid (default: from the robot parameters; 0 disables)")
     s.add_argument("--sphere-radius-mm", type=float, default=None, metavar="MM",
                    help="known radius of the spheres in mm: a sphere whose two views imply another size (by "
-                        "more than 22 %% and 1.5 px) is flagged missing in that frame (default: no check)")
+                        "more than 16 %% and 1.5 px) is flagged missing in that frame (default: no check)")
     s.add_argument("--strict", action="store_true", help="stop at the first corrupt frame instead of skipping it")
     add_sequence_options(s)
     add_luma_edge_argument(s)

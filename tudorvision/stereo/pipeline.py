@@ -54,10 +54,10 @@ from .triangulate import SphereTriangulation, triangulate_spheres
 __all__ = ["PipelineOptions", "StereoFrameResult", "StereoPipeline"]
 
 _NAN2 = (float("nan"), float("nan"))
-#: Log-ratio tolerance of the known-radius check (``PipelineOptions.sphere_radius_m``): 0.2, 22 %, and at least
+#: Log-ratio tolerance of the known-radius check (``PipelineOptions.sphere_radius_m``): 0.15, 16 %, and at least
 #: 1.5 px (the rim circle of a small sphere reads about 0.7 px small); a circle fitted to an off-axis sphere's
 #: elliptic silhouette reads up to about 7 % large at 30 deg off the axis.
-KNOWN_RADIUS_TOL = 0.2
+KNOWN_RADIUS_TOL = 0.15
 
 
 @dataclass(frozen=True, kw_only=True)
