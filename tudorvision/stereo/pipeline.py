@@ -47,7 +47,7 @@ from ._frame import FramePlanes
 from .colormodel import ColorModelSet
 from .rim_edge import chroma_circle, sphere_chroma
 from .segment import SphereDetection, detect_spheres, regions_in_window
-from .stereo_radius import predicted_radius_px, radius_ratio
+from .stereo_radius import implied_radii_m, predicted_radius_px, radius_ratio
 from .tracker2d import FrameTracker, TrackerParams
 from .triangulate import SphereTriangulation, triangulate_spheres
 
@@ -466,10 +466,11 @@ class StereoPipeline:
             views = [dets[c][s] for c in ("left", "right")]
             if R_s is None or not all(d.valid and math.isfinite(d.circle_radius_px) for d in views):
                 continue
-            p = np.asarray(tri.spheres[s][0], float)
-            z = {"left": p[2], "right": float((np.asarray(stereo.R) @ p + np.asarray(stereo.T).reshape(3))[2])}
-            r_m = float(np.mean([dets[c][s].circle_radius_px * z[c] / self._f[c] for c in ("left", "right")]))
-            off_px = np.mean([abs(dets[c][s].circle_radius_px - self._f[c] * float(R_s) / z[c]) for c in z])
+            r_px = [d.circle_radius_px for d in views]
+            implied = implied_radii_m(tri.spheres[s][0], *r_px, self._f["left"], self._f["right"], stereo.R, stereo.T)
+            r_m = 0.5 * (implied[0] + implied[1])
+            # the same difference in pixels: r - f R_s / Z = r (1 - R_s / implied)
+            off_px = 0.5 * sum(abs(r * (1.0 - float(R_s) / m)) for r, m in zip(r_px, implied))
             if r_m > 0 and abs(math.log(r_m / float(R_s))) > KNOWN_RADIUS_TOL and off_px > 1.5:
                 why = f"radius {1e3 * r_m:.1f} mm, the sphere's is {1e3 * float(R_s):.1f} mm"
                 dets = {c: {**dets[c], s: _invalid(dets[c][s], why)} for c in dets}

@@ -26,13 +26,36 @@ import math
 
 import numpy as np
 
-__all__ = ["radius_ratio", "predicted_radius_px"]
+__all__ = ["radius_ratio", "implied_radii_m", "predicted_radius_px"]
 
 
 def _depths(p_left, R, T) -> tuple:
     p = np.asarray(p_left, np.float64).reshape(3)
     p_right = np.asarray(R, np.float64).reshape(3, 3) @ p + np.asarray(T, np.float64).reshape(3)
     return float(p[2]), float(p_right[2])
+
+
+def implied_radii_m(p_left, r_left_px: float, r_right_px: float, f_left_px: float, f_right_px: float, R, T):
+    """The sphere's metric radius each view implies, ``r Z / f`` per camera, metres.
+
+    Parameters are those of :func:`radius_ratio`.
+
+    Returns
+    -------
+    tuple of float
+        ``(left, right)``; NaN for both when a radius or a depth is not positive and finite.
+
+    Examples
+    --------
+    >>> R, T = np.eye(3), np.array([-0.2, 0.0, 0.0])
+    >>> [round(x, 4) for x in implied_radii_m([0.1, 0.0, 2.0], 15.0, 9.0, 600.0, 600.0, R, T)]
+    [0.05, 0.03]
+    """
+    zl, zr = _depths(p_left, R, T)
+    vals = (float(r_left_px), float(r_right_px), zl, zr, float(f_left_px), float(f_right_px))
+    if not all(math.isfinite(v) and v > 0 for v in vals):
+        return float("nan"), float("nan")
+    return vals[0] * zl / vals[4], vals[1] * zr / vals[5]
 
 
 def radius_ratio(p_left, r_left_px: float, r_right_px: float, f_left_px: float, f_right_px: float, R, T) -> float:
@@ -65,11 +88,8 @@ def radius_ratio(p_left, r_left_px: float, r_right_px: float, f_left_px: float, 
     >>> round(radius_ratio([0.1, 0.0, 2.0], 9.0, 15.0, 600.0, 600.0, R, T), 2)   # left view took 60 %
     0.6
     """
-    zl, zr = _depths(p_left, R, T)
-    vals = (float(r_left_px), float(r_right_px), zl, zr, float(f_left_px), float(f_right_px))
-    if not all(math.isfinite(v) and v > 0 for v in vals):
-        return float("nan")
-    return (vals[0] * zl / vals[4]) / (vals[1] * zr / vals[5])
+    left, right = implied_radii_m(p_left, r_left_px, r_right_px, f_left_px, f_right_px, R, T)
+    return left / right
 
 
 def predicted_radius_px(p_left, r_other_px: float, f_other_px: float, f_this_px: float, R, T, *,
