@@ -26,3 +26,17 @@ def test_static_deflection_of_the_payload_on_the_soft_plant():
     assert r["+400g"]["op3_vertical"]["static_mm"] < 0.1                  # the vertical pose barely bends
     assert r["max_static_mm_+400g"] == r["+400g"]["op1_stretched"]["static_mm"] > 40.0
     assert r["seed"]["implied_min_mm"]["from_90pct_8mm"] == 80.0
+
+
+def test_the_seeds_blades_give_the_lab_its_static_deflection():
+    """Oracle: the Euler-Bernoulli closed form of appendix A.1's blades against the rigid-hub plant."""
+    from tudorvision.lab.ch8_reproduce import blade_chain_deflection_m, deflection_consistency
+    ei = 200e9 * 0.015 * 0.004 ** 3 / 12
+    # a single cantilever (l2 = 0) reduces to F L^3 / 3EI
+    assert abs(blade_chain_deflection_m(2.0, 0.0, 0.41, ei) - 2.0 * 0.41 ** 3 / (3 * ei)) < 1e-12
+    c = deflection_consistency(80.0)
+    assert abs(c["blades_lab_mm"] / c["blades_closed_form_mm"] - 1) < 0.02
+    assert c["blades_lab_mm"] < c["soft_lab_mm"] < 60.0
+    # 80 mm needs a hub an order of magnitude softer, and the stretched arm's mode then falls > 10 % below 2 Hz
+    assert c["hub2_for_target_Nm_rad"] < 0.1 * c["hub2_identified_Nm_rad"]
+    assert c["link2_first_hz_for_target"] < 0.9 * 2.0 < c["link2_first_hz_identified"]

@@ -28,6 +28,7 @@ settling time of a 10 s horizon; "cut" is ``100 - T_CS %``.
 """
 from __future__ import annotations
 
+import math
 import tempfile
 from pathlib import Path
 
@@ -41,7 +42,7 @@ from .ch8_experiments import (EXPERIMENTS, FILTERS, HORIZON_S, OPS_DEG, evaluate
                               run_damping_study)
 
 __all__ = ["LAWS_8", "GROUPS", "SEED_8_2", "SEED_8_3", "table_8_2", "integral_drift", "payload_sweep_8_3",
-           "static_deflection", "DEFLECTION_POSES_DEG"]
+           "static_deflection", "DEFLECTION_POSES_DEG", "blade_chain_deflection_m", "deflection_consistency"]
 
 #: The laws compared in chapter 8 (``off`` is the reference).
 LAWS_8 = ("off", "proportional", "integral", "half_integrator")
@@ -310,3 +311,92 @@ def static_deflection(quick: bool = True, *, config: PlantConfig | None = None) 
         out[name] = rows
         out[f"max_static_mm_{name}"] = max(r["static_mm"] for r in rows.values())
     return out
+
+
+def blade_chain_deflection_m(force_N: float, l2_m: float, l3_m: float, ei_Nm2: float) -> float:
+    """Tip deflection of the stretched two-blade chain under a tip force, rigid clamps (Euler-Bernoulli).
+
+    Link 3 bends as a cantilever under the force; link 2 under the force and its moment
+    ``force * l3`` at its tip, and its tip slope turns link 3 rigidly: ``F l3^3 / 3EI + F l2^3 / 3EI
+    + F l3 l2^2 / 2EI + l3 (F l2^2 / 2EI + F l3 l2 / EI)``.
+
+    Parameters
+    ----------
+    force_N : float
+        Vertical tip force, N.
+    l2_m, l3_m : float
+        Blade lengths, m.
+    ei_Nm2 : float
+        Bending stiffness ``E b h^3 / 12`` of both blades, N m^2.
+
+    Returns
+    -------
+    float
+        m.
+
+    Examples
+    --------
+    >>> ei = 200e9 * 0.015 * 0.004 ** 3 / 12          # the seed's appendix A.1 blades: 16 N m^2
+    >>> round(1e3 * blade_chain_deflection_m(0.4 * 9.81, 0.43, 0.41, ei), 1)
+    48.5
+    """
+    f, a, b, ei = float(force_N), float(l2_m), float(l3_m), float(ei_Nm2)
+    moment = f * b
+    w3 = f * b ** 3 / (3 * ei)
+    w2 = f * a ** 3 / (3 * ei) + moment * a ** 2 / (2 * ei)
+    s2 = f * a ** 2 / (2 * ei) + moment * a / ei
+    return w3 + w2 + b * s2
+
+
+def deflection_consistency(target_mm: float = 80.0) -> dict:
+    """How soft the joint-2 hub must be for a stretched arm to sag ``target_mm`` under +400 g, and its mode.
+
+    The seed's appendix A.1 blades (E = 200 GPa, 15 x 4 mm) alone give :func:`blade_chain_deflection_m`;
+    the rest of a larger static deflection would have to come from the joint-side compliance.
+    The joint-2 hub stiffness that makes the soft plant's stretched arm (theta = 0) sag
+    ``target_mm`` is found by bisection, and the plant's linearised first link-2 mode at theta = 0
+    with 300 g (section 4.7's 2.0 Hz) is computed with it.
+
+    Parameters
+    ----------
+    target_mm : float
+        Deflection to reach, mm (80: the seed's 90 % repeatability of 8 mm read as 10 %).
+
+    Returns
+    -------
+    dict
+        ``blades_closed_form_mm`` (A.1 blades, rigid clamps, closed form), ``blades_lab_mm``
+        (``PlantConfig.stiff()``), ``soft_lab_mm`` (``PlantConfig()``), ``hub2_for_target_Nm_rad``,
+        ``hub2_identified_Nm_rad``, ``link2_first_hz_identified`` and ``link2_first_hz_for_target``
+        (theta = 0, 300 g).
+    """
+    from .plant_modes import linear_modes
+    p = load_robot_params()
+    mount, plates = Payload.from_parts(p), Payload.from_parts(p, plates=4)
+    th = np.zeros(3)
+
+    def sag_mm(cfg):
+        d = ElasticArm(th, payload=plates, config=cfg).ee_position() - ElasticArm(th, payload=mount,
+                                                                                    config=cfg).ee_position()
+        return 1e3 * float(np.linalg.norm(d))
+
+    soft = PlantConfig()
+    k3 = soft.hub_stiffness_Nm_rad[1]
+    lo, hi = 1.0, float(soft.hub_stiffness_Nm_rad[0])      # sag falls as the hub stiffens
+    for _ in range(40):
+        mid = math.sqrt(lo * hi)
+        if sag_mm(PlantConfig(hub_stiffness_Nm_rad=(mid, k3))) > target_mm:
+            lo = mid
+        else:
+            hi = mid
+    k2 = math.sqrt(lo * hi)
+    ei = 200e9 * 0.015 * 0.004 ** 3 / 12.0
+    return {"target_mm": float(target_mm),
+            "blades_closed_form_mm": 1e3 * blade_chain_deflection_m(
+                (plates.mass_kg - mount.mass_kg) * p.gravity_m_s2, p.link2_length_m, p.link3_length_m, ei),
+            "blades_lab_mm": sag_mm(PlantConfig.stiff()), "soft_lab_mm": sag_mm(soft),
+            "hub2_for_target_Nm_rad": k2, "hub2_identified_Nm_rad": float(soft.hub_stiffness_Nm_rad[0]),
+            "link2_first_hz_identified": float(linear_modes(th, 0.3, soft)["link2_hz"][0]),
+            "link2_first_hz_for_target": float(linear_modes(
+                th, 0.3, PlantConfig(hub_stiffness_Nm_rad=(k2, k3)))["link2_hz"][0])}
+

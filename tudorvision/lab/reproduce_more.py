@@ -138,7 +138,7 @@ def deflection_section(out_dir: str, quick: bool, seed: int) -> dict:
     dict
         ``rows``, ``figures``, ``notes``.
     """
-    from .ch8_reproduce import static_deflection
+    from .ch8_reproduce import deflection_consistency, static_deflection
     s = static_deflection(quick)
     lo = s["seed"]["implied_min_mm"]
     rows = []
@@ -147,6 +147,16 @@ def deflection_section(out_dir: str, quick: bool, seed: int) -> dict:
                         f"≥ {lo['from_90pct_8mm']:g} mm", _num(s[f"max_static_mm_{change}"]), "mm",
                         f"min:{lo['from_90pct_8mm']:g}",
                         "the seed: repeatability below 10 % of the static deflection (90 % under 8 mm)"))
+    c = deflection_consistency(lo["from_90pct_8mm"])
+    rows.append(Row("9.1 (A.1)", "static deflection, +400 g at full stretch, the A.1 blades alone (rigid clamps)",
+                    round(c["blades_closed_form_mm"], 1), _num(c["blades_lab_mm"]), "mm", "within:0.1",
+                    "seed value: Euler-Bernoulli closed form from appendix A.1 (E 200 GPa, 15 x 4 mm, 430 / 410 mm); "
+                    f"lab: rigid hubs; the soft plant's hubs add {c['soft_lab_mm'] - c['blades_lab_mm']:.1f} mm"))
+    rows.append(Row("9.1 / 4.7", f"link 2 first mode at theta = 0, 300 g, with a joint-2 hub soft enough for "
+                    f"{lo['from_90pct_8mm']:g} mm", 2.0, _num(c["link2_first_hz_for_target"]), "Hz", "within:0.1",
+                    f"hub {c['hub2_for_target_Nm_rad']:.0f} N m/rad instead of the identified "
+                    f"{c['hub2_identified_Nm_rad']:.0f} ({c['link2_first_hz_identified']:.2f} Hz): the seed's "
+                    "blades and its 2.0 Hz mode do not allow the 80 mm reading"))
     return {"rows": [asdict(r) for r in rows], "figures": [], "notes": []}
 
 

@@ -101,6 +101,7 @@ import numpy as np
 
 from tudorvision._checks import TudorVisionError
 from tudorvision.stereo._circle import circle_lsq, fit_rim_circle
+from tudorvision.stereo._coarse import coarse_boxes, coarse_log_odds_q, lut_sum
 from tudorvision.stereo._colortables import ColorModel
 from tudorvision.stereo._frame import FramePlanes, check_frame
 from tudorvision.stereo.detection import SegmentParams, SphereDetection
@@ -127,12 +128,7 @@ def _logit(p: float) -> float:
 
 
 def _log_odds_planes(planes, model: ColorModel, blur: bool = False) -> np.ndarray:
-    tabs = model.plane_tables_blur if blur else model.plane_tables
-    acc = cv2.LUT(planes[0], tabs[0])
-    for i in (1, 2, 3, 4, 5):
-        if i == 3 and not model.use_hue:
-            continue  # its table is zero
-        acc += cv2.LUT(planes[i], tabs[i])
+    acc = lut_sum(planes, model.plane_tables_blur if blur else model.plane_tables, model.use_hue)
     acc += np.float32(model.log_prior_odds)
     return acc
 
@@ -211,14 +207,13 @@ def _fill_holes(mask: np.ndarray) -> np.ndarray:
 
 
 def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, image_size: tuple,
-                blur: bool, *, erode: int, scale: int = 1, edge_src=None) -> list:
+                blur: bool, *, erode: int, edge_src=None) -> list:
     """Seeds, region growing, centroid and checks on a log-odds window.
 
     ``offset`` = (x0, y0) of the window in frame pixels, ``image_size`` = (W, H)
     of the frame, ``edge_src`` the frame's :class:`_EdgeSource` for the luma
     edge (None skips it). Returns every seeded region as a SphereDetection, best first
-    (valid before invalid, then by probability mass). With ``scale`` > 1 the
-    window is a decimated frame: only bounding boxes (scaled back) matter.
+    (valid before invalid, then by probability mass).
     """
     seeds = cv2.compare(log_odds, _logit(params.p_seed), cv2.CMP_GE)
     if erode > 0:
@@ -240,11 +235,6 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
         lo = log_odds[y:y + h, x:x + w][lab].astype(np.float64)
         p = 1.0 / (1.0 + np.exp(-lo))
         mean_prob = float(p.mean())
-        if scale > 1:
-            out.append(SphereDetection(uv=(float("nan"), float("nan")), area_px=float(area * scale * scale),
-                                       mean_prob=mean_prob, circularity=float("nan"), valid=False,
-                                       reason="coarse", bbox=(x * scale, y * scale, w * scale, h * scale)))
-            continue
         # the silhouette: holes enclosed by the region (a specular highlight, markings) belong to it
         filled = _fill_holes(lab)
         area = int(np.count_nonzero(filled))
@@ -493,6 +483,16 @@ def _grow_roi(bbox, margin: int, width: int, height: int) -> tuple:
     return x0, y0, x1 - x0, y1 - y0
 
 
+def _cut_along_length(det: SphereDetection, roi: tuple, params: SegmentParams, blur: bool) -> bool:
+    """An elongated invalid region that the window cuts only across its length: widening keeps it elongated."""
+    min_circ = params.min_circularity_blur if blur else params.min_circularity
+    if det.valid or not det.circularity < 0.5 * min_circ:
+        return False
+    (x, y, w, h), (rx, ry, rw, rh) = det.bbox, roi
+    cut_x, cut_y = x == rx or x + w == rx + rw, y == ry or y + h == ry + rh
+    return (h > 2 * w and cut_y and not cut_x) or (w > 2 * h and cut_x and not cut_y)
+
+
 def _detect_full(frame: FramePlanes, model: ColorModel, params: SegmentParams, blur: bool) -> SphereDetection:
     step = int(params.coarse_step)
     if step == 1:
@@ -501,22 +501,20 @@ def _detect_full(frame: FramePlanes, model: ColorModel, params: SegmentParams, b
                             erode=int(params.erode_radius_px), edge_src=_edge_source(frame, model, params, blur))
         return found[0] if found else _none()
     # coarse pass on the decimated frame, no erosion (it would erase small spheres there)
-    lo = _log_odds_planes(frame.coarse_planes(step), model, blur)
-    coarse = _candidates(lo, params, (0, 0), (frame.width, frame.height), blur, erode=0, scale=step)
-    coarse.sort(key=lambda d: d.area_px * d.mean_prob, reverse=True)
+    lo_q = coarse_log_odds_q(frame.coarse_planes(step), model, blur)
+    coarse = coarse_boxes(lo_q, model.log_prior_odds, params.p_seed, params.p_grow, step)
     best = []   # the heaviest max_candidates, then further ones (up to 4x) while none is valid
     heaviest_valid = 0.0
-    for k, cand in enumerate(coarse[:4 * params.max_candidates]):
-        if heaviest_valid > 0.0 and (k >= params.max_candidates
-                                     or cand.area_px * cand.mean_prob * _LIGHTER_CANDIDATE < heaviest_valid):
+    margin = 2 * step + int(params.erode_radius_px) + 2
+    for k, (bbox, mass) in enumerate(coarse[:4 * params.max_candidates]):
+        if heaviest_valid > 0.0 and (k >= params.max_candidates or mass * _LIGHTER_CANDIDATE < heaviest_valid):
             break   # the rest are lighter still: none of them would be picked over the valid one found
-        margin = 2 * step + int(params.erode_radius_px) + 2
         for _ in range(4):  # widen the window until the full-resolution region fits
-            roi = _grow_roi(cand.bbox, margin, frame.width, frame.height)
+            roi = _grow_roi(bbox, margin, frame.width, frame.height)
             found = regions_in_window(frame, model, params, roi, blur)
-            if not found or not found[0].touches_window:
+            if not found or not found[0].touches_window or _cut_along_length(found[0], roi, params, blur):
                 break
-            cand = found[0]
+            bbox = found[0].bbox
         best.extend(found[:1])
         if found and found[0].valid and not found[0].touches_window:
             heaviest_valid = max(heaviest_valid, found[0].area_px * found[0].mean_prob)
