@@ -106,7 +106,15 @@ def test_calib_rgbd_base_on_virtual_lab(lab_recordings, tmp_path, capsys):
     assert d_origin < 0.15 and d_angle < 8.0
     assert report["vertical_frames"] == [5, 11, 12, 13, 14]    # theta = [0, 90, 0] deg in joints.txt
     assert len(report["points_used"]) + len(report["rejected"]) == len(seq) >= 10
-    assert {"circle_rmse_m", "rejected", "points_used"} <= set(report)
+    assert {"circle_rmse_m", "rejected", "points_used", "mirror"} <= set(report)
+    # the sweep's mirror symmetry refined the frame (joints.txt has mirrored poses); --mirror off does not
+    assert report["mirror"]["pairs"] >= 3
+    rep_off = tmp_path / "base_off.json"
+    assert main(["calib", "rgbd-base", str(path), "--seed", seed_uv, "--mirror", "off", "--report", str(rep_off)]) == 0
+    report_off = json.loads(rep_off.read_text())
+    assert report_off["mirror"] is None
+    turn = np.degrees(rotation_angle(np.array(report_off["T_base_cam"])[:3, :3].T @ T[:3, :3]))
+    assert abs(turn - abs(report["mirror"]["mirror_rotation_deg"])) < 1e-6
     # a seed off the disc (on the far, invalid background) is a clear error
     assert main(["calib", "rgbd-base", str(path), "--seed", "5,5", "--out", str(out)]) == 2
     assert "error" in capsys.readouterr().err

@@ -245,9 +245,34 @@ def _fit_base(args, seq, K, seed, opts, prm, recording):
     T_base_cam, rep = base_frame_from_theta2_sweep(obs["points_cam"], obs["vertical_cam"], theta2_rad=obs["theta2_rad"],
                                                    origin=args.origin, vertical=args.vertical,
                                                    link1_height_m=prm.link1_height_m)
+    T_base_cam, rep["mirror"] = _mirror(args.mirror, T_base_cam, obs)
+    rep["T_base_cam"] = np.asarray(T_base_cam, float).tolist()
     if recording is not None:
         rerun_log.log_base_frame(recording, T_base_cam, obs["points_cam"])
     return T_base_cam, rep, obs
+
+
+def _mirror(mode: str, T_base_cam, obs):
+    """``--mirror``: the in-plane angle from the sweep's mirror symmetry (needs the joint angles)."""
+    from ..rgbd.base_calib import refine_sweep_mirror
+
+    if mode == "off":
+        return T_base_cam, None
+    if obs["theta2_rad"] is None:
+        if mode == "on":
+            raise TudorVisionError("--mirror on: needs the sweep's joint angles (joints.txt)")
+        return T_base_cam, {"skipped": "no joint angles"}
+    t2 = np.asarray(obs["theta2_rad"], float)
+    theta = np.stack([np.zeros_like(t2), t2, np.zeros_like(t2)], axis=1)
+    try:
+        T, info = refine_sweep_mirror(T_base_cam, obs["points_cam"], theta)
+    except ValueError as exc:
+        if mode == "on":
+            raise TudorVisionError(f"--mirror on: {exc}") from None
+        return T_base_cam, {"skipped": str(exc)}
+    print(f"mirror symmetry: {info['pairs']} mirrored pose pairs turned the frame by "
+          f"{info['mirror_rotation_deg']:+.3f} deg in the sweep plane (spread {info['mirror_tilt_sd_deg']:.3f} deg)")
+    return T, info
 
 
 def _cmd_base(args) -> int:
@@ -398,6 +423,12 @@ def register(calib_sub) -> None:
     b.add_argument("--depth-annulus", default="0,1",
                    help="LO,HI: the disc depth averages the pixels between these fractions of the depth window "
                         "(default 0,1: all of it; 0.7,1 skips an occluded centre)")
+    b.add_argument("--mirror", choices=("auto", "on", "off"), default="auto",
+                   help="refine the frame's angle in the sweep plane from the sweep's mirror symmetry: the disc at "
+                        "theta2 and at 180 deg - theta2 sags alike, so their chord is horizontal (no arm model; "
+                        "assumes the disc centre on the link axis: an offset d across it tilts the result by d / "
+                        "radius, as it does the vertical posture). 'auto' (default): when joints.txt gives "
+                        "mirrored poses")
     b.add_argument("--joint-tol-deg", type=float, default=0.5, help="joint tolerance for sweep/vertical frames")
     b.add_argument("--out", help="calibration file to write or update (transforms: T_base_cam)")
     b.add_argument("--report", help="JSON report")

@@ -19,6 +19,12 @@ Frame origin: the circle centre lies on the joint-2 axis, which is
 By default (``origin="base"``) the returned ``T_base_cam`` is shifted down
 along z by ``link1_height_m`` so that it matches ``tudorvision.robot.fk_ee``;
 ``origin="joint2"`` gives the seed's frame (origin at the circle centre).
+
+:func:`refine_sweep_in_plane` and :func:`refine_sweep_mirror` refine the
+frame's angle in the sweep plane (the direction of gravity in it, which a
+ball's predicted crossing is sensitive to): the first against a learnt
+deflection model, the second without any model, from the sweep's mirror
+symmetry about the vertical.
 """
 from __future__ import annotations
 
@@ -27,7 +33,7 @@ import numpy as np
 from .._checks import TudorVisionError, check_array, check_points
 from ..geometry import fit_circle_3d, fit_rigid_transform, invert_transform
 
-__all__ = ["base_frame_from_theta2_sweep", "refine_sweep_in_plane"]
+__all__ = ["base_frame_from_theta2_sweep", "refine_sweep_in_plane", "refine_sweep_mirror"]
 
 
 def _rotation_axis(points: np.ndarray, centre: np.ndarray, normal: np.ndarray, theta2) -> np.ndarray:
@@ -310,3 +316,104 @@ def refine_sweep_in_plane(T_base_cam, centres_cam, theta_rad, deflection, payloa
     C, res = fit(use)
     return C @ T0, {"in_plane_rotation_deg": float(np.degrees(np.arctan2(C[2, 0], C[0, 0]))),
                     "in_plane_rmse_m": float(np.sqrt(np.mean(res[use] ** 2))), "points": int(use.sum())}
+
+
+
+def refine_sweep_mirror(T_base_cam, centres_cam, theta_rad, *, pair_tol_rad: float = float(np.radians(1.0))):
+    """Refine a sweep calibration's in-plane angle and lateral origin from the sweep's mirror symmetry.
+
+    With theta1 = theta3 = 0 an elastic arm under gravity bends alike at theta2 and 180 deg - theta2,
+    mirrored about the vertical through joint 2 (the gravity moment changes sign with cos theta2,
+    and the gear backlash settles on the mirrored side): whatever the static deflection, the chord
+    from the disc at theta2 to the disc at 180 deg - theta2 is horizontal and its midpoint lies on
+    the vertical through joint 2. No model of the arm is needed. Each such pair of poses (per-pose
+    median of the measured centres, poses told apart to 0.1 deg of theta2; a partner ``delta`` off the
+    mirrored angle is allowed up to ``pair_tol_rad`` and its chord's tilt corrected by ``delta / 2``)
+    gives the chord's tilt in the sweep plane; the tilts are averaged
+    with weights of the squared chord length, the frame is turned about base y by it (about the
+    midpoints' mean, so the height there is kept) and shifted along x so that the midpoints' mean
+    lies at x = 0. The circle plane (base y) and the height origin are kept from ``T_base_cam``.
+
+    Parameters
+    ----------
+    T_base_cam : array_like, shape (4, 4)
+        A sweep calibration (``p_base = T_base_cam @ p_cam``), e.g. of :func:`base_frame_from_theta2_sweep`
+        or :func:`refine_sweep_in_plane`.
+    centres_cam : array_like, shape (N, 3)
+        Measured disc centres, metres, camera frame; NaN rows are skipped.
+    theta_rad : array_like, shape (N, 3)
+        Joint angles per frame, rad (theta1 = theta3 = 0).
+    pair_tol_rad : float
+        How far ``theta2_a + theta2_b`` may be from 180 deg for two poses to pair, rad (default 1 deg).
+
+    Returns
+    -------
+    T_base_cam : ndarray, shape (4, 4)
+        The refined transform.
+    info : dict
+        ``mirror_rotation_deg`` (the correction in the sweep plane, positive turning x toward z, as
+        ``in_plane_rotation_deg`` of :func:`refine_sweep_in_plane`), ``mirror_shift_m`` (along base x),
+        ``pairs`` used and ``mirror_tilt_sd_deg`` (weighted spread of the pairs' tilts).
+
+    Raises
+    ------
+    ValueError
+        No pair of measured poses mirrored about the vertical.
+
+    Examples
+    --------
+    A sagging arm (the tip 3 cm low at horizontal, mirrored) seen through a frame 0.3 deg off:
+
+    >>> a = np.radians([20.0, 45.0, 70.0, 110.0, 135.0, 160.0])
+    >>> sag = 0.03 * np.cos(a) ** 2
+    >>> pts = np.stack([0.84 * np.cos(a), np.zeros(6), 0.35 + 0.84 * np.sin(a) - sag], axis=1)
+    >>> th = np.stack([np.zeros(6), a, np.zeros(6)], axis=1)
+    >>> c, s = np.cos(np.radians(0.3)), np.sin(np.radians(0.3))
+    >>> T0 = np.eye(4); T0[:3, :3] = [[c, 0, s], [0, 1, 0], [-s, 0, c]]   # camera frame = true base frame
+    >>> T, info = refine_sweep_mirror(T0, pts, th)
+    >>> info["pairs"], round(abs(info["mirror_rotation_deg"]), 3), bool(np.allclose(T[:3, :3], np.eye(3)))
+    (3, 0.3, True)
+    """
+    T0 = check_array(T_base_cam, "T_base_cam", (4, 4))
+    pc = check_array(centres_cam, "centres_cam", (None, 3), finite=False)
+    th = check_array(theta_rad, "theta_rad", (len(pc), 3))
+    ok = np.all(np.isfinite(pc), axis=1)
+    pb = pc[ok] @ T0[:3, :3].T + T0[:3, 3]
+    t2 = th[ok, 1]
+    groups = np.round(np.degrees(t2), 1)                                    # poses: theta2 to 0.1 deg
+    keys, poses = [], []
+    for g in np.unique(groups):
+        sel = groups == g
+        keys.append(float(np.mean(t2[sel])))
+        poses.append(np.median(pb[sel][:, [0, 2]], axis=0))                  # (x, z) in the sweep plane
+    keys, poses = np.asarray(keys), np.asarray(poses)
+    tilts, weights, mids = [], [], []
+    for a in range(len(keys)):
+        if keys[a] >= np.pi / 2 - pair_tol_rad:
+            continue                                                         # each pair once, not 90 deg with itself
+        b = int(np.argmin(np.abs(keys + keys[a] - np.pi)))
+        delta = float(keys[a] + keys[b] - np.pi)
+        if abs(delta) > pair_tol_rad:
+            continue
+        chord = poses[a] - poses[b]                                          # should point along +x
+        # a partner delta further round the circle tilts the chord by delta / 2 (first order)
+        tilts.append(float(np.arctan2(chord[1], chord[0])) - 0.5 * delta)
+        weights.append(float(chord @ chord))
+        mids.append(0.5 * (poses[a] + poses[b]))
+    if not tilts:
+        raise ValueError("centres_cam, theta_rad: no two measured poses mirror each other about the vertical "
+                         "(theta2 and 180 deg - theta2)")
+    w = np.asarray(weights) / np.sum(weights)
+    tilt = float(w @ np.asarray(tilts))
+    pivot = w @ np.asarray(mids)
+    c, s = np.cos(-tilt), np.sin(-tilt)
+    R2 = np.array([[c, -s], [s, c]])                                        # turns each chord onto +x
+    mids_r = (np.asarray(mids) - pivot) @ R2.T + pivot
+    shift = -float(w @ mids_r[:, 0])
+    C = np.eye(4)
+    C[np.ix_([0, 2], [0, 2])] = R2
+    C[[0, 2], 3] = pivot - R2 @ pivot + np.array([shift, 0.0])
+    spread = float(np.sqrt(w @ (np.asarray(tilts) - tilt) ** 2))
+    return C @ T0, {"mirror_rotation_deg": float(np.degrees(-tilt)), "mirror_shift_m": shift,
+                    "pairs": len(tilts), "mirror_tilt_sd_deg": float(np.degrees(spread))}
+

@@ -28,9 +28,10 @@ import numpy as np
 __all__ = ["wall_camera_position_world", "calibrate_wall_camera", "wall_depth_sensor",
            "WALL_CAMERA_AIM_HEIGHT_M", "CALIBRATION_METHODS", "SWEEP_THETA2_DEG", "ship_calibration"]
 
-#: ``DemoOptions.calibration_method``: the seed's sweep construction alone, or refined in the sweep plane
-#: with the agent's learnt deflection model (:func:`tudorvision.rgbd.base_calib.refine_sweep_in_plane`).
-CALIBRATION_METHODS = ("seed", "seed+deflection")
+#: ``DemoOptions.calibration_method``: the seed's sweep construction alone, refined in the sweep plane
+#: from the sweep's mirror symmetry (:func:`tudorvision.rgbd.base_calib.refine_sweep_mirror`, model-free),
+#: with the agent's learnt deflection model (:func:`tudorvision.rgbd.base_calib.refine_sweep_in_plane`), or both.
+CALIBRATION_METHODS = ("seed", "seed+mirror", "seed+deflection", "seed+deflection+mirror")
 #: The calibration sweep's theta2 poses, degrees. 10-170 deg: at 6.9 m the disc's depth in the horizontal
 #: poses (0 and 180 deg, the disc 29 cm above the base plate) came out 4-23 mm too far (a tilt of the
 #: fitted plane by 0.2-0.4 deg); the end poses are left out.
@@ -182,9 +183,11 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
         and to check that the sweep's camera stands where the throws' does.
     deflection : callable, optional
         The agent's learnt deflection model (:class:`~tudorvision.catch.kinematics.DeflectionModel`); with
-        ``options.calibration_method == "seed+deflection"`` (default) the seed's frame is refined in the
-        sweep plane against it (:func:`~tudorvision.rgbd.base_calib.refine_sweep_in_plane`). Must be the model of ``options.collection`` on
-        ``options.plant`` (the cache key names those).
+        a ``options.calibration_method`` that names ``deflection`` the seed's frame is refined in the
+        sweep plane against it (:func:`~tudorvision.rgbd.base_calib.refine_sweep_in_plane`). Must be the
+        model of ``options.collection`` on ``options.plant`` (the cache key names those). A method that
+        names ``mirror`` (the default ``"seed+mirror"``) then refines the in-plane angle from the sweep's
+        mirror symmetry (:func:`~tudorvision.rgbd.base_calib.refine_sweep_mirror`).
 
     Returns
     -------
@@ -203,7 +206,7 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
         When the sweep's camera does not stand where the throws' does, or the disc is lost.
     """
     from ..._checks import TudorVisionError
-    from ...rgbd.base_calib import base_frame_from_theta2_sweep, refine_sweep_in_plane
+    from ...rgbd.base_calib import base_frame_from_theta2_sweep, refine_sweep_in_plane, refine_sweep_mirror
     from ...rgbd.disc3d import Disc3DOptions
     from ...rgbd.disc_track import track_disc_sweep
     from ...rgbd.frames import Intrinsics
@@ -213,12 +216,13 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
     from ..data_collection import robot_key
     sensor = wall_depth_sensor(options)
     method = options.calibration_method
-    if method == "seed+deflection" and deflection is None:
-        raise ValueError("calibrate_wall_camera: calibration_method 'seed+deflection' needs the deflection model")
+    uses_model = "deflection" in method.split("+")
+    if uses_model and deflection is None:
+        raise ValueError(f"calibrate_wall_camera: calibration_method {method!r} needs the deflection model")
     key_src = json.dumps({"sweep": repr(sp), "seed": int(options.calibration_seed), "v": 3,
                           "max_depth_m": sensor.max_depth_m, "method": method,
                           **({"kinematics": [repr(options.collection), options.plant]}
-                             if method == "seed+deflection" else {}),
+                             if uses_model else {}),
                           **({"robot": robot_key(params)} if robot_key(params) else {})}, sort_keys=True)
     key = hashlib.sha1(key_src.encode()).hexdigest()[:16]
     T_true = np.asarray(T_base_cam_true, float)
@@ -262,8 +266,12 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
            "frames": int(n), "skipped_frames": len(skipped), "sweep_camera_offset_m": offset,
            "calibration_seed": int(options.calibration_seed), "method": method}
     T_seed = np.asarray(T, float)
-    if method == "seed+deflection":
-        T, info = refine_sweep_in_plane(T_seed, pts, sweep.theta_rad, deflection, payload_kg=0.0)
+    T = T_seed
+    if uses_model:
+        T, info = refine_sweep_in_plane(T, pts, sweep.theta_rad, deflection, payload_kg=0.0)
+        rep.update(info)
+    if "mirror" in method.split("+"):
+        T, info = refine_sweep_mirror(T, pts, sweep.theta_rad)
         rep.update(info)
     entry = {"T_base_cam": np.asarray(T, float).tolist(), "T_base_cam_seed": T_seed.tolist(), "report": rep}
     _MEMORY[key] = entry

@@ -104,7 +104,7 @@ def wall_camera_transform(options: DemoOptions, params, T_base_cam_true, *, verb
     verbose : bool
         Print the calibration's error against the truth (one line).
     deflection : callable, optional
-        The agent's learnt deflection model, for ``options.calibration_method == "seed+deflection"``
+        The agent's learnt deflection model, for a ``options.calibration_method`` that names ``deflection``
         (default: learnt here, :func:`demo_kinematics`).
 
     Returns
@@ -118,7 +118,7 @@ def wall_camera_transform(options: DemoOptions, params, T_base_cam_true, *, verb
     """
     if options.true_calibration:
         return np.asarray(T_base_cam_true, float), {"source": "true"}
-    if deflection is None and options.calibration_method == "seed+deflection":
+    if deflection is None and "deflection" in options.calibration_method.split("+"):
         deflection = demo_kinematics(options, params)[0].deflection
     T, rep = calibrate_wall_camera(options, params, T_base_cam_true, deflection=deflection)
     rep = {"source": "disc sweep", **rep}
