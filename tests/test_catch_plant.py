@@ -159,3 +159,28 @@ def test_catch_success_reports_the_strict_and_centre_rates(tmp_path):
         assert r["success_rate"] == pytest.approx(r["caught"] / r["crossing"])
         assert r["success_rate_centre"] >= r["success_rate"]
     assert (tmp_path / "cs" / "summary.json").exists()
+
+
+def test_late_speed_only_for_a_move_that_would_arrive_late():
+    """The faster profile is chosen exactly when the planner's motion at the demo's speed ends after the deadline."""
+    from tudorvision.joint.planner import plan_motion
+    from tudorvision.lab.catch.agent import ReferenceMirror
+
+    v, a, fast = 1.6, 7.0, 1.9
+    m = ReferenceMirror(v, a)
+    m.sent(np.zeros(3), 0.0, theta_now=np.zeros(3))
+    goal = np.array([0.0, -1.1, 0.5])                       # a 63 deg joint-2 move
+    t_end = plan_motion(np.zeros(3), goal, v_max=v, a_max=a).duration_s + 1.0
+    assert m.late_speed(goal, 1.0, t_end + 0.01, 2.6, v, fast) == v       # arrives in time: unchanged
+    assert m.late_speed(goal, 1.0, t_end - 0.01, 2.6, v, fast) == fast    # late: the faster profile
+    assert m.late_speed(goal, 1.0, t_end - 0.01, 2.6, v, 0.0) == v        # no late speed configured
+    assert plan_motion(np.zeros(3), goal, v_max=fast, a_max=a).duration_s + 1.0 < t_end
+
+
+def test_speed_fractions_are_checked():
+    from tudorvision.lab.catch.options import DemoOptions
+
+    assert DemoOptions().late_speed_fraction > DemoOptions().speed_fraction
+    for bad in ({"late_speed_fraction": 1.5}, {"speed_fraction": 0.0}, {"late_speed_fraction": float("nan")}):
+        with pytest.raises(ValueError, match="speed_fraction"):
+            DemoOptions(**bad)

@@ -217,6 +217,7 @@ class CatchAgent:
         self.payload_range_kg = payload_range_kg
         self.mount_kg = float(params.end_effector_mount_mass_kg)
         self.max_speed, self.max_accel = profile_limits(options, params)
+        self.late_speed = float(options.late_speed_fraction) * float(np.min(params.max_speed_rad_s))
         self.lims = np.asarray(params.joint_limits_rad, float)
         self.ready_point_base = np.asarray(options.ready_point_base, float)
         self.damping = {"off": Damping.OFF, "proportional": Damping.PROPORTIONAL, "integral": Damping.INTEGRAL,
@@ -251,10 +252,11 @@ class CatchAgent:
         self.mirror.sent(theta, t, v_max=self._speed)
         return reply
 
-    def send(self, theta, t: float, speed: float | None = None) -> bool:
+    def send(self, theta, t: float, speed: float | None = None, allow: float | None = None) -> bool:
         """Send a joint setpoint (rad, (3,)) at time ``t`` (s); a fault stop is cleared and the setpoint resent.
 
-        ``speed``: the profile speed, rad/s (default the demo's, :func:`profile_limits`).
+        ``speed``: the profile speed, rad/s (default the demo's, :func:`profile_limits`), at most ``allow``
+        (default the demo's profile speed).
 
         Returns
         -------
@@ -264,7 +266,8 @@ class CatchAgent:
         from ...joint import Ack, Reason, Refusal
 
         self._last_sent = np.asarray(theta, float)
-        self._speed = self.max_speed if speed is None else float(min(speed, self.max_speed))
+        cap = self.max_speed if allow is None else max(float(allow), self.max_speed)
+        self._speed = self.max_speed if speed is None else float(min(speed, cap))
         reply = self._setpoint(theta)
         self.mirror.sent(theta, t, theta_now=self.layer.state().theta, v_max=self._speed)
         if isinstance(reply, Refusal) and reply.code == Reason.FAULT:
@@ -361,8 +364,12 @@ class CatchAgent:
                 return
         self._pending = False
         f = mode_frequency_hz(self.payload_est_kg, o.mode_f0_hz, o.mode_mass_kg) if o.mode_f0_hz > 0 else 0.0
-        speed = self.mirror.choose_speed(th, t, it.t_cross - o.arrive_before_s, f) if self.mirror.motion else None
-        self.send(th, t, speed)
+        deadline = it.t_cross - o.arrive_before_s
+        speed = self.mirror.choose_speed(th, t, deadline, f) if self.mirror.motion else None
+        if self.mirror.motion is not None:
+            speed = self.mirror.late_speed(th, t, deadline, f, self.max_speed if speed is None else speed,
+                                           self.late_speed)
+        self.send(th, t, speed, allow=self.late_speed)
         self.log.setpoint, self.log.t_arrived_s = th, None
         self.setpoints.append([self._throw, t, *th, *it.p_base])
         if self.log.t_first_setpoint_s is None:

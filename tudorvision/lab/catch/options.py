@@ -78,6 +78,11 @@ class DemoOptions:
     speed_fraction : float
         Setpoint profile speed as a fraction of the slowest joint's limit (at
         the limit, the links' swing trips the layer's over-speed fault).
+    late_speed_fraction : float
+        A setpoint whose profile at ``speed_fraction`` would end after the deadline may use up to this
+        fraction of the slowest joint's limit instead (0 or anything at or below ``speed_fraction``: never).
+        Default 0.9: seed 0 caught 682 of 840 crossing throws against 678 without it (layer faults 56
+        against 66), held-out seeds 100 and 200 166 / 173 against 163 / 173; 1.0 gave the same.
     accel_fraction : float
         Setpoint profile acceleration as a fraction of the joints' limit (400 deg/s^2).
     layer_rate_hz : float
@@ -185,6 +190,7 @@ class DemoOptions:
     mode_mass_kg: float = 0.26
     arrive_before_s: float = 0.05
     speed_fraction: float = 0.75
+    late_speed_fraction: float = 0.9
     accel_fraction: float = 1.0
     layer_rate_hz: float = 500.0
     reach_margin_m: float = 0.03
@@ -227,6 +233,9 @@ class DemoOptions:
             raise ValueError(f"calibration_method: expected one of {CALIBRATION_METHODS}, got {self.calibration_method!r}")
         if not 0.6 < self.camera_max_depth_m <= 10.0:
             raise ValueError(f"camera_max_depth_m: expected 0.6-10 m, got {self.camera_max_depth_m}")
+        if not (0.0 < self.speed_fraction <= 1.0 and 0.0 <= self.late_speed_fraction <= 1.0):
+            raise ValueError(f"speed_fraction, late_speed_fraction: expected (0, 1] and [0, 1] of the slowest "
+                             f"joint's limit, got {self.speed_fraction}, {self.late_speed_fraction}")
         margin = np.asarray(self.setpoint_margin_rad, float)
         if margin.shape not in ((), (3,)) or not np.all(np.isfinite(margin)) or np.any(margin < 0):
             raise ValueError(f"setpoint_margin_rad: expected one or three angles >= 0, rad, "

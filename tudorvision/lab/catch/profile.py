@@ -199,3 +199,17 @@ class ReferenceMirror:
             if t_end <= deadline_s and (best is None or r < 0.98 * best[1]):
                 best = (v, r)
         return best[0] if best is not None else fastest[0]
+
+    def late_speed(self, goal, t: float, deadline_s: float, f_hz: float, speed: float, late_speed: float) -> float:
+        """``speed`` (rad/s) if ``goal`` sent at ``t`` with it ends by ``deadline_s`` (s), else ``late_speed``.
+
+        For a setpoint that would arrive late at the demo's profile speed: the faster profile
+        (``DemoOptions.late_speed_fraction``) is taken only then, as the links' swing at speeds near a
+        joint's limit risks the layer's over-speed fault. ``late_speed`` at or below ``speed`` changes
+        nothing; ``f_hz`` is the mode frequency :meth:`residual_rad` needs (any positive value for timing).
+        """
+        if not late_speed > speed:
+            return float(speed)
+        _, t_end = self.residual_rad(goal, t, f_hz if f_hz > 0 else 1.0, v_max=speed)
+        return float(speed) if t_end <= deadline_s else float(late_speed)
+
