@@ -252,11 +252,11 @@ class CatchAgent:
         self.mirror.sent(theta, t, v_max=self._speed)
         return reply
 
-    def send(self, theta, t: float, speed: float | None = None, allow: float | None = None) -> bool:
+    def send(self, theta, t: float, speed: float | None = None) -> bool:
         """Send a joint setpoint (rad, (3,)) at time ``t`` (s); a fault stop is cleared and the setpoint resent.
 
-        ``speed``: the profile speed, rad/s (default the demo's, :func:`profile_limits`), at most ``allow``
-        (default the demo's profile speed).
+        ``speed``: the profile speed, rad/s (default the demo's, :func:`profile_limits`), at most the
+        faster of the demo's and the late-move speed (``DemoOptions.late_speed_fraction``).
 
         Returns
         -------
@@ -266,8 +266,7 @@ class CatchAgent:
         from ...joint import Ack, Reason, Refusal
 
         self._last_sent = np.asarray(theta, float)
-        cap = self.max_speed if allow is None else max(float(allow), self.max_speed)
-        self._speed = self.max_speed if speed is None else float(min(speed, cap))
+        self._speed = self.max_speed if speed is None else float(min(speed, max(self.max_speed, self.late_speed)))
         reply = self._setpoint(theta)
         self.mirror.sent(theta, t, theta_now=self.layer.state().theta, v_max=self._speed)
         if isinstance(reply, Refusal) and reply.code == Reason.FAULT:
@@ -365,11 +364,11 @@ class CatchAgent:
         self._pending = False
         f = mode_frequency_hz(self.payload_est_kg, o.mode_f0_hz, o.mode_mass_kg) if o.mode_f0_hz > 0 else 0.0
         deadline = it.t_cross - o.arrive_before_s
-        speed = self.mirror.choose_speed(th, t, deadline, f) if self.mirror.motion else None
+        speed = None
         if self.mirror.motion is not None:
-            speed = self.mirror.late_speed(th, t, deadline, f, self.max_speed if speed is None else speed,
+            speed = self.mirror.late_speed(th, t, deadline, f, self.mirror.choose_speed(th, t, deadline, f),
                                            self.late_speed)
-        self.send(th, t, speed, allow=self.late_speed)
+        self.send(th, t, speed)
         self.log.setpoint, self.log.t_arrived_s = th, None
         self.setpoints.append([self._throw, t, *th, *it.p_base])
         if self.log.t_first_setpoint_s is None:
