@@ -311,13 +311,18 @@ class InterceptOptions:
         keep the arm in the slow start of the profile), seconds.
     margin_rad : float
         Joint-range margin for reachability.
+    reach_tol_m : float
+        A crossing up to this far beyond full stretch (link 2 + link 3 from the shoulder) still
+        counts as reachable, judged at full stretch: a net held there (or pulled in by
+        :func:`net_target`'s margin) still takes a ball passing this far out when the tolerance is
+        at most ``net radius - ball radius - reach margin``; metres, >= 0.
     min_height_m : float
         Floor height in the base frame (the flight ends below it), metres.
 
     Raises
     ------
     ValueError
-        If ``release_sigma_m <= 0`` or ``refine_tol_m < 0``.
+        If ``release_sigma_m <= 0``, ``refine_tol_m < 0`` or ``reach_tol_m < 0``.
     """
 
     theta1_rad: float = 0.0
@@ -326,11 +331,13 @@ class InterceptOptions:
     refine_sigma_factor: float = 0.0
     min_interval_s: float = 0.2
     margin_rad: float = np.deg2rad(2.0)
+    reach_tol_m: float = 0.0
     min_height_m: float = -0.3
 
     def __post_init__(self):
-        if not self.release_sigma_m > 0 or not self.refine_tol_m >= 0:
-            raise ValueError("release_sigma_m, refine_tol_m: expected > 0 and >= 0")
+        if not self.release_sigma_m > 0 or not self.refine_tol_m >= 0 or not self.reach_tol_m >= 0:
+            raise ValueError(f"release_sigma_m, refine_tol_m, reach_tol_m: expected > 0, >= 0 and >= 0, got "
+                             f"{self.release_sigma_m}, {self.refine_tol_m}, {self.reach_tol_m}")
 
 
 @dataclass(frozen=True)
@@ -405,6 +412,9 @@ class InterceptPlanner:
         t1 = self.options.theta1_rad
         r = float(p_base[0]) * math.cos(t1) + float(p_base[1]) * math.sin(t1)
         zz = float(p_base[2]) - h1
+        d = math.hypot(r, zz)
+        if l2 + l3 < d <= l2 + l3 + self.options.reach_tol_m:
+            r, zz = r * (l2 + l3) / d, zz * (l2 + l3) / d          # judged at full stretch
         c3 = (r * r + zz * zz - l2 * l2 - l3 * l3) / (2 * l2 * l3)
         if c3 > 1.0 + 1e-12 or c3 < -1.0 - 1e-12:
             return False

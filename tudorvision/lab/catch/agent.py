@@ -81,7 +81,7 @@ def pause_and_weigh(layer, t_now: float, duration: float, rate: float, weigh_s: 
     weigh_s : float
         Length of the weighing window at the end of the pause, s.
     on_frame : callable, optional
-        Called after every step (e.g. to clear a fault).
+        Called with the time (s) after every step (e.g. to clear a fault).
 
     Returns
     -------
@@ -97,7 +97,7 @@ def pause_and_weigh(layer, t_now: float, duration: float, rate: float, weigh_s: 
         t_now = min(t_now + 1.0 / rate, t_end)
         layer.advance_to(t_now)
         if on_frame is not None:
-            on_frame()
+            on_frame(t_now)
         if t_end - t_now < weigh_s:
             st = layer.state()
             strains.append(np.asarray(st.strains))
@@ -235,6 +235,7 @@ class CatchAgent:
         self._pending = False
         self.mirror = ReferenceMirror(self.max_speed, self.max_accel)
         self._speed = self.max_speed
+        self._ready_goal = None
         self.log = ThrowLog()
 
     # ------------------------------------------------------------------ commands
@@ -311,6 +312,7 @@ class CatchAgent:
         """
         log = self.log
         self.recover(t)
+        self._send_ready(t)
         st = self.layer.state()
         if log.setpoint is not None and log.t_arrived_s is None and \
                 np.max(np.abs(st.theta - log.setpoint)) < ARRIVED_TOL_RAD:
@@ -362,6 +364,7 @@ class CatchAgent:
                 self.log.deferred += 1
                 return
         self._pending = False
+        self._ready_goal = None                # the intercept supersedes a ready move still waiting
         f = mode_frequency_hz(self.payload_est_kg, o.mode_f0_hz, o.mode_mass_kg) if o.mode_f0_hz > 0 else 0.0
         deadline = it.t_cross - o.arrive_before_s
         speed = None
@@ -376,18 +379,47 @@ class CatchAgent:
 
     # ------------------------------------------------------------------ between throws
     def return_to_ready(self, t: float) -> None:
-        """Send the arm back to the ready pose (the nearest IK solution), at ``t`` (s)."""
-        self.send(self.ik(self.ready_point_base, self.payload_est_kg, near=np.asarray(self.layer.state().theta)), t)
+        """Send the arm back to the ready pose (the nearest IK solution), at ``t`` (s), once it is safe.
+
+        A joint still moving away from the ready pose (a fast intercept move braking at the end of its
+        range) would, re-planned at once, brake later and pass its range limit: the layer's range
+        fault then stopped the arm five or six times over and it reached the ready pose only after
+        the next release. The ready setpoint waits (checked every frame, :meth:`wait` and
+        :meth:`step`) until its re-plan stays ``setpoint_margin_rad`` inside the ranges or the
+        current motion has ended.
+        """
+        self._ready_goal = self.ik(self.ready_point_base, self.payload_est_kg,
+                                   near=np.asarray(self.layer.state().theta))
+        self._send_ready(t)
+
+    def _send_ready(self, t: float) -> None:
+        goal = self._ready_goal
+        if goal is None:
+            return
+        m = self.mirror.motion
+        if m is not None and t < m.t0 + m.duration_s:
+            lo, hi = self.mirror.path_range_rad(goal, t)
+            margin = np.asarray(self.options.setpoint_margin_rad, float)
+            if np.any(lo < self.lims[:, 0] + margin - 1e-9) or np.any(hi > self.lims[:, 1] - margin + 1e-9):
+                return
+        self._ready_goal = None
+        self.send(goal, t)
 
     def wait(self, t_now: float, duration: float, rate: float):
-        """Wait ``duration`` s (advancing the lockstep layer), clearing faults; strains of the last 0.6 s at rest.
+        """Wait ``duration`` s (advancing the lockstep layer); strains of the last 0.6 s at rest.
+
+        Every frame it clears a fault stop and sends a ready move that was waiting (:meth:`return_to_ready`).
 
         Returns
         -------
         tuple
             ``(t, strains)`` as :func:`pause_and_weigh`.
         """
-        return pause_and_weigh(self.layer, t_now, duration, rate, on_frame=lambda: self.recover(t_now))
+        def on_frame(t: float) -> None:
+            self.recover(t)
+            self._send_ready(t)
+
+        return pause_and_weigh(self.layer, t_now, duration, rate, on_frame=on_frame)
 
     def weigh(self, strains) -> None:
         """Estimate the payload from strains sampled at rest and tell the layer (it schedules its damping on it).

@@ -153,6 +153,20 @@ class ReferenceMirror:
         past = np.max((path - g) * ahead, axis=0)
         return np.where(ahead != 0.0, np.maximum(past, 0.0), 0.0)
 
+    def path_range_rad(self, goal, t: float, *, v_max: float | None = None, samples: int = 200):
+        """Lowest and highest angle (rad, two (3,) arrays) each joint passes if ``goal`` were sent at ``t`` (s).
+
+        The layer's re-plan from the mirrored reference, sampled at ``samples`` points: sent while a
+        joint still moves the other way, it first brakes (from zero acceleration) past where the
+        current motion would have stopped. Before the first setpoint: ``goal`` itself.
+        """
+        g = np.asarray(goal, float)
+        if self.motion is None:
+            return g.copy(), g.copy()
+        m = self.plan(g, t, v_max)
+        path = np.asarray(m.sample(m.t0 + np.linspace(0.0, m.duration_s, max(int(samples), 2)))[0], float)
+        return path.min(axis=0), path.max(axis=0)
+
     def residual_rad(self, goal, t: float, f_hz: float, *, v_max: float | None = None, samples: int = 160):
         """Residual excitation of a mode at ``f_hz`` (Hz) if ``goal`` were sent at ``t`` (s) with ``v_max``.
 

@@ -162,7 +162,11 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
     wall0 = time.perf_counter()
     km, inverse = demo_kinematics(o, params)
     ekf_opts = EKFOptions(**{**asdict(o.ekf), "model": BallModel(drag_k_per_m=o.drag_k_per_m)})
-    iopts = InterceptOptions(release_sigma_m=o.release_sigma_m, refine_sigma_factor=o.refine_sigma_factor)
+    # a crossing estimated a little beyond full stretch is released too: the net, pulled in by the reach margin,
+    # still takes the ball there (the estimate of a crossing at the edge of the reach flickers across it)
+    reach_tol = max(0.0, o.net_radius_m - o.ball_radius_m - o.reach_margin_m)
+    iopts = InterceptOptions(release_sigma_m=o.release_sigma_m, refine_sigma_factor=o.refine_sigma_factor,
+                             reach_tol_m=reach_tol)
     ik = CatchIK(inverse, params, compensate=o.compensate, theta1_rad=iopts.theta1_rad)
 
     world = CatchScenario(o, params, ik(np.asarray(o.ready_point_base, float), 0.0, elbow="up"))

@@ -1,0 +1,146 @@
+"""The catching agent between throws and at the edge of the reach.
+
+* The ready move after a fast intercept move waits while its re-plan would carry a joint past its
+  range (the layer's range fault used to stop the arm over and over, and the next throw found it
+  still on its way back).
+* A crossing estimated a little beyond full stretch is released: the net, pulled in, still takes it.
+"""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from tudorvision.lab.catch.options import DemoOptions
+
+
+def test_path_range_is_the_planners_replan():
+    """Oracle: the layer's planner itself, re-planned from the braking state to a goal the other way."""
+    from tudorvision.joint.planner import plan_motion
+    from tudorvision.lab.catch.agent import ReferenceMirror
+
+    v, a = 1.6, 7.0
+    start, goal = np.deg2rad([0.0, 60.0, 60.0]), np.deg2rad([0.0, -4.0, 60.0])
+    back = np.deg2rad([0.0, 57.0, 57.0])
+    m = ReferenceMirror(v, a)
+    m.sent(goal, 0.0, theta_now=start)
+    first = plan_motion(start, goal, v_max=v, a_max=a)
+    t_brake = first.t_acc[1] + first.t_cruise[1] + 0.3 * first.t_dec[1]
+    th, dth, _ = first.sample(t_brake)
+    replan = plan_motion(th, back, v_max=v, a_max=a, dtheta_start=dth)
+    path = replan.sample(np.linspace(0.0, replan.duration_s, 4000))[0]
+    lo, hi = m.path_range_rad(back, t_brake)
+    assert np.allclose(lo, path.min(axis=0), atol=2e-4) and np.allclose(hi, path.max(axis=0), atol=2e-4)
+    assert lo[1] < goal[1] - np.deg2rad(2.0)            # braking anew, joint 2 passes the old goal
+    # at rest the path is the straight span between where it stands and the goal
+    lo, hi = m.path_range_rad(back, first.duration_s + 1.0)
+    assert np.allclose(lo, np.minimum(goal, back)) and np.allclose(hi, np.maximum(goal, back))
+
+
+class _Layer:
+    """A joint layer stand-in: records the setpoints; the arm stands at ``theta``."""
+
+    def __init__(self):
+        self.sent = []
+        self.theta = np.deg2rad([0.0, 60.0, 60.0])
+        outer = self
+
+        class Adapter:
+            def send_setpoint(self, theta, **kw):
+                from tudorvision.joint import Ack
+                outer.sent.append(np.asarray(theta, float))
+                return Ack(command_seq=len(outer.sent))
+
+            def __getattr__(self, name):
+                return lambda *a, **kw: None
+
+        self.adapter = Adapter()
+
+    def state(self):
+        from tudorvision.joint import StateFlags
+        return SimpleNamespace(flags=StateFlags(0), theta=self.theta, theta_dot=np.zeros(3))
+
+
+def _agent(layer, monkeypatch):
+    import tudorvision.lab.catch.agent as agent_mod
+    from tudorvision.robot import load_robot_params
+
+    monkeypatch.setattr(agent_mod, "net_target", lambda p, *a, **k: np.asarray(p, float))
+
+    def ik(p, payload, near=None, elbow=None):
+        return np.asarray(p, float)          # the "target" is the joint setpoint itself
+
+    ik.theta1_rad = 0.0
+    o = DemoOptions(ready_point_base=tuple(np.deg2rad([0.0, 57.0, 57.0])))
+    return agent_mod.CatchAgent(layer, ik, None, None, None, np.eye(4), options=o, params=load_robot_params(),
+                                payload_range_kg=(0.0, 0.4))
+
+
+def test_ready_move_waits_while_its_replan_would_leave_a_joint_range(monkeypatch):
+    layer = _Layer()
+    agent = _agent(layer, monkeypatch)
+    agent.begin_throw(0)
+    low = np.deg2rad([0.0, -4.0, 60.0])                   # joint 2 at its setpoint margin (range -14 deg)
+    agent._intercept(0.0, SimpleNamespace(p_base=low, t_cross=10.0), layer.theta)
+    assert len(layer.sent) == 1 and np.allclose(layer.sent[0], low)
+    m = agent.mirror.motion
+    # early, still accelerating: turning back stays inside the range, the ready move goes out at once
+    agent.return_to_ready(0.1)
+    assert len(layer.sent) == 2 and np.allclose(layer.sent[-1], agent.ready_point_base)
+    # a fresh throw; braking hard near the margin: the re-plan would pass it, the ready move waits
+    agent.begin_throw(1)
+    agent._intercept(0.2, SimpleNamespace(p_base=low, t_cross=10.0), layer.theta)
+    m = agent.mirror.motion
+    t_brake = m.t0 + m.t_acc[1] + m.t_cruise[1] + 0.4 * m.t_dec[1]
+    lo, _ = agent.mirror.path_range_rad(agent.ready_point_base, t_brake)
+    assert lo[1] < np.deg2rad(-4.0)                       # what the wait avoids
+    agent.return_to_ready(t_brake)
+    assert len(layer.sent) == 3 and agent._ready_goal is not None
+    # it goes out from the frame where the motion has ended (wait's and step's per-frame check)
+    agent._send_ready(m.t0 + m.duration_s + 0.01)
+    assert len(layer.sent) == 4 and np.allclose(layer.sent[-1], agent.ready_point_base)
+    assert agent._ready_goal is None
+
+
+def test_an_intercept_supersedes_a_waiting_ready_move(monkeypatch):
+    layer = _Layer()
+    agent = _agent(layer, monkeypatch)
+    agent.begin_throw(0)
+    low = np.deg2rad([0.0, -4.0, 60.0])
+    agent._intercept(0.0, SimpleNamespace(p_base=low, t_cross=10.0), layer.theta)
+    m = agent.mirror.motion
+    t_brake = m.t0 + m.t_acc[1] + m.t_cruise[1] + 0.4 * m.t_dec[1]
+    agent.return_to_ready(t_brake)
+    assert agent._ready_goal is not None
+    agent.begin_throw(1)
+    other = np.deg2rad([0.0, 20.0, 70.0])
+    agent._intercept(m.t0 + m.duration_s + 0.05, SimpleNamespace(p_base=other, t_cross=20.0), layer.theta)
+    assert agent._ready_goal is None and np.allclose(layer.sent[-1], other)
+    agent._send_ready(m.t0 + m.duration_s + 0.1)
+    assert np.allclose(layer.sent[-1], other)             # nothing else went out
+
+
+def test_a_crossing_just_beyond_full_stretch_is_reachable_within_the_tolerance():
+    from tudorvision.catch.intercept import InterceptOptions, InterceptPlanner
+    from tudorvision.robot import load_robot_params
+
+    p = load_robot_params()
+    reach = p.link2_length_m + p.link3_length_m
+    u = np.array([np.cos(np.deg2rad(60.0)), 0.0, np.sin(np.deg2rad(60.0))])   # up and forward
+    shoulder = np.array([0.0, 0.0, p.link1_height_m])
+    strict = InterceptPlanner(InterceptOptions(), params=p)
+    tolerant = InterceptPlanner(InterceptOptions(reach_tol_m=0.015), params=p)
+    for d, strict_ok, tolerant_ok in [(reach - 0.01, True, True), (reach + 0.01, False, True),
+                                      (reach + 0.02, False, False)]:
+        q = shoulder + d * u
+        assert strict._reachable(q) is strict_ok and tolerant._reachable(q) is tolerant_ok, d
+    # the tolerance does not widen the joint ranges: behind and below (joint 2 at 200 deg) stays unreachable
+    behind = shoulder + (reach + 0.01) * np.array([-np.cos(np.deg2rad(20.0)), 0.0, -np.sin(np.deg2rad(20.0))])
+    assert not tolerant._reachable(behind)
+    for bad in (-0.01, float("nan")):
+        try:
+            InterceptOptions(reach_tol_m=bad)
+        except ValueError as e:
+            assert "reach_tol_m" in str(e)
+        else:
+            raise AssertionError(bad)
