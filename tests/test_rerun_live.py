@@ -196,7 +196,7 @@ def test_rerun_web_serves_on_loopback_only(models, tmp_path):
                 assert url.startswith(f"http://127.0.0.1:{port}/")
                 with urllib.request.urlopen(url, timeout=5) as r:
                     assert r.status == 200 and b"<html" in r.read(4096).lower()
-                assert time.monotonic() - t0 < 30
+                assert time.monotonic() - t0 < 90          # generous: the suite may share a loaded machine
                 addrs = _listening(port)
                 if Path("/proc/net/tcp").exists():
                     assert addrs == {"0100007F"}, addrs      # 127.0.0.1, not 0.0.0.0 (00000000)
@@ -206,7 +206,7 @@ def test_rerun_web_serves_on_loopback_only(models, tmp_path):
                 served = True
                 p.send_signal(signal.SIGINT)
                 break
-        rest = p.communicate(timeout=30)[0]
+        rest = p.communicate(timeout=90)[0]
         assert url is not None and served, "".join(lines) + rest
         assert p.returncode == 0, "".join(lines) + rest
         assert "frames tracked" in rest
