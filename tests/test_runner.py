@@ -95,6 +95,24 @@ def test_ctrl_c_keeps_the_finished_records_and_the_rerun_finishes(tmp_path, caps
     assert _results(resumed) == _results(fresh)
 
 
+def test_resumed_records_made_by_other_code_are_reused_and_named(tmp_path, capsys, monkeypatch):
+    import tudorvision.lab.runner as runner_mod
+    from tudorvision.lab.provenance import code_version
+
+    first = run_tasks(_probe_tasks(3), tmp_path, scheduler="serial", show_progress=False)
+    assert first.reused_other_code == 0
+    rec = json.loads((tmp_path / RUNS_DIR / f"{first.records[0]['key']}.json").read_text())
+    assert rec["code"] == code_version()
+    again = run_tasks(_probe_tasks(3), tmp_path, scheduler="serial", show_progress=False)
+    assert again.skipped == 3 and again.reused_other_code == 0 and "other code" not in capsys.readouterr().err
+    monkeypatch.setattr(runner_mod, "code_version", lambda: "9.9 (git abc1234)")
+    later = run_tasks(_probe_tasks(4), tmp_path, scheduler="serial", show_progress=False, label="probe")
+    err = capsys.readouterr().err
+    assert later.skipped == 3 and later.reused_other_code == 3 and later.info()["reused_other_code"] == 3
+    assert "probe: 3 of the 3 finished task(s)" in err and code_version() in err and "9.9 (git abc1234)" in err
+    assert _results(later)[:3] == _results(first)           # reused as they were, not run again
+
+
 def test_bad_scheduler_and_duplicate_keys(tmp_path):
     with pytest.raises(ValueError, match="--scheduler"):
         parse_scheduler("cluster")

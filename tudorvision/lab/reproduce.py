@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 from ..io.atomic import write_text_atomic
+from .provenance import code_version
 from .reproduce_table import Row, Section, format_report, row_chapter, verdict
 
 __all__ = ["Row", "Section", "verdict", "run_reproduce", "format_report", "section_names", "row_chapter"]
@@ -57,30 +58,6 @@ def _select(only) -> list:
     if bad:
         raise ValueError(f"--only: unknown section(s) {', '.join(bad)} (choose from {', '.join(names)})")
     return [s for s in secs if s.name in wanted]
-
-
-def code_version() -> str:
-    """The package version and, in a git checkout, the commit (``+dirty`` with uncommitted changes).
-
-    Returns
-    -------
-    str
-        E.g. ``"0.1.0 (git 7442782+dirty)"``; the version alone outside a checkout.
-    """
-    import subprocess
-
-    from .. import __version__
-    root = Path(__file__).resolve().parents[2]
-    try:
-        head = subprocess.run(["git", "-C", str(root), "rev-parse", "--short", "HEAD"], capture_output=True,
-                              text=True, timeout=5)
-        dirty = subprocess.run(["git", "-C", str(root), "status", "--porcelain", "--untracked-files=no"],
-                               capture_output=True, text=True, timeout=5)
-    except (OSError, subprocess.SubprocessError):
-        return __version__
-    if head.returncode != 0:
-        return __version__
-    return f"{__version__} (git {head.stdout.strip()}{'+dirty' if dirty.stdout.strip() else ''})"
 
 
 def run_reproduce(out, *, quick=False, only=None, seed: int = 0, scheduler: str | None = "serial",

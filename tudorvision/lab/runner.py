@@ -47,6 +47,7 @@ import numpy as np
 
 from ..io.atomic import write_text_atomic
 from .runner_progress import RunProgress
+from .provenance import code_version
 
 __all__ = ["Task", "RunReport", "derive_seed", "config_digest", "to_jsonable", "parse_scheduler", "run_tasks",
            "execute_task", "probe_task", "RUNS_DIR"]
@@ -219,6 +220,9 @@ class RunReport:
         The Dask dashboard address.
     wall_s : float
         Wall time of :func:`run_tasks`, s.
+    reused_other_code : int
+        Of the tasks found done, those whose record was made by other code than the running one
+        (:func:`~tudorvision.lab.provenance.code_version`; records written before it was stamped count too).
     """
 
     records: list
@@ -227,6 +231,7 @@ class RunReport:
     scheduler: str = "serial"
     workers: int = 1
     dashboard: str | None = None
+    reused_other_code: int = 0
     wall_s: float = 0.0
 
     @property
@@ -270,7 +275,8 @@ class RunReport:
         dict
             ``tasks``, ``done``, ``failed``, ``not_run``, ``skipped``, ``interrupted``, ``complete``,
             ``scheduler``, ``workers``, ``dashboard``, ``wall_s``, ``task_s_mean`` (mean duration of the
-            tasks run now), ``failures`` (key, seed, params, error of each failed task).
+            tasks run now), ``failures`` (key, seed, params, error of each failed task),
+            ``reused_other_code``.
         """
         ran = [r["duration_s"] for r in self.records if r is not None and r.get("ran_now")]
         return {"tasks": len(self.records), "done": len(self.done), "failed": len(self.failed),
@@ -278,7 +284,8 @@ class RunReport:
                 "interrupted": self.interrupted, "complete": self.complete, "scheduler": self.scheduler,
                 "workers": self.workers, "dashboard": self.dashboard, "wall_s": self.wall_s,
                 "task_s_mean": float(np.mean(ran)) if ran else None,
-                "failures": [{k: r[k] for k in ("key", "seed", "params", "error")} for r in self.failed]}
+                "failures": [{k: r[k] for k in ("key", "seed", "params", "error")} for r in self.failed],
+                "reused_other_code": self.reused_other_code}
 
 
 def parse_scheduler(scheduler: str | None) -> str:
@@ -402,8 +409,9 @@ def _load_done(out: Path, task: Task) -> dict | None:
 class _Book:
     """Bookkeeping shared by the serial and Dask loops: attempts, records, progress."""
 
-    def __init__(self, tasks, out: Path, retries: int, progress: RunProgress, on_record):
+    def __init__(self, tasks, out: Path, retries: int, progress: RunProgress, on_record, code: str = ""):
         self.tasks, self.out, self.retries, self.progress = tasks, out, retries, progress
+        self.code = code
         self.on_record = on_record
         self.records: list = [None] * len(tasks)
         self.attempts = [0] * len(tasks)
@@ -423,7 +431,7 @@ class _Book:
                "error": None if outcome["ok"] else outcome["error"],
                "traceback": None if outcome["ok"] else outcome.get("traceback"),
                "attempts": self.attempts[i], "duration_s": float(outcome["duration_s"]),
-               "worker": outcome.get("worker")}
+               "worker": outcome.get("worker"), "code": self.code}
         write_text_atomic(_record_path(self.out, t.key), json.dumps(rec, indent=1))
         rec["ran_now"] = True
         self.records[i] = rec
@@ -488,17 +496,25 @@ def run_tasks(tasks, out, *, scheduler: str | None = "serial", workers: int | No
     out = Path(out)
     (out / RUNS_DIR).mkdir(parents=True, exist_ok=True)
     progress = RunProgress(len(tasks), label=label, enabled=show_progress, stream=stream or sys.stderr)
-    book = _Book(tasks, out, max(int(retries), 0), progress, on_record)
-    todo = []
+    code = code_version()
+    book = _Book(tasks, out, max(int(retries), 0), progress, on_record, code)
+    todo, other = [], []
     for i, t in enumerate(tasks):
         rec = _load_done(out, t)
         if rec is None:
             todo.append(i)
         else:
             book.records[i] = rec
+            if rec.get("code") != code:
+                other.append(rec.get("code") or "unrecorded")
     skipped = len(tasks) - len(todo)
     progress.skipped(skipped)
-    report = RunReport(records=book.records, skipped=skipped, scheduler=scheduler)
+    if other:
+        # resumable by design (the key is the task, not the code): say so when the code has changed since
+        print(f"{label}: {len(other)} of the {skipped} finished task(s) reused from {out / RUNS_DIR} were made "
+              f"by other code ({', '.join(sorted(set(other)))}; now {code}); delete those records to run them "
+              f"again", file=stream or sys.stderr)
+    report = RunReport(records=book.records, skipped=skipped, scheduler=scheduler, reused_other_code=len(other))
     ended = False
     try:
         if scheduler == "serial" or not todo:
