@@ -229,6 +229,10 @@ def run_colormodel(args) -> int:
             print(f"{cam}/{name}: centre ({mdl.center_uv[0]:.1f}, {mdl.center_uv[1]:.1f}), radius "
                   f"{mdl.radius_px:.1f} px, {mdl.n_pixels} pixels, mean RGB ({r}, {g}, {b}), hue "
                   f"{mdl.mean[3]:.1f}{'' if mdl.use_hue else ' (unused: unsaturated)'}")
+            if mdl.is_local:
+                print(f"warning: {cam}/{name}: local colour model: the frame holds this colour elsewhere, so it is "
+                      f"searched only within {mdl.local_radius_px:.0f} px of its last position (pick on the frame "
+                      f"tracking starts from)")
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     save_color_models(models, args.out)
     print(f"wrote {args.out}")

@@ -83,6 +83,14 @@ class ColorModel:
         Number of pixels the Gaussians were fitted from.
     image_size : tuple of int
         ``(width, height)`` of the frame the model was picked on.
+    local_radius_px : float or None
+        ``None`` (default): a global model, whose background was sampled over
+        the whole frame; it singles the sphere out anywhere in the frame. A
+        number: a *local* model, whose background was sampled only in the
+        square window of this half size (pixels) around the pick (the whole
+        frame holds the sphere's colour elsewhere). It singles the sphere out
+        only in such a neighbourhood, so a search with it that would cover
+        the full frame covers :meth:`local_roi` instead.
 
     Attributes
     ----------
@@ -120,6 +128,7 @@ class ColorModel:
     radius_px: float = float("nan")
     n_pixels: int = 0
     image_size: tuple = (0, 0)
+    local_radius_px: float | None = None
     log_ratio: np.ndarray = field(init=False, repr=False)
     log_prior_odds: float = field(init=False, repr=False)
     plane_tables: np.ndarray = field(init=False, repr=False)
@@ -160,6 +169,10 @@ class ColorModel:
         object.__setattr__(self, "use_hue", bool(self.use_hue))
         object.__setattr__(self, "center_uv", tuple(float(x) for x in self.center_uv))
         object.__setattr__(self, "image_size", tuple(int(x) for x in self.image_size))
+        if self.local_radius_px is not None:
+            if not (math.isfinite(float(self.local_radius_px)) and float(self.local_radius_px) >= 1.0):
+                raise TudorVisionError(f"local_radius_px: must be None or at least 1 px, got {self.local_radius_px}")
+            object.__setattr__(self, "local_radius_px", float(self.local_radius_px))
 
         table = self._tables(std)
         object.__setattr__(self, "log_ratio", table)
@@ -175,6 +188,51 @@ class ColorModel:
         for name in ("plane_tables", "plane_tables_blur"):
             quantised = np.round(getattr(self, name).astype(np.float64) * LOG_ODDS_Q).astype(np.int16)
             object.__setattr__(self, name + "_q", _readonly(quantised))
+
+    @property
+    def is_local(self) -> bool:
+        """Whether the model singles its sphere out only near the pick (``local_radius_px`` set)."""
+        return self.local_radius_px is not None
+
+    def local_roi(self, anchor_uv, width: int, height: int):
+        """The window a local model searches instead of a full frame.
+
+        Parameters
+        ----------
+        anchor_uv : array_like, shape (2,), or None
+            Where the sphere was last seen (u right, v down, pixels); None or
+            not finite: the picked centre ``center_uv``.
+        width, height : int
+            Frame size in pixels.
+
+        Returns
+        -------
+        tuple of int or None
+            ``(x, y, w, h)``: the square of half size ``local_radius_px``
+            around the anchor, clipped to the frame; None for a global model
+            (search the full frame) or when the window leaves the frame.
+
+        Examples
+        --------
+        >>> bg = np.ones((6, 256))
+        >>> m = ColorModel(mean=[200, 40, 40, 0, 200, 200], std=[9] * 6, background=bg, prior=0.01,
+        ...                center_uv=(50, 40), local_radius_px=20)
+        >>> m.local_roi(None, 640, 480), m.local_roi((10, 10), 640, 480)
+        ((30, 20, 41, 41), (0, 0, 31, 31))
+        """
+        if self.local_radius_px is None:
+            return None
+        uv = np.asarray(self.center_uv if anchor_uv is None else anchor_uv, dtype=np.float64).reshape(-1)
+        if uv.shape != (2,) or not np.all(np.isfinite(uv)):
+            uv = np.asarray(self.center_uv, dtype=np.float64)
+        if not np.all(np.isfinite(uv)):
+            return None
+        h = int(math.ceil(self.local_radius_px))
+        u, v = int(round(uv[0])), int(round(uv[1]))
+        x0, y0, x1, y1 = max(u - h, 0), max(v - h, 0), min(u + h + 1, int(width)), min(v + h + 1, int(height))
+        if x1 - x0 < 3 or y1 - y0 < 3:
+            return None
+        return x0, y0, x1 - x0, y1 - y0
 
     def _tables(self, std: np.ndarray) -> np.ndarray:
         clip = float(self.llr_clip)
@@ -213,6 +271,7 @@ class ColorModel:
             "radius_px": float(self.radius_px),
             "n_pixels": int(self.n_pixels),
             "image_size": [int(x) for x in self.image_size],
+            "local_radius_px": None if self.local_radius_px is None else float(self.local_radius_px),
             "background": [[float(f"{x:.6g}") for x in row[:n]] for row, n in zip(self.background, CHANNEL_LEVELS)],
         }
 
@@ -269,6 +328,8 @@ class ColorModel:
                 radius_px=float(data.get("radius_px", float("nan"))),
                 n_pixels=int(data.get("n_pixels", 0)),
                 image_size=tuple(data.get("image_size", (0, 0))),
+                local_radius_px=(None if data.get("local_radius_px") is None
+                                 else float(data["local_radius_px"])),
             )
         except (TypeError, ValueError) as exc:
             if isinstance(exc, TudorVisionError):

@@ -33,8 +33,9 @@ import numpy as np
 
 from tudorvision._checks import TudorVisionError
 from tudorvision.io.atomic import atomic_write
-from tudorvision.stereo._colortables import CHANNEL_LEVELS, CHANNELS, HUE_INDEX, HUE_LEVELS, ColorModel
+from tudorvision.stereo._colortables import CHANNELS, HUE_INDEX, HUE_LEVELS, ColorModel
 from tudorvision.stereo._frame import check_frame
+from tudorvision.stereo._localmodel import background_pmf, fit_local_model
 from tudorvision.stereo.detection import segment_params_for_radius
 from tudorvision.stereo.segment import detect_sphere
 from tudorvision.stereo._pick import (calibrated_prior, circular_hue_stats, pick_stats, reject_outlier_rows,
@@ -71,28 +72,12 @@ def _check_uv(value, name: str, width: int, height: int) -> np.ndarray:
     return uv
 
 
-def _smooth_pmf(counts: np.ndarray, sigma: float, circular: bool, floor: float) -> np.ndarray:
-    levels = counts.size
-    half = int(math.ceil(3 * sigma))
-    k = np.exp(-0.5 * (np.arange(-half, half + 1) / sigma) ** 2)
-    k /= k.sum()
-    c = counts.astype(np.float64)
-    if circular:
-        c = np.concatenate([c[-half:], c, c[:half]])
-        sm = np.convolve(c, k, mode="valid")
-    else:
-        sm = np.convolve(c, k, mode="same")
-    total = sm.sum()
-    pmf = sm / total if total > 0 else np.full(levels, 1.0 / levels)
-    return (1.0 - floor) * pmf + floor / levels
-
-
 def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_pixels: int = 12,
                     max_std: float = 45.0, max_hue_std: float = 20.0, min_saturation: float = 30.0,
                     background_margin: float = 1.5, llr_clip: float = 8.0, prior: float | None = None,
                     min_std=(6.0, 6.0, 6.0, 2.0, 8.0, 6.0), verify: bool = True,
                     verify_params=None, trim_highlights: bool = False, reject_outliers: bool = True,
-                    calibrate_prior: bool = True) -> ColorModel:
+                    calibrate_prior: bool = True, local_fallback: bool = True) -> ColorModel:
     """Fit a sphere's colour model from a picked centre and edge pixel.
 
     Parameters
@@ -153,10 +138,25 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
         growing threshold ``p_grow``. The model then finds its sphere on the
         pick frame without admitting the background; ``verify`` still checks
         it.
+    local_fallback : bool
+        With ``verify``, when the model fails its check because the frame
+        holds the sphere's colour elsewhere, fit a *local* model instead: its
+        background is sampled only in a window of about four picked radii
+        around the pick (``ColorModel.local_radius_px``), and it is accepted
+        when, in that window, the pick's region is the heaviest valid one,
+        does not reach the window's edge, has about the picked radius and no
+        other region has a quarter of its mass. Searches with a local model
+        cover that window around the sphere's last position instead of the
+        full frame (``ColorModel.local_roi``), so look-alikes elsewhere are
+        not examined; a sphere that leaves the window while unseen is not
+        found again (the stereo pipeline's one exception: a view lost while
+        the other camera sees the sphere is searched along the epipolar
+        line, taking only a single fitting region).
 
     Returns
     -------
     ColorModel
+        ``model.is_local`` tells a local model (see ``local_fallback``).
 
     Raises
     ------
@@ -232,12 +232,7 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
         raise TudorVisionError(
             f"center_uv, edge_uv: the circle (radius {radius:.1f} px) leaves too little background in "
             f"the {w}x{h} frame to fit a background model")
-    bgpix = np.concatenate([sub[outside][:, ::-1], hsv_sub[outside]], axis=1)
-    background = np.zeros((6, 256))
-    for ch in range(6):
-        counts = np.bincount(bgpix[:, ch], minlength=CHANNEL_LEVELS[ch])[:CHANNEL_LEVELS[ch]]
-        background[ch, :CHANNEL_LEVELS[ch]] = _smooth_pmf(counts, sigma=2.0, circular=(ch == HUE_INDEX),
-                                                          floor=0.01)
+    background = background_pmf(np.concatenate([sub[outside][:, ::-1], hsv_sub[outside]], axis=1))
     if prior is None:
         prior = float(np.clip(math.pi * radius ** 2 / (w * h), 1e-4, 0.2))
     model = ColorModel(mean=mean, std=std, background=background, prior=prior, use_hue=use_hue,
@@ -251,8 +246,13 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
         if not det.valid or np.hypot(det.uv[0] - c[0], det.uv[1] - c[1]) > radius:
             why = det.reason if not det.valid else (
                 f"the best region lies at ({det.uv[0]:.1f}, {det.uv[1]:.1f}), not at the pick")
+            local, why_local = (fit_local_model(model, img, c, radius, r_in, background_margin * radius, vparams)
+                                if local_fallback else (None, ""))
+            if local is not None:
+                return local
             raise TudorVisionError(
-                f"center_uv, edge_uv: the colour model does not single out the picked sphere ({why}); is the "
+                f"center_uv, edge_uv: the colour model does not single out the picked sphere ({why}"
+                f"{'; nor in its neighbourhood: ' + why_local if why_local else ''}); is the "
                 f"pick on the sphere, and the edge pixel on its rim ({radius:.1f} px from the centre)?")
     return model
 

@@ -357,11 +357,17 @@ class StereoPipeline:
         return triangulate_stereo(np.reshape(uv_left, (-1, 2)), np.reshape(uv_right, (-1, 2)), self.calibration,
                                   method=self.options.method)
 
-    def _candidates(self, img, cam: str, sphere: str) -> list:
-        """Valid regions of one sphere in a full frame (full resolution), heaviest first."""
+    def _candidates(self, img, cam: str, sphere: str, anywhere: bool = False) -> list:
+        """Valid regions of one sphere in a full frame (full resolution), heaviest first.
+
+        A local model: only in its window around the last position, unless ``anywhere`` (the other view's
+        detection then pins it to the epipolar line, and only a single region on the line is taken).
+        """
         h, w = img.shape[:2]
-        found = regions_in_window(FramePlanes(img), self._models[cam][sphere], self.options.tracker.segment,
-                                  (0, 0, w, h), False)
+        model = self._models[cam][sphere]
+        roi = None if anywhere else model.local_roi(self._trackers[cam].trackers[sphere].anchor, w, h)
+        roi = roi or (0, 0, w, h)
+        found = regions_in_window(FramePlanes(img), model, self.options.tracker.segment, roi, False)
         return [d for d in found if d.valid][:6]
 
     def _make_consistent(self, dets: dict, images: dict) -> dict:
@@ -380,7 +386,7 @@ class StereoPipeline:
                 cands = {cam: self._candidates(images[cam], cam, s) for cam in ("left", "right")}
             else:   # found in one camera only: look for a region on its epipolar line in the other
                 have, miss = ("left", "right") if dl.valid else ("right", "left")
-                cands = {have: [dets[have][s]], miss: self._candidates(images[miss], miss, s)}
+                cands = {have: [dets[have][s]], miss: self._candidates(images[miss], miss, s, anywhere=True)}
                 if not cands[miss]:
                     continue
             pairs = [(a, b) for a in cands["left"] for b in cands["right"]]
@@ -390,6 +396,8 @@ class StereoPipeline:
                 ub = np.array([b.uv for _, b in pairs])
                 epi = self.epipolar_px(ua, ub)
                 ok = epi <= tol
+                if ok.sum() > 1 and any(self._models[c][s].is_local for c in ("left", "right")):
+                    ok[:] = False   # a local model's look-alikes: more than one pair fits, none is taken
                 if ok.any():
                     prev = self._last_left[s]
                     if prev is not None:
@@ -409,7 +417,7 @@ class StereoPipeline:
                 if new[cam] is not dets[cam][s]:
                     dets[cam] = {**dets[cam], s: new[cam]}
                     if self.options.tracking:   # do not predict from the look-alike next frame
-                        self._trackers[cam].trackers[s].reset()
+                        self._trackers[cam].trackers[s].reset(anchor_uv=new[cam].uv if new[cam].valid else None)
             self.n_repaired += best is not None
         return dets
 

@@ -540,7 +540,8 @@ def detect_on_planes(frame: FramePlanes, model: ColorModel, params: SegmentParam
         Thresholds and limits.
     roi : tuple of int or None
         Checked window ``(x, y, w, h)`` in frame pixels, or None for the full
-        frame (coarse to fine when ``params.coarse_step > 1``).
+        frame (coarse to fine when ``params.coarse_step > 1``; a local model's
+        ``local_roi`` around its pick instead).
     blur : bool
         Use the model's blur-tolerant tables and ``min_circularity_blur``.
 
@@ -549,6 +550,7 @@ def detect_on_planes(frame: FramePlanes, model: ColorModel, params: SegmentParam
     SphereDetection
         The best region (invalid, with a reason, when there is none).
     """
+    roi = model.local_roi(None, frame.width, frame.height) if roi is None else roi   # a local model: its window
     if roi is None:
         return _detect_full(frame, model, params, blur)
     found = regions_in_window(frame, model, params, roi, blur)
@@ -573,7 +575,7 @@ def detect_sphere(frame_bgr, model: ColorModel, *, params: SegmentParams | None 
     roi : tuple of int, optional
         Search window ``(x, y, w, h)`` in frame pixels; it is clipped to the
         image. Without it the full frame is searched (coarse to fine when
-        ``params.coarse_step > 1``).
+        ``params.coarse_step > 1``), or a local model's ``local_roi``.
     motion_blur : bool, optional
         Overrides ``params.motion_blur`` for this call: use the model's
         blur-tolerant tables and ``min_circularity_blur``.

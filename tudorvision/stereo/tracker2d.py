@@ -17,10 +17,13 @@ is clipped at the image border. Of the valid regions in the window the one
 nearest the prediction is taken. If there is none, or it touches the window's
 edge (the window was too small), the same frame is
 searched in full (coarse to fine); once lost, the tracker searches full frames
-until it finds the sphere again. The window is segmented with the model's
-strict colour tables first (so a sharp sphere gives exactly the full-frame
-result); when that finds nothing and the predicted speed exceeds
-``blur_speed * r`` px/frame, motion blur is assumed and the window is segmented
+until it finds the sphere again. A local colour model (``ColorModel.is_local``,
+fitted where the frame holds the sphere's colour elsewhere) replaces each full
+search by its window (``local_roi``) around :attr:`SphereTracker.anchor`, the
+last position (the pick before the first sighting), and takes the valid region
+nearest it. The window is segmented with the model's strict colour tables first
+(so a sharp sphere gives exactly the full-frame result); when that finds
+nothing and the predicted speed exceeds ``blur_speed * r`` px/frame, motion blur is assumed and the window is segmented
 again with the blur-tolerant tables and the looser circularity limit
 ``min_circularity_blur`` (see :mod:`tudorvision.stereo.segment`). Full-frame searches use the strict tables
 (unless ``segment.motion_blur`` is set), because the tolerant ones also accept
@@ -158,8 +161,16 @@ class SphereTracker:
         self._seg_moving = seg if seg.centroid == "moment" else replace(seg, centroid="rim_moment")
         self.reset()
 
-    def reset(self) -> None:
-        """Forget the track; the next frame is searched in full."""
+    def reset(self, anchor_uv=None) -> None:
+        """Forget the track; the next frame is searched in full.
+
+        Parameters
+        ----------
+        anchor_uv : array_like, shape (2,), optional
+            Where a local colour model searches next (:attr:`anchor`);
+            default: the model's picked centre.
+        """
+        self._anchor = None if anchor_uv is None else tuple(float(x) for x in anchor_uv)
         self._index = -1
         self._hist: list = []  # [(frame index, uv ndarray)] of the last two valid detections
         self._radius = float("nan")
@@ -268,7 +279,11 @@ class SphereTracker:
             # the blur-tolerant ones also accept darker objects of the sphere's hue
             self.mode = "full"
             self.n_full += 1
-            det = detect_on_planes(frame, self.model, p.segment, None, p.segment.motion_blur)
+            roi = self.model.local_roi(self.anchor, frame.width, frame.height) if self.model.is_local else None
+            if roi is None:
+                det = detect_on_planes(frame, self.model, p.segment, None, p.segment.motion_blur)
+            else:   # a local model: only its window around the last position, the region nearest that
+                det = self._local(regions_in_window(frame, self.model, p.segment, roi, p.segment.motion_blur))
             if not det.valid and pred is not None and self._fast and not p.segment.motion_blur:
                 det = self._reacquire_blurred(frame, pred[0], det)
         if det.valid:
@@ -284,6 +299,24 @@ class SphereTracker:
         self.last = det
         return det
 
+
+    @property
+    def anchor(self) -> tuple:
+        """Where the sphere was last found, ``(u, v)`` pixels; before that, the ``reset`` anchor or the pick."""
+        if self._hist:
+            return tuple(float(x) for x in self._hist[-1][1])
+        return self._anchor if self._anchor is not None else tuple(self.model.center_uv)
+
+    def _local(self, found) -> SphereDetection:
+        """A local model's detection in its window: the valid region nearest :attr:`anchor`, else invalid."""
+        det = self._nearest(found, self.anchor)
+        if det is not None:
+            return det
+        if found and found[0].valid:   # cut by the window: the sphere's colour runs on beyond it
+            return replace(found[0], valid=False, reason="local colour model: region reaches the edge of its window")
+        return found[0] if found else SphereDetection(
+            uv=(math.nan, math.nan), area_px=0.0, mean_prob=0.0, circularity=0.0, valid=False,
+            reason="local colour model: nothing in its window around the last position")
 
     @staticmethod
     def _nearest(found, uv):
