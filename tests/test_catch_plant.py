@@ -4,6 +4,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from _catch_stubs import LayerStub
 from tudorvision.lab.catch.options import DemoOptions
 
 
@@ -82,29 +83,6 @@ def test_reference_mirror_predicts_the_planners_overshoot_on_a_replan():
     assert m.overshoot_rad(goal, t_mid)[1] > np.deg2rad(0.5)
 
 
-class _Layer:
-    """A joint layer stand-in: records commands; the arm rests at ``theta``."""
-
-    def __init__(self):
-        self.sent = []
-        outer = self
-
-        class Adapter:
-            def send_setpoint(self, theta, **kw):
-                from tudorvision.joint import Ack
-                outer.sent.append(np.asarray(theta, float))
-                return Ack(command_seq=len(outer.sent))
-
-            def __getattr__(self, name):
-                return lambda *a, **kw: None
-
-        self.adapter = Adapter()
-
-    def state(self):
-        from tudorvision.joint import StateFlags
-        return SimpleNamespace(flags=StateFlags(0), theta=np.deg2rad([0.0, 60.0, 60.0]))
-
-
 def _agent(layer, targets):
     from tudorvision.lab.catch.agent import CatchAgent
     from tudorvision.robot import load_robot_params
@@ -125,7 +103,7 @@ def test_refinements_that_change_nothing_or_would_overshoot_wait(monkeypatch):
     import tudorvision.lab.catch.agent as agent_mod
 
     monkeypatch.setattr(agent_mod, "net_target", lambda p, *a, **k: np.asarray(p, float))
-    layer = _Layer()
+    layer = LayerStub()
     agent, _ = _agent(layer, [])
     agent.begin_throw(0)
     first = np.deg2rad([0.0, 80.0, 30.0])

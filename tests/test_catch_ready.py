@@ -11,6 +11,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from _catch_stubs import LayerStub
 from tudorvision.lab.catch.options import DemoOptions
 
 
@@ -37,30 +38,6 @@ def test_path_range_is_the_planners_replan():
     assert np.allclose(lo, np.minimum(goal, back)) and np.allclose(hi, np.maximum(goal, back))
 
 
-class _Layer:
-    """A joint layer stand-in: records the setpoints; the arm stands at ``theta``."""
-
-    def __init__(self):
-        self.sent = []
-        self.theta = np.deg2rad([0.0, 60.0, 60.0])
-        outer = self
-
-        class Adapter:
-            def send_setpoint(self, theta, **kw):
-                from tudorvision.joint import Ack
-                outer.sent.append(np.asarray(theta, float))
-                return Ack(command_seq=len(outer.sent))
-
-            def __getattr__(self, name):
-                return lambda *a, **kw: None
-
-        self.adapter = Adapter()
-
-    def state(self):
-        from tudorvision.joint import StateFlags
-        return SimpleNamespace(flags=StateFlags(0), theta=self.theta, theta_dot=np.zeros(3))
-
-
 def _agent(layer, monkeypatch):
     import tudorvision.lab.catch.agent as agent_mod
     from tudorvision.robot import load_robot_params
@@ -77,7 +54,7 @@ def _agent(layer, monkeypatch):
 
 
 def test_ready_move_waits_while_its_replan_would_leave_a_joint_range(monkeypatch):
-    layer = _Layer()
+    layer = LayerStub()
     agent = _agent(layer, monkeypatch)
     agent.begin_throw(0)
     low = np.deg2rad([0.0, -4.0, 60.0])                   # joint 2 at its setpoint margin (range -14 deg)
@@ -103,7 +80,7 @@ def test_ready_move_waits_while_its_replan_would_leave_a_joint_range(monkeypatch
 
 
 def test_an_intercept_supersedes_a_waiting_ready_move(monkeypatch):
-    layer = _Layer()
+    layer = LayerStub()
     agent = _agent(layer, monkeypatch)
     agent.begin_throw(0)
     low = np.deg2rad([0.0, -4.0, 60.0])

@@ -97,7 +97,7 @@ def run_reproduce(out, *, quick=False, only=None, seed: int = 0, scheduler: str 
     ValueError
         On an unknown section name or a bad scheduler.
     """
-    from .runner import RUNS_DIR, Task, run_tasks
+    from .runner import Task, run_tasks
 
     secs = _select(only)
     small = {s.name for s in secs} if quick is True else set(quick or ())
@@ -111,13 +111,8 @@ def run_reproduce(out, *, quick=False, only=None, seed: int = 0, scheduler: str 
                   (str(out), s.name in small, int(seed))) for s in secs]
     code = code_version()
 
-    def stamp(rec):      # the code a section ran with, kept in its record for later (resumed) reports
-        rec["code"] = code
-        write_text_atomic(out / RUNS_DIR / f"{rec['key']}.json",
-                          json.dumps({k: v for k, v in rec.items() if k != "ran_now"}, indent=1))
-
     rep = run_tasks(tasks, out, scheduler=scheduler, workers=workers, show_progress=show_progress,
-                    label="reproduce", stream=stream, on_record=stamp)
+                    label="reproduce", stream=stream, code=code)
     rows, sections = [], []
     for s, rec in zip(secs, rep.records):
         entry = {"name": s.name, "chapter": s.chapter, "title": s.title, "quick": s.name in small,

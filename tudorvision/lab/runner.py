@@ -41,7 +41,7 @@ import time
 import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Callable
 
 import numpy as np
 
@@ -443,7 +443,8 @@ class _Book:
 
 def run_tasks(tasks, out, *, scheduler: str | None = "serial", workers: int | None = None, retries: int = 1,
               processes: bool = True, dashboard_address: str | None = ":8787", show_progress: bool | None = None,
-              label: str = "tasks", on_record: Callable | None = None, stream=None) -> RunReport:
+              label: str = "tasks", on_record: Callable | None = None, stream=None,
+              code: str | None = None) -> RunReport:
     """Run tasks serially or on Dask, skipping those already done in ``out``; write each record as it arrives.
 
     Parameters
@@ -472,6 +473,9 @@ def run_tasks(tasks, out, *, scheduler: str | None = "serial", workers: int | No
         ``f(record)`` after each record is written (in arrival order).
     stream : file, optional
         Where progress goes (default ``sys.stderr``).
+    code : str, optional
+        The code version stamped on each record (``code``) and compared with the reused ones; default
+        :func:`~tudorvision.lab.provenance.code_version`.
 
     Returns
     -------
@@ -496,7 +500,7 @@ def run_tasks(tasks, out, *, scheduler: str | None = "serial", workers: int | No
     out = Path(out)
     (out / RUNS_DIR).mkdir(parents=True, exist_ok=True)
     progress = RunProgress(len(tasks), label=label, enabled=show_progress, stream=stream or sys.stderr)
-    code = code_version()
+    code = code_version() if code is None else str(code)
     book = _Book(tasks, out, max(int(retries), 0), progress, on_record, code)
     todo, other = [], []
     for i, t in enumerate(tasks):

@@ -318,7 +318,6 @@ def refine_sweep_in_plane(T_base_cam, centres_cam, theta_rad, deflection, payloa
                     "in_plane_rmse_m": float(np.sqrt(np.mean(res[use] ** 2))), "points": int(use.sum())}
 
 
-
 def refine_sweep_mirror(T_base_cam, centres_cam, theta_rad, *, pair_tol_rad: float = float(np.radians(1.0))):
     """Refine a sweep calibration's in-plane angle and lateral origin from the sweep's mirror symmetry.
 
@@ -416,4 +415,3 @@ def refine_sweep_mirror(T_base_cam, centres_cam, theta_rad, *, pair_tol_rad: flo
     spread = float(np.sqrt(w @ (np.asarray(tilts) - tilt) ** 2))
     return C @ T0, {"mirror_rotation_deg": float(np.degrees(-tilt)), "mirror_shift_m": shift,
                     "pairs": len(tilts), "mirror_tilt_sd_deg": float(np.degrees(spread))}
-

@@ -299,7 +299,6 @@ class SphereTracker:
         self.last = det
         return det
 
-
     @property
     def anchor(self) -> tuple:
         """Where the sphere was last found, ``(u, v)`` pixels; before that, the ``reset`` anchor or the pick."""

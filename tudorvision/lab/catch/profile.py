@@ -226,4 +226,3 @@ class ReferenceMirror:
             return float(speed)
         _, t_end = self.residual_rad(goal, t, f_hz if f_hz > 0 else 1.0, v_max=speed)
         return float(speed) if t_end <= deadline_s else float(late_speed)
-
