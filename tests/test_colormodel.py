@@ -242,3 +242,49 @@ def test_pick_errors(pick_frame):
         fit_color_model_set(frames, ["left:red:900,151:910,151"])
     with pytest.raises(TudorVisionError, match="at least one --pick"):
         fit_color_model_set(frames, [])
+
+
+def _shaded_sphere(rng, centre=(160.3, 120.6), radius=9.0, size=(320, 240)):
+    """A red sphere lit hard from the upper left (level 70-255 across it) on a mid-grey noisy floor."""
+    w, h = size
+    img = np.clip(rng.normal(110, 6, (h, w, 3)), 0, 255)
+    ss = 4                                    # 4x4 supersampling: the rim is anti-aliased
+    yy, xx = np.mgrid[0:h * ss, 0:w * ss]
+    x, y = (xx + 0.5) / ss - 0.5 - centre[0], (yy + 0.5) / ss - 0.5 - centre[1]
+    rho2 = (x * x + y * y) / radius ** 2
+    inside = rho2 <= 1.0
+    nz = np.sqrt(np.clip(1.0 - rho2, 0.0, 1.0))
+    light = np.array([-0.6, -0.6, 0.53]) / np.linalg.norm([-0.6, -0.6, 0.53])
+    lam = np.clip((x / radius) * light[0] + (y / radius) * light[1] + nz * light[2], 0.0, 1.0)
+    level = 70.0 + 185.0 * lam
+    sphere = np.stack([0.2 * level, 0.25 * level, level], axis=-1)        # BGR: red, shaded
+    cover = inside.reshape(h, ss, w, ss).mean(axis=(1, 3))[..., None]
+    shade = (sphere * inside[..., None]).reshape(h, ss, w, ss, 3).sum(axis=(1, 3)) / np.maximum(
+        inside.reshape(h, ss, w, ss).sum(axis=(1, 3)), 1)[..., None]
+    out = (1.0 - cover) * img + cover * shade
+    return np.clip(np.rint(out + rng.normal(0, 2.0, out.shape)), 0, 255).astype(np.uint8)
+
+
+def test_shaded_pick_not_one_colour_is_capped_and_checked(monkeypatch):
+    """A hard-lit sphere spreads its levels beyond max_std: the model is fitted with the spread capped
+    and accepted because it finds the picked sphere; the stricter check refuses a pick whose circle is
+    not the sphere's (here a third larger: the edge clicked outside the rim)."""
+    import tudorvision.stereo.colormodel as colormodel
+    from tudorvision.stereo import detect_sphere
+    from tudorvision.stereo.detection import segment_params_for_radius
+    img = _shaded_sphere(np.random.default_rng(3))
+    centre, edge = (160, 121), (168, 121)                    # 8 px on a 9 px sphere
+    with pytest.raises(TudorVisionError, match="not one colour"):
+        fit_color_model(img, centre, edge, capped_spread=False)
+    with pytest.raises(TudorVisionError, match="not one colour"):
+        fit_color_model(img, centre, edge, verify=False)     # no check, no capped model
+    m = fit_color_model(img, centre, edge)
+    assert not m.is_local
+    assert np.all(m.std <= [45.0, 45.0, 45.0, 20.0, 45.0, 45.0])
+    det = detect_sphere(img, m, params=segment_params_for_radius(None, 8.0))
+    assert det.valid and np.hypot(det.uv[0] - 160.3, det.uv[1] - 120.6) < 0.5
+    # a 12 px circle on the 9 px sphere: the capped model finds the sphere, but its circle is not the pick
+    with pytest.raises(TudorVisionError, match="not one colour"):
+        fit_color_model(img, centre, (172, 121))
+    monkeypatch.setattr(colormodel, "_fits_pick", lambda *args: True)     # without the stricter check
+    assert not fit_color_model(img, centre, (172, 121)).is_local
