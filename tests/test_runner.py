@@ -113,6 +113,29 @@ def test_resumed_records_made_by_other_code_are_reused_and_named(tmp_path, capsy
     assert _results(later)[:3] == _results(first)           # reused as they were, not run again
 
 
+def test_drop_stale_records_makes_other_code_run_again(tmp_path, capsys):
+    """--rerun-stale: records of other code (also in nested runs/ folders) are deleted, then run again;
+    the running code's records, other JSON files and unreadable ones stay."""
+    from tudorvision.cli import main as cli_main
+    from tudorvision.lab.runner import drop_stale_records
+
+    run_tasks(_probe_tasks(3), tmp_path, scheduler="serial", show_progress=False, code="old")
+    run_tasks(_probe_tasks(2), tmp_path / "section" / "sessions", scheduler="serial", show_progress=False,
+              code="new")
+    (tmp_path / RUNS_DIR / "notes.json").write_text('{"what": "not a record"}')
+    (tmp_path / RUNS_DIR / "broken.json").write_text("{not json")
+    gone = drop_stale_records(tmp_path, code="new")
+    assert sorted(p.parent for p in gone) == [tmp_path / RUNS_DIR] * 3
+    assert sorted(p.name for p in (tmp_path / RUNS_DIR).iterdir()) == ["broken.json", "notes.json"]
+    assert len(list((tmp_path / "section" / "sessions" / RUNS_DIR).glob("*.json"))) == 2
+    rep = run_tasks(_probe_tasks(3), tmp_path, scheduler="serial", show_progress=False, code="new")
+    assert rep.skipped == 0 and rep.complete and rep.reused_other_code == 0
+    assert drop_stale_records(tmp_path, code="new") == []
+    # the command line: only where the runner runs
+    assert cli_main(["catch", "demo", "--rerun-stale", "--out", str(tmp_path / "c")]) != 0
+    assert "--rerun-stale: only on the runner" in capsys.readouterr().err
+
+
 def test_bad_scheduler_and_duplicate_keys(tmp_path):
     with pytest.raises(ValueError, match="--scheduler"):
         parse_scheduler("cluster")

@@ -23,7 +23,7 @@ from pathlib import Path
 
 from .._checks import TudorVisionError
 
-__all__ = ["register_track_batch", "add_scheduler_arguments", "track_sequence_task", "run_batch"]
+__all__ = ["register_track_batch", "add_scheduler_arguments", "add_rerun_stale_argument", "drop_stale_records", "track_sequence_task", "run_batch"]
 
 SCHEDULER_HELP = ("where the runs go: 'serial' (this process), 'local' (a Dask cluster of --workers processes on "
                   "this machine, the default) or a running Dask scheduler's address, e.g. tcp://host:8786 "
@@ -43,9 +43,39 @@ def add_scheduler_arguments(parser, *, default: str | None = "local", workers: b
         Also add ``--workers N`` (local cluster size; default: the machine's cores).
     """
     parser.add_argument("--scheduler", default=default, metavar="serial|local|ADDRESS", help=SCHEDULER_HELP)
+    add_rerun_stale_argument(parser)
     if workers:
         parser.add_argument("--workers", type=int, default=None, metavar="N",
                             help="local cluster: worker processes (default: the machine's cores)")
+
+
+def add_rerun_stale_argument(parser) -> None:
+    """Add ``--rerun-stale`` for a resumable command (see :func:`drop_stale_records`).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The command's parser.
+    """
+    parser.add_argument("--rerun-stale", action="store_true",
+                        help="run again the finished tasks in OUT that other code made (their records are "
+                             "deleted first; by default they are reused and counted as such)")
+
+
+def drop_stale_records(args, out) -> None:
+    """With ``--rerun-stale``: delete the records under ``out`` made by other code, and say how many.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed command line (``rerun_stale``).
+    out : str or Path
+        The command's output folder.
+    """
+    if getattr(args, "rerun_stale", False):
+        from ..lab.runner import drop_stale_records as drop
+        gone = drop(out)
+        print(f"--rerun-stale: {len(gone)} record(s) of other code deleted under {out}", file=sys.stderr)
 
 
 def register_track_batch(tsub) -> None:
@@ -217,6 +247,7 @@ def _main(args) -> int:
     from . import build_parser
     build_parser().parse_args(["track", args.kind, seqs[0], "--colormodel", args.colormodel, "--out", "x.csv",
                                *extra])        # a wrong option stops here, before any task runs
+    drop_stale_records(args, args.out)
     res = run_batch(seqs, args.out, kind=args.kind, colormodel=args.colormodel, extra=extra,
                     scheduler=parse_scheduler(args.scheduler), workers=args.workers)
     for r in res["rows"]:

@@ -10,6 +10,7 @@ import numpy as np
 
 from .._checks import TudorVisionError
 from ._viewer import add_viewer_arguments, open_viewer, viewer_requested
+from .batch import add_rerun_stale_argument, drop_stale_records
 from .robot_args import add_robot_option, robot_from_args
 
 __all__ = ["register", "run_open_loop"]
@@ -160,8 +161,8 @@ def _write(path, cols, rows):
 
 
 def _cmd_catch(args) -> int:
-    if args.target != "demo" and (args.scheduler or args.workers or args.session_throws):
-        raise TudorVisionError("--scheduler, --workers, --session-throws: only with 'catch demo'")
+    if args.target != "demo" and (args.scheduler or args.workers or args.session_throws or args.rerun_stale):
+        raise TudorVisionError("--scheduler, --workers, --session-throws, --rerun-stale: only with 'catch demo'")
     if args.target != "demo" and (args.plant is not None or args.camera_distance_m is not None):
         raise TudorVisionError("--plant, --camera-distance-m: only with 'catch demo'")
     if args.target == "demo":
@@ -180,6 +181,9 @@ def _cmd_catch(args) -> int:
                            compensate=not args.rigid, rerun=not args.no_rerun,
                            params=robot_from_args(args) if args.robot else None, **more)
         out = Path(args.out or "out/catch/demo")
+        if args.rerun_stale and not (args.scheduler or args.workers or args.session_throws):
+            raise TudorVisionError("--rerun-stale: only on the runner (with --scheduler, --workers or "
+                                   "--session-throws)")
         if args.scheduler or args.workers or args.session_throws:
             if viewer_requested(args):
                 raise TudorVisionError("--rerun, --rerun-live, --rerun-web: not with --scheduler, --workers or "
@@ -233,6 +237,7 @@ def _demo_sessions(args, opts, out) -> int:
     if args.workers is not None and args.workers < 1:
         raise TudorVisionError(f"--workers: expected >= 1, got {args.workers}")
     scheduler = parse_scheduler(args.scheduler or "local")
+    drop_stale_records(args, out)
     s = run_sessions(out, opts, session_throws=args.session_throws or 30, scheduler=scheduler,
                      workers=args.workers, show_progress=None)
     rate = "n/a" if s["success_rate"] is None else f"{100 * s['success_rate']:.0f} %"
@@ -283,6 +288,7 @@ def register(subparsers) -> None:
                         "summary.json and runner.json, no plots or recording")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="demo with --scheduler local: worker processes (default: the machine's cores)")
+    add_rerun_stale_argument(p)
     p.add_argument("--session-throws", type=int, default=None, metavar="K",
                    help="demo on the runner: throws per session (default 30)")
     p.add_argument("--calib", help="SEQ: calibration with intrinsics and T_base_cam")

@@ -50,6 +50,7 @@ from .runner_progress import RunProgress
 from .provenance import code_version
 
 __all__ = ["Task", "RunReport", "derive_seed", "config_digest", "to_jsonable", "parse_scheduler", "run_tasks",
+           "drop_stale_records",
            "execute_task", "probe_task", "RUNS_DIR"]
 
 #: Folder (inside the output folder) holding one ``<key>.json`` record per finished task.
@@ -441,6 +442,37 @@ class _Book:
         return False
 
 
+def drop_stale_records(out, code: str | None = None) -> list:
+    """Delete the task records under ``out`` (every ``runs/`` folder below it) made by other code.
+
+    A resumed run keys its tasks by their configuration, not the code, so it would reuse them; after
+    this they run again. Records without a ``code`` count as other code; unreadable files are left.
+
+    Parameters
+    ----------
+    out : str or Path
+        An output folder of :func:`run_tasks` (nested runs, e.g. ``reproduce``'s sections, included).
+    code : str, optional
+        The running code (default :func:`~tudorvision.lab.provenance.code_version`).
+
+    Returns
+    -------
+    list of Path
+        The records deleted.
+    """
+    code = code_version() if code is None else str(code)
+    gone = []
+    for path in sorted(Path(out).rglob(f"{RUNS_DIR}/*.json")):
+        try:
+            rec = json.loads(path.read_text())
+        except (OSError, ValueError):
+            continue
+        if isinstance(rec, dict) and "experiment" in rec and rec.get("code") != code:
+            path.unlink()
+            gone.append(path)
+    return gone
+
+
 def run_tasks(tasks, out, *, scheduler: str | None = "serial", workers: int | None = None, retries: int = 1,
               processes: bool = True, dashboard_address: str | None = ":8787", show_progress: bool | None = None,
               label: str = "tasks", on_record: Callable | None = None, stream=None,
@@ -516,8 +548,8 @@ def run_tasks(tasks, out, *, scheduler: str | None = "serial", workers: int | No
     if other:
         # resumable by design (the key is the task, not the code): say so when the code has changed since
         print(f"{label}: {len(other)} of the {skipped} finished task(s) reused from {out / RUNS_DIR} were made "
-              f"by other code ({', '.join(sorted(set(other)))}; now {code}); delete those records to run them "
-              f"again", file=stream or sys.stderr)
+              f"by other code ({', '.join(sorted(set(other)))}; now {code}); --rerun-stale (or deleting those records) "
+              f"runs them again", file=stream or sys.stderr)
     report = RunReport(records=book.records, skipped=skipped, scheduler=scheduler, reused_other_code=len(other))
     ended = False
     try:
