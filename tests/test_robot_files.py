@@ -150,6 +150,29 @@ def test_urdf_structure_errors(tmp_path):
     assert main(["robot", "check", "--robot", str(tmp_path / "nope.urdf")]) == 2
 
 
+@pytest.mark.parametrize("old, new, pattern", [
+    # found by fuzzing: a NaN origin used to load as NaN link lengths, silently
+    ('<origin xyz="0.43 0.0 0.0" rpy="0 0 0"/>', '<origin xyz="nan 0.0 0.0" rpy="0 0 0"/>',
+     r"joint 'joint3': its <origin> is not finite"),
+    ('<origin xyz="0.0 0.0 0.35" rpy="0 0 0"/>', '<origin xyz="0.0 0.0 0.35" rpy="nan 0 0"/>',
+     r"joint 'joint2': its <origin> is not finite"),
+    ('upper="1.7802358370342162"', 'upper="inf"', r"joint 'joint3': .*finite lower < upper"),
+    ('velocity="2.181661564992912"', 'velocity="inf"', r"joint 'joint2': <limit velocity> is inf"),
+    ('effort="7.5"', 'effort="nan"', r"joint 'joint3': <limit effort> is nan"),
+    ('<axis xyz="0 0 1"/>', '<axis xyz="0 0 0"/>', r"joint 'joint1': axis \[0\.0, 0\.0, 0\.0\] is not a direction"),
+    # found by fuzzing: a joint hanging from a link that is not on the tree was a KeyError
+    ('<parent link="link2"/>', '<parent link="linkX"/>', r"joint 'joint3' \(parent link 'linkX'\) is not connected"),
+    ('<child link="ee"/>', '<child link="link2"/>', r"link 'link2' is reached twice"),   # a loop
+])
+def test_urdf_with_non_finite_or_broken_tree_is_refused(tmp_path, old, new, pattern):
+    text = urdf_from_params()
+    assert old in text
+    f = _write(tmp_path, text.replace(old, new, 1).replace('  <link name="ee"/>\n', "" if "ee" in old else "  <link name=\"ee\"/>\n"))
+    with pytest.raises(TudorVisionError, match=pattern) as err:
+        load_urdf_params(f)
+    assert str(f) in str(err.value) and "\n" not in str(err.value)
+
+
 # ----------------------------------------------------------------------------------------- sim ptp
 
 def _ptp(tmp_path, name, *robot):

@@ -22,6 +22,7 @@ Other chains are refused with a one-line error naming the joint (or link) that d
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 from pathlib import Path
 
@@ -97,12 +98,18 @@ def _read(path: Path):
     import yourdfpy
     if not path.is_file():
         raise TudorVisionError(f"{path}: URDF file not found")
+    log = logging.getLogger("yourdfpy")          # it logs lxml's complaints; our one line says what is wrong
+    level = log.level
+    log.setLevel(logging.CRITICAL)
     try:
-        return yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=False,
-                                  build_collision_scene_graph=False, load_collision_meshes=False)
+        with np.errstate(all="ignore"):         # a NaN angle warns in trimesh; the chain check refuses it
+            return yourdfpy.URDF.load(str(path), load_meshes=False, build_scene_graph=False,
+                                      build_collision_scene_graph=False, load_collision_meshes=False)
     except Exception as exc:  # yourdfpy/lxml raise many kinds for a broken file
         text = " ".join(str(exc).split()) or type(exc).__name__
         raise TudorVisionError(f"{path}: not a readable URDF ({text[:160]})") from None
+    finally:
+        log.setLevel(level)
 
 
 def _chain(path: Path, robot):
@@ -125,9 +132,18 @@ def _chain(path: Path, robot):
     while stack:
         link = stack.pop()
         for j in below.get(link, []):
+            if not np.all(np.isfinite(_origin(j))):
+                raise TudorVisionError(f"{path}: joint {j.name!r}: its <origin> is not finite")
+            if j.child in pose:
+                raise TudorVisionError(f"{path}: link {j.child!r} is reached twice (joint {j.name!r}): the links "
+                                       "must form a tree without loops, one parent joint per link")
             pose[j.child] = pose[link] @ _origin(j)
             movable_path[j.child] = movable_path[link] + ([j] if j.type != "fixed" else [])
             stack.append(j.child)
+    apart = [j for j in joints if j.child not in pose]
+    if apart:
+        raise TudorVisionError(f"{path}: joint {apart[0].name!r} (parent link {apart[0].parent!r}) is not connected "
+                               f"to the root link {roots[0]!r}")
     movable = [j for j in joints if j.type != "fixed"]
     if len(movable) != 3:
         names = ", ".join(j.name for j in movable) or "none"
@@ -152,6 +168,8 @@ def _chain(path: Path, robot):
     for j in order:
         T = pose[j.parent] @ _origin(j)
         axis = np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), float)
+        if axis.shape != (3,) or not np.all(np.isfinite(axis)) or not np.linalg.norm(axis) > 1e-9:
+            raise TudorVisionError(f"{path}: joint {j.name!r}: axis {axis.tolist()} is not a direction")
         frames.append((T[:3, 3], T[:3, :3] @ (axis / np.linalg.norm(axis))))
     return order, frames, pose[tip][:3, 3], tip
 
@@ -217,9 +235,14 @@ def _with_chain(path: Path, base: RobotParams, order, h1: float, l2: float, l3: 
     for i, j in enumerate(order):
         lm = j.limit
         if j.type == "revolute":
-            if lm is None or lm.lower is None or lm.upper is None or not lm.lower < lm.upper:
+            if (lm is None or lm.lower is None or lm.upper is None or not lm.lower < lm.upper
+                    or not np.isfinite([lm.lower, lm.upper]).all()):
                 raise TudorVisionError(f"{path}: joint {j.name!r}: a revolute joint needs <limit lower upper> "
-                                       "with lower < upper (radians)")
+                                       "with finite lower < upper (radians)")
+        for what in ("velocity", "effort"):
+            v = getattr(lm, what, None) if lm is not None else None
+            if v is not None and not np.isfinite(v):
+                raise TudorVisionError(f"{path}: joint {j.name!r}: <limit {what}> is {v}, not a finite number")
             lim[i] = (lm.lower, lm.upper)
         if lm is not None and lm.velocity is not None and lm.velocity > 0:
             speed[i] = lm.velocity
