@@ -152,11 +152,15 @@ def test_serve_loads_collision_and_damping_models(tmp_path, capsys, monkeypatch)
     assert built["collision_coupling"].c1 == 0.3 and built["damping_model"].chi.shape == (2, 32)
 
 
-@pytest.mark.parametrize("case", ["wrong_shape", "not_npy", "missing", "kinematic"])
+@pytest.mark.parametrize("case", ["wrong_shape", "not_npy", "missing", "kinematic", "strings", "negative"])
 def test_serve_model_errors_are_one_line_and_name_the_file(tmp_path, capsys, case):
     d = _model_folder(tmp_path, chi_shape=(2, 31) if case == "wrong_shape" else (2, 32))
     argv = ["joint", "serve", "--port", "0", "--duration", "0.1", "--core", "sim"]
     if case == "wrong_shape":
+        argv += ["--collision-model", str(d)]
+    elif case in ("strings", "negative"):       # a .npy of text (was a TypeError), a threshold below zero
+        import numpy as np
+        np.save(d / "thr.npy", np.array(["6e-4", "2e-4"]) if case == "strings" else np.array([6e-4, -2e-4]))
         argv += ["--collision-model", str(d)]
     elif case == "not_npy":
         (d / "x.npy").write_text("hello")
@@ -168,7 +172,8 @@ def test_serve_model_errors_are_one_line_and_name_the_file(tmp_path, capsys, cas
     assert main(argv) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1
-    named = {"wrong_shape": "chi.npy", "not_npy": "x.npy", "missing": "absent.npy", "kinematic": "--core sim"}[case]
+    named = {"wrong_shape": "chi.npy", "not_npy": "x.npy", "missing": "absent.npy", "kinematic": "--core sim",
+             "strings": "thr.npy", "negative": "thr.npy"}[case]
     assert named in err
 
 

@@ -202,6 +202,8 @@ def _load_npy(path: str, what: str, shape=None) -> np.ndarray:
         raise TudorVisionError(f"{what}: {path} is not a NumPy .npy file")
     if shape is not None and a.shape != shape:
         raise TudorVisionError(f"{what}: {path} holds an array of shape {a.shape}, expected {shape}")
+    if a.dtype.kind not in "iuf":
+        raise TudorVisionError(f"{what}: {path} holds {a.dtype} values, expected real numbers")
     if not np.all(np.isfinite(a)):
         raise TudorVisionError(f"{what}: {path} holds NaN or infinite values")
     return a
@@ -225,6 +227,9 @@ def _core_options(args) -> dict:
         opts["collision_model"] = StrainDynamicsModel(
             chi=_load_npy(os.path.join(d, "chi.npy"), "--collision-model", chi_shape))
         opts["collision_thresholds"] = _load_npy(os.path.join(d, "thr.npy"), "--collision-model", (2,))
+        if not np.all(opts["collision_thresholds"] > 0):
+            raise TudorVisionError(f"--collision-model: {os.path.join(d, 'thr.npy')}: thresholds must be > 0, got "
+                                   f"{opts['collision_thresholds'].tolist()}")
         cp = os.path.join(d, "coupling.npy")
         if os.path.exists(cp):
             opts["collision_coupling"] = ResidualCoupling(*_load_npy(cp, "--collision-model", (3,)))
