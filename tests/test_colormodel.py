@@ -288,3 +288,18 @@ def test_shaded_pick_not_one_colour_is_capped_and_checked(monkeypatch):
         fit_color_model(img, centre, (172, 121))
     monkeypatch.setattr(colormodel, "_fits_pick", lambda *args: True)     # without the stricter check
     assert not fit_color_model(img, centre, (172, 121)).is_local
+
+
+def test_left_and_right_picks_of_different_colour_are_named(pick_frame):
+    """A stereo sphere whose two picks differ in hue (one landed on the other sphere) is named;
+    a white-balance shift between the cameras is not."""
+    red = fit_color_model(pick_frame, (200, 151), (210, 151))
+    green = fit_color_model(pick_frame, (420, 300), (430, 300))
+    warm = np.clip(pick_frame.astype(float) * [0.8, 1.0, 1.2], 0, 255).astype(np.uint8)   # BGR gains
+    red_warm = fit_color_model(warm, (200, 151), (210, 151))
+    ok = ColorModelSet({"left": {"red": red, "green": green}, "right": {"red": red_warm, "green": green}})
+    assert ok.colour_mismatches() == []
+    bad = ColorModelSet({"left": {"red": red, "green": green}, "right": {"red": green, "green": green}})
+    lines = bad.colour_mismatches()
+    assert len(lines) == 1 and lines[0].startswith("red: the left and right picks differ in colour (hue ")
+    assert ColorModelSet({"mono": {"red": red}}).colour_mismatches() == []

@@ -233,6 +233,8 @@ def run_colormodel(args) -> int:
                 print(f"warning: {cam}/{name}: local colour model: the frame holds this colour elsewhere, so it is "
                       f"searched only within {mdl.local_radius_px:.0f} px of its last position (pick on the frame "
                       f"tracking starts from)")
+    for line in models.colour_mismatches():
+        print(f"warning: {line}")
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     save_color_models(models, args.out)
     print(f"wrote {args.out}")

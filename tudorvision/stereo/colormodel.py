@@ -410,6 +410,43 @@ class ColorModelSet:
                 f"(has {', '.join(cam)})")
         return cam[sphere]
 
+    def colour_mismatches(self, max_deg: float = 40.0) -> list:
+        """Spheres whose left and right models differ in hue: one pick likely landed on something else.
+
+        The models' mean colours are compared as CIE a*, b* directions (white balance and shading change
+        their length, not much their direction); spheres below a chroma of 10 in either camera (grey,
+        unsaturated) are not compared.
+
+        Parameters
+        ----------
+        max_deg : float
+            Largest angle between the two a*, b* directions, degrees.
+
+        Returns
+        -------
+        list of str
+            One line per sphere that differs (empty when they agree or the set is not a stereo pair).
+        """
+        from tudorvision.stereo.rim_edge import sphere_chroma
+
+        if not {"left", "right"} <= set(self.models):
+            return []
+        out = []
+        for name in self.models["left"]:
+            if name not in self.models["right"]:
+                continue
+            ab = [sphere_chroma(self.models[c][name].mean[:3]) for c in ("left", "right")]
+            n = [float(np.hypot(*x)) for x in ab]
+            if min(n) < 10.0:
+                continue
+            deg = math.degrees(math.acos(float(np.clip(ab[0] @ ab[1] / (n[0] * n[1]), -1.0, 1.0))))
+            if deg > max_deg:
+                out.append(f"{name}: the left and right picks differ in colour (hue {deg:.0f} deg apart, mean RGB "
+                           f"{tuple(round(x) for x in self.models['left'][name].mean[:3])} / "
+                           f"{tuple(round(x) for x in self.models['right'][name].mean[:3])}); did one land on "
+                           f"another object (the other sphere in front of it)?")
+        return out
+
 
 def parse_pick(text: str) -> tuple:
     """Parse a ``CAMERA:SPHERE:CU,CV:EU,EV`` pick (the CLI's ``--pick``).
