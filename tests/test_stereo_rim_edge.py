@@ -93,9 +93,10 @@ def test_low_contrast_gives_none_and_the_colour_rim_stands():
     assert det.valid and det.method == "shape"
 
 
-def test_colour_gate_ignores_an_occluding_bar():
+def test_an_occluding_bar_does_not_pull_the_edge_circle():
     # a dark bar crosses the lower part of a dark green sphere and runs on over the ground: the
-    # bar/ground edge near the rim would pull an ungated fit; the gate drops it
+    # bar/ground edge near the rim is off the circle, so the trimmed fit leaves it out; the inside
+    # gate (optional) drops those rays before the fit
     rng = np.random.default_rng(3)
     img = np.full((80, 80, 3), 165.0, np.float32)
     c = (40.3, 39.6)
@@ -110,9 +111,34 @@ def test_colour_gate_ignores_an_occluding_bar():
     assert np.hypot(det.uv[0] - c[0], det.uv[1] - c[1]) < 0.3
     gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float64)
     lo = log_odds_image(img, model).astype(np.float64)
-    gated, n = luma_rim_points(gray, lo, c, 9.0)
-    ungated, _ = luma_rim_points(gray, None, c, 9.0)
-    assert len(gated) < len(ungated)          # rays over the bar are dropped by the gate
+    gated, n = luma_rim_points(gray, lo, c, 9.0, inside_gate=True)
+    default, _ = luma_rim_points(gray, lo, c, 9.0)
+    assert len(gated) < len(default)          # rays over the bar are dropped by the inside gate
+
+
+def test_the_shaded_limb_is_not_dropped_so_the_circle_does_not_lean_to_the_light():
+    """A hard-lit sphere whose shaded limb has negative colour log-odds: the inside gate drops that
+    side's rays and the circle leans towards the light; without it the rim is found all round."""
+    rng = np.random.default_rng(5)
+    lean = {True: [], False: []}
+    for _ in range(12):
+        h = w = 64
+        img = np.full((h, w, 3), 150.0, np.float32)
+        c = (32.0 + rng.uniform(-2, 2), 32.0 + rng.uniform(-2, 2))
+        _lit_sphere(img, *c, 7.0, (50.0, 60.0, 190.0), light=(-0.8, -0.5, 0.35), ambient=0.08)
+        img = np.clip(np.rint(img + rng.normal(0, 1.5, img.shape)), 0, 255).astype(np.uint8)
+        model = fit_color_model(img, (round(c[0] - 2), round(c[1] - 1)), (round(c[0] + 2), round(c[1] - 1)))
+        gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float64)
+        lo = log_odds_image(img, model).astype(np.float64)
+        light = -np.array([-0.8, -0.5]) / np.hypot(0.8, 0.5)          # from the centre to the dark side
+        for gate in (True, False):
+            pts, n = luma_rim_points(gray, lo, c, 7.0, inside_gate=gate)
+            dark = (pts - c) @ light > 0.5 * 7.0                          # rim points on the shaded side
+            lean[gate].append(int(dark.sum()))
+            if not gate:
+                fit = refine_circle_on_luma(gray, lo, c, 7.0)
+                assert fit is not None and np.hypot(fit[0] - c[0], fit[1] - c[1]) < 0.2
+    assert np.mean(lean[False]) > np.mean(lean[True]) + 2      # the shaded side keeps its rays
 
 
 def test_jpeg_chroma_smear_is_undone_by_the_luma_edge():

@@ -20,9 +20,14 @@ silhouette edge is located on the luma instead:
 3. The edge is the centre of gravity of the polarity-signed luma derivative
    in excess of 30 % of its peak, over the run of samples around the peak
    where it exceeds that level.
-4. Colour gate: the colour log-odds must be positive 1.5 px inside the edge
-   and negative 2 px outside it, so an edge between an occluding link and the
-   background, or inside the sphere's own shading, is not taken for the rim.
+4. Colour gate: the colour log-odds must be negative 2 px outside the edge,
+   so an edge inside the sphere's own shading (the terminator) is not taken
+   for the rim. The inside is not gated by default: the shaded limb's dark
+   pixels have negative log-odds, and requiring positive ones 1.5 px inside
+   (``inside_gate=True``, the rule before 2026-11-26) dropped the shaded
+   side's rays, so the circle leaned towards the lit side (on the sphere
+   family's JPEG views by a median 0.12-0.18 px). An occluder's edge is left
+   to the trimmed fit of step 5.
 5. A circle is fitted to the edge points by trimmed least squares: points
    more than 1.5 px off the first circle are left out (the edge of an
    occluder in front of the sphere lies inside its rim), then those more
@@ -92,7 +97,7 @@ def _bilinear(img: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 def luma_rim_points(gray, log_odds, centre, radius: float, *, span: float = 3.0, step: float = 0.25,
-                    min_contrast: float = 8.0, n_rays: int | None = None):
+                    min_contrast: float = 8.0, n_rays: int | None = None, inside_gate: bool = False):
     """Sub-pixel luma edge points of a sphere's rim along rays from a first circle.
 
     Parameters
@@ -114,6 +119,9 @@ def luma_rim_points(gray, log_odds, centre, radius: float, *, span: float = 3.0,
     n_rays : int, optional
         Rays (default: about one per pixel of circumference, a multiple of 4
         in 16..64).
+    inside_gate : bool
+        Also require positive log-odds 1.5 px inside the edge (drops the
+        shaded limb's rays; see step 4 of the module notes).
 
     Returns
     -------
@@ -151,7 +159,7 @@ def luma_rim_points(gray, log_odds, centre, radius: float, *, span: float = 3.0,
     if log_odds is not None:
         rad = pos[:, None] + _GATE                                                   # (k, 2): inside, outside
         lo = _bilinear(log_odds, cu + ca * rad, cv_ + sa * rad)
-        ok &= (lo[:, 0] > 0) & (lo[:, 1] < 0)
+        ok &= (lo[:, 1] < 0) & ((lo[:, 0] > 0) | (not inside_gate))
     pts = np.column_stack([cu + ca[ok, 0] * pos[ok], cv_ + sa[ok, 0] * pos[ok]])
     return pts, k
 
