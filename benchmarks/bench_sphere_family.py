@@ -69,7 +69,7 @@ from tudorvision.lab.scene_family import SPHERES, render_family_scene, sample_fa
 from tudorvision.stereo import (ColorModelSet, PipelineOptions, SegmentParams, StereoPipeline,  # noqa: E402
                                 TrackerParams, fit_color_model, triangulate_spheres)
 
-BINS = [(3, 5), (5, 8), (8, 15), (15, 30), (30, 80)]
+BINS = [(3, 4), (4, 5), (5, 8), (8, 15), (15, 30), (30, 80)]   # the targets start at 4 px
 METHODS = ("ours", "ours, clear views", "ours, known radius", "seed centroid", "peer HSV", "oracle", "0.25 px bound")
 #: "0.25 px bound": the 3D RMS implied by image centres off by exactly the issue's 2D target (isotropic Gaussian
 #: per camera whose median radial error is TARGET_PX), from the triangulation's Jacobian at the true centres.
