@@ -218,6 +218,41 @@ def test_rerun_web_serves_on_loopback_only(models, tmp_path):
             p.wait()
 
 
+def test_ctrl_c_reaching_another_thread_still_stops_the_web_viewer(models, tmp_path):
+    """Ctrl-C is a process signal: the kernel may hand it to one of rerun's threads, which does not
+    interrupt the main thread's blocking wait. Found as a hang (the test above timing out) in two
+    full runs of the suite; reproduced here by sending SIGINT to a thread other than the main one."""
+    import ctypes
+    import os
+
+    tgkill = getattr(ctypes.CDLL(None, use_errno=True), "tgkill", None)
+    if _viewer._viewer_executable() is None or tgkill is None or not Path("/proc/self/task").exists():
+        pytest.skip("needs the rerun executable and Linux tgkill")
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    cmd = [sys.executable, "-m", "tudorvision", "track", "mono", str(SAMPLE / "stereo-step" / "left"), "--camera",
+           "left", "--colormodel", str(models), "--sphere", "red", "--out", str(tmp_path / "m.csv"),
+           "--rerun-web", str(port)]
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        sent = False
+        for line in p.stdout:
+            if "keeps serving" in line:
+                others = [int(t) for t in os.listdir(f"/proc/{p.pid}/task") if int(t) != p.pid]
+                assert others, "rerun runs no thread of its own here"
+                assert tgkill(p.pid, others[0], int(signal.SIGINT)) == 0
+                sent = True
+                break
+        assert sent
+        rest = p.communicate(timeout=30)[0]
+        assert p.returncode == 0 and "frames tracked" in rest, rest
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.wait()
+
+
 def test_joint_move_records_joint_angles(tmp_path, capsys):
     pytest.importorskip("tudorvision.sim.arm", reason="simulated arm not available")
     proc, line = start_cli(["joint", "serve", "--port", "0", "--core", "sim", "--duration", "40"],

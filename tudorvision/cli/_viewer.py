@@ -191,7 +191,10 @@ class Viewer:
                 if self.web_process is not None and hold and self.web_process.poll() is None:
                     try:
                         print(f"rerun web viewer keeps serving at {self.web_url} (Ctrl-C to stop)", flush=True)
-                        self.web_process.wait()
+                        # short waits, not one blocking waitpid: Ctrl-C delivered to one of rerun's threads does
+                        # not interrupt the main thread's system call, only its next bytecode sees it
+                        while self.web_process.poll() is None:
+                            time.sleep(0.1)
                     except KeyboardInterrupt:
                         pass
             finally:
