@@ -175,6 +175,13 @@ def _listening(port: int) -> set:
     return addrs
 
 
+def _sigint_default() -> None:
+    # a suite run in the background (`make test &`) inherits SIGINT ignored, as POSIX shells start
+    # background jobs, and a Python started that way keeps ignoring it; Ctrl-C from a terminal reaches a
+    # foreground command, which is what these tests play
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_rerun_web_serves_on_loopback_only(models, tmp_path):
     if _viewer._viewer_executable() is None:
         pytest.skip("no rerun executable")
@@ -184,7 +191,7 @@ def test_rerun_web_serves_on_loopback_only(models, tmp_path):
     cmd = [sys.executable, "-m", "tudorvision", "track", "mono", str(SAMPLE / "stereo-step" / "left"), "--camera",
            "left", "--colormodel", str(models), "--sphere", "red", "--out", str(tmp_path / "m.csv"),
            "--rerun-web", str(port)]
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, preexec_fn=_sigint_default)
     try:
         url, served, lines = None, False, []
         t0 = time.monotonic()
@@ -220,8 +227,8 @@ def test_rerun_web_serves_on_loopback_only(models, tmp_path):
 
 def test_ctrl_c_reaching_another_thread_still_stops_the_web_viewer(models, tmp_path):
     """Ctrl-C is a process signal: the kernel may hand it to one of rerun's threads, which does not
-    interrupt the main thread's blocking wait. Found as a hang (the test above timing out) in two
-    full runs of the suite; reproduced here by sending SIGINT to a thread other than the main one."""
+    interrupt the main thread's blocking wait (the command then served on for ever). Played here by
+    sending SIGINT to a thread other than the main one."""
     import ctypes
     import os
 
@@ -234,7 +241,7 @@ def test_ctrl_c_reaching_another_thread_still_stops_the_web_viewer(models, tmp_p
     cmd = [sys.executable, "-m", "tudorvision", "track", "mono", str(SAMPLE / "stereo-step" / "left"), "--camera",
            "left", "--colormodel", str(models), "--sphere", "red", "--out", str(tmp_path / "m.csv"),
            "--rerun-web", str(port)]
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, preexec_fn=_sigint_default)
     try:
         sent = False
         for line in p.stdout:
