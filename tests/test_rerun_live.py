@@ -182,16 +182,22 @@ def _sigint_default() -> None:
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-def test_rerun_web_serves_on_loopback_only(models, tmp_path):
-    if _viewer._viewer_executable() is None:
-        pytest.skip("no rerun executable")
+def _track_with_web_viewer(models, tmp_path):
+    """``track mono`` of the sample step sequence with ``--rerun-web`` on a free port: ``(Popen, port)``."""
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     cmd = [sys.executable, "-m", "tudorvision", "track", "mono", str(SAMPLE / "stereo-step" / "left"), "--camera",
            "left", "--colormodel", str(models), "--sphere", "red", "--out", str(tmp_path / "m.csv"),
            "--rerun-web", str(port)]
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, preexec_fn=_sigint_default)
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                            preexec_fn=_sigint_default), port
+
+
+def test_rerun_web_serves_on_loopback_only(models, tmp_path):
+    if _viewer._viewer_executable() is None:
+        pytest.skip("no rerun executable")
+    p, port = _track_with_web_viewer(models, tmp_path)
     try:
         url, served, lines = None, False, []
         t0 = time.monotonic()
@@ -235,13 +241,7 @@ def test_ctrl_c_reaching_another_thread_still_stops_the_web_viewer(models, tmp_p
     tgkill = getattr(ctypes.CDLL(None, use_errno=True), "tgkill", None)
     if _viewer._viewer_executable() is None or tgkill is None or not Path("/proc/self/task").exists():
         pytest.skip("needs the rerun executable and Linux tgkill")
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    cmd = [sys.executable, "-m", "tudorvision", "track", "mono", str(SAMPLE / "stereo-step" / "left"), "--camera",
-           "left", "--colormodel", str(models), "--sphere", "red", "--out", str(tmp_path / "m.csv"),
-           "--rerun-web", str(port)]
-    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, preexec_fn=_sigint_default)
+    p, port = _track_with_web_viewer(models, tmp_path)
     try:
         sent = False
         for line in p.stdout:

@@ -23,7 +23,8 @@ from pathlib import Path
 
 from .._checks import TudorVisionError
 
-__all__ = ["register_track_batch", "add_scheduler_arguments", "add_rerun_stale_argument", "drop_stale_records", "track_sequence_task", "run_batch"]
+__all__ = ["register_track_batch", "add_scheduler_arguments", "add_rerun_stale_argument", "apply_rerun_stale",
+           "track_sequence_task", "run_batch"]
 
 SCHEDULER_HELP = ("where the runs go: 'serial' (this process), 'local' (a Dask cluster of --workers processes on "
                   "this machine, the default) or a running Dask scheduler's address, e.g. tcp://host:8786 "
@@ -50,7 +51,7 @@ def add_scheduler_arguments(parser, *, default: str | None = "local", workers: b
 
 
 def add_rerun_stale_argument(parser) -> None:
-    """Add ``--rerun-stale`` for a resumable command (see :func:`drop_stale_records`).
+    """Add ``--rerun-stale`` for a resumable command (see :func:`apply_rerun_stale`).
 
     Parameters
     ----------
@@ -62,7 +63,7 @@ def add_rerun_stale_argument(parser) -> None:
                              "deleted first; by default they are reused and counted as such)")
 
 
-def drop_stale_records(args, out) -> None:
+def apply_rerun_stale(args, out) -> None:
     """With ``--rerun-stale``: delete the records under ``out`` made by other code, and say how many.
 
     Parameters
@@ -73,8 +74,8 @@ def drop_stale_records(args, out) -> None:
         The command's output folder.
     """
     if getattr(args, "rerun_stale", False):
-        from ..lab.runner import drop_stale_records as drop
-        gone = drop(out)
+        from ..lab.runner import drop_stale_records
+        gone = drop_stale_records(out)
         print(f"--rerun-stale: {len(gone)} record(s) of other code deleted under {out}", file=sys.stderr)
 
 
@@ -247,7 +248,7 @@ def _main(args) -> int:
     from . import build_parser
     build_parser().parse_args(["track", args.kind, seqs[0], "--colormodel", args.colormodel, "--out", "x.csv",
                                *extra])        # a wrong option stops here, before any task runs
-    drop_stale_records(args, args.out)
+    apply_rerun_stale(args, args.out)
     res = run_batch(seqs, args.out, kind=args.kind, colormodel=args.colormodel, extra=extra,
                     scheduler=parse_scheduler(args.scheduler), workers=args.workers)
     for r in res["rows"]:

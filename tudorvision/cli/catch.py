@@ -10,7 +10,7 @@ import numpy as np
 
 from .._checks import TudorVisionError
 from ._viewer import add_viewer_arguments, open_viewer, viewer_requested
-from .batch import add_rerun_stale_argument, drop_stale_records
+from .batch import add_rerun_stale_argument, apply_rerun_stale
 from .robot_args import add_robot_option, robot_from_args
 
 __all__ = ["register", "run_open_loop"]
@@ -237,7 +237,7 @@ def _demo_sessions(args, opts, out) -> int:
     if args.workers is not None and args.workers < 1:
         raise TudorVisionError(f"--workers: expected >= 1, got {args.workers}")
     scheduler = parse_scheduler(args.scheduler or "local")
-    drop_stale_records(args, out)
+    apply_rerun_stale(args, out)
     s = run_sessions(out, opts, session_throws=args.session_throws or 30, scheduler=scheduler,
                      workers=args.workers, show_progress=None)
     rate = "n/a" if s["success_rate"] is None else f"{100 * s['success_rate']:.0f} %"

@@ -4,7 +4,7 @@ from __future__ import annotations
 import sys
 
 from .._checks import TudorVisionError
-from .batch import add_scheduler_arguments, drop_stale_records
+from .batch import add_scheduler_arguments, apply_rerun_stale
 
 __all__ = ["register"]
 
@@ -23,7 +23,7 @@ def _cmd_reproduce(args) -> int:
     if args.seed < 0:
         raise TudorVisionError(f"--seed: expected >= 0, got {args.seed}")
     small = [x for x in (args.quick_sections or "").split(",") if x.strip()]   # names checked by run_reproduce
-    drop_stale_records(args, args.out)
+    apply_rerun_stale(args, args.out)
     res = run_reproduce(args.out, quick=True if args.quick else small, only=only or None, seed=args.seed, scheduler=args.scheduler,
                         workers=args.workers)
     counts: dict = {}

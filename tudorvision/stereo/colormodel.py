@@ -37,6 +37,7 @@ from tudorvision.stereo._colortables import CHANNELS, HUE_INDEX, HUE_LEVELS, Col
 from tudorvision.stereo._frame import check_frame
 from tudorvision.stereo._localmodel import background_pmf, fit_local_model
 from tudorvision.stereo.detection import segment_params_for_radius
+from tudorvision.stereo.rim_edge import sphere_chroma
 from tudorvision.stereo.segment import detect_sphere
 from tudorvision.stereo._pick import (calibrated_prior, circular_hue_stats, pick_stats, reject_outlier_rows,
                                      trim_highlights_rows)
@@ -427,8 +428,6 @@ class ColorModelSet:
         list of str
             One line per sphere that differs (empty when they agree or the set is not a stereo pair).
         """
-        from tudorvision.stereo.rim_edge import sphere_chroma
-
         if not {"left", "right"} <= set(self.models):
             return []
         out = []
