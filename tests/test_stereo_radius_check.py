@@ -144,3 +144,22 @@ def test_known_radius_refuses_a_sphere_both_views_measure_the_same_wrong_size(mo
     for bad in (0.0, -0.03, float("nan"), {"green": 0.0}):
         with pytest.raises(TudorVisionError, match="sphere_radius_m"):
             PipelineOptions(sphere_radius_m=bad)
+
+
+def test_known_radius_refuses_a_moment_view_that_holds_part_of_the_sphere(models):
+    """The seed's centroid (no circle): a bar over the right view's green rim leaves a region of part of the
+    sphere, its moment off by 2 px (90 mm in depth). Its area alone shows it: refused with the known radius;
+    the clean pair (areas of the whole spheres) passes."""
+    from tudorvision.stereo import SegmentParams, TrackerParams
+    tracker = TrackerParams(segment=SegmentParams(centroid="moment"))
+    _, clean = _run(models, _pair(), tracker=tracker, sphere_radius_m=R_M)
+    assert clean.valid and np.linalg.norm(clean.spheres["green"] - CENTRES["green"]) < 0.02
+    imgs = _pair(bar=(6.0, 6.0))
+    _, naive = _run(models, imgs, tracker=tracker)
+    assert naive.detections["right"]["green"].method == "moment" and \
+        naive.detections["right"]["green"].circle_radius_px != naive.detections["right"]["green"].circle_radius_px
+    assert np.linalg.norm(naive.spheres["green"] - CENTRES["green"]) > 0.05
+    pipe, res = _run(models, imgs, tracker=tracker, sphere_radius_m=R_M)
+    assert pipe.n_radius_refused == 1 and np.isnan(res.spheres["green"]).all()
+    assert "the right view's region is part of the sphere" in res.detections["left"]["green"].reason
+    assert res.detections["left"]["red"].valid and np.linalg.norm(res.spheres["red"] - CENTRES["red"]) < 0.02

@@ -176,3 +176,43 @@ def test_params_checked():
         SegmentParams(chroma_edge_below=1.5)
     with pytest.raises(TudorVisionError, match="edge_min_contrast"):
         SegmentParams(edge_min_contrast=-1.0)
+
+
+def _shaded_large_sphere(r=30.0, centre=(80.4, 79.3), seed=3):
+    """A 30 px green sphere lit from the upper left: beyond 0.85 r its lower-right half darkens to 30 %
+    (colour kept, only the level falls), so the colour region stops 1-4 px short of the silhouette there."""
+    h = w = 160
+    v, u = np.mgrid[0:h, 0:w].astype(np.float32)
+    img = np.repeat((100 + 20 * u / w)[..., None], 3, axis=2) * np.float32([1.0, 0.9, 1.1])   # greyish purple
+    xs = -0.5 + (np.arange(w * SS) + 0.5) / SS
+    X, Y = np.meshgrid(xs, xs)
+    dx, dy = X - centre[0], Y - centre[1]
+    rho = np.hypot(dx, dy) / r
+    lit = np.clip((dx + dy) / (np.sqrt(2.0) * r), 0.0, 1.0)          # 0 on the lit half, 1 at the far limb
+    level = 1.0 - 0.7 * lit * np.clip((rho - 0.85) / 0.15, 0.0, 1.0)
+    inside = rho <= 1.0
+    cov = cv2.resize(inside.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
+    lev = cv2.resize((level * inside).astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
+    lev = np.where(cov > 0, lev / np.maximum(cov, 1e-6), 1.0)
+    green = np.float32([60, 200, 70])
+    img = img * (1.0 - cov[..., None]) + cov[..., None] * green * lev[..., None]
+    return _finish(img, seed)
+
+
+def test_a_large_sphere_whose_colour_region_stops_short_of_a_shaded_limb_is_measured_on_its_chroma_edge():
+    """The colour rim is round (the circle explains it all) but inside the silhouette and off its centre;
+    large spheres search the chroma edge whatever the rim fraction (``chroma_edge_below_large=1``)."""
+    centre, r = (80.4, 79.3), 30.0
+    img = _shaded_large_sphere(r, centre)
+    model = fit_color_model(img, (80, 79), (80 + 24, 79))
+    old = detect_sphere(img, model, params=SegmentParams(chroma_edge_below_large=0.9, chroma_edge_large_px=25.0))
+    new = detect_sphere(img, model)
+    assert old.method == "shape" and old.rim_fraction >= 0.9
+    assert np.hypot(old.uv[0] - centre[0], old.uv[1] - centre[1]) > 0.5 and old.circle_radius_px < r - 0.8
+    err_old = np.hypot(old.uv[0] - centre[0], old.uv[1] - centre[1])
+    assert new.method == "chroma" and abs(new.circle_radius_px - r) < 0.6
+    # Lab chroma falls with the level too, so the chroma edge of the dark limb still lies a little inside
+    assert np.hypot(new.uv[0] - centre[0], new.uv[1] - centre[1]) < 0.5 * err_old
+    # ... which the luma edge, started from the chroma circle, takes back
+    edge = detect_sphere(img, model, params=SegmentParams(edge_refine=True))
+    assert edge.method == "edge" and np.hypot(edge.uv[0] - centre[0], edge.uv[1] - centre[1]) < 0.15

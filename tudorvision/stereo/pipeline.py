@@ -110,7 +110,9 @@ class PipelineOptions:
         two views imply another radius (``r Z / f`` per camera, averaged) by more than
         :data:`KNOWN_RADIUS_TOL` in log ratio and 1.5 px is flagged missing in that frame ("radius ... mm, the
         sphere's is ... mm"): both views took part of the sphere, or background of its colour, in the
-        same way, which the two-view check above cannot see. None (default) disables it.
+        same way, which the two-view check above cannot see. A view without a circle (its centre is the
+        region's moment) counts with its area radius, and alone when that is short: part of the sphere
+        ("the ... view's region is part of the sphere"). None (default) disables it.
     sphere_separation_m : float or None
         Known distance between the sphere centres (two spheres); a frame
         whose triangulated distance differs by more than
@@ -472,15 +474,28 @@ class StereoPipeline:
         for s in self.spheres:
             R_s = known.get(s) if isinstance(known, dict) else known
             views = [dets[c][s] for c in ("left", "right")]
-            if R_s is None or not all(d.valid and math.isfinite(d.circle_radius_px) for d in views):
+            if R_s is None or not all(d.valid for d in views):
                 continue
-            r_px = [d.circle_radius_px for d in views]
+            # a view without a circle (its centre is the region's moment) has only its area: a region smaller
+            # than the sphere is part of it, and its moment is off (refused on that view alone); a larger one
+            # may be blur, so it never counts as large
+            r_px = [d.circle_radius_px if math.isfinite(d.circle_radius_px) else math.sqrt(d.area_px / math.pi)
+                    for d in views]
             implied = implied_radii_m(tri.spheres[s][0], *r_px, self._f["left"], self._f["right"], stereo.R, stereo.T)
-            r_m = 0.5 * (implied[0] + implied[1])
+            if not all(math.isfinite(m) for m in implied):
+                continue
+            moment = [not math.isfinite(d.circle_radius_px) for d in views]
             # the same difference in pixels: r - f R_s / Z = r (1 - R_s / implied)
+            short = [r * (float(R_s) / m - 1.0) for r, m in zip(r_px, implied)]
+            part = [c for c, mo, m, d_px in zip(("left", "right"), moment, implied, short)
+                    if mo and math.log(float(R_s) / m) > KNOWN_RADIUS_TOL and d_px > 1.5]
+            part_mm = {c: 1e3 * m for c, m in zip(("left", "right"), implied)}
+            implied = [min(m, float(R_s)) if mo else m for mo, m in zip(moment, implied)]
+            r_m = 0.5 * (implied[0] + implied[1])
             off_px = 0.5 * sum(abs(r * (1.0 - float(R_s) / m)) for r, m in zip(r_px, implied))
-            if r_m > 0 and abs(math.log(r_m / float(R_s))) > KNOWN_RADIUS_TOL and off_px > 1.5:
-                why = f"radius {1e3 * r_m:.1f} mm, the sphere's is {1e3 * float(R_s):.1f} mm"
+            if part or (abs(math.log(r_m / float(R_s))) > KNOWN_RADIUS_TOL and off_px > 1.5):
+                why = (f"the {part[0]} view's region is part of the sphere (its area gives {part_mm[part[0]]:.1f} mm)"
+                       if part else f"radius {1e3 * r_m:.1f} mm") + f", the sphere's is {1e3 * float(R_s):.1f} mm"
                 dets = {c: {**dets[c], s: _invalid(dets[c][s], why)} for c in dets}
                 self.n_radius_refused += 1
         return dets

@@ -296,7 +296,7 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
             below = params.chroma_edge_below
             if below > 0 and area >= math.pi * params.chroma_edge_large_px ** 2:
                 below = max(below, params.chroma_edge_below_large)
-            if edge_src is not None and below > 0 and not (used and rim_frac >= below):
+            if edge_src is not None and below > 0 and not (used and rim_frac >= below and below < 1.0):
                 ch = edge_src.refine_chroma((start[0][0] + x0, start[0][1] + y0), start[1])
                 if ch is not None:
                     cu, cv_, method, r_fit = ch[0], ch[1], "chroma", ch[2]
