@@ -111,8 +111,8 @@ class PipelineOptions:
         :data:`KNOWN_RADIUS_TOL` in log ratio and 1.5 px is flagged missing in that frame ("radius ... mm, the
         sphere's is ... mm"): both views took part of the sphere, or background of its colour, in the
         same way, which the two-view check above cannot see. A view without a circle (its centre is the
-        region's moment) counts with its area radius, and alone when that is short: part of the sphere
-        ("the ... view's region is part of the sphere"). None (default) disables it.
+        region's moment) counts with its area radius, and alone when that is short on a sphere of 8 px or
+        more ("the ... view's region is part of the sphere"). None (default) disables it.
     sphere_separation_m : float or None
         Known distance between the sphere centres (two spheres); a frame
         whose triangulated distance differs by more than
@@ -476,9 +476,9 @@ class StereoPipeline:
             views = [dets[c][s] for c in ("left", "right")]
             if R_s is None or not all(d.valid for d in views):
                 continue
-            # a view without a circle (its centre is the region's moment) has only its area: a region smaller
-            # than the sphere is part of it, and its moment is off (refused on that view alone); a larger one
-            # may be blur, so it never counts as large
+            # a view without a circle (its centre is the region's moment) has only its area: on a sphere of 8 px
+            # or more a region smaller than it is part of it, and its moment is off (refused on that view alone;
+            # on smaller ones it is the colour core, about centred); a larger one may be blur: never counts large
             r_px = [d.circle_radius_px if math.isfinite(d.circle_radius_px) else math.sqrt(d.area_px / math.pi)
                     for d in views]
             implied = implied_radii_m(tri.spheres[s][0], *r_px, self._f["left"], self._f["right"], stereo.R, stereo.T)
@@ -487,10 +487,11 @@ class StereoPipeline:
             moment = [not math.isfinite(d.circle_radius_px) for d in views]
             # the same difference in pixels: r - f R_s / Z = r (1 - R_s / implied)
             short = [r * (float(R_s) / m - 1.0) for r, m in zip(r_px, implied)]
-            part = [c for c, mo, m, d_px in zip(("left", "right"), moment, implied, short)
-                    if mo and math.log(float(R_s) / m) > KNOWN_RADIUS_TOL and d_px > 1.5]
+            area = [mo and r + d_px >= 8.0 for mo, r, d_px in zip(moment, r_px, short)]   # f R_s / Z >= 8 px
+            part = [c for c, a, m, d_px in zip(("left", "right"), area, implied, short)
+                    if a and math.log(float(R_s) / m) > KNOWN_RADIUS_TOL and d_px > 1.5]
             part_mm = {c: 1e3 * m for c, m in zip(("left", "right"), implied)}
-            implied = [min(m, float(R_s)) if mo else m for mo, m in zip(moment, implied)]
+            implied = [min(m, float(R_s)) if a else (float(R_s) if mo else m) for a, mo, m in zip(area, moment, implied)]
             r_m = 0.5 * (implied[0] + implied[1])
             off_px = 0.5 * sum(abs(r * (1.0 - float(R_s) / m)) for r, m in zip(r_px, implied))
             if part or (abs(math.log(r_m / float(R_s))) > KNOWN_RADIUS_TOL and off_px > 1.5):
