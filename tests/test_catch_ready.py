@@ -10,6 +10,7 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from _catch_stubs import LayerStub
 from tudorvision.lab.catch.options import DemoOptions
@@ -121,3 +122,59 @@ def test_a_crossing_just_beyond_full_stretch_is_reachable_within_the_tolerance()
             assert "reach_tol_m" in str(e)
         else:
             raise AssertionError(bad)
+
+
+def test_the_inner_edge_of_the_reach_is_where_the_elbow_runs_out_of_range():
+    """Oracle: the rigid IK at ``inner_reach_m`` has joint 3 exactly at its range less the margin; nearer
+    crossings are pulled out radially (not sideways) onto that circle, farther ones are left alone."""
+    from tudorvision.catch.intercept import inner_reach_m, net_target, reachable_solutions
+    from tudorvision.robot import load_robot_params
+
+    p = load_robot_params()
+    margin = np.deg2rad(3.0)
+    d_in = inner_reach_m(p, margin)
+    shoulder = np.array([0.0, 0.0, p.link1_height_m])
+    u = np.array([np.cos(np.deg2rad(70.0)), 0.0, np.sin(np.deg2rad(70.0))])
+    sols = reachable_solutions(shoulder + d_in * u, 0.0, p)
+    assert len(sols) == 2 and np.allclose(np.sort(np.abs(sols[:, 2])), p.joint_limits_rad[2][1] - margin)
+    # 1 mm nearer: no solution keeps the margin on either elbow branch
+    assert len(reachable_solutions(shoulder + (d_in - 0.001) * u, 0.0, p, margin_rad=margin + 1e-9)) == 0
+    for d in (0.30, 0.50, d_in - 0.001):
+        q = net_target(shoulder + d * u, 0.0, p, reach_margin_m=0.03, inner_reach_m=d_in)
+        assert np.linalg.norm(q - shoulder) == pytest.approx(d_in, abs=1e-9)
+        assert np.allclose((q - shoulder) / d_in, u)
+    for d in (d_in + 0.001, 0.7):
+        assert np.allclose(net_target(shoulder + d * u, 0.0, p, reach_margin_m=0.03, inner_reach_m=d_in),
+                           shoulder + d * u)
+    assert np.allclose(net_target(shoulder + 0.3 * u, 0.0, p), shoulder + 0.3 * u)     # default: no pull
+
+
+def test_the_planner_releases_estimates_just_inside_the_inner_edge():
+    from tudorvision.catch.intercept import InterceptOptions, InterceptPlanner, inner_reach_m
+    from tudorvision.robot import load_robot_params
+
+    p = load_robot_params()
+    d_in = inner_reach_m(p, np.deg2rad(3.0))
+    shoulder = np.array([0.0, 0.0, p.link1_height_m])
+    u = np.array([np.cos(np.deg2rad(100.0)), 0.0, np.sin(np.deg2rad(100.0))])
+    # the planner's own 2 deg range margin: without the inner edge, 1 cm inside it is unreachable
+    plain = InterceptPlanner(InterceptOptions(reach_tol_m=0.015), params=p)
+    inner = InterceptPlanner(InterceptOptions(reach_tol_m=0.015, inner_reach_m=d_in), params=p)
+    for d, plain_ok, inner_ok in [(d_in + 0.005, True, True), (d_in - 0.01, False, True), (d_in - 0.02, False, False)]:
+        q = shoulder + d * u
+        assert plain._reachable(q) is plain_ok and inner._reachable(q) is inner_ok, d
+    with pytest.raises(ValueError, match="inner_reach_m"):
+        InterceptOptions(inner_reach_m=-0.1)
+
+
+def test_the_demos_inner_edge_follows_joint_3s_setpoint_margin():
+    from tudorvision.catch.intercept import inner_reach_m
+    from tudorvision.lab.catch.agent import demo_inner_reach_m
+    from tudorvision.robot import load_robot_params
+
+    p = load_robot_params()
+    assert demo_inner_reach_m(DemoOptions(), p) == pytest.approx(0.546, abs=0.001)       # 102 - 3 deg
+    wider = DemoOptions(setpoint_margin_rad=tuple(np.deg2rad([10.0, 10.0, 12.0])))
+    assert demo_inner_reach_m(wider, p) == pytest.approx(inner_reach_m(p, np.deg2rad(12.0)))
+    assert demo_inner_reach_m(wider, p) > demo_inner_reach_m(DemoOptions(), p)
+    assert demo_inner_reach_m(DemoOptions(inner_pull=False), p) == 0.0

@@ -24,7 +24,7 @@ from .ball_model import BallModel, propagate_state
 from .ekf import predict
 
 __all__ = ["working_plane_normal", "PlaneCrossing", "plane_crossing", "planar_coordinates", "reachable_solutions",
-           "net_target",
+           "inner_reach_m", "net_target",
            "InterceptOptions", "Intercept", "InterceptPlanner"]
 
 
@@ -232,15 +232,20 @@ def reachable_solutions(p_base, theta1: float, params=None, *, margin_rad: float
     return sols
 
 
-def net_target(p_base, theta1: float, params=None, *, reach_margin_m: float = 0.05) -> np.ndarray:
-    """Where to put the net for a crossing at ``p_base``: pulled in from the edge of the reach.
+def net_target(p_base, theta1: float, params=None, *, reach_margin_m: float = 0.05,
+               inner_reach_m: float = 0.0) -> np.ndarray:
+    """Where to put the net for a crossing at ``p_base``: pulled in from the edges of the reach.
 
     Near full stretch the inverse kinematics is nearly singular: a few
     centimetres of intercept refinement swing joint 3 by tens of degrees, and
     the joints overshoot on the reversals. A crossing farther than
     ``reach - reach_margin_m`` from the shoulder (joint 2 axis) is moved
     radially onto that circle; with an 18 cm net (9 cm radius) a ball up to
-    the margin away still lands in it. Points inside are returned unchanged.
+    the margin away still lands in it. At the inner edge, where the elbow
+    runs out of range, a crossing nearer than ``inner_reach_m`` is moved out
+    onto that circle (:func:`inner_reach_m`): else the only solution left is
+    the other elbow branch, a swing of joint 3 through most of its range.
+    Points in between are returned unchanged.
 
     Parameters
     ----------
@@ -252,6 +257,8 @@ def net_target(p_base, theta1: float, params=None, *, reach_margin_m: float = 0.
         Robot parameters; default the packaged ``tudor.yaml``.
     reach_margin_m : float
         Distance kept from full stretch (link 2 + link 3), metres.
+    inner_reach_m : float
+        Smallest distance from the shoulder the net is sent to, metres (0: none).
 
     Returns
     -------
@@ -271,6 +278,9 @@ def net_target(p_base, theta1: float, params=None, *, reach_margin_m: float = 0.
     >>> q = net_target([reach, 0.0, p.link1_height_m], 0.0, p, reach_margin_m=0.05)
     >>> round(float(q[0]), 3) == round(reach - 0.05, 3), float(q[2]) == p.link1_height_m
     (True, True)
+    >>> q = net_target([0.3, 0.0, p.link1_height_m], 0.0, p, inner_reach_m=0.55)
+    >>> round(float(q[0]), 3)
+    0.55
     """
     from ..robot import load_robot_params
 
@@ -280,12 +290,45 @@ def net_target(p_base, theta1: float, params=None, *, reach_margin_m: float = 0.
     dz = z - p.link1_height_m
     d = float(np.hypot(r, dz))
     lim = p.link2_length_m + p.link3_length_m - float(reach_margin_m)
-    if d <= lim or d == 0.0:
+    if 0.0 < d < float(inner_reach_m):
+        lim = float(inner_reach_m)
+    elif d <= lim or d == 0.0:
         return q
     s = lim / d
     u = np.array([np.cos(theta1), np.sin(theta1), 0.0])
     off = q - r * u - np.array([0.0, 0.0, z])          # the part off the plane (kept)
     return off + s * r * u + np.array([0.0, 0.0, p.link1_height_m + s * dz])
+
+
+def inner_reach_m(params=None, joint3_margin_rad: float = 0.0) -> float:
+    """Distance from the shoulder at which the elbow (joint 3) reaches its range less a margin, metres.
+
+    Nearer crossings need joint 3 beyond ``min(hi, -lo) - joint3_margin_rad`` on either elbow branch:
+    ``sqrt(l2^2 + l3^2 + 2 l2 l3 cos(theta3))``.
+
+    Parameters
+    ----------
+    params : RobotParams, optional
+        Link lengths and joint ranges; default the packaged ``tudor.yaml``.
+    joint3_margin_rad : float
+        Margin kept inside joint 3's range, rad.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> round(inner_reach_m(None, np.deg2rad(3.0)), 3)
+    0.546
+    """
+    from ..robot import load_robot_params
+
+    p = params or load_robot_params()
+    lo, hi = (float(x) for x in p.joint_limits_rad[2])
+    t3 = min(hi, -lo) - float(joint3_margin_rad)
+    l2, l3 = p.link2_length_m, p.link3_length_m
+    return math.sqrt(max(l2 * l2 + l3 * l3 + 2.0 * l2 * l3 * math.cos(t3), 0.0))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -316,13 +359,17 @@ class InterceptOptions:
         counts as reachable, judged at full stretch: a net held there (or pulled in by
         :func:`net_target`'s margin) still takes a ball passing this far out when the tolerance is
         at most ``net radius - ball radius - reach margin``; metres, >= 0.
+    inner_reach_m : float
+        A crossing up to ``reach_tol_m`` nearer the shoulder than this counts as reachable, judged
+        at this distance (where :func:`net_target` with the same ``inner_reach_m`` sends the net);
+        metres, 0: none.
     min_height_m : float
         Floor height in the base frame (the flight ends below it), metres.
 
     Raises
     ------
     ValueError
-        If ``release_sigma_m <= 0``, ``refine_tol_m < 0`` or ``reach_tol_m < 0``.
+        If ``release_sigma_m <= 0``, or ``refine_tol_m``, ``reach_tol_m`` or ``inner_reach_m`` is negative.
     """
 
     theta1_rad: float = 0.0
@@ -332,12 +379,15 @@ class InterceptOptions:
     min_interval_s: float = 0.2
     margin_rad: float = np.deg2rad(2.0)
     reach_tol_m: float = 0.0
+    inner_reach_m: float = 0.0
     min_height_m: float = -0.3
 
     def __post_init__(self):
-        if not self.release_sigma_m > 0 or not self.refine_tol_m >= 0 or not self.reach_tol_m >= 0:
-            raise ValueError(f"release_sigma_m, refine_tol_m, reach_tol_m: expected > 0, >= 0 and >= 0, got "
-                             f"{self.release_sigma_m}, {self.refine_tol_m}, {self.reach_tol_m}")
+        if (not self.release_sigma_m > 0 or not self.refine_tol_m >= 0 or not self.reach_tol_m >= 0
+                or not self.inner_reach_m >= 0):
+            raise ValueError(f"release_sigma_m, refine_tol_m, reach_tol_m, inner_reach_m: expected > 0, >= 0, >= 0 "
+                             f"and >= 0, got {self.release_sigma_m}, {self.refine_tol_m}, {self.reach_tol_m}, "
+                             f"{self.inner_reach_m}")
 
 
 @dataclass(frozen=True)
@@ -415,6 +465,8 @@ class InterceptPlanner:
         d = math.hypot(r, zz)
         if l2 + l3 < d <= l2 + l3 + self.options.reach_tol_m:
             r, zz = r * (l2 + l3) / d, zz * (l2 + l3) / d          # judged at full stretch
+        elif 0.0 < self.options.inner_reach_m - self.options.reach_tol_m <= d < self.options.inner_reach_m:
+            r, zz = r * self.options.inner_reach_m / d, zz * self.options.inner_reach_m / d   # at the inner edge
         c3 = (r * r + zz * zz - l2 * l2 - l3 * l3) / (2 * l2 * l3)
         if c3 > 1.0 + 1e-12 or c3 < -1.0 - 1e-12:
             return False

@@ -23,12 +23,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...catch.intercept import net_target
+from ...catch.intercept import inner_reach_m, net_target
 from ...catch.perception import detection_to_base
 from .profile import ReferenceMirror, mode_frequency_hz
 
 __all__ = ["CatchAgent", "CatchIK", "ThrowLog", "WEIGH_REST_SPEED_RAD_S", "pause_and_weigh",
-           "profile_limits", "PREDICTION_COLUMNS", "SETPOINT_COLUMNS"]
+           "profile_limits", "demo_inner_reach_m", "PREDICTION_COLUMNS", "SETPOINT_COLUMNS"]
 
 WEIGH_REST_SPEED_RAD_S = 0.02   # joints slower than this throughout the weighing window: the arm rests
 ARRIVED_TOL_RAD = float(np.deg2rad(1.0))
@@ -63,6 +63,26 @@ def profile_limits(options, params) -> tuple[float, float]:
     """
     return (options.speed_fraction * float(np.min(params.max_speed_rad_s)),
             options.accel_fraction * float(np.min(params.max_accel_rad_s2)))
+
+
+def demo_inner_reach_m(options, params) -> float:
+    """The demo's inner edge of the reach, m: joint 3 at its range less its setpoint margin (0 if not ``inner_pull``).
+
+    Parameters
+    ----------
+    options : DemoOptions
+        ``inner_pull`` and ``setpoint_margin_rad``.
+    params : RobotParams
+        Link lengths and joint ranges.
+
+    Returns
+    -------
+    float
+    """
+    if not options.inner_pull:
+        return 0.0
+    margin = np.broadcast_to(np.asarray(options.setpoint_margin_rad, float), (3,))
+    return inner_reach_m(params, float(margin[2]))
 
 
 def pause_and_weigh(layer, t_now: float, duration: float, rate: float, weigh_s: float = 0.6, on_frame=None):
@@ -214,6 +234,7 @@ class CatchAgent:
         self.ik, self.strain_model, self.perception, self.detector = ik, strain_model, perception, detector
         self.T_base_cam = np.asarray(T_base_cam, float)
         self.options, self.params = options, params
+        self.inner_reach_m = demo_inner_reach_m(options, params)
         self.payload_range_kg = payload_range_kg
         self.mount_kg = float(params.end_effector_mount_mass_kg)
         self.max_speed, self.max_accel = profile_limits(options, params)
@@ -347,8 +368,8 @@ class CatchAgent:
     def _intercept(self, t: float, it, theta_now) -> None:
         o = self.options
         try:
-            th = self.ik(net_target(it.p_base, self.ik.theta1_rad, self.params, reach_margin_m=o.reach_margin_m),
-                         self.payload_est_kg, near=theta_now)
+            th = self.ik(net_target(it.p_base, self.ik.theta1_rad, self.params, reach_margin_m=o.reach_margin_m,
+                                    inner_reach_m=self.inner_reach_m), self.payload_est_kg, near=theta_now)
         except ValueError:
             return
         # the joints overshoot (joint 2 by up to 8 deg) on fast moves: a setpoint near the edge of a range

@@ -93,6 +93,12 @@ class DemoOptions:
         Default 3 cm (5 cm until 2026-11-26): at 5 cm a ball crossing within 2 cm of full stretch met the
         ring's rim (59 of the 136 rim misses of seed 0's 840 crossing throws lay beyond 0.79 m); 3 cm
         caught 662 of them against 633, 2 cm 660.
+    inner_pull : bool
+        Crossings nearer the shoulder than the elbow can fold (joint 3 at its range less its setpoint
+        margin: 0.546 m) get the net at that distance, and estimates up to the reach tolerance nearer are
+        released (:func:`~tudorvision.catch.intercept.inner_reach_m`); False: the compensated IK then
+        finds only the other elbow branch there, a swing of joint 3 through most of its range (the
+        behaviour before 2026-11-26, seventh session).
     setpoint_margin_rad : float or tuple of 3 floats
         Setpoints are clipped this far inside the joint ranges, one value or one per joint, rad
         (joint 2 overshot by up to 8 deg on fast moves, and the layer faults 1 deg outside a
@@ -195,6 +201,7 @@ class DemoOptions:
     accel_fraction: float = 1.0
     layer_rate_hz: float = 500.0
     reach_margin_m: float = 0.03
+    inner_pull: bool = True
     setpoint_margin_rad: float | tuple = tuple(float(x) for x in np.deg2rad([10.0, 10.0, 3.0]))
     empty_pause_s: float = 1.0
     net_capacity_balls: int = 8

@@ -40,7 +40,7 @@ import numpy as np
 from ...catch.ekf import BallModel, EKFOptions
 from ...catch.intercept import InterceptOptions
 from ...catch.perception import CatchPerception
-from .agent import CatchAgent, CatchIK, profile_limits
+from .agent import CatchAgent, CatchIK, demo_inner_reach_m, profile_limits
 from .calibration import calibrate_wall_camera, wall_camera_position_world
 from .options import DemoOptions, trained_payload_range_kg
 from .scenario import FRAME_RATE_HZ, CatchScenario
@@ -166,7 +166,7 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
     # still takes the ball there (the estimate of a crossing at the edge of the reach flickers across it)
     reach_tol = max(0.0, o.net_radius_m - o.ball_radius_m - o.reach_margin_m)
     iopts = InterceptOptions(release_sigma_m=o.release_sigma_m, refine_sigma_factor=o.refine_sigma_factor,
-                             reach_tol_m=reach_tol)
+                             reach_tol_m=reach_tol, inner_reach_m=demo_inner_reach_m(o, params))
     ik = CatchIK(inverse, params, compensate=o.compensate, theta1_rad=iopts.theta1_rad)
 
     world = CatchScenario(o, params, ik(np.asarray(o.ready_point_base, float), 0.0, elbow="up"))
