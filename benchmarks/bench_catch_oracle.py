@@ -10,6 +10,8 @@ throw's TRUE crossing point and time. Variants (``--variants``):
   of the throw (the first frame on which the agent runs its filter, one or two frames after the
   release), released at once when it is reachable (rigid IK within the joint ranges, or at most
   the planner's reach tolerance beyond full stretch); a single setpoint, no refinements.
+* ``second``, ``third``: the same on the second or third detection (a filter started on two or on
+  three detections could know the crossing no earlier).
 * ``own`` (oracle at the agent's own timing): the first setpoint goes out on the frame where the
   agent's own release rule fires on its own estimate, but to the true crossing; no refinements
   (they would target the same point).
@@ -55,7 +57,9 @@ from tudorvision.lab.catch.scenario import CatchScenario
 from tudorvision.lab.catch.sessions import run_sessions
 from tudorvision.robot import load_robot_params
 
-VARIANTS = ("baseline", "release", "own")
+VARIANTS = ("baseline", "release", "second", "third", "own")
+#: variants that send the truth on the n-th detection of the throw
+NTH_DETECTION = {"release": 1, "second": 2, "third": 3}
 BALL_KG = 0.03
 
 #: What the lab side knows now (serial sessions in this process): the throw in the air, the agent.
@@ -100,8 +104,8 @@ class OraclePerception(CatchPerception):
     """The agent's perception, its intercept replaced by the throw's true crossing (lab side only).
 
     The filter still runs (its first release is noted); the record's ``intercept`` is the truth with
-    ``send`` set once per throw: on the first detection of the throw (variant ``release``) or when the
-    filter's own release rule first fires (variant ``own``).
+    ``send`` set once per throw: on the first, second or third detection of the throw (variants
+    ``release``, ``second``, ``third``) or when the filter's own release rule first fires (``own``).
     """
 
     def __init__(self, ekf, intercept, params=None, **kwargs):
@@ -110,6 +114,7 @@ class OraclePerception(CatchPerception):
         self.reach_tol_m = float(intercept.reach_tol_m)
         self.params = params or load_robot_params()
         self.ekf_release = {}         # throw index -> time of the filter's first release, s
+        self.n_det = {}               # throw index -> detections so far
 
     def step(self, t, p_base, cov_base):
         rec = super().step(t, p_base, cov_base)
@@ -124,8 +129,11 @@ class OraclePerception(CatchPerception):
             rec["intercept"] = None
             return rec
         p = np.array(th.p_cross_base, float)
-        if variant == "release":
-            send = self.sent_for != th.index and reachable_with_tol(p, self.params, self.reach_tol_m)
+        if p_base is not None:
+            self.n_det[th.index] = self.n_det.get(th.index, 0) + 1
+        if variant in NTH_DETECTION:
+            send = (self.sent_for != th.index and self.n_det.get(th.index, 0) >= NTH_DETECTION[variant]
+                    and reachable_with_tol(p, self.params, self.reach_tol_m))
         else:
             send = self.sent_for != th.index and own is not None and own.send
         if send:
