@@ -481,22 +481,22 @@ class StereoPipeline:
             # on smaller ones it is the colour core, about centred); a larger one may be blur: never counts large
             r_px = [d.circle_radius_px if math.isfinite(d.circle_radius_px) else math.sqrt(d.area_px / math.pi)
                     for d in views]
-            implied = implied_radii_m(tri.spheres[s][0], *r_px, self._f["left"], self._f["right"], stereo.R, stereo.T)
-            if not all(math.isfinite(m) for m in implied):
+            R_s = float(R_s)
+            measured = implied_radii_m(tri.spheres[s][0], *r_px, self._f["left"], self._f["right"], stereo.R, stereo.T)
+            if not all(math.isfinite(m) for m in measured):
                 continue
-            moment = [not math.isfinite(d.circle_radius_px) for d in views]
-            # the same difference in pixels: r - f R_s / Z = r (1 - R_s / implied)
-            short = [r * (float(R_s) / m - 1.0) for r, m in zip(r_px, implied)]
-            area = [mo and r + d_px >= 8.0 for mo, r, d_px in zip(moment, r_px, short)]   # f R_s / Z >= 8 px
-            part = [c for c, a, m, d_px in zip(("left", "right"), area, implied, short)
-                    if a and math.log(float(R_s) / m) > KNOWN_RADIUS_TOL and d_px > 1.5]
-            part_mm = {c: 1e3 * m for c, m in zip(("left", "right"), implied)}
-            implied = [min(m, float(R_s)) if a else (float(R_s) if mo else m) for a, mo, m in zip(area, moment, implied)]
+            want_px = [r * R_s / m for r, m in zip(r_px, measured)]       # f R_s / Z per view
+            by_area = [not math.isfinite(d.circle_radius_px) for d in views]
+            part = [i for i in (0, 1) if by_area[i] and want_px[i] >= 8.0 and want_px[i] - r_px[i] > 1.5
+                    and math.log(R_s / measured[i]) > KNOWN_RADIUS_TOL]
+            # an area never counts as large, nor at all below 8 px
+            implied = [(min(m, R_s) if w >= 8.0 else R_s) if a else m for a, m, w in zip(by_area, measured, want_px)]
             r_m = 0.5 * (implied[0] + implied[1])
-            off_px = 0.5 * sum(abs(r * (1.0 - float(R_s) / m)) for r, m in zip(r_px, implied))
-            if part or (abs(math.log(r_m / float(R_s))) > KNOWN_RADIUS_TOL and off_px > 1.5):
-                why = (f"the {part[0]} view's region is part of the sphere (its area gives {part_mm[part[0]]:.1f} mm)"
-                       if part else f"radius {1e3 * r_m:.1f} mm") + f", the sphere's is {1e3 * float(R_s):.1f} mm"
+            off_px = 0.5 * sum(abs(r * (1.0 - R_s / m)) for r, m in zip(r_px, implied))
+            if part or (abs(math.log(r_m / R_s)) > KNOWN_RADIUS_TOL and off_px > 1.5):
+                why = (f"the {('left', 'right')[part[0]]} view's region is part of the sphere (its area gives "
+                       f"{1e3 * measured[part[0]]:.1f} mm)" if part else f"radius {1e3 * r_m:.1f} mm") + \
+                    f", the sphere's is {1e3 * R_s:.1f} mm"
                 dets = {c: {**dets[c], s: _invalid(dets[c][s], why)} for c in dets}
                 self.n_radius_refused += 1
         return dets
