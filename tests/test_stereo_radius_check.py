@@ -7,6 +7,7 @@ exact projections; colour models picked on a clean pair.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -16,7 +17,7 @@ from tudorvision._checks import TudorVisionError
 from tudorvision.io import Calibration, CameraModel, StereoExtrinsics
 from tudorvision.io.frames import StereoFrame
 from tudorvision.stereo import ColorModelSet, PipelineOptions, StereoPipeline, fit_color_model
-from tudorvision.stereo.stereo_radius import predicted_radius_px, radius_ratio
+from tudorvision.stereo.stereo_radius import known_radius_verdict, predicted_radius_px, radius_ratio, region_is_part
 
 SS, F, R_M = 8, 500.0, 0.035
 CAM = CameraModel(K=[[F, 0, 160], [0, F, 120], [0, 0, 1]], width=320, height=240)
@@ -42,17 +43,17 @@ def _coverage(cu, cv_, r, h=240, w=320):
                       interpolation=cv2.INTER_AREA).astype(np.float64)[..., None]
 
 
-def _pair(patch=None, bar=None):
+def _pair(patch=None, bar=None, centres=CENTRES):
     """Left and right images; ``patch`` (x0, x1) in green radii right of the green sphere in the right image,
     in its own colour; ``bar`` (width px, offset px) a grey vertical bar across the right image's green sphere."""
     imgs = {}
     for cam in ("left", "right"):
         img = np.full((240, 320, 3), 90.0)
-        u, v = _proj(CENTRES["green"], cam)
-        r = _radius(CENTRES["green"])
+        u, v = _proj(centres["green"], cam)
+        r = _radius(centres["green"])
         if cam == "right" and patch is not None:
             img[int(v - 2 * r):int(v + 2 * r), int(u + patch[0] * r):int(u + patch[1] * r)] = COLOURS["green"]
-        for s, p in CENTRES.items():
+        for s, p in centres.items():
             k = _coverage(*_proj(p, cam), _radius(p))
             img = img * (1.0 - k) + k * np.array(COLOURS[s], float)
         if cam == "right" and bar is not None:
@@ -65,16 +66,20 @@ def _pair(patch=None, bar=None):
     return imgs
 
 
-@pytest.fixture(scope="module")
-def models():
-    clean = _pair()
+def _models(centres=CENTRES):
+    clean = _pair(centres=centres)
     out = {}
     for cam in clean:
         out[cam] = {}
-        for s, p in CENTRES.items():
+        for s, p in centres.items():
             u, v = _proj(p, cam)
             out[cam][s] = fit_color_model(clean[cam], (round(u), round(v)), (round(u + 0.8 * _radius(p)), round(v)))
     return ColorModelSet(out)
+
+
+@pytest.fixture(scope="module")
+def models():
+    return _models()
 
 
 def _run(models, imgs, **kw):
@@ -163,3 +168,54 @@ def test_known_radius_refuses_a_moment_view_that_holds_part_of_the_sphere(models
     assert pipe.n_radius_refused == 1 and np.isnan(res.spheres["green"]).all()
     assert "the right view's region is part of the sphere" in res.detections["left"]["green"].reason
     assert res.detections["left"]["red"].valid and np.linalg.norm(res.spheres["red"] - CENTRES["red"]) < 0.02
+
+
+NEAR = {"red": np.array([-0.10, 0.011, 1.6]), "green": np.array([0.06, 0.013, 1.2])}   # green 14.6 px
+
+
+def test_region_is_part_counts_only_a_short_area_on_a_sphere_of_8_px_or_more():
+    assert region_is_part(10.0, 14.0, 0.12)
+    assert not region_is_part(13.0, 14.0, 0.12)          # within 1.5 px
+    assert not region_is_part(18.0, 14.0, 0.12)          # larger (blur) never counts
+    assert not region_is_part(4.0, 7.5, 0.12)            # below 8 px: the colour core, about centred
+    assert not region_is_part(10.0, float("nan"), 0.12) and not region_is_part(0.0, 14.0, 0.12)
+    # the known-radius verdict: an area radius never counts as too large, nor at all below 8 px
+    R, T = np.eye(3), np.array([-0.2, 0.0, 0.0])
+    p = [0.0, 0.0, 2.0]                                   # 35 mm at 2 m, f 500: 8.75 px
+    big_area = (float("nan"), math.pi * 12.0 ** 2)
+    assert known_radius_verdict(p, [(8.75, 240.0), big_area], R_M, F, F, R, T) == ""
+    assert "right view's region is part" in known_radius_verdict(p, [(8.75, 240.0), (float("nan"), 100.0)],
+                                                                 R_M, F, F, R, T)
+    assert known_radius_verdict([0.0, 0.0, -1.0], [(8.75, 240.0)] * 2, R_M, F, F, R, T) == ""   # no depth
+
+
+def test_a_moment_view_holding_part_of_the_sphere_is_measured_again_without_the_known_radius(monkeypatch):
+    """One view without a circle (its centre the region's moment, as when the rim fit fails on a shaded limb),
+    its region cut by a bar: its area is short of what the other view's circle predicts, so it is measured
+    again on its chroma edge (the moment alone is 0.1 m off in depth); the whole sphere's moment view passes."""
+    import tudorvision.stereo.pipeline as pipeline_module
+    models_near = _models(NEAR)
+    real = pipeline_module.detect_spheres
+    calls = []
+
+    def right_green_by_moment(img, models_, params=None):
+        out = dict(real(img, models_, params=params))
+        calls.append(1)
+        if len(calls) % 2 == 0:                           # the right image (left first)
+            d = out["green"]
+            out["green"] = replace(d, uv=d.uv_moment, circle_radius_px=float("nan"), method="moment")
+        return out
+
+    monkeypatch.setattr(pipeline_module, "detect_spheres", right_green_by_moment)
+    pipe, res = _run(models_near, _pair(centres=NEAR))
+    assert res.valid and pipe.n_radius_refused == 0 and pipe.n_radius_repaired == 0
+    assert res.detections["right"]["green"].method == "moment"
+    assert np.linalg.norm(res.spheres["green"] - NEAR["green"]) < 0.01
+    imgs = _pair(bar=(14.0, 10.0), centres=NEAR)
+    _, naive = _run(models_near, imgs, max_radius_mismatch=None)
+    assert naive.detections["right"]["green"].method == "moment"
+    assert np.linalg.norm(naive.spheres["green"] - NEAR["green"]) > 0.05
+    pipe, res = _run(models_near, imgs)
+    assert pipe.n_radius_repaired == 1 and res.detections["right"]["green"].method == "chroma"
+    assert np.linalg.norm(res.spheres["green"] - NEAR["green"]) < 0.003
+    assert res.detections["left"]["red"].valid and np.linalg.norm(res.spheres["red"] - NEAR["red"]) < 0.01

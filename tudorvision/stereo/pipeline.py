@@ -47,17 +47,14 @@ from ._frame import FramePlanes
 from .colormodel import ColorModelSet
 from .rim_edge import chroma_circle, sphere_chroma
 from .segment import SphereDetection, detect_spheres, regions_in_window
-from .stereo_radius import implied_radii_m, predicted_radius_px, radius_ratio
+from .stereo_radius import (MIN_GAP_PX, known_radius_verdict, predicted_radius_px, radius_ratio, region_is_part,
+                            view_radius_px)
 from .tracker2d import FrameTracker, TrackerParams
 from .triangulate import SphereTriangulation, triangulate_spheres
 
 __all__ = ["PipelineOptions", "StereoFrameResult", "StereoPipeline"]
 
 _NAN2 = (float("nan"), float("nan"))
-#: Log-ratio tolerance of the known-radius check (``PipelineOptions.sphere_radius_m``): 0.15, 16 %, and at least
-#: 1.5 px (the rim circle of a small sphere reads about 0.7 px small); a circle fitted to an off-axis sphere's
-#: elliptic silhouette reads up to about 7 % large at 30 deg off the axis.
-KNOWN_RADIUS_TOL = 0.15
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -103,13 +100,17 @@ class PipelineOptions:
         (:func:`~tudorvision.stereo.rim_edge.chroma_circle`); if the two
         still disagree the sphere is flagged missing in that frame
         ("stereo-inconsistent (radius)") rather than triangulated wrong.
-        Only pairs where both views have a fitted circle are checked. None
-        disables it.
+        A view without a circle (its centre is the region's moment) counts
+        by its area radius, and only when that is short of the other
+        view's prediction on a sphere of 8 px or more
+        (:func:`~tudorvision.stereo.stereo_radius.region_is_part`); two such
+        views are not compared. None disables it.
     sphere_radius_m : float or dict or None
         Known metric radius of the spheres (one value, or ``{sphere: radius}``), metres. A sphere whose
         two views imply another radius (``r Z / f`` per camera, averaged) by more than
-        :data:`KNOWN_RADIUS_TOL` in log ratio and 1.5 px is flagged missing in that frame ("radius ... mm, the
-        sphere's is ... mm"): both views took part of the sphere, or background of its colour, in the
+        :data:`~tudorvision.stereo.stereo_radius.KNOWN_RADIUS_TOL` in log ratio and 1.5 px is flagged
+        missing in that frame ("radius ... mm, the sphere's is ... mm";
+        :func:`~tudorvision.stereo.stereo_radius.known_radius_verdict`): both views took part of the sphere, or background of its colour, in the
         same way, which the two-view check above cannot see. A view without a circle (its centre is the
         region's moment) counts with its area radius, and alone when that is short on a sphere of 8 px or
         more ("the ... view's region is part of the sphere"). None (default) disables it.
@@ -430,29 +431,45 @@ class StereoPipeline:
         return triangulate_spheres(uvl, uvr, self.calibration, T_base_left=None, method=self.options.method)
 
     def _check_radii(self, dets: dict, images: dict, tri: SphereTriangulation) -> dict:
-        """Compare each sphere's circle radii between the cameras; re-measure or refuse a view that disagrees.
+        """Compare each sphere's radii between the cameras; re-measure or refuse a view that disagrees.
 
+        A view without a circle (a moment view) counts by its area, only as too small
+        (:func:`~tudorvision.stereo.stereo_radius.region_is_part` of what the other view's circle predicts).
         ``tri``: the detections triangulated (left camera frame). Returns ``dets`` itself when nothing changed.
         """
         tol = self.options.max_radius_mismatch
-        both = [s for s in self.spheres if all(dets[c][s].valid and math.isfinite(dets[c][s].circle_radius_px)
-                                               for c in ("left", "right"))]
-        if tol is None or not both:
+        if tol is None:
             return dets
         stereo, f = self.calibration.stereo, self._f
-        for s in both:
+        for s in self.spheres:
+            views = {c: dets[c][s] for c in ("left", "right")}
+            if not all(d.valid for d in views.values()):
+                continue
+            shown = {c: view_radius_px(d.circle_radius_px, d.area_px) for c, d in views.items()}
+            r = {c: shown[c][0] for c in shown}
             p = tri.spheres[s][0]
-            r = {c: dets[c][s].circle_radius_px for c in ("left", "right")}
-            rho = radius_ratio(p, r["left"], r["right"], f["left"], f["right"], stereo.R, stereo.T)
-            if not abs(math.log(rho)) > tol:    # NaN (no depth) passes: nothing to compare
+            moment = [c for c in shown if shown[c][1]]
+            if len(moment) == 2:
                 continue
-            small = "left" if rho < 1.0 else "right"
-            big = "right" if small == "left" else "left"
-            want = predicted_radius_px(p, r[big], f[big], f[small], stereo.R, stereo.T, this=small)
-            if abs(want - r[small]) <= 1.5:    # below that, radius noise of a small sphere's rim (seeds 0, 1)
-                continue
-            # most often the smaller view took part of the sphere; else the larger one took some background
-            for bad, other in ((small, big), (big, small)):
+            if moment:                  # only the moment view can be the bad one, and only as too small
+                bad = moment[0]
+                other = "right" if bad == "left" else "left"
+                want = predicted_radius_px(p, r[other], f[other], f[bad], stereo.R, stereo.T, this=bad)
+                if not region_is_part(r[bad], want, tol):
+                    continue
+                tries = ((bad, other),)
+            else:
+                rho = radius_ratio(p, r["left"], r["right"], f["left"], f["right"], stereo.R, stereo.T)
+                if not abs(math.log(rho)) > tol:    # NaN (no depth) passes: nothing to compare
+                    continue
+                small = "left" if rho < 1.0 else "right"
+                big = "right" if small == "left" else "left"
+                want = predicted_radius_px(p, r[big], f[big], f[small], stereo.R, stereo.T, this=small)
+                if abs(want - r[small]) <= MIN_GAP_PX:
+                    continue
+                # most often the smaller view took part of the sphere; else the larger one took some background
+                tries = ((small, big), (big, small))
+            for bad, other in tries:
                 want = predicted_radius_px(p, r[other], f[other], f[bad], stereo.R, stereo.T, this=bad)
                 new = self._remeasure(images[bad], bad, other, s, dets, want, r[other])
                 if new is not None:
@@ -460,7 +477,8 @@ class StereoPipeline:
                     self.n_radius_repaired += 1
                     break
             else:
-                why = f"stereo-inconsistent (radius: {r['left']:.1f} px left, {r['right']:.1f} px right)"
+                why = (f"stereo-inconsistent (radius: {r['left']:.1f} px left, {r['right']:.1f} px right"
+                       f"{', ' + moment[0] + ' by its area' if moment else ''})")
                 dets = {c: {**dets[c], s: _invalid(dets[c][s], why)} for c in dets}
                 self.n_radius_refused += 1
         return dets
@@ -476,27 +494,9 @@ class StereoPipeline:
             views = [dets[c][s] for c in ("left", "right")]
             if R_s is None or not all(d.valid for d in views):
                 continue
-            # a view without a circle (its centre is the region's moment) has only its area: on a sphere of 8 px
-            # or more a region smaller than it is part of it, and its moment is off (refused on that view alone;
-            # on smaller ones it is the colour core, about centred); a larger one may be blur: never counts large
-            r_px = [d.circle_radius_px if math.isfinite(d.circle_radius_px) else math.sqrt(d.area_px / math.pi)
-                    for d in views]
-            R_s = float(R_s)
-            measured = implied_radii_m(tri.spheres[s][0], *r_px, self._f["left"], self._f["right"], stereo.R, stereo.T)
-            if not all(math.isfinite(m) for m in measured):
-                continue
-            want_px = [r * R_s / m for r, m in zip(r_px, measured)]       # f R_s / Z per view
-            by_area = [not math.isfinite(d.circle_radius_px) for d in views]
-            part = [i for i in (0, 1) if by_area[i] and want_px[i] >= 8.0 and want_px[i] - r_px[i] > 1.5
-                    and math.log(R_s / measured[i]) > KNOWN_RADIUS_TOL]
-            # an area never counts as large, nor at all below 8 px
-            implied = [(min(m, R_s) if w >= 8.0 else R_s) if a else m for a, m, w in zip(by_area, measured, want_px)]
-            r_m = 0.5 * (implied[0] + implied[1])
-            off_px = 0.5 * sum(abs(r * (1.0 - R_s / m)) for r, m in zip(r_px, implied))
-            if part or (abs(math.log(r_m / R_s)) > KNOWN_RADIUS_TOL and off_px > 1.5):
-                why = (f"the {('left', 'right')[part[0]]} view's region is part of the sphere (its area gives "
-                       f"{1e3 * measured[part[0]]:.1f} mm)" if part else f"radius {1e3 * r_m:.1f} mm") + \
-                    f", the sphere's is {1e3 * R_s:.1f} mm"
+            why = known_radius_verdict(tri.spheres[s][0], [(d.circle_radius_px, d.area_px) for d in views], R_s,
+                                       self._f["left"], self._f["right"], stereo.R, stereo.T)
+            if why:
                 dets = {c: {**dets[c], s: _invalid(dets[c][s], why)} for c in dets}
                 self.n_radius_refused += 1
         return dets

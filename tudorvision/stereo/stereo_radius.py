@@ -19,6 +19,13 @@ uses it (``PipelineOptions.max_radius_mismatch``) to re-measure the view
 whose radius disagrees, on the sphere's chroma edge from a circle of the
 radius the other view predicts, and to refuse the pair when that does not
 make the two agree.
+
+A view without a fitted circle (motion blur, a region too ragged for the
+rim fit: its centre is the region's moment) has only its area:
+:func:`region_is_part` says when such a region is too small for the sphere
+the other view (or the known radius) predicts, so that its moment is off
+the centre. :func:`known_radius_verdict` judges a pair against a known
+metric radius (``PipelineOptions.sphere_radius_m``).
 """
 from __future__ import annotations
 
@@ -26,7 +33,18 @@ import math
 
 import numpy as np
 
-__all__ = ["radius_ratio", "implied_radii_m", "predicted_radius_px"]
+__all__ = ["radius_ratio", "implied_radii_m", "predicted_radius_px", "view_radius_px", "region_is_part",
+           "known_radius_verdict", "KNOWN_RADIUS_TOL", "PART_MIN_PX"]
+
+#: Log-ratio tolerance of the known-radius check (``PipelineOptions.sphere_radius_m``): 0.15, 16 %, and at least
+#: 1.5 px (the rim circle of a small sphere reads about 0.7 px small); a circle fitted to an off-axis sphere's
+#: elliptic silhouette reads up to about 7 % large at 30 deg off the axis.
+KNOWN_RADIUS_TOL = 0.15
+#: Smallest predicted radius (px) at which a region without a circle is judged by its area: below it the region is
+#: the sphere's colour core, smaller than the sphere but about centred (two good 4.7 px spheres, seed 0).
+PART_MIN_PX = 8.0
+#: Radius differences up to this many pixels never count (radius noise of a small sphere's rim, seeds 0 and 1).
+MIN_GAP_PX = 1.5
 
 
 def _depths(p_left, R, T) -> tuple:
@@ -125,3 +143,115 @@ def predicted_radius_px(p_left, r_other_px: float, f_other_px: float, f_this_px:
         return float("nan")
     z_this, z_other = (zl, zr) if this == "left" else (zr, zl)
     return float(r_other_px) * (z_other / float(f_other_px)) * (float(f_this_px) / z_this)
+
+
+def view_radius_px(circle_radius_px: float, area_px: float) -> tuple:
+    """The radius a view shows: its fitted circle's, else its region's area radius ``sqrt(A / pi)``.
+
+    Parameters
+    ----------
+    circle_radius_px : float
+        Fitted circle radius, pixels; NaN when the centre is the region's moment.
+    area_px : float
+        Region area, pixels.
+
+    Returns
+    -------
+    tuple
+        ``(radius_px, by_area)``; ``by_area`` is True when the radius is the area's.
+
+    Examples
+    --------
+    >>> view_radius_px(12.5, 400.0)
+    (12.5, False)
+    >>> r, by_area = view_radius_px(float("nan"), 100.0 * np.pi)
+    >>> round(r, 6), by_area
+    (10.0, True)
+    """
+    if math.isfinite(circle_radius_px):
+        return float(circle_radius_px), False
+    return math.sqrt(max(float(area_px), 0.0) / math.pi), True
+
+
+def region_is_part(r_area_px: float, want_px: float, tol: float) -> bool:
+    """Whether a region without a circle is only part of a sphere predicted ``want_px`` in radius.
+
+    True when the prediction is at least :data:`PART_MIN_PX`, and the area radius is short of it by more
+    than :data:`MIN_GAP_PX` and by more than ``tol`` in log ratio. A region larger than the prediction never
+    counts (motion blur smears a sphere over a larger area); NaN never counts.
+
+    Parameters
+    ----------
+    r_area_px : float
+        The region's area radius, pixels.
+    want_px : float
+        Radius the other view or the known metric radius predicts in this view, pixels.
+    tol : float
+        Log-ratio tolerance.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> region_is_part(19.7, 25.4, 0.12), region_is_part(24.0, 25.4, 0.12), region_is_part(4.0, 6.0, 0.12)
+    (True, False, False)
+    """
+    r, w = float(r_area_px), float(want_px)
+    return bool(w >= PART_MIN_PX and w - r > MIN_GAP_PX and r > 0 and math.log(w / r) > tol)
+
+
+def known_radius_verdict(p_left, views, radius_m: float, f_left_px: float, f_right_px: float, R, T,
+                         tol: float = KNOWN_RADIUS_TOL) -> str:
+    """Why a sphere's two views disagree with its known metric radius, or ``""`` when they agree.
+
+    Each view implies ``r Z / f`` (:func:`implied_radii_m`). A view without a circle counts with its area
+    radius: alone, when :func:`region_is_part` of the predicted ``f R / Z``; otherwise never as too large
+    (blur), and not at all below :data:`PART_MIN_PX`. The pair is refused when the views' mean implied radius
+    is off by more than ``tol`` in log ratio and :data:`MIN_GAP_PX` on average.
+
+    Parameters
+    ----------
+    p_left : array_like, shape (3,)
+        Triangulated centre, left camera frame, metres.
+    views : sequence of tuple
+        ``((circle_radius_px, area_px) left, (circle_radius_px, area_px) right)``; circle NaN for a moment view.
+    radius_m : float
+        The sphere's known radius, metres.
+    f_left_px, f_right_px, R, T
+        As for :func:`radius_ratio`.
+    tol : float
+        Log-ratio tolerance.
+
+    Returns
+    -------
+    str
+        ``""`` when consistent or not measurable (no depth), else the reason, e.g. ``"radius 32.7 mm, the
+        sphere's is 39.7 mm"``.
+
+    Examples
+    --------
+    >>> R, T = np.eye(3), np.array([-0.2, 0.0, 0.0])
+    >>> known_radius_verdict([0.1, 0.0, 2.0], [(15.0, 700.0), (15.0, 700.0)], 0.05, 600.0, 600.0, R, T)
+    ''
+    >>> known_radius_verdict([0.1, 0.0, 2.0], [(12.0, 450.0), (12.0, 450.0)], 0.05, 600.0, 600.0, R, T)
+    "radius 40.0 mm, the sphere's is 50.0 mm"
+    """
+    r_px, by_area = zip(*(view_radius_px(c, a) for c, a in views))
+    R_s = float(radius_m)
+    measured = implied_radii_m(p_left, r_px[0], r_px[1], f_left_px, f_right_px, R, T)
+    if not all(math.isfinite(m) and m > 0 for m in measured):
+        return ""
+    want_px = [r * R_s / m for r, m in zip(r_px, measured)]       # f R_s / Z per view
+    for i in (0, 1):
+        if by_area[i] and region_is_part(r_px[i], want_px[i], tol):
+            return (f"the {('left', 'right')[i]} view's region is part of the sphere (its area gives "
+                    f"{1e3 * measured[i]:.1f} mm), the sphere's is {1e3 * R_s:.1f} mm")
+    implied = [(min(m, R_s) if w >= PART_MIN_PX else R_s) if a else m
+               for a, m, w in zip(by_area, measured, want_px)]
+    r_m = 0.5 * (implied[0] + implied[1])
+    off_px = 0.5 * sum(abs(r * (1.0 - R_s / m)) for r, m in zip(r_px, implied))
+    if abs(math.log(r_m / R_s)) > tol and off_px > MIN_GAP_PX:
+        return f"radius {1e3 * r_m:.1f} mm, the sphere's is {1e3 * R_s:.1f} mm"
+    return ""
