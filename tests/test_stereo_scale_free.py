@@ -104,6 +104,22 @@ def test_circle_fit_removes_highlight_bias_of_centroid():
     assert errs["moment"] > 2.0 * errs["shape"] + 0.3, errs
 
 
+def test_trimmed_highlight_and_outlier_rejection_work_together():
+    """``trim_highlights`` drops pixels before the outlier rejection's core mask is taken: a pick whose spread
+    exceeds ``max_std`` after the trim used to fail with an IndexError (mask of the untrimmed pixels)."""
+    radius, centre = 30, (160.37, 120.62)
+    img = render_sphere(radius, centre, seed=3)
+    vv, uu = np.mgrid[0:img.shape[0], 0:img.shape[1]]
+    wash = ((uu - centre[0] + 0.6 * radius) ** 2 + (vv - centre[1] + 0.6 * radius) ** 2 < 12.0 ** 2) & \
+        ((uu - centre[0]) ** 2 + (vv - centre[1]) ** 2 < radius ** 2)
+    img[wash] = (250, 250, 252)
+    wide = fit_color_model(img, *_pick(centre, radius, angle=0.25 * np.pi), trim_highlights=True)
+    tight = fit_color_model(img, *_pick(centre, radius, angle=0.25 * np.pi), trim_highlights=True, max_std=10.0)
+    assert tight.std[0] <= 10.0 < wide.std[0]          # the red spread capped, the shading's 19 levels in the wide one
+    det = detect_sphere(img, tight)
+    assert det.valid and np.hypot(det.uv[0] - centre[0], det.uv[1] - centre[1]) < 0.5
+
+
 def test_segment_params_for_radius_scales():
     small, mid, large = (segment_params_for_radius(None, r) for r in (3.0, 10.0, 80.0))
     assert small.erode_radius_px == 0 and small.coarse_step == 1

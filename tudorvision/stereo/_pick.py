@@ -50,7 +50,7 @@ def circular_hue_stats(hue) -> tuple[float, float]:
 
 
 def trim_highlights_rows(fg: np.ndarray, core: np.ndarray, min_pixels: int) -> np.ndarray:
-    """Drop the washed-out highlight from the pick's pixels (R G B H S V rows).
+    """Which of the pick's pixels (R G B H S V rows) to keep: all but the washed-out highlight; bool (n,).
 
     A highlight pixel is at least as bright (V) as the core's median and less
     saturated than its median by more than 3.5 robust sigmas (1.4826 MAD of
@@ -63,9 +63,9 @@ def trim_highlights_rows(fg: np.ndarray, core: np.ndarray, min_pixels: int) -> n
     sigma = max(1.4826 * float(np.median(np.abs(s_core - s_med))), 6.0)
     keep = ~((fg[:, 4] < s_med - 3.5 * sigma) & (fg[:, 5] >= v_med))
     n_keep = int(keep.sum())
-    if n_keep < max(min_pixels, fg.shape[0] // 2) or n_keep == fg.shape[0]:
-        return fg
-    return fg[keep]
+    if n_keep < max(min_pixels, fg.shape[0] // 2):
+        return np.ones(fg.shape[0], dtype=bool)
+    return keep
 
 
 def pick_stats(fg: np.ndarray, min_saturation: float, max_std: float, max_hue_std: float):

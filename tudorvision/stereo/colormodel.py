@@ -221,7 +221,8 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
     fg = np.concatenate([patch[inside][:, ::-1], hsv_patch[inside]], axis=1).astype(np.float64)  # R G B H S V
     d2_in = ((xx - c[0]) ** 2 + (yy - c[1]) ** 2)[inside]
     if trim_highlights:
-        fg = trim_highlights_rows(fg, d2_in <= max(0.25 * r_in ** 2, 1.0), min_pixels)
+        keep = trim_highlights_rows(fg, d2_in <= max(0.25 * r_in ** 2, 1.0), min_pixels)
+        fg, d2_in = fg[keep], d2_in[keep]      # the core below is taken from the pixels kept
     core = d2_in <= max(0.25 * r_in ** 2, 1.0)
     mean, std, use_hue, bad = pick_stats(fg, min_saturation, max_std, max_hue_std)
     if bad and reject_outliers:
