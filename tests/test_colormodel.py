@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import colorsys
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -15,6 +16,7 @@ from tudorvision.stereo.colormodel import (
     load_color_models, parse_pick, save_color_models)
 
 RED_UV, GREEN_UV, R = (200.3, 150.7), (420.2, 300.4), 10.0
+REALDATA = Path(__file__).resolve().parents[1].parent / "shared" / "realdata"
 
 
 @pytest.fixture(scope="module")
@@ -303,3 +305,45 @@ def test_left_and_right_picks_of_different_colour_are_named(pick_frame):
     lines = bad.colour_mismatches()
     assert len(lines) == 1 and lines[0].startswith("red: the left and right picks differ in colour (hue ")
     assert ColorModelSet({"mono": {"red": red}}).colour_mismatches() == []
+
+
+def test_pick_contrast_against_direct_statistics():
+    """The core's median log-odds and the background's 99.9th percentile, as computed directly; a frame
+    sprinkled with the sphere's own colour has a background as sphere-like as the core."""
+    from tudorvision.stereo._pick import pick_contrast
+    from tudorvision.stereo.segment import log_odds_image
+    rng = np.random.default_rng(4)
+    img = make_frame(rng, two_spheres(RED_UV, GREEN_UV, radius=R), clutter=False)
+    model = fit_color_model(img, (200, 151), (208, 151), verify=False)
+    c = np.array([200.0, 151.0])
+    core, bg = pick_contrast(model, img, c, 6.0, 15.0)
+    lo = log_odds_image(img, model)
+    yy, xx = np.mgrid[0:img.shape[0], 0:img.shape[1]]
+    d2 = (xx - c[0]) ** 2 + (yy - c[1]) ** 2
+    assert core == pytest.approx(float(np.median(lo[d2 <= 36.0])))
+    assert bg == pytest.approx(float(np.percentile(lo[::2, ::2][d2[::2, ::2] > 225.0], 99.9)))
+    assert core > bg + 5.0                                  # a plain frame: the sphere stands out
+    sprinkled = img.copy()
+    mean_bgr = tuple(int(round(x)) for x in model.mean[2::-1])
+    for _ in range(60):
+        x, y = int(rng.uniform(20, 620)), int(rng.uniform(20, 460))
+        if np.hypot(x - c[0], y - c[1]) > 30.0:                     # not over the pick
+            cv2.circle(sprinkled, (x, y), 3, mean_bgr, -1)
+    core2, bg2 = pick_contrast(model, sprinkled, c, 6.0, 15.0)
+    assert core2 == pytest.approx(core) and bg2 >= core2
+    assert pick_contrast(model, img[:20, :20], c, 6.0, 15.0) is None      # too little background
+
+
+@pytest.mark.skipif(not (REALDATA / "rgbd_kinect_room").is_dir(), reason="../shared/realdata not present")
+def test_red_sphere_on_a_warm_photograph_is_refused_in_plain_words():
+    """The sphere family's set-up 8 (seed 0): a shaded red sphere against a brown-orange photograph in the
+    right camera. Its colour is as likely in its surroundings as on it; the refusal says so and what to do."""
+    from tudorvision.lab.scene_family import render_family_scene, sample_family
+    scene = render_family_scene(sample_family(0, 9)[8])
+    (u, v), r = scene.uv_true["right"]["red"], scene.radius_px["right"]["red"]
+    with pytest.raises(TudorVisionError, match=r"its colour is as likely around the sphere as on it \(the picked "
+                                               r"core's median log-odds .*use a sphere of another colour"):
+        fit_color_model(scene.pick_frames["right"], (round(u), round(v)), (round(u + 0.8 * r), round(v)))
+    (u, v), r = scene.uv_true["left"]["red"], scene.radius_px["left"]["red"]     # the left view's is fine
+    model = fit_color_model(scene.pick_frames["left"], (round(u), round(v)), (round(u + 0.8 * r), round(v)))
+    assert model.radius_px == pytest.approx(0.8 * r, abs=1.0)

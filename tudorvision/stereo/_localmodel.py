@@ -25,7 +25,7 @@ import numpy as np
 
 from tudorvision.stereo._colortables import CHANNEL_LEVELS, HUE_INDEX, ColorModel
 from tudorvision.stereo._frame import FramePlanes
-from tudorvision.stereo._pick import calibrated_prior
+from tudorvision.stereo._pick import calibrated_prior, pick_contrast
 from tudorvision.stereo.segment import regions_in_window
 
 __all__ = ["smooth_pmf", "background_pmf", "rgbhsv_rows", "fit_local_model", "LOCAL_SCALE", "LOCAL_MIN_PX",
@@ -107,6 +107,10 @@ def fit_local_model(model: ColorModel, img: np.ndarray, c: np.ndarray, radius: f
     local = calibrated_prior(local, np.ascontiguousarray(win), c - (x0, y0), r_core, r_bg, params)
     found = regions_in_window(FramePlanes(img), local, params, roi, False)
     if not found or not found[0].valid:
+        contrast = pick_contrast(local, np.ascontiguousarray(win), c - (x0, y0), r_core, r_bg)
+        if contrast is not None and contrast[0] <= contrast[1]:
+            return None, (f"its colour is as likely around the sphere as on it (the picked core's median "
+                          f"log-odds {contrast[0]:.1f}, the surroundings' most sphere-like 0.1 % {contrast[1]:.1f})")
         return None, found[0].reason if found else "no pixel above p_seed near the pick"
     det = found[0]
     if math.hypot(det.uv[0] - c[0], det.uv[1] - c[1]) > radius:

@@ -13,7 +13,8 @@ import numpy as np
 from tudorvision.stereo._colortables import CHANNELS, HUE_INDEX, HUE_LEVELS, ColorModel
 from tudorvision.stereo.segment import log_odds_image
 
-__all__ = ["circular_hue_stats", "pick_stats", "reject_outlier_rows", "trim_highlights_rows", "calibrated_prior"]
+__all__ = ["circular_hue_stats", "pick_stats", "reject_outlier_rows", "trim_highlights_rows", "calibrated_prior",
+           "pick_contrast"]
 
 
 def circular_hue_stats(hue) -> tuple[float, float]:
@@ -97,9 +98,13 @@ def reject_outlier_rows(fg: np.ndarray, core: np.ndarray, min_std: np.ndarray, m
     return fg[keep]
 
 
-def calibrated_prior(model: ColorModel, img: np.ndarray, c: np.ndarray, r_core: float, r_bg: float,
-                      params) -> ColorModel:
-    """``model`` with its prior raised so the picked core passes ``params.p_seed`` (see ``calibrate_prior``)."""
+def pick_contrast(model: ColorModel, img: np.ndarray, c: np.ndarray, r_core: float, r_bg: float):
+    """The picked core's median log-odds and the background's 99.9th percentile, or None.
+
+    Core: pixels within ``r_core`` of ``c``; background: every second pixel farther than ``r_bg``. None when
+    either is empty or the background has fewer than 100 pixels. A core median at or below the background's
+    percentile means that no threshold singles the sphere out by its colour in ``img``.
+    """
     h, w = img.shape[:2]
     lo = log_odds_image(img, model)
     yy, xx = np.mgrid[0:h, 0:w]
@@ -107,9 +112,18 @@ def calibrated_prior(model: ColorModel, img: np.ndarray, c: np.ndarray, r_core: 
     core = lo[d2 <= r_core ** 2]
     background = lo[::2, ::2][d2[::2, ::2] > r_bg ** 2]
     if core.size == 0 or background.size < 100:
+        return None
+    return float(np.median(core)), float(np.percentile(background, 99.9))
+
+
+def calibrated_prior(model: ColorModel, img: np.ndarray, c: np.ndarray, r_core: float, r_bg: float,
+                     params) -> ColorModel:
+    """``model`` with its prior raised so the picked core passes ``params.p_seed`` (see ``calibrate_prior``)."""
+    contrast = pick_contrast(model, img, c, r_core, r_bg)
+    if contrast is None:
         return model
-    need = math.log(params.p_seed / (1.0 - params.p_seed)) + 1.0 - float(np.median(core))
-    room = math.log(params.p_grow / (1.0 - params.p_grow)) - 1.0 - float(np.percentile(background, 99.9))
+    need = math.log(params.p_seed / (1.0 - params.p_seed)) + 1.0 - contrast[0]
+    room = math.log(params.p_grow / (1.0 - params.p_grow)) - 1.0 - contrast[1]
     delta = min(need, room)
     if not delta > 0:
         return model

@@ -272,10 +272,13 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
                 return local
             if spread_error:
                 raise TudorVisionError(spread_error)
+            hint = (f"is the pick on the sphere, and the edge pixel on its rim ({radius:.1f} px from the centre)?"
+                    + (" If so, the sphere's colour is too common in this frame: pick it in a frame with a plainer "
+                       "background, or use a sphere of another colour" if why_local.startswith("its colour is")
+                       else ""))
             raise TudorVisionError(
                 f"center_uv, edge_uv: the colour model does not single out the picked sphere ({why}"
-                f"{'; nor in its neighbourhood: ' + why_local if why_local else ''}); is the "
-                f"pick on the sphere, and the edge pixel on its rim ({radius:.1f} px from the centre)?")
+                f"{'; nor in its neighbourhood: ' + why_local if why_local else ''}); {hint}")
         if spread_error and not _fits_pick(det, c, radius):
             raise TudorVisionError(spread_error)
     return model
