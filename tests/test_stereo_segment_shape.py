@@ -216,3 +216,46 @@ def test_a_large_sphere_whose_colour_region_stops_short_of_a_shaded_limb_is_meas
     # ... which the luma edge, started from the chroma circle, takes back
     edge = detect_sphere(img, model, params=SegmentParams(edge_refine=True))
     assert edge.method == "edge" and np.hypot(edge.uv[0] - centre[0], edge.uv[1] - centre[1]) < 0.15
+
+
+def _limb_in_the_dark(r=30.0, centre=(80.4, 79.3), seed=3):
+    """A 30 px red sphere (CIE L 70) whose lower-right limb falls to L 30 between 0.72 and 0.8 radii, on a
+    ground of the same chroma at L 14 (a shaded limb on a background of the sphere's own hue): the colour
+    region stops 4-5 px short there, no chroma edge exists, only the luma step at the silhouette."""
+    h = w = 160
+    xs = -0.5 + (np.arange(w * SS) + 0.5) / SS
+    X, Y = np.meshgrid(xs, xs)
+    dx, dy = X - centre[0], Y - centre[1]
+    rho = np.hypot(dx, dy) / r
+    lit = np.clip((dx + dy) / (np.sqrt(2.0) * r), 0.0, 1.0) ** 0.5
+    L = 70.0 - 40.0 * lit * np.clip((rho - 0.72) / 0.08, 0.0, 1.0)
+    L = np.where(rho <= 1.0, L, 14.0).astype(np.float32)
+    lab = np.dstack([L, np.full_like(L, 45.0), np.full_like(L, 30.0)]).astype(np.float32)
+    bgr = cv2.cvtColor(lab, cv2.COLOR_Lab2BGR) * 255.0
+    return _finish(cv2.resize(bgr, (w, h), interpolation=cv2.INTER_AREA), seed)
+
+
+def test_a_large_sphere_far_inside_its_silhouette_is_found_on_a_wider_luma_search(monkeypatch):
+    """The colour region's circle is 4.5 px off and 4.4 px small; the chroma edge finds nothing (one hue
+    everywhere) and the luma edge, searched 3 px either side, cannot reach the rim. Large spheres still on
+    their colour region are searched 0.35 radii either side (``refine_circle_on_luma_wide``): 0.1 px."""
+    import tudorvision.stereo.segment as segment_module
+    centre, r = (80.4, 79.3), 30.0
+    img = _limb_in_the_dark(r, centre)
+    model = fit_color_model(img, (80, 79), (80 - 17, 79 - 17))
+    wide = detect_sphere(img, model, params=SegmentParams(edge_refine=True))
+    assert wide.method == "edge" and np.hypot(wide.uv[0] - centre[0], wide.uv[1] - centre[1]) < 0.1
+    assert abs(wide.circle_radius_px - r) < 0.2
+    monkeypatch.setattr(segment_module, "refine_circle_on_luma_wide", lambda *a, **k: None)
+    narrow = detect_sphere(img, model, params=SegmentParams(edge_refine=True))
+    assert narrow.method == "shape" and np.hypot(narrow.uv[0] - centre[0], narrow.uv[1] - centre[1]) > 3.0
+
+
+def test_wide_luma_search_finds_nothing_where_there_is_no_rim():
+    """No sphere under the first circle (a smooth ramp, a uniform patch): None, not a circle of noise."""
+    from tudorvision.stereo.rim_edge import refine_circle_on_luma_wide
+    v, u = np.mgrid[0:80, 0:80].astype(np.float32)
+    assert refine_circle_on_luma_wide(100.0 + 0.5 * u, None, (40.0, 40.0), 20.0) is None
+    noise = np.random.default_rng(0).normal(120.0, 3.0, (80, 80)).astype(np.float32)
+    assert refine_circle_on_luma_wide(noise, None, (40.0, 40.0), 20.0) is None
+

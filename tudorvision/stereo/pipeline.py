@@ -110,10 +110,11 @@ class PipelineOptions:
         two views imply another radius (``r Z / f`` per camera, averaged) by more than
         :data:`~tudorvision.stereo.stereo_radius.KNOWN_RADIUS_TOL` in log ratio and 1.5 px is flagged
         missing in that frame ("radius ... mm, the sphere's is ... mm";
-        :func:`~tudorvision.stereo.stereo_radius.known_radius_verdict`): both views took part of the sphere, or background of its colour, in the
-        same way, which the two-view check above cannot see. A view without a circle (its centre is the
-        region's moment) counts with its area radius, and alone when that is short on a sphere of 8 px or
-        more ("the ... view's region is part of the sphere"). None (default) disables it.
+        :func:`~tudorvision.stereo.stereo_radius.known_radius_verdict`): both views took part of the
+        sphere, or background of its colour, in the same way, which the two-view check above cannot see.
+        A view without a circle (its centre is the region's moment) counts with its area radius, and alone
+        when that is short on a sphere of 8 px or more ("the ... view's region is part of the sphere").
+        None (default) disables it.
     sphere_separation_m : float or None
         Known distance between the sphere centres (two spheres); a frame
         whose triangulated distance differs by more than

@@ -54,8 +54,9 @@ import numpy as np
 
 from ._circle import circle_lsq, fit_rim_circle_multi
 
-__all__ = ["luma_rim_points", "refine_circle_on_luma", "chroma_rim_points", "refine_circle_on_chroma",
-           "chroma_circle", "sphere_chroma", "MIN_INSIDE", "LOSSY_SUFFIXES", "chroma_subsampled_source"]
+__all__ = ["luma_rim_points", "refine_circle_on_luma", "refine_circle_on_luma_wide", "chroma_rim_points",
+           "refine_circle_on_chroma", "chroma_circle", "sphere_chroma", "MIN_INSIDE", "LOSSY_SUFFIXES",
+           "chroma_subsampled_source"]
 
 #: File suffixes whose colour is usually stored at reduced resolution (JPEG; video codecs).
 LOSSY_SUFFIXES = frozenset({".jpg", ".jpeg", ".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg"})
@@ -213,6 +214,55 @@ def refine_circle_on_luma(gray, log_odds, centre, radius: float, *, tol_px: floa
         return None
     res = np.hypot(pts[inl, 0] - fu, pts[inl, 1] - fv) - fr
     return fu, fv, fr, n_in / n, float(np.sqrt(np.mean(res * res)))
+
+
+def refine_circle_on_luma_wide(gray, log_odds, centre, radius: float, *, span_frac: float = 0.35,
+                               min_contrast: float = 8.0):
+    """The luma rim circle of a sphere whose first circle may be several pixels off, or None.
+
+    For a large sphere whose colour region stops short of its silhouette on one side (a shaded limb on a
+    background of the sphere's hue): :func:`refine_circle_on_luma` searches 3 px either side of the first
+    circle and allows 1.5 px of change, which cannot reach a rim 5-10 px away. Here the rays span
+    ``span_frac`` radii (at least 3 px), the circle is fitted to the edge points with a trimming band
+    narrowing from that span to 1 px, and the result is accepted only as a start from which
+    :func:`refine_circle_on_luma` itself converges (half of its rays within 0.5 px).
+
+    Parameters
+    ----------
+    gray, log_odds, centre, radius, min_contrast
+        As for :func:`luma_rim_points`.
+    span_frac : float
+        Half width of the search along each ray, in radii.
+
+    Returns
+    -------
+    tuple or None
+        ``(u, v, r, inlier_fraction, rms_px)`` in window pixels, as :func:`refine_circle_on_luma`.
+
+    Examples
+    --------
+    >>> yy, xx = np.mgrid[0:80, 0:80]
+    >>> disc = np.clip(25.5 - np.hypot(xx - 41.3, yy - 38.6), 0, 1)
+    >>> gray = (60 + 100 * disc).astype(np.float32)
+    >>> refine_circle_on_luma(gray, None, (36.0, 35.0), 20.0) is None     # 6 px off: out of its reach
+    True
+    >>> u, v, r, frac, rms = refine_circle_on_luma_wide(gray, None, (36.0, 35.0), 20.0)
+    >>> round(u, 1), round(v, 1), round(r, 1)
+    (41.3, 38.6, 25.0)
+    """
+    span = max(3.0, float(span_frac) * float(radius))
+    pts, n = luma_rim_points(gray, log_odds, centre, radius, span=span, min_contrast=min_contrast)
+    if len(pts) < max(8, 0.5 * n):
+        return None
+    fu, fv, fr = float(centre[0]), float(centre[1]), float(radius)
+    for band in (span, 3.0, 1.5, 1.0):
+        inl = np.abs(np.hypot(pts[:, 0] - fu, pts[:, 1] - fv) - fr) < band
+        if np.count_nonzero(inl) < 5:
+            return None
+        fu, fv, fr = circle_lsq(pts[inl])
+        if not math.isfinite(fr):
+            return None
+    return refine_circle_on_luma(gray, log_odds, (fu, fv), fr, min_contrast=min_contrast)
 
 
 @functools.lru_cache(maxsize=64)

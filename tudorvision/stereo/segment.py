@@ -105,7 +105,8 @@ from tudorvision.stereo._coarse import coarse_boxes, coarse_log_odds_q, lut_sum
 from tudorvision.stereo._colortables import ColorModel
 from tudorvision.stereo._frame import FramePlanes, check_frame
 from tudorvision.stereo.detection import SegmentParams, SphereDetection
-from tudorvision.stereo.rim_edge import chroma_circle, refine_circle_on_luma, sphere_chroma
+from tudorvision.stereo.rim_edge import (chroma_circle, refine_circle_on_luma, refine_circle_on_luma_wide,
+                                        sphere_chroma)
 
 __all__ = ["SegmentParams", "SphereDetection", "hsv_from_bgr", "log_odds_image", "probability_image", "detect_sphere",
            "detect_spheres"]
@@ -301,8 +302,9 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
                 if ch is not None:
                     cu, cv_, method, r_fit = ch[0], ch[1], "chroma", ch[2]
                     start = ((ch[0] - x0, ch[1] - y0), ch[2])
-            if params.edge_refine and edge_src is not None:
-                edge = edge_src.refine((start[0][0] + x0, start[0][1] + y0), start[1], params)
+            if params.edge_refine and edge_src is not None:     # wide: a large sphere the chroma edge missed
+                wide = method in ("shape", "moment") and area >= math.pi * params.chroma_edge_large_px ** 2
+                edge = edge_src.refine((start[0][0] + x0, start[0][1] + y0), start[1], params, wide=wide)
                 if edge is not None:
                     cu, cv_, method, r_fit = edge[0], edge[1], "edge", edge[2]
         out.append(SphereDetection(uv=(cu, cv_), area_px=float(area), mean_prob=mean_prob, circularity=circ,
@@ -403,10 +405,10 @@ class _EdgeSource:
     def __init__(self, frame: FramePlanes, model: ColorModel, blur: bool):
         self.frame, self.model, self.blur = frame, model, blur
 
-    def refine(self, centre: tuple, radius: float, params: SegmentParams):
-        """Circle ``(u, v, r)`` on the luma edge in frame pixels, or None."""
+    def refine(self, centre: tuple, radius: float, params: SegmentParams, wide: bool = False):
+        """Circle ``(u, v, r)`` on the luma edge in frame pixels, or None (``wide``: then searched wider)."""
         f = self.frame
-        m = int(math.ceil(radius)) + 7
+        m = int(math.ceil(radius * (1.35 if wide else 1.0))) + 7
         px0, py0 = max(int(centre[0]) - m, 0), max(int(centre[1]) - m, 0)
         px1, py1 = min(int(centre[0]) + m + 1, f.width), min(int(centre[1]) + m + 1, f.height)
         if px1 - px0 < 4 or py1 - py0 < 4:
@@ -415,6 +417,9 @@ class _EdgeSource:
         lo = _log_odds_planes(f.window_planes(px0, py0, px1 - px0, py1 - py0), self.model, self.blur)
         fit = refine_circle_on_luma(gray, lo, (centre[0] - px0, centre[1] - py0), radius,
                                     min_contrast=params.edge_min_contrast)
+        if fit is None and wide:
+            fit = refine_circle_on_luma_wide(gray, lo, (centre[0] - px0, centre[1] - py0), radius,
+                                             min_contrast=params.edge_min_contrast)
         if fit is None:
             return None
         return fit[0] + px0, fit[1] + py0, fit[2]
