@@ -49,8 +49,9 @@ The pipeline of section 2.4, per camera and sphere:
    on for JPEG and video recordings, ``--luma-edge``).
    JPEG's 4:2:0 chroma subsampling smears the colour rim by about a pixel;
    from the circle so far the rim is located again on the full-resolution
-   luma along rays (:mod:`~tudorvision.stereo.rim_edge`), used when it
-   explains half of the rays within 1.5 px of that circle (``method="edge"``).
+   luma along rays (:mod:`~tudorvision.stereo.rim_edge`), used when it explains half of the rays
+   within 1.5 px of that circle (``method="edge"``); spheres of 20 px or more that the chroma edge
+   missed are searched 0.35 radii either side (``refine_circle_on_luma_wide``).
    Blurred streaks (``motion_blur``) keep the moment; the tracker switches
    fast, smoothly moving spheres to the moment of the grown region
    (``"rim_moment"``): a streak's core is a lens of two arcs.
