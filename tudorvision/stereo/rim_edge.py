@@ -56,7 +56,7 @@ from ._circle import circle_lsq, fit_rim_circle_multi
 
 __all__ = ["luma_rim_points", "refine_circle_on_luma", "refine_circle_on_luma_wide", "chroma_rim_points",
            "refine_circle_on_chroma", "chroma_circle", "sphere_chroma", "MIN_INSIDE", "LOSSY_SUFFIXES",
-           "chroma_subsampled_source"]
+           "chroma_subsampled_source", "WIDE_LUMA_MIN_PX"]
 
 #: File suffixes whose colour is usually stored at reduced resolution (JPEG; video codecs).
 LOSSY_SUFFIXES = frozenset({".jpg", ".jpeg", ".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg"})
@@ -214,6 +214,11 @@ def refine_circle_on_luma(gray, log_odds, centre, radius: float, *, tol_px: floa
         return None
     res = np.hypot(pts[inl, 0] - fu, pts[inl, 1] - fv) - fr
     return fu, fv, fr, n_in / n, float(np.sqrt(np.mean(res * res)))
+
+
+#: Spheres whose colour region's area radius is at least this (px) and that are still on their colour circle
+#: after the chroma edge get the wider luma search (:func:`refine_circle_on_luma_wide`).
+WIDE_LUMA_MIN_PX = 12.0
 
 
 def refine_circle_on_luma_wide(gray, log_odds, centre, radius: float, *, span_frac: float = 0.35,
