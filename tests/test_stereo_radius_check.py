@@ -219,3 +219,36 @@ def test_a_moment_view_holding_part_of_the_sphere_is_measured_again_without_the_
     assert pipe.n_radius_repaired == 1 and res.detections["right"]["green"].method == "chroma"
     assert np.linalg.norm(res.spheres["green"] - NEAR["green"]) < 0.003
     assert res.detections["left"]["red"].valid and np.linalg.norm(res.spheres["red"] - NEAR["red"]) < 0.01
+
+
+def test_a_moment_view_merged_with_an_object_of_its_colour_is_measured_again_unless_blurred(monkeypatch):
+    """The right view's region runs on into a patch of the sphere's colour beside it (its area radius 20 %
+    too large, its moment off by pixels): measured again on its chroma edge to within 3 mm. The same view
+    marked motion-blurred (a streak is larger than the sphere too) is left as it is."""
+    import tudorvision.stereo.pipeline as pipeline_module
+    models_near = _models(NEAR)
+    real = pipeline_module.detect_spheres
+    state = {"calls": 0, "blur": False}
+
+    def right_green_by_moment(img, models_, params=None):
+        out = dict(real(img, models_, params=params))
+        state["calls"] += 1
+        if state["calls"] % 2 == 0:
+            d = out["green"]
+            out["green"] = replace(d, uv=d.uv_moment, circle_radius_px=float("nan"), method="moment",
+                                   blur=state["blur"])
+        return out
+
+    monkeypatch.setattr(pipeline_module, "detect_spheres", right_green_by_moment)
+    imgs = _pair(patch=(0.9, 1.6), centres=NEAR)
+    _, naive = _run(models_near, imgs, max_radius_mismatch=None)
+    d = naive.detections["right"]["green"]
+    assert math.sqrt(d.area_px / math.pi) > 1.15 * _radius(NEAR["green"])
+    assert np.linalg.norm(naive.spheres["green"] - NEAR["green"]) > 0.03
+    pipe, res = _run(models_near, imgs)
+    assert pipe.n_radius_repaired == 1 and res.detections["right"]["green"].method == "chroma"
+    assert np.linalg.norm(res.spheres["green"] - NEAR["green"]) < 0.003
+    state["blur"] = True
+    pipe, res = _run(models_near, imgs)
+    assert pipe.n_radius_repaired == 0 and pipe.n_radius_refused == 0
+    assert res.detections["right"]["green"].method == "moment" and res.detections["right"]["green"].valid

@@ -284,6 +284,9 @@ class SphereDetection:
         region's area) it is the sphere's apparent radius even when part of
         the sphere is hidden or outside the colour model; the stereo
         pipeline compares it between the two cameras.
+    blur : bool
+        Segmented as a motion-blurred sphere (the blur-tolerant tables): its region may be larger than
+        the sphere.
     """
 
     uv: tuple
@@ -300,6 +303,7 @@ class SphereDetection:
     rim_rms_px: float = float("nan")
     method: str = "moment"
     circle_radius_px: float = float("nan")
+    blur: bool = False
 
     @property
     def radius_px(self) -> float:

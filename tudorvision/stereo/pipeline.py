@@ -47,8 +47,8 @@ from ._frame import FramePlanes
 from .colormodel import ColorModelSet
 from .rim_edge import chroma_circle, sphere_chroma
 from .segment import SphereDetection, detect_spheres, regions_in_window
-from .stereo_radius import (MIN_GAP_PX, known_radius_verdict, predicted_radius_px, radius_ratio, region_is_part,
-                            view_radius_px)
+from .stereo_radius import (MIN_GAP_PX, known_radius_verdict, predicted_radius_px, radius_ratio, region_is_larger,
+                            region_is_part, view_radius_px)
 from .tracker2d import FrameTracker, TrackerParams
 from .triangulate import SphereTriangulation, triangulate_spheres
 
@@ -90,21 +90,18 @@ class PipelineOptions:
         looked for among the other camera's candidate regions the same way. None disables the check. The default
         leaves room for rolling-shutter skew of fast motion.
     max_radius_mismatch : float or None
-        Stereo consistency of the apparent radii (issue 15): once a sphere's
-        centre is triangulated, its fitted circle radii must agree between
-        the cameras up to their ``f / Z`` (:func:`~tudorvision.stereo.stereo_radius.radius_ratio`),
-        within this log ratio (0.12: 13 %) or 1.5 px. When they do not
-        (one view took part of the sphere: a link across it, a background of
-        its colour), the view with the smaller radius is measured again on
-        the sphere's chroma edge from the radius the other view predicts
-        (:func:`~tudorvision.stereo.rim_edge.chroma_circle`); if the two
-        still disagree the sphere is flagged missing in that frame
-        ("stereo-inconsistent (radius)") rather than triangulated wrong.
-        A view without a circle (its centre is the region's moment) counts
-        by its area radius, and only when that is short of the other
-        view's prediction on a sphere of 8 px or more
-        (:func:`~tudorvision.stereo.stereo_radius.region_is_part`); two such
-        views are not compared. None disables it.
+        Stereo consistency of the apparent radii (issue 15): once a sphere's centre is triangulated, its
+        fitted circle radii must agree between the cameras up to their ``f / Z``
+        (:func:`~tudorvision.stereo.stereo_radius.radius_ratio`), within this log ratio (0.12: 13 %) or
+        1.5 px. When they do not (one view took part of the sphere: a link across it, a background of its
+        colour), the view with the smaller radius is measured again on the sphere's chroma edge from the
+        radius the other view predicts (:func:`~tudorvision.stereo.rim_edge.chroma_circle`); if the two still
+        disagree the sphere is flagged missing in that frame ("stereo-inconsistent (radius)") rather than
+        triangulated wrong. A view without a circle (its centre is the region's moment) counts by its area
+        radius on spheres of 8 px or more: short of the other view's prediction
+        (:func:`~tudorvision.stereo.stereo_radius.region_is_part`) as above; larger and not motion-blurred
+        (:func:`~tudorvision.stereo.stereo_radius.region_is_larger`) it is measured again, else kept; two
+        such views are not compared. None disables it.
     sphere_radius_m : float or dict or None
         Known metric radius of the spheres (one value, or ``{sphere: radius}``), metres. A sphere whose
         two views imply another radius (``r Z / f`` per camera, averaged) by more than
@@ -434,8 +431,9 @@ class StereoPipeline:
     def _check_radii(self, dets: dict, images: dict, tri: SphereTriangulation) -> dict:
         """Compare each sphere's radii between the cameras; re-measure or refuse a view that disagrees.
 
-        A view without a circle (a moment view) counts by its area, only as too small
-        (:func:`~tudorvision.stereo.stereo_radius.region_is_part` of what the other view's circle predicts).
+        A view without a circle (a moment view) counts by its area: too small (``region_is_part`` of what the
+        other view's circle predicts), it is re-measured or refused; too large and not blurred
+        (``region_is_larger``: it took an object of its colour beside it), re-measured or kept as it is.
         ``tri``: the detections triangulated (left camera frame). Returns ``dets`` itself when nothing changed.
         """
         tol = self.options.max_radius_mismatch
@@ -447,16 +445,16 @@ class StereoPipeline:
             if not all(d.valid for d in views.values()):
                 continue
             shown = {c: view_radius_px(d.circle_radius_px, d.area_px) for c, d in views.items()}
-            r = {c: shown[c][0] for c in shown}
-            p = tri.spheres[s][0]
+            r, p = {c: shown[c][0] for c in shown}, tri.spheres[s][0]
             moment = [c for c in shown if shown[c][1]]
             if len(moment) == 2:
                 continue
-            if moment:                  # only the moment view can be the bad one, and only as too small
-                bad = moment[0]
-                other = "right" if bad == "left" else "left"
+            refuse = True
+            if moment:                  # only the moment view can be the bad one
+                bad, other = moment[0], "right" if moment[0] == "left" else "left"
                 want = predicted_radius_px(p, r[other], f[other], f[bad], stereo.R, stereo.T, this=bad)
-                if not region_is_part(r[bad], want, tol):
+                refuse = region_is_part(r[bad], want, tol)
+                if not (refuse or (not views[bad].blur and region_is_larger(r[bad], want, tol))):
                     continue
                 tries = ((bad, other),)
             else:
@@ -478,6 +476,8 @@ class StereoPipeline:
                     self.n_radius_repaired += 1
                     break
             else:
+                if not refuse:
+                    continue
                 why = (f"stereo-inconsistent (radius: {r['left']:.1f} px left, {r['right']:.1f} px right"
                        f"{', ' + moment[0] + ' by its area' if moment else ''})")
                 dets = {c: {**dets[c], s: _invalid(dets[c][s], why)} for c in dets}

@@ -312,7 +312,7 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
                                    valid=not reason, reason=reason, fill=fill,
                                    bbox=(x + x0, y + y0, w, h), touches_window=at_window,
                                    uv_moment=uv_moment, rim_fraction=rim_frac, rim_rms_px=rim_rms,
-                                   method=method, circle_radius_px=r_fit))
+                                   method=method, circle_radius_px=r_fit, blur=bool(blur)))
     out.sort(key=lambda d: (d.valid, d.area_px * d.mean_prob), reverse=True)
     return out
 

@@ -34,7 +34,7 @@ import math
 import numpy as np
 
 __all__ = ["radius_ratio", "implied_radii_m", "predicted_radius_px", "view_radius_px", "region_is_part",
-           "known_radius_verdict", "KNOWN_RADIUS_TOL", "PART_MIN_PX"]
+           "known_radius_verdict", "region_is_larger", "KNOWN_RADIUS_TOL", "PART_MIN_PX"]
 
 #: Log-ratio tolerance of the known-radius check (``PipelineOptions.sphere_radius_m``): 0.15, 16 %, and at least
 #: 1.5 px (the rim circle of a small sphere reads about 0.7 px small); a circle fitted to an off-axis sphere's
@@ -200,6 +200,31 @@ def region_is_part(r_area_px: float, want_px: float, tol: float) -> bool:
     """
     r, w = float(r_area_px), float(want_px)
     return bool(w >= PART_MIN_PX and w - r > MIN_GAP_PX and r > 0 and math.log(w / r) > tol)
+
+
+def region_is_larger(r_area_px: float, want_px: float, tol: float) -> bool:
+    """Whether a region without a circle is larger than a sphere predicted ``want_px`` in radius.
+
+    The mirror of :func:`region_is_part`: the area radius exceeds the prediction (at least
+    :data:`PART_MIN_PX`) by more than :data:`MIN_GAP_PX` and by more than ``tol`` in log ratio. Such a region
+    took something of the sphere's colour beside it, unless the sphere is motion-blurred.
+
+    Parameters
+    ----------
+    r_area_px, want_px, tol
+        As for :func:`region_is_part`.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> region_is_larger(17.6, 15.2, 0.12), region_is_larger(16.0, 15.2, 0.12), region_is_larger(9.0, 6.0, 0.12)
+    (True, False, False)
+    """
+    r, w = float(r_area_px), float(want_px)
+    return bool(w >= PART_MIN_PX and r - w > MIN_GAP_PX and w > 0 and math.log(r / w) > tol)
 
 
 def known_radius_verdict(p_left, views, radius_m: float, f_left_px: float, f_right_px: float, R, T,
