@@ -239,14 +239,14 @@ def test_a_large_sphere_far_inside_its_silhouette_is_found_on_a_wider_luma_searc
     """The colour region's circle is 4.5 px off and 4.4 px small; the chroma edge finds nothing (one hue
     everywhere) and the luma edge, searched 3 px either side, cannot reach the rim. Large spheres still on
     their colour region are searched 0.35 radii either side (``refine_circle_on_luma_wide``): 0.1 px."""
-    import tudorvision.stereo.rim_edge as rim_edge_module
+    import tudorvision.stereo.segment as segment_module
     centre, r = (80.4, 79.3), 30.0
     img = _limb_in_the_dark(r, centre)
     model = fit_color_model(img, (80, 79), (80 - 17, 79 - 17))
     wide = detect_sphere(img, model, params=SegmentParams(edge_refine=True))
     assert wide.method == "edge" and np.hypot(wide.uv[0] - centre[0], wide.uv[1] - centre[1]) < 0.1
     assert abs(wide.circle_radius_px - r) < 0.2
-    monkeypatch.setattr(rim_edge_module, "refine_circle_on_luma_wide", lambda *a, **k: None)
+    monkeypatch.setattr(segment_module, "refine_circle_on_luma_wide", lambda *a, **k: None)
     narrow = detect_sphere(img, model, params=SegmentParams(edge_refine=True))
     assert narrow.method == "shape" and np.hypot(narrow.uv[0] - centre[0], narrow.uv[1] - centre[1]) > 3.0
 

@@ -165,6 +165,20 @@ def luma_rim_points(gray, log_odds, centre, radius: float, *, span: float = 3.0,
     return pts, k
 
 
+def _trimmed_circle(pts: np.ndarray, centre, radius: float, bands) -> tuple | None:
+    """Least-squares circle ``(u, v, r)`` of the points within each band of the circle so far, in turn; None
+    when fewer than 5 points remain in a band or the fit degenerates. Starts from ``centre``, ``radius``."""
+    fu, fv, fr = float(centre[0]), float(centre[1]), float(radius)
+    for band in bands:
+        inl = np.abs(np.hypot(pts[:, 0] - fu, pts[:, 1] - fv) - fr) < band
+        if np.count_nonzero(inl) < 5:
+            return None
+        fu, fv, fr = circle_lsq(pts[inl])
+        if not math.isfinite(fr):
+            return None
+    return fu, fv, fr
+
+
 def refine_circle_on_luma(gray, log_odds, centre, radius: float, *, tol_px: float = 0.5,
                           min_fraction: float = 0.5, max_shift_px: float = 1.5, min_contrast: float = 8.0):
     """Circle fitted robustly to the luma rim points, or None when it is not trustworthy.
@@ -199,14 +213,10 @@ def refine_circle_on_luma(gray, log_odds, centre, radius: float, *, tol_px: floa
         return None
     # trimmed least squares started from the first circle: points more than max_shift_px off it
     # (an occluder's edge, a highlight) are left out, then those off the fitted circle by tol_px
-    fu, fv, fr = float(centre[0]), float(centre[1]), float(radius)
-    for band in (max_shift_px, 2.0 * tol_px, tol_px):
-        inl = np.abs(np.hypot(pts[:, 0] - fu, pts[:, 1] - fv) - fr) < band
-        if np.count_nonzero(inl) < 5:
-            return None
-        fu, fv, fr = circle_lsq(pts[inl])
-        if not math.isfinite(fr):
-            return None
+    fit = _trimmed_circle(pts, centre, radius, (max_shift_px, 2.0 * tol_px, tol_px))
+    if fit is None:
+        return None
+    fu, fv, fr = fit
     inl = np.abs(np.hypot(pts[:, 0] - fu, pts[:, 1] - fv) - fr) < tol_px
     n_in = int(np.count_nonzero(inl))
     if (n_in < min_fraction * n or abs(fr - radius) > max_shift_px
@@ -259,15 +269,10 @@ def refine_circle_on_luma_wide(gray, log_odds, centre, radius: float, *, span_fr
     pts, n = luma_rim_points(gray, log_odds, centre, radius, span=span, min_contrast=min_contrast)
     if len(pts) < max(8, 0.5 * n):
         return None
-    fu, fv, fr = float(centre[0]), float(centre[1]), float(radius)
-    for band in (span, 3.0, 1.5, 1.0):
-        inl = np.abs(np.hypot(pts[:, 0] - fu, pts[:, 1] - fv) - fr) < band
-        if np.count_nonzero(inl) < 5:
-            return None
-        fu, fv, fr = circle_lsq(pts[inl])
-        if not math.isfinite(fr):
-            return None
-    return refine_circle_on_luma(gray, log_odds, (fu, fv), fr, min_contrast=min_contrast)
+    fit = _trimmed_circle(pts, centre, radius, (span, 3.0, 1.5, 1.0))
+    if fit is None:
+        return None
+    return refine_circle_on_luma(gray, log_odds, fit[:2], fit[2], min_contrast=min_contrast)
 
 
 @functools.lru_cache(maxsize=64)

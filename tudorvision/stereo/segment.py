@@ -106,8 +106,8 @@ from tudorvision.stereo._coarse import coarse_boxes, coarse_log_odds_q, lut_sum
 from tudorvision.stereo._colortables import ColorModel
 from tudorvision.stereo._frame import FramePlanes, check_frame
 from tudorvision.stereo.detection import SegmentParams, SphereDetection
-from tudorvision.stereo import rim_edge
-from tudorvision.stereo.rim_edge import chroma_circle, refine_circle_on_luma, sphere_chroma
+from tudorvision.stereo.rim_edge import (WIDE_LUMA_MIN_PX, chroma_circle, refine_circle_on_luma,
+                                        refine_circle_on_luma_wide, sphere_chroma)
 
 __all__ = ["SegmentParams", "SphereDetection", "hsv_from_bgr", "log_odds_image", "probability_image", "detect_sphere",
            "detect_spheres"]
@@ -304,7 +304,7 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
                     cu, cv_, method, r_fit = ch[0], ch[1], "chroma", ch[2]
                     start = ((ch[0] - x0, ch[1] - y0), ch[2])
             if params.edge_refine and edge_src is not None:     # wide: a large sphere the chroma edge missed
-                wide = method in ("shape", "moment") and area >= math.pi * rim_edge.WIDE_LUMA_MIN_PX ** 2
+                wide = method in ("shape", "moment") and area >= math.pi * WIDE_LUMA_MIN_PX ** 2
                 edge = edge_src.refine((start[0][0] + x0, start[0][1] + y0), start[1], params, wide=wide)
                 if edge is not None:
                     cu, cv_, method, r_fit = edge[0], edge[1], "edge", edge[2]
@@ -419,7 +419,7 @@ class _EdgeSource:
         fit = refine_circle_on_luma(gray, lo, (centre[0] - px0, centre[1] - py0), radius,
                                     min_contrast=params.edge_min_contrast)
         if fit is None and wide:
-            fit = rim_edge.refine_circle_on_luma_wide(gray, lo, (centre[0] - px0, centre[1] - py0), radius,
+            fit = refine_circle_on_luma_wide(gray, lo, (centre[0] - px0, centre[1] - py0), radius,
                                              min_contrast=params.edge_min_contrast)
         if fit is None:
             return None

@@ -198,8 +198,7 @@ def region_is_part(r_area_px: float, want_px: float, tol: float) -> bool:
     >>> region_is_part(19.7, 25.4, 0.12), region_is_part(24.0, 25.4, 0.12), region_is_part(4.0, 6.0, 0.12)
     (True, False, False)
     """
-    r, w = float(r_area_px), float(want_px)
-    return bool(w >= PART_MIN_PX and w - r > MIN_GAP_PX and r > 0 and math.log(w / r) > tol)
+    return _apart(float(r_area_px), float(want_px), float(want_px), tol)
 
 
 def region_is_larger(r_area_px: float, want_px: float, tol: float) -> bool:
@@ -223,8 +222,12 @@ def region_is_larger(r_area_px: float, want_px: float, tol: float) -> bool:
     >>> region_is_larger(17.6, 15.2, 0.12), region_is_larger(16.0, 15.2, 0.12), region_is_larger(9.0, 6.0, 0.12)
     (True, False, False)
     """
-    r, w = float(r_area_px), float(want_px)
-    return bool(w >= PART_MIN_PX and r - w > MIN_GAP_PX and w > 0 and math.log(r / w) > tol)
+    return _apart(float(want_px), float(r_area_px), float(want_px), tol)
+
+
+def _apart(low: float, high: float, want: float, tol: float) -> bool:
+    """``high`` exceeds ``low`` by more than MIN_GAP_PX and ``tol`` in log ratio, on a prediction >= PART_MIN_PX."""
+    return bool(want >= PART_MIN_PX and high - low > MIN_GAP_PX and low > 0 and math.log(high / low) > tol)
 
 
 def known_radius_verdict(p_left, views, radius_m: float, f_left_px: float, f_right_px: float, R, T,
