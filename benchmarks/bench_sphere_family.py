@@ -76,7 +76,8 @@ METHODS = ("ours", "ours, clear views", "ours, known radius", "seed centroid", "
 PICK_SIGMA_PX = 0.7
 GROSS_PX, GROSS_MM = 10.0, 50.0
 TARGET_MM, TARGET_PX, MIN_FOUND = 1.0, 0.25, 0.95   # issue 15 (centre read as the median), plus 95 % found
-RADIUS_CHECK: dict = {}   # {centroid: [spheres re-measured, spheres refused]} by the stereo radius check
+# {centroid: [views re-measured, spheres refused, views on the luma rim]} by the stereo radius check
+RADIUS_CHECK: dict = {}
 
 
 def simulated_picks(scene, rng):
@@ -123,8 +124,9 @@ def run_ours(scene, cal, models, centroid, known_radius=False):
     pipe = StereoPipeline(cal, models, options=opts)
     res = pipe.process(StereoFrame(t=0.0, index=0, left=scene.frames["left"], right=scene.frames["right"]))
     key = {"shape": "ours", "moment": "seed centroid"}[centroid] + (", known radius" if known_radius else "")
-    RADIUS_CHECK[key] = [a + b for a, b in zip(RADIUS_CHECK.get(key, (0, 0)),
-                                                    (pipe.n_radius_repaired, pipe.n_radius_refused))]
+    RADIUS_CHECK[key] = [a + b for a, b in zip(RADIUS_CHECK.get(key, (0, 0, 0)),
+                                                    (pipe.n_radius_repaired, pipe.n_radius_refused,
+                                                     pipe.n_luma_repaired))]
     for s in res.spheres:
         p[s] = np.asarray(res.spheres[s], float)
         for cam in ("left", "right"):
@@ -279,9 +281,10 @@ def main(argv=None) -> int:
     print(f"render {t_render:.0f} s; tracking (not a speed benchmark: one frame per set-up, model set-up "
           f"included) ours {1e3 * t_ours / args.n:.1f} ms/pair, peer {1e3 * t_peer / args.n:.1f} ms/pair")
     print(f"picks refused by fit_color_model: {len(refusals)} of {4 * args.n}")
-    for key, (fixed, refused_n) in RADIUS_CHECK.items():
+    for key, (fixed, refused_n, luma) in RADIUS_CHECK.items():
         print(f"stereo radius check ({key}): {fixed} sphere views "
-              f"re-measured, {refused_n} spheres refused (counted as not found)")
+              f"re-measured, {refused_n} spheres refused (counted as not found); {luma} views measured again on "
+              f"their luma rim beside a luma view")
     for line in refusals[:12]:
         print("  ", line[:160])
     summary = summarise(rows)

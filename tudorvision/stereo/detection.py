@@ -1,15 +1,20 @@
-"""What the sphere segmentation is told and what it finds: :class:`SegmentParams`, :class:`SphereDetection`.
+"""What the sphere segmentation is told and what it finds: :class:`SegmentParams`, :class:`SphereDetection`;
+what the stereo pipeline finds in a pair: :class:`StereoFrameResult`.
 
-The segmentation itself is :mod:`tudorvision.stereo.segment`.
+The segmentation itself is :mod:`tudorvision.stereo.segment`, the pipeline :mod:`tudorvision.stereo.pipeline`.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from tudorvision._checks import TudorVisionError
 
-__all__ = ["SegmentParams", "SphereDetection", "segment_params_for_radius"]
+__all__ = ["SegmentParams", "SphereDetection", "StereoFrameResult", "segment_params_for_radius"]
+
+_NAN2 = (float("nan"), float("nan"))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -309,3 +314,67 @@ class SphereDetection:
     def radius_px(self) -> float:
         """Radius of the disc with the region's area, ``sqrt(area / pi)``."""
         return math.sqrt(self.area_px / math.pi)
+
+
+@dataclass(frozen=True, eq=False)
+class StereoFrameResult:
+    """What the pipeline found in one stereo pair.
+
+    Attributes
+    ----------
+    index : int
+        0-based frame index in the sequence.
+    t : float
+        Frame timestamp, seconds.
+    detections : dict
+        ``{"left": {sphere: SphereDetection}, "right": {...}}``.
+    spheres : dict of str to ndarray, shape (3,)
+        Sphere centres in metres, frame ``frame``, triangulated from this pair
+        alone (no rolling-shutter compensation); NaN where the sphere is
+        missing in either image.
+    ee : ndarray, shape (3,)
+        End effector (midpoint of the spheres), NaN unless ``valid``.
+    valid : bool
+        Every sphere was found in both images.
+    frame : str
+        ``"base"`` (robot base frame) or ``"left"`` (left camera optical frame).
+    latency_s : float
+        Live playback: wall time from the frame being due to its result
+        (decode, segmentation and triangulation); NaN when not live.
+    dropped : int
+        Live playback: frames dropped just before this one.
+    """
+
+    index: int
+    t: float
+    detections: dict
+    spheres: dict
+    ee: np.ndarray
+    valid: bool
+    frame: str
+    latency_s: float = float("nan")
+    dropped: int = 0
+
+    def uv(self, camera: str, sphere: str) -> tuple:
+        """Centroid ``(u, v)`` of a valid detection, else ``(nan, nan)``.
+
+        Parameters
+        ----------
+        camera : str
+            ``"left"`` or ``"right"``.
+        sphere : str
+            Sphere name, e.g. ``"red"``.
+
+        Returns
+        -------
+        tuple of float
+            Centroid in pixels of that camera's image (u right, v down), or
+            ``(nan, nan)`` when the sphere was not found there.
+
+        Raises
+        ------
+        KeyError
+            If ``camera`` or ``sphere`` is not in :attr:`detections`.
+        """
+        d = self.detections[camera][sphere]
+        return d.uv if d.valid else _NAN2

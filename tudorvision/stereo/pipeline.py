@@ -45,7 +45,8 @@ import numpy as np
 from .._checks import TudorVisionError, check_transform
 from ._frame import FramePlanes
 from .colormodel import ColorModelSet
-from .rim_edge import chroma_circle, sphere_chroma
+from .remeasure import chroma_view_at_radius, luma_view_at_radius
+from .detection import StereoFrameResult
 from .segment import SphereDetection, detect_spheres, regions_in_window
 from .stereo_radius import (MIN_GAP_PX, known_radius_verdict, predicted_radius_px, radius_ratio, region_is_larger,
                             region_is_part, view_radius_px)
@@ -55,7 +56,6 @@ from .triangulate import SphereTriangulation, triangulate_spheres
 __all__ = ["PipelineOptions", "StereoFrameResult", "StereoPipeline"]
 
 _NAN2 = (float("nan"), float("nan"))
-
 
 @dataclass(frozen=True, kw_only=True)
 class PipelineOptions:
@@ -95,13 +95,16 @@ class PipelineOptions:
         (:func:`~tudorvision.stereo.stereo_radius.radius_ratio`), within this log ratio (0.12: 13 %) or
         1.5 px. When they do not (one view took part of the sphere: a link across it, a background of its
         colour), the view with the smaller radius is measured again on the sphere's chroma edge from the
-        radius the other view predicts (:func:`~tudorvision.stereo.rim_edge.chroma_circle`); if the two still
-        disagree the sphere is flagged missing in that frame ("stereo-inconsistent (radius)") rather than
-        triangulated wrong. A view without a circle (its centre is the region's moment) counts by its area
+        radius the other view predicts (:func:`~tudorvision.stereo.remeasure.chroma_view_at_radius`); if the
+        two still disagree the sphere is flagged missing in that frame ("stereo-inconsistent (radius)")
+        rather than triangulated wrong. A view without a circle (its centre is the region's moment) counts by its area
         radius on spheres of 8 px or more: short of the other view's prediction
         (:func:`~tudorvision.stereo.stereo_radius.region_is_part`) as above; larger and not motion-blurred
         (:func:`~tudorvision.stereo.stereo_radius.region_is_larger`) it is measured again, else kept; two
-        such views are not compared. None disables it.
+        such views are not compared. With the luma edge on (``SegmentParams(edge_refine=True)``), a view
+        measured on its colour beside one measured on its luma rim is first measured on its own luma rim from
+        the radius that view predicts (:func:`~tudorvision.stereo.remeasure.luma_view_at_radius`), kept when
+        the pair then agrees. None disables it.
     sphere_radius_m : float or dict or None
         Known metric radius of the spheres (one value, or ``{sphere: radius}``), metres. A sphere whose
         two views imply another radius (``r Z / f`` per camera, averaged) by more than
@@ -151,70 +154,6 @@ class PipelineOptions:
             raise TudorVisionError(f"sphere_separation_m: must be positive or None, got {self.sphere_separation_m}")
         if not (self.separation_tol_m > 0):
             raise TudorVisionError(f"separation_tol_m: must be positive, got {self.separation_tol_m}")
-
-
-@dataclass(frozen=True, eq=False)
-class StereoFrameResult:
-    """What the pipeline found in one stereo pair.
-
-    Attributes
-    ----------
-    index : int
-        0-based frame index in the sequence.
-    t : float
-        Frame timestamp, seconds.
-    detections : dict
-        ``{"left": {sphere: SphereDetection}, "right": {...}}``.
-    spheres : dict of str to ndarray, shape (3,)
-        Sphere centres in metres, frame ``frame``, triangulated from this pair
-        alone (no rolling-shutter compensation); NaN where the sphere is
-        missing in either image.
-    ee : ndarray, shape (3,)
-        End effector (midpoint of the spheres), NaN unless ``valid``.
-    valid : bool
-        Every sphere was found in both images.
-    frame : str
-        ``"base"`` (robot base frame) or ``"left"`` (left camera optical frame).
-    latency_s : float
-        Live playback: wall time from the frame being due to its result
-        (decode, segmentation and triangulation); NaN when not live.
-    dropped : int
-        Live playback: frames dropped just before this one.
-    """
-
-    index: int
-    t: float
-    detections: dict
-    spheres: dict
-    ee: np.ndarray
-    valid: bool
-    frame: str
-    latency_s: float = float("nan")
-    dropped: int = 0
-
-    def uv(self, camera: str, sphere: str) -> tuple:
-        """Centroid ``(u, v)`` of a valid detection, else ``(nan, nan)``.
-
-        Parameters
-        ----------
-        camera : str
-            ``"left"`` or ``"right"``.
-        sphere : str
-            Sphere name, e.g. ``"red"``.
-
-        Returns
-        -------
-        tuple of float
-            Centroid in pixels of that camera's image (u right, v down), or
-            ``(nan, nan)`` when the sphere was not found there.
-
-        Raises
-        ------
-        KeyError
-            If ``camera`` or ``sphere`` is not in :attr:`detections`.
-        """
-        d = self.detections[camera][sphere]
-        return d.uv if d.valid else _NAN2
 
 
 def _check_models(color_models, calibration, stereo_names) -> tuple:
@@ -316,6 +255,7 @@ class StereoPipeline:
         self.n_inconsistent = 0
         self.n_radius_repaired = 0
         self.n_radius_refused = 0
+        self.n_luma_repaired = 0
 
     @property
     def rolling_shutter(self) -> bool:
@@ -441,9 +381,11 @@ class StereoPipeline:
             return dets
         stereo, f = self.calibration.stereo, self._f
         for s in self.spheres:
-            views = {c: dets[c][s] for c in ("left", "right")}
-            if not all(d.valid for d in views.values()):
+            if not all(dets[c][s].valid for c in ("left", "right")):
                 continue
+            if self.options.tracker.segment.edge_refine:
+                dets = self._luma_beside_edge(s, dets, tri.spheres[s][0], images)
+            views = {c: dets[c][s] for c in ("left", "right")}
             shown = {c: view_radius_px(d.circle_radius_px, d.area_px) for c, d in views.items()}
             r, p = {c: shown[c][0] for c in shown}, tri.spheres[s][0]
             moment = [c for c in shown if shown[c][1]]
@@ -470,7 +412,8 @@ class StereoPipeline:
                 tries = ((small, big), (big, small))
             for bad, other in tries:
                 want = predicted_radius_px(p, r[other], f[other], f[bad], stereo.R, stereo.T, this=bad)
-                new = self._remeasure(images[bad], bad, other, s, dets, want, r[other])
+                new = chroma_view_at_radius(images[bad], self._models[bad][s], dets[bad][s], want,
+                                            self._agree(s, bad, other, dets, r[other]))
                 if new is not None:
                     dets = {**dets, bad: {**dets[bad], s: new}}     # a new dict: the caller sees the change
                     self.n_radius_repaired += 1
@@ -502,31 +445,38 @@ class StereoPipeline:
                 self.n_radius_refused += 1
         return dets
 
-    def _remeasure(self, img, bad: str, other: str, s: str, dets: dict, want: float, r_other: float):
-        """The ``bad`` view of sphere ``s`` measured again on its chroma edge at radius ``want``, or None.
-
-        Started at the detection and at four points ``want / 2`` from it (a
-        detection of the half of a sphere split by a link lies about that far
-        from its centre); the candidate kept agrees with the other view in
-        radius and epipolar line, closest in radius.
+    def _agree(self, s: str, bad: str, other: str, dets: dict, r_other: float):
+        """``agree(uv, r)`` of :mod:`~tudorvision.stereo.remeasure` for view ``bad`` of sphere ``s`` against ``other``.
         """
         stereo, f, tol = self.calibration.stereo, self._f, self.options.max_radius_mismatch
-        chroma = sphere_chroma(tuple(self._models[bad][s].mean[:3]))
-        u0, v0 = dets[bad][s].uv
-        best, seen = None, []
-        for du, dv in ((0.0, 0.0), (0.5, 0.0), (-0.5, 0.0), (0.0, 0.5), (0.0, -0.5)):
-            circle = chroma_circle(np.asarray(img), chroma, (u0 + du * want, v0 + dv * want), want)
-            if circle is None or any(math.hypot(circle[0] - a, circle[1] - b) < 0.05 for a, b in seen):
-                continue
-            seen.append(circle[:2])
-            uv = {other: dets[other][s].uv, bad: (circle[0], circle[1])}
-            rr = {other: r_other, bad: circle[2]}
+
+        def agree(uv_bad, r_bad):
+            uv, rr = {other: dets[other][s].uv, bad: uv_bad}, {other: r_other, bad: r_bad}
             p2 = self._left_points([uv["left"]], [uv["right"]])[0]
             mis = abs(math.log(radius_ratio(p2, rr["left"], rr["right"], f["left"], f["right"], stereo.R, stereo.T)))
-            if mis <= tol and self.epipolar_px([uv["left"]], [uv["right"]])[0] <= \
-                    (self.options.max_epipolar_px or math.inf) and (best is None or mis < best[0]):
-                best = (mis, replace(dets[bad][s], uv=uv[bad], method="chroma", circle_radius_px=circle[2]))
-        return None if best is None else best[1]
+            ok = mis <= tol and self.epipolar_px([uv["left"]], [uv["right"]])[0] <= \
+                (self.options.max_epipolar_px or math.inf)
+            return mis if ok else None
+        return agree
+
+    def _luma_beside_edge(self, s: str, dets: dict, p, images: dict) -> dict:
+        """Sphere ``s``'s view measured on its colour beside a view on its luma rim, measured again on its luma
+        rim at the radius the luma view predicts (:func:`~tudorvision.stereo.remeasure.luma_view_at_radius`)."""
+        edge = [c for c in ("left", "right") if dets[c][s].method == "edge"]
+        if len(edge) != 1 or dets[bad := "right" if edge[0] == "left" else "left"][s].blur:
+            return dets
+        r_edge = dets[edge[0]][s].circle_radius_px
+        want = predicted_radius_px(p, r_edge, self._f[edge[0]], self._f[bad], self.calibration.stereo.R,
+                                   self.calibration.stereo.T, this=bad)
+        if not want >= 3.0:
+            return dets
+        new = luma_view_at_radius(images[bad], self._models[bad][s], dets[bad][s], want,
+                                  self._agree(s, bad, edge[0], dets, r_edge),
+                                  min_contrast=self.options.tracker.segment.edge_min_contrast)
+        if new is None:
+            return dets
+        self.n_luma_repaired += 1
+        return {**dets, bad: {**dets[bad], s: new}}
 
     def _check_image(self, img, cam: str, index: int) -> np.ndarray:
         arr = np.asarray(img)

@@ -1,0 +1,134 @@
+"""A view measured on its colour, off the sphere, measured again on its luma rim at the other view's radius.
+
+Oracles: supersampled discs whose centre is known exactly (the luma rim
+itself), and the parallel stereo rig of ``test_stereo_radius_check``: the
+pipeline is given a right view measured 1-2 px off the sphere with about
+the right radius (as a colour circle pulled by a background of the sphere's
+colour is, seed 5's set-ups 32, 75 and 111 of the sphere family), which no
+radius check sees.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import pytest
+
+from test_stereo_radius_check import CAL, NEAR, _models, _pair, _proj, _radius
+from tudorvision.io.frames import StereoFrame
+from tudorvision.stereo import ColorModel, PipelineOptions, SegmentParams, StereoPipeline, TrackerParams
+from tudorvision.stereo.detection import SphereDetection
+from tudorvision.stereo.remeasure import luma_view_at_radius, refine_circle_on_luma_at_radius
+from tudorvision.stereo.rim_edge import refine_circle_on_luma
+
+SS = 8
+
+
+def _disc_gray(h, w, cu, cv_, r, inside=170.0, outside=70.0, dead_arc=None):
+    """Luma of a supersampled disc; ``dead_arc`` (a0, a1) radians: there the ground takes the disc's level,
+    so that part of the rim has no contrast (a background of the sphere's brightness beside it)."""
+    xs = -0.5 + (np.arange(w * SS) + 0.5) / SS
+    ys = -0.5 + (np.arange(h * SS) + 0.5) / SS
+    X, Y = np.meshgrid(xs, ys)
+    disc = ((X - cu) ** 2 + (Y - cv_) ** 2 <= r * r).astype(np.float32)
+    ground = np.full_like(disc, outside)
+    if dead_arc is not None:
+        ang = np.mod(np.arctan2(Y - cv_, X - cu) - dead_arc[0], 2 * math.pi)
+        ground[ang < dead_arc[1] - dead_arc[0]] = inside
+    hi = disc * inside + (1 - disc) * ground
+    return cv2.resize(hi, (w, h), interpolation=cv2.INTER_AREA).astype(np.float32)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_centre_at_the_known_radius_from_an_off_start(seed):
+    """Seeded: a disc of 8-30 px with 90-150 deg of its rim without contrast, started 1.2-2.5 px off with the
+    radius 1 % off: the luma circle's centre comes out within 0.1 px, where the ordinary refine from the same
+    start finds none."""
+    rng = np.random.default_rng(seed)
+    r = rng.uniform(8, 30)
+    n = int(2 * r + 30)
+    cu, cv_ = n / 2 + rng.uniform(-1, 1), n / 2 + rng.uniform(-1, 1)
+    a0 = rng.uniform(0, 2 * math.pi)
+    gray = _disc_gray(n, n, cu, cv_, r, dead_arc=(a0, a0 + math.radians(rng.uniform(90, 150))))
+    gray += rng.normal(0, 1.5, gray.shape).astype(np.float32)
+    off = rng.uniform(1.2, 2.5) * np.array([math.cos(a0 + 1.0), math.sin(a0 + 1.0)])
+    start = (cu + off[0], cv_ + off[1])
+    radius = r * rng.choice([0.99, 1.01])
+    assert refine_circle_on_luma(gray, None, start, radius) is None
+    fit = refine_circle_on_luma_at_radius(gray, None, start, radius)
+    assert fit is not None
+    assert math.hypot(fit[0] - cu, fit[1] - cv_) < 0.1
+    assert abs(fit[2] - r) < 0.2
+
+
+def test_a_flat_patch_gives_none():
+    gray = np.full((60, 60), 100.0, np.float32)
+    assert refine_circle_on_luma_at_radius(gray, None, (30.0, 30.0), 12.0) is None
+
+
+def test_the_caller_decides_whether_the_new_view_agrees():
+    gray = _disc_gray(80, 80, 40.3, 38.6, 15.0)
+    img = np.repeat(gray[..., None], 3, axis=2).astype(np.uint8)
+    img[..., 2] = np.clip(img[..., 2] * 1.2, 0, 255)
+    model = ColorModel(mean=[200, 170, 170, 0, 40, 200], std=[30] * 6, background=np.ones((6, 256)), prior=0.05)
+    det = SphereDetection(uv=(41.5, 37.4), area_px=700.0, mean_prob=0.9, circularity=0.9, valid=True,
+                          method="chroma", circle_radius_px=15.4)
+    seen = []
+    assert luma_view_at_radius(img, model, det, 15.0, lambda uv, r: seen.append((uv, r))) is None
+    assert len(seen) == 1 and math.hypot(seen[0][0][0] - 40.3, seen[0][0][1] - 38.6) < 0.1
+    new = luma_view_at_radius(img, model, det, 15.0, lambda uv, r: 0.0)
+    assert new.method == "edge" and new.valid and new.area_px == det.area_px
+
+
+EDGE = PipelineOptions(tracking=False, tracker=TrackerParams(segment=SegmentParams(edge_refine=True)))
+
+
+def test_pipeline_takes_the_luma_rim_of_a_colour_view_beside_a_luma_view(monkeypatch):
+    """The right view of the green sphere handed over 1.7 px off with a circle 3 % large and method "chroma"
+    (the left on its luma rim): the pipeline measures it again on its luma rim, 3D within 2 mm; the same
+    view on the colour rim's pipeline (luma edge off) is left as it is, 10+ mm off."""
+    import tudorvision.stereo.pipeline as pipeline_module
+    models = _models(NEAR)
+    real = pipeline_module.detect_spheres
+    calls = []
+
+    def right_green_off(img, models_, params=None):
+        out = dict(real(img, models_, params=params))
+        calls.append(1)
+        if len(calls) % 2 == 0:
+            d = out["green"]
+            out["green"] = replace(d, uv=(d.uv[0] + 1.5, d.uv[1] - 0.8), method="chroma",
+                                   circle_radius_px=1.03 * d.circle_radius_px)
+        return out
+
+    monkeypatch.setattr(pipeline_module, "detect_spheres", right_green_off)
+    imgs = _pair(centres=NEAR)
+    frame = StereoFrame(t=0.0, index=0, left=imgs["left"], right=imgs["right"])
+    plain = StereoPipeline(CAL, models, options=PipelineOptions(tracking=False))
+    res = plain.process(frame)
+    assert plain.n_luma_repaired == 0 and res.detections["right"]["green"].method == "chroma"
+    assert np.linalg.norm(res.spheres["green"] - NEAR["green"]) > 0.01
+    pipe = StereoPipeline(CAL, models, options=EDGE)
+    res = pipe.process(frame)
+    assert res.detections["left"]["green"].method == "edge"
+    d = res.detections["right"]["green"]
+    assert pipe.n_luma_repaired == 1 and d.method == "edge" and d.valid
+    u, v = _proj(NEAR["green"], "right")
+    assert math.hypot(d.uv[0] - u, d.uv[1] - v) < 0.15
+    assert abs(d.circle_radius_px - _radius(NEAR["green"])) < 0.3
+    assert np.linalg.norm(res.spheres["green"] - NEAR["green"]) < 0.002
+    assert np.linalg.norm(res.spheres["red"] - NEAR["red"]) < 0.01
+
+
+def test_pipeline_leaves_pairs_alone_unless_exactly_one_view_is_on_its_luma_rim():
+    """Clean pair: the green sphere is on its luma rim in both views, the red one (its luma equals the grey
+    ground's) on its colour rim in both: nothing is measured again."""
+    models = _models(NEAR)
+    imgs = _pair(centres=NEAR)
+    pipe = StereoPipeline(CAL, models, options=EDGE)
+    res = pipe.process(StereoFrame(t=0.0, index=0, left=imgs["left"], right=imgs["right"]))
+    assert res.valid and pipe.n_luma_repaired == 0
+    assert [res.detections[c]["green"].method for c in ("left", "right")] == ["edge", "edge"]
+    assert [res.detections[c]["red"].method for c in ("left", "right")] == ["shape", "shape"]

@@ -1,0 +1,187 @@
+"""One view of a sphere measured again, from the radius the other camera predicts (issue 15).
+
+:class:`~tudorvision.stereo.pipeline.StereoPipeline` compares the two views of
+each sphere once they are triangulated (:mod:`tudorvision.stereo.stereo_radius`).
+Where one view is doubtful, it is measured again with the other view's
+radius carried over (``r Z / f`` is the same metric radius in both cameras):
+
+- :func:`chroma_view_at_radius`: a view whose radius disagrees with the
+  other's, on the sphere's chroma edge (started at the detection and half a
+  radius either side of it, for a sphere split by a link);
+- :func:`luma_view_at_radius`: a view measured on its colour (chroma edge,
+  colour rim or region moment) beside one measured on its luma rim, when the
+  luma edge is used (``SegmentParams(edge_refine=True)``): a background of
+  the sphere's colour on one side can hold a colour circle 1-3 px off the
+  sphere with about the right radius, where no radius check sees it. It is
+  measured on its luma rim with the radius fixed first
+  (:func:`refine_circle_on_luma_at_radius`).
+
+Both return a new :class:`~tudorvision.stereo.detection.SphereDetection` only
+when the caller's ``agree`` (the pair's radius and epipolar consistency with
+the new measurement) accepts it. Neither reads ground truth.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Callable
+
+import cv2
+import numpy as np
+
+from .colormodel import ColorModel
+from .detection import SphereDetection
+from .rim_edge import chroma_circle, luma_rim_points, refine_circle_on_luma, sphere_chroma
+from .segment import log_odds_image
+
+__all__ = ["chroma_view_at_radius", "luma_view_at_radius", "refine_circle_on_luma_at_radius"]
+
+#: ``agree(uv, radius_px)``: the pair's log radius mismatch with this view at ``uv`` and ``radius_px`` when the
+#: pair is consistent (radius and epipolar line), else None.
+Agree = Callable[[tuple, float], "float | None"]
+
+
+def _centre_at_radius(pts: np.ndarray, centre, radius: float, bands) -> tuple | None:
+    """Centre ``(u, v)`` of the circle of the given ``radius`` through the points within each band of the circle
+    so far, in turn (Gauss-Newton, a few steps per band); None when fewer than 5 points remain in a band."""
+    c = np.array([float(centre[0]), float(centre[1])])
+    for band in bands:
+        for _ in range(5):
+            d = pts - c
+            dist = np.hypot(d[:, 0], d[:, 1])
+            inl = np.abs(dist - radius) < band
+            if np.count_nonzero(inl) < 5:
+                return None
+            unit = d[inl] / np.maximum(dist[inl], 1e-9)[:, None]      # d dist / d c = -unit
+            step, *_ = np.linalg.lstsq(unit, dist[inl] - radius, rcond=None)
+            c = c + step
+            if float(np.hypot(*step)) < 1e-3:
+                break
+    return float(c[0]), float(c[1])
+
+
+def refine_circle_on_luma_at_radius(gray, log_odds, centre, radius: float, *, min_contrast: float = 8.0):
+    """The luma rim circle of a sphere whose radius is known (the other camera's), from an off centre, or None.
+
+    A view measured on its colour (chroma edge or colour rim) can sit 1-3 px off the sphere while its radius
+    is about right (a background of the sphere's colour on one side); :func:`refine_circle_on_luma` from that
+    circle then fails (fewer than half of its rays on one circle). With the radius given, the centre alone is
+    fitted to the luma edge points (trimming bands 3, 1.5, 1 and 0.5 px), which moves it onto the rim; the
+    result is accepted only as a start from which :func:`refine_circle_on_luma` converges, radius free.
+
+    Parameters
+    ----------
+    gray, log_odds, centre, min_contrast
+        As for :func:`luma_rim_points`.
+    radius : float
+        The sphere's apparent radius in this view (pixels), e.g. predicted from the other camera's.
+
+    Returns
+    -------
+    tuple or None
+        ``(u, v, r, inlier_fraction, rms_px)`` in window pixels, as :func:`refine_circle_on_luma`.
+
+    Examples
+    --------
+    >>> yy, xx = np.mgrid[0:80, 0:80]
+    >>> disc = np.clip(20.5 - np.hypot(xx - 41.3, yy - 38.6), 0, 1)
+    >>> gray = (60 + 100 * disc).astype(np.float32)
+    >>> gray[:, 55:] = 60 + 100 * disc[:, 55:] * 0.05        # the right side of the rim has no contrast
+    >>> refine_circle_on_luma(gray, None, (39.0, 39.5), 21.0) is None
+    True
+    >>> u, v, r, frac, rms = refine_circle_on_luma_at_radius(gray, None, (39.0, 39.5), 20.0)
+    >>> round(u, 1), round(v, 1), round(r, 1)
+    (41.3, 38.6, 20.0)
+    """
+    pts, n = luma_rim_points(gray, log_odds, centre, radius, min_contrast=min_contrast)
+    if len(pts) < max(8, 0.35 * n):      # from an off start fewer rays find the rim; the final refine asks half
+        return None
+    c = _centre_at_radius(pts, centre, float(radius), (3.0, 1.5, 1.0, 0.5))
+    if c is None:
+        return None
+    return refine_circle_on_luma(gray, log_odds, c, radius, min_contrast=min_contrast)
+
+
+def chroma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want_px: float,
+                          agree: Agree) -> SphereDetection | None:
+    """The view ``det`` measured again on its chroma edge at the predicted radius, or None.
+
+    Parameters
+    ----------
+    frame_bgr : ndarray, shape (H, W, 3), uint8
+        The view's image.
+    model : ColorModel
+        The sphere's colour model in this camera (its mean colour gives the chroma).
+    det : SphereDetection
+        The view's detection.
+    want_px : float
+        The radius the other view predicts here, pixels.
+    agree : callable
+        ``agree(uv, radius_px)`` -> the log radius mismatch when the pair is consistent, else None.
+
+    Returns
+    -------
+    SphereDetection or None
+        ``det`` with the new centre, ``method="chroma"`` and the circle's radius: of the circles started at
+        the detection and at four points ``want_px / 2`` from it, the one that agrees best.
+    """
+    chroma = sphere_chroma(tuple(model.mean[:3]))
+    u0, v0 = det.uv
+    best, seen = None, []
+    for du, dv in ((0.0, 0.0), (0.5, 0.0), (-0.5, 0.0), (0.0, 0.5), (0.0, -0.5)):
+        circle = chroma_circle(np.asarray(frame_bgr), chroma, (u0 + du * want_px, v0 + dv * want_px), want_px)
+        if circle is None or any(math.hypot(circle[0] - a, circle[1] - b) < 0.05 for a, b in seen):
+            continue
+        seen.append(circle[:2])
+        mis = agree((circle[0], circle[1]), circle[2])
+        if mis is not None and (best is None or mis < best[0]):
+            best = (mis, replace(det, uv=(circle[0], circle[1]), method="chroma", circle_radius_px=circle[2]))
+    return None if best is None else best[1]
+
+
+def luma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want_px: float, agree: Agree, *,
+                        min_contrast: float = 8.0) -> SphereDetection | None:
+    """The view ``det`` measured again on its luma rim, started at the predicted radius, or None.
+
+    Parameters
+    ----------
+    frame_bgr, model, det, want_px, agree
+        As for :func:`chroma_view_at_radius`; ``model`` gives the colour gate of the luma edge points.
+    min_contrast : float
+        Smallest luma contrast of a ray (``SegmentParams.edge_min_contrast``).
+
+    Returns
+    -------
+    SphereDetection or None
+        ``det`` with the luma circle's centre and radius and ``method="edge"``.
+
+    Examples
+    --------
+    >>> yy, xx = np.mgrid[0:80, 0:80]
+    >>> disc = np.clip(15.5 - np.hypot(xx - 40.3, yy - 38.6), 0, 1)[..., None]
+    >>> img = (disc * [40, 40, 200] + (1 - disc) * [90, 110, 120]).astype(np.uint8)
+    >>> img[:, 50:] = (disc[:, 50:] * [60, 70, 150] + (1 - disc[:, 50:]) * [60, 70, 150]).astype(np.uint8)
+    >>> model = ColorModel(mean=[200, 40, 40, 0, 200, 200], std=[12] * 6, background=np.ones((6, 256)),
+    ...                    prior=0.05)
+    >>> off = SphereDetection(uv=(38.5, 39.4), area_px=700.0, mean_prob=0.9, circularity=0.9, valid=True,
+    ...                       method="chroma", circle_radius_px=15.6)
+    >>> new = luma_view_at_radius(img, model, off, 15.0, lambda uv, r: 0.0)
+    >>> new.method, round(new.uv[0], 1), round(new.uv[1], 1)
+    ('edge', 40.3, 38.6)
+    """
+    h, w = frame_bgr.shape[:2]
+    m = int(math.ceil(want_px)) + 7
+    x0, y0 = max(int(det.uv[0]) - m, 0), max(int(det.uv[1]) - m, 0)
+    x1, y1 = min(int(det.uv[0]) + m + 1, w), min(int(det.uv[1]) + m + 1, h)
+    if x1 - x0 < 4 or y1 - y0 < 4:
+        return None
+    win = np.ascontiguousarray(frame_bgr[y0:y1, x0:x1])
+    gray = cv2.cvtColor(win, cv2.COLOR_BGR2GRAY).astype(np.float32)
+    fit = refine_circle_on_luma_at_radius(gray, log_odds_image(win, model), (det.uv[0] - x0, det.uv[1] - y0),
+                                          want_px, min_contrast=min_contrast)
+    if fit is None:
+        return None
+    uv = (fit[0] + x0, fit[1] + y0)
+    if agree(uv, fit[2]) is None:
+        return None
+    return replace(det, uv=uv, method="edge", circle_radius_px=fit[2])
