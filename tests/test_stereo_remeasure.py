@@ -5,7 +5,7 @@ itself), and the parallel stereo rig of ``test_stereo_radius_check``: the
 pipeline is given a right view measured 1-2 px off the sphere with about
 the right radius (as a colour circle pulled by a background of the sphere's
 colour is, seed 5's set-ups 32, 75 and 111 of the sphere family), which no
-radius check sees.
+radius check sees; and two colour views, one of them off.
 """
 from __future__ import annotations
 
@@ -132,3 +132,48 @@ def test_pipeline_leaves_pairs_alone_unless_exactly_one_view_is_on_its_luma_rim(
     assert res.valid and pipe.n_luma_repaired == 0
     assert [res.detections[c]["green"].method for c in ("left", "right")] == ["edge", "edge"]
     assert [res.detections[c]["red"].method for c in ("left", "right")] == ["shape", "shape"]
+
+
+def _forced(monkeypatch, shift, scale, method="chroma"):
+    """Both views of the green sphere handed over as ``method`` (no luma view); the right one moved by
+    ``shift`` px with its circle radius times ``scale``."""
+    import tudorvision.stereo.pipeline as pipeline_module
+    real = pipeline_module.detect_spheres
+    calls = []
+
+    def colour_views(img, models_, params=None):
+        out = dict(real(img, models_, params=params))
+        calls.append(1)
+        d = out["green"]
+        if len(calls) % 2 == 0:
+            d = replace(d, uv=(d.uv[0] + shift[0], d.uv[1] + shift[1]), circle_radius_px=scale * d.circle_radius_px)
+        out["green"] = replace(d, method=method)
+        return out
+
+    monkeypatch.setattr(pipeline_module, "detect_spheres", colour_views)
+
+
+def test_two_colour_views_that_agree_in_radius_are_both_measured_on_their_luma_rims(monkeypatch):
+    """Neither view on its luma rim, radii consistent, the right one 1.5 px off: both are measured again on
+    their luma rims at the radius the other predicts; the right one comes back within 0.15 px."""
+    _forced(monkeypatch, (1.2, 0.9), 1.02)
+    imgs = _pair(centres=NEAR)
+    pipe = StereoPipeline(CAL, _models(NEAR), options=EDGE)
+    res = pipe.process(StereoFrame(t=0.0, index=0, left=imgs["left"], right=imgs["right"]))
+    assert pipe.n_luma_repaired == 2
+    d = res.detections["right"]["green"]
+    u, v = _proj(NEAR["green"], "right")
+    assert d.method == "edge" and math.hypot(d.uv[0] - u, d.uv[1] - v) < 0.15
+    assert np.linalg.norm(res.spheres["green"] - NEAR["green"]) < 0.002
+
+
+def test_two_colour_views_that_disagree_in_radius_are_left_to_the_radius_check(monkeypatch):
+    """The right view's circle 30 % too large: no luma re-measurement (two colour views off together give no
+    radius to trust); the radius check measures it again on its chroma edge."""
+    _forced(monkeypatch, (1.2, 0.9), 1.3)
+    imgs = _pair(centres=NEAR)
+    pipe = StereoPipeline(CAL, _models(NEAR), options=EDGE)
+    res = pipe.process(StereoFrame(t=0.0, index=0, left=imgs["left"], right=imgs["right"]))
+    assert pipe.n_luma_repaired == 0
+    assert pipe.n_radius_repaired + pipe.n_radius_refused == 1
+    assert res.detections["right"]["green"].method == "chroma"

@@ -104,7 +104,8 @@ class PipelineOptions:
         such views are not compared. With the luma edge on (``SegmentParams(edge_refine=True)``), a view
         measured on its colour beside one measured on its luma rim is first measured on its own luma rim from
         the radius that view predicts (:func:`~tudorvision.stereo.remeasure.luma_view_at_radius`), kept when
-        the pair then agrees. None disables it.
+        the pair then agrees; two views measured on their colour whose radii agree are each measured so from
+        the other's. None disables it.
     sphere_radius_m : float or dict or None
         Known metric radius of the spheres (one value, or ``{sphere: radius}``), metres. A sphere whose
         two views imply another radius (``r Z / f`` per camera, averaged) by more than
@@ -384,7 +385,7 @@ class StereoPipeline:
             if not all(dets[c][s].valid for c in ("left", "right")):
                 continue
             if self.options.tracker.segment.edge_refine:
-                dets = self._luma_beside_edge(s, dets, tri.spheres[s][0], images)
+                dets = self._luma_views(s, dets, tri.spheres[s][0], images)
             views = {c: dets[c][s] for c in ("left", "right")}
             shown = {c: view_radius_px(d.circle_radius_px, d.area_px) for c, d in views.items()}
             r, p = {c: shown[c][0] for c in shown}, tri.spheres[s][0]
@@ -459,24 +460,37 @@ class StereoPipeline:
             return mis if ok else None
         return agree
 
-    def _luma_beside_edge(self, s: str, dets: dict, p, images: dict) -> dict:
-        """Sphere ``s``'s view measured on its colour beside a view on its luma rim, measured again on its luma
-        rim at the radius the luma view predicts (:func:`~tudorvision.stereo.remeasure.luma_view_at_radius`)."""
-        edge = [c for c in ("left", "right") if dets[c][s].method == "edge"]
-        if len(edge) != 1 or dets[bad := "right" if edge[0] == "left" else "left"][s].blur:
+    def _luma_views(self, s: str, dets: dict, p, images: dict) -> dict:
+        """Sphere ``s``'s views not on their luma rim measured again on it at the radius the other view predicts
+        (:func:`~tudorvision.stereo.remeasure.luma_view_at_radius`): beside a luma view; or, neither on its luma
+        rim, both when their colour circles agree in radius (a pair the radius check would refuse is left to it).
+        """
+        views = {c: dets[c][s] for c in ("left", "right")}
+        edge = [c for c in views if views[c].method == "edge"]
+        stereo, f = self.calibration.stereo, self._f
+        if len(edge) == 1:
+            tries = (("right" if edge[0] == "left" else "left", edge[0]),)
+        elif edge or any(v.blur or not math.isfinite(v.circle_radius_px) for v in views.values()):
             return dets
-        r_edge = dets[edge[0]][s].circle_radius_px
-        want = predicted_radius_px(p, r_edge, self._f[edge[0]], self._f[bad], self.calibration.stereo.R,
-                                   self.calibration.stereo.T, this=bad)
-        if not want >= 3.0:
-            return dets
-        new = luma_view_at_radius(images[bad], self._models[bad][s], dets[bad][s], want,
-                                  self._agree(s, bad, edge[0], dets, r_edge),
-                                  min_contrast=self.options.tracker.segment.edge_min_contrast)
-        if new is None:
-            return dets
-        self.n_luma_repaired += 1
-        return {**dets, bad: {**dets[bad], s: new}}
+        else:
+            rho = radius_ratio(p, views["left"].circle_radius_px, views["right"].circle_radius_px, f["left"],
+                               f["right"], stereo.R, stereo.T)
+            if not abs(math.log(rho)) <= self.options.max_radius_mismatch:
+                return dets
+            tries = (("left", "right"), ("right", "left"))
+        out = dets
+        for bad, good in tries:
+            r_good = views[good].circle_radius_px
+            want = predicted_radius_px(p, r_good, f[good], f[bad], stereo.R, stereo.T, this=bad)
+            if views[bad].blur or not want >= 3.0:
+                continue
+            new = luma_view_at_radius(images[bad], self._models[bad][s], views[bad], want,
+                                      self._agree(s, bad, good, dets, r_good),
+                                      min_contrast=self.options.tracker.segment.edge_min_contrast)
+            if new is not None:
+                self.n_luma_repaired += 1
+                out = {**out, bad: {**out[bad], s: new}}
+        return out
 
     def _check_image(self, img, cam: str, index: int) -> np.ndarray:
         arr = np.asarray(img)

@@ -14,7 +14,10 @@ radius carried over (``r Z / f`` is the same metric radius in both cameras):
   the sphere's colour on one side can hold a colour circle 1-3 px off the
   sphere with about the right radius, where no radius check sees it. It is
   measured on its luma rim with the radius fixed first
-  (:func:`refine_circle_on_luma_at_radius`).
+  (:func:`refine_circle_on_luma_at_radius`). Two views both measured on their
+  colour are each measured so from the other's radius, but only when those
+  radii agree (two colour views off together give no radius to trust; such a
+  pair is left to the radius check).
 
 Both return a new :class:`~tudorvision.stereo.detection.SphereDetection` only
 when the caller's ``agree`` (the pair's radius and epipolar consistency with
