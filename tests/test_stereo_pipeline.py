@@ -144,6 +144,10 @@ def test_per_frame_results_and_stats(static_run):
     assert res.stats.processed == res.stats.valid == len(seq)
     assert res.stats.skipped == 0 and res.stats.fps > 0
     assert "100.0% valid" in res.stats.summary()
+    assert set(res.stats.checks) == {"pairs off the epipolar line", "of them re-paired from other regions",
+                                     "views measured again on their luma rim", "views measured again for their radius",
+                                     "spheres refused for their radius"}
+    assert all(isinstance(n, int) and n >= 0 for n in res.stats.checks.values())
     r0 = res.results[0]
     assert r0.valid and set(r0.detections) == {"left", "right"}
     np.testing.assert_allclose(r0.ee, 0.5 * (r0.spheres["red"] + r0.spheres["green"]))
@@ -328,3 +332,11 @@ def test_sphere_separation_check_flags_the_frame():
     assert "separation" in bad.detections["left"]["red"].reason
     with pytest.raises(TudorVisionError, match="sphere_separation_m"):
         PipelineOptions(sphere_separation_m=-1.0)
+
+
+def test_summary_names_the_stereo_checks_that_did_something():
+    from tudorvision.stereo.tracking import TrackStats
+    st = TrackStats(frames_total=10, processed=10, valid=9, wall_s=1.0)
+    assert "stereo checks" not in st.summary()
+    st.checks = {"views measured again on their luma rim": 3, "spheres refused for their radius": 0}
+    assert st.summary().endswith("; stereo checks: 3 views measured again on their luma rim")

@@ -270,6 +270,20 @@ class StereoPipeline:
             trk.reset()
         self._last_left = {s: None for s in self.spheres}
 
+    def check_counts(self) -> dict:
+        """What the consistency checks did since the pipeline was made (sphere views or spheres).
+
+        Returns
+        -------
+        dict of str to int
+            Keyed by what was done, in words, e.g. ``"views measured again on their luma rim"``.
+        """
+        return {"pairs off the epipolar line": self.n_inconsistent,
+                "of them re-paired from other regions": self.n_repaired,
+                "views measured again on their luma rim": self.n_luma_repaired,
+                "views measured again for their radius": self.n_radius_repaired,
+                "spheres refused for their radius": self.n_radius_refused}
+
     def epipolar_px(self, uv_left, uv_right) -> np.ndarray:
         """Distance of right centroids from the epipolar lines of left ones, pixels.
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterator
 
@@ -127,6 +127,9 @@ class TrackStats:
     interrupted : str or None
         Why the run stopped early (``keep_partial=True``: Ctrl-C or an
         error), None when it ran to the end.
+    checks : dict of str to int
+        Stereo runs: what the pipeline's consistency checks did over the run
+        (:meth:`StereoPipeline.check_counts`); empty for one camera.
     _n_latency : int
         Internal: frames with a measured live latency, the divisor of
         :attr:`mean_latency_s`; leave it at 0 when constructing.
@@ -141,6 +144,7 @@ class TrackStats:
     latency_sum_s: float = 0.0
     max_latency_s: float = float("nan")
     interrupted: str | None = None
+    checks: dict = field(default_factory=dict)
     _n_latency: int = 0
 
     def record(self, res) -> None:
@@ -183,7 +187,9 @@ class TrackStats:
         str
             E.g. ``"120/125 frames tracked, 96.7% valid, 48.2 fps"``, with
             the corrupt frames skipped and, for live runs, the frames
-            dropped and the mean and maximum latency in milliseconds.
+            dropped and the mean and maximum latency in milliseconds; then
+            the stereo checks that did something (``checks``), e.g.
+            ``"; stereo checks: 3 views measured again on their luma rim"``.
         """
         s = (f"{self.processed}/{self.frames_total} frames tracked, {100 * self.valid_fraction:.1f}% valid, "
              f"{self.fps:.1f} fps")
@@ -192,6 +198,9 @@ class TrackStats:
         if self._n_latency:
             s += (f", {self.dropped} dropped, latency mean {1e3 * self.mean_latency_s:.1f} ms "
                   f"max {1e3 * self.max_latency_s:.1f} ms")
+        done = [f"{n} {what}" for what, n in self.checks.items() if n]
+        if done:
+            s += "; stereo checks: " + ", ".join(done)
         return s
 
 
@@ -307,6 +316,7 @@ def track_stereo(sequence, calibration, color_models: ColorModelSet, *, T_base_l
         uvl = {s: v[:n] for s, v in uvl.items()}
         uvr = {s: v[:n] for s, v in uvr.items()}
     stats.wall_s = time.perf_counter() - t0
+    stats.checks = pipe.check_counts()
     t = np.array(t, dtype=np.float64)
     uvl = {s: np.array(v, dtype=np.float64).reshape(-1, 2) for s, v in uvl.items()}
     uvr = {s: np.array(v, dtype=np.float64).reshape(-1, 2) for s, v in uvr.items()}
