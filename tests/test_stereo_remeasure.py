@@ -15,6 +15,8 @@ from dataclasses import replace
 import cv2
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from test_stereo_radius_check import CAL, NEAR, _models, _pair, _proj, _radius
 from tudorvision.io.frames import StereoFrame
@@ -177,3 +179,21 @@ def test_two_colour_views_that_disagree_in_radius_are_left_to_the_radius_check(m
     assert pipe.n_luma_repaired == 0
     assert pipe.n_radius_repaired + pipe.n_radius_refused == 1
     assert res.detections["right"]["green"].method == "chroma"
+
+
+@settings(max_examples=120, deadline=None)
+@given(seed=st.integers(0, 2 ** 31 - 1), u=st.floats(-5, 45), v=st.floats(-5, 45), radius=st.floats(0.5, 40),
+       level=st.sampled_from(["noise", "flat", "disc"]))
+def test_any_window_and_start_give_a_finite_circle_or_none(seed, u, v, radius, level):
+    """Fuzzed: noise, flat and disc windows of 40 x 40 px, starts inside and outside them, radii from half a
+    pixel to the window's size: no exception; a circle, when there is one, is finite."""
+    rng = np.random.default_rng(seed)
+    if level == "noise":
+        gray = rng.uniform(0, 255, (40, 40)).astype(np.float32)
+    elif level == "flat":
+        gray = np.full((40, 40), float(rng.uniform(0, 255)), np.float32)
+    else:
+        gray = _disc_gray(40, 40, rng.uniform(10, 30), rng.uniform(10, 30), rng.uniform(3, 15))
+    log_odds = rng.normal(0, 3, gray.shape).astype(np.float32) if seed % 2 else None
+    fit = refine_circle_on_luma_at_radius(gray, log_odds, (u, v), radius)
+    assert fit is None or all(math.isfinite(x) for x in fit)
