@@ -87,25 +87,33 @@ def test_the_caller_decides_whether_the_new_view_agrees():
 EDGE = PipelineOptions(tracking=False, tracker=TrackerParams(segment=SegmentParams(edge_refine=True)))
 
 
+def _forced(monkeypatch, shift, scale, left_too=True):
+    """The green sphere's right view handed over as measured on its colour ("chroma"), moved by ``shift`` px
+    with its circle radius times ``scale``; ``left_too``: the left view marked "chroma" as well (no luma view)."""
+    import tudorvision.stereo.pipeline as pipeline_module
+    real = pipeline_module.detect_spheres
+    calls = []
+
+    def colour_views(img, models_, params=None):
+        out = dict(real(img, models_, params=params))
+        calls.append(1)
+        d = out["green"]
+        if len(calls) % 2 == 0:                           # the right image (left first)
+            out["green"] = replace(d, uv=(d.uv[0] + shift[0], d.uv[1] + shift[1]), method="chroma",
+                                   circle_radius_px=scale * d.circle_radius_px)
+        elif left_too:
+            out["green"] = replace(d, method="chroma")
+        return out
+
+    monkeypatch.setattr(pipeline_module, "detect_spheres", colour_views)
+
+
 def test_pipeline_takes_the_luma_rim_of_a_colour_view_beside_a_luma_view(monkeypatch):
     """The right view of the green sphere handed over 1.7 px off with a circle 3 % large and method "chroma"
     (the left on its luma rim): the pipeline measures it again on its luma rim, 3D within 2 mm; the same
     view on the colour rim's pipeline (luma edge off) is left as it is, 10+ mm off."""
-    import tudorvision.stereo.pipeline as pipeline_module
     models = _models(NEAR)
-    real = pipeline_module.detect_spheres
-    calls = []
-
-    def right_green_off(img, models_, params=None):
-        out = dict(real(img, models_, params=params))
-        calls.append(1)
-        if len(calls) % 2 == 0:
-            d = out["green"]
-            out["green"] = replace(d, uv=(d.uv[0] + 1.5, d.uv[1] - 0.8), method="chroma",
-                                   circle_radius_px=1.03 * d.circle_radius_px)
-        return out
-
-    monkeypatch.setattr(pipeline_module, "detect_spheres", right_green_off)
+    _forced(monkeypatch, (1.5, -0.8), 1.03, left_too=False)
     imgs = _pair(centres=NEAR)
     frame = StereoFrame(t=0.0, index=0, left=imgs["left"], right=imgs["right"])
     plain = StereoPipeline(CAL, models, options=PipelineOptions(tracking=False))
@@ -134,25 +142,6 @@ def test_pipeline_leaves_pairs_alone_unless_exactly_one_view_is_on_its_luma_rim(
     assert res.valid and pipe.n_luma_repaired == 0
     assert [res.detections[c]["green"].method for c in ("left", "right")] == ["edge", "edge"]
     assert [res.detections[c]["red"].method for c in ("left", "right")] == ["shape", "shape"]
-
-
-def _forced(monkeypatch, shift, scale, method="chroma"):
-    """Both views of the green sphere handed over as ``method`` (no luma view); the right one moved by
-    ``shift`` px with its circle radius times ``scale``."""
-    import tudorvision.stereo.pipeline as pipeline_module
-    real = pipeline_module.detect_spheres
-    calls = []
-
-    def colour_views(img, models_, params=None):
-        out = dict(real(img, models_, params=params))
-        calls.append(1)
-        d = out["green"]
-        if len(calls) % 2 == 0:
-            d = replace(d, uv=(d.uv[0] + shift[0], d.uv[1] + shift[1]), circle_radius_px=scale * d.circle_radius_px)
-        out["green"] = replace(d, method=method)
-        return out
-
-    monkeypatch.setattr(pipeline_module, "detect_spheres", colour_views)
 
 
 def test_two_colour_views_that_agree_in_radius_are_both_measured_on_their_luma_rims(monkeypatch):

@@ -34,7 +34,7 @@ import numpy as np
 
 from .colormodel import ColorModel
 from .detection import SphereDetection
-from .rim_edge import chroma_circle, luma_rim_points, refine_circle_on_luma, sphere_chroma
+from .rim_edge import chroma_circle, refine_luma_from_first_fit, sphere_chroma
 from .segment import log_odds_image
 
 __all__ = ["chroma_view_at_radius", "luma_view_at_radius", "refine_circle_on_luma_at_radius"]
@@ -67,22 +67,25 @@ def refine_circle_on_luma_at_radius(gray, log_odds, centre, radius: float, *, mi
     """The luma rim circle of a sphere whose radius is known (the other camera's), from an off centre, or None.
 
     A view measured on its colour (chroma edge or colour rim) can sit 1-3 px off the sphere while its radius
-    is about right (a background of the sphere's colour on one side); :func:`refine_circle_on_luma` from that
-    circle then fails (fewer than half of its rays on one circle). With the radius given, the centre alone is
-    fitted to the luma edge points (trimming bands 3, 1.5, 1 and 0.5 px), which moves it onto the rim; the
-    result is accepted only as a start from which :func:`refine_circle_on_luma` converges, radius free.
+    is about right (a background of the sphere's colour on one side);
+    :func:`~tudorvision.stereo.rim_edge.refine_circle_on_luma` from that circle then fails (fewer than half of
+    its rays on one circle). With the radius given, the centre alone is fitted to the luma edge points
+    (trimming bands 3, 1.5, 1 and 0.5 px), which moves it onto the rim; the result is accepted only as a start
+    from which the ordinary refine converges, radius free
+    (:func:`~tudorvision.stereo.rim_edge.refine_luma_from_first_fit`).
 
     Parameters
     ----------
     gray, log_odds, centre, min_contrast
-        As for :func:`luma_rim_points`.
+        As for :func:`~tudorvision.stereo.rim_edge.luma_rim_points`.
     radius : float
         The sphere's apparent radius in this view (pixels), e.g. predicted from the other camera's.
 
     Returns
     -------
     tuple or None
-        ``(u, v, r, inlier_fraction, rms_px)`` in window pixels, as :func:`refine_circle_on_luma`.
+        ``(u, v, r, inlier_fraction, rms_px)`` in window pixels, as
+        :func:`~tudorvision.stereo.rim_edge.refine_circle_on_luma`.
 
     Examples
     --------
@@ -90,19 +93,20 @@ def refine_circle_on_luma_at_radius(gray, log_odds, centre, radius: float, *, mi
     >>> disc = np.clip(20.5 - np.hypot(xx - 41.3, yy - 38.6), 0, 1)
     >>> gray = (60 + 100 * disc).astype(np.float32)
     >>> gray[:, 55:] = 60 + 100 * disc[:, 55:] * 0.05        # the right side of the rim has no contrast
+    >>> from tudorvision.stereo.rim_edge import refine_circle_on_luma
     >>> refine_circle_on_luma(gray, None, (39.0, 39.5), 21.0) is None
     True
     >>> u, v, r, frac, rms = refine_circle_on_luma_at_radius(gray, None, (39.0, 39.5), 20.0)
     >>> round(u, 1), round(v, 1), round(r, 1)
     (41.3, 38.6, 20.0)
     """
-    pts, n = luma_rim_points(gray, log_odds, centre, radius, min_contrast=min_contrast)
-    if len(pts) < max(8, 0.35 * n):      # from an off start fewer rays find the rim; the final refine asks half
-        return None
-    c = _centre_at_radius(pts, centre, float(radius), (3.0, 1.5, 1.0, 0.5))
-    if c is None:
-        return None
-    return refine_circle_on_luma(gray, log_odds, c, radius, min_contrast=min_contrast)
+    def first_fit(pts):
+        c = _centre_at_radius(pts, centre, float(radius), (3.0, 1.5, 1.0, 0.5))
+        return None if c is None else (c[0], c[1], radius)
+
+    # from an off start fewer rays find the rim (0.35 of them suffice); the final refine asks half
+    return refine_luma_from_first_fit(gray, log_odds, centre, radius, first_fit, min_fraction=0.35,
+                                      min_contrast=min_contrast)
 
 
 def chroma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want_px: float,

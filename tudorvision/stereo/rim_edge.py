@@ -56,7 +56,7 @@ from ._circle import circle_lsq, fit_rim_circle_multi
 
 __all__ = ["luma_rim_points", "refine_circle_on_luma", "refine_circle_on_luma_wide", "chroma_rim_points",
            "refine_circle_on_chroma", "chroma_circle", "sphere_chroma", "MIN_INSIDE", "LOSSY_SUFFIXES",
-           "chroma_subsampled_source", "WIDE_LUMA_MIN_PX"]
+           "chroma_subsampled_source", "WIDE_LUMA_MIN_PX", "refine_luma_from_first_fit"]
 
 #: File suffixes whose colour is usually stored at reduced resolution (JPEG; video codecs).
 LOSSY_SUFFIXES = frozenset({".jpg", ".jpeg", ".mp4", ".avi", ".mov", ".mkv", ".webm", ".m4v", ".mpg", ".mpeg"})
@@ -266,10 +266,39 @@ def refine_circle_on_luma_wide(gray, log_odds, centre, radius: float, *, span_fr
     (41.3, 38.6, 25.0)
     """
     span = max(3.0, float(span_frac) * float(radius))
+    return refine_luma_from_first_fit(gray, log_odds, centre, radius,
+                                      lambda pts: _trimmed_circle(pts, centre, radius, (span, 3.0, 1.5, 1.0)),
+                                      span=span, min_contrast=min_contrast)
+
+
+def refine_luma_from_first_fit(gray, log_odds, centre, radius: float, first_fit, *, span: float = 3.0,
+                               min_fraction: float = 0.5, min_contrast: float = 8.0):
+    """A rough circle fitted to the luma rim points, kept only as a start from which the ordinary refine converges.
+
+    The mechanism of :func:`refine_circle_on_luma_wide` and
+    :func:`~tudorvision.stereo.remeasure.refine_circle_on_luma_at_radius`: edge points along rays from the
+    first circle, a rough fit of them, then :func:`refine_circle_on_luma` from the rough circle.
+
+    Parameters
+    ----------
+    gray, log_odds, centre, radius, min_contrast
+        As for :func:`luma_rim_points` (the first circle).
+    first_fit : callable
+        ``first_fit(points)`` -> ``(u, v, r)`` or None; ``points`` shape (K, 2), window pixels.
+    span : float
+        The rays reach this many pixels either side of the first circle.
+    min_fraction : float
+        Smallest fraction of the rays (and at least 8) that must find an edge point.
+
+    Returns
+    -------
+    tuple or None
+        ``(u, v, r, inlier_fraction, rms_px)`` in window pixels, as :func:`refine_circle_on_luma`.
+    """
     pts, n = luma_rim_points(gray, log_odds, centre, radius, span=span, min_contrast=min_contrast)
-    if len(pts) < max(8, 0.5 * n):
+    if len(pts) < max(8, min_fraction * n):
         return None
-    fit = _trimmed_circle(pts, centre, radius, (span, 3.0, 1.5, 1.0))
+    fit = first_fit(pts)
     if fit is None:
         return None
     return refine_circle_on_luma(gray, log_odds, fit[:2], fit[2], min_contrast=min_contrast)
