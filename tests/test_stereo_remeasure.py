@@ -22,23 +22,25 @@ from test_stereo_radius_check import CAL, NEAR, _models, _pair, _proj, _radius
 from tudorvision.io.frames import StereoFrame
 from tudorvision.stereo import ColorModel, PipelineOptions, SegmentParams, StereoPipeline, TrackerParams
 from tudorvision.stereo.detection import SphereDetection
-from tudorvision.stereo.remeasure import luma_view_at_radius, refine_circle_on_luma_at_radius
+from tudorvision.stereo.remeasure import (RELAXED_MAX_MISMATCH, luma_support, luma_view_at_radius,
+                                          refine_circle_on_luma_at_radius)
 from tudorvision.stereo.rim_edge import refine_circle_on_luma
 
 SS = 8
 
 
-def _disc_gray(h, w, cu, cv_, r, inside=170.0, outside=70.0, dead_arc=None):
-    """Luma of a supersampled disc; ``dead_arc`` (a0, a1) radians: there the ground takes the disc's level,
-    so that part of the rim has no contrast (a background of the sphere's brightness beside it)."""
+def _disc_gray(h, w, cu, cv_, r, inside=170.0, outside=70.0, dead_arc=None, dead_arcs=()):
+    """Luma of a supersampled disc; ``dead_arc`` (a0, a1) radians (or several, ``dead_arcs``): there the ground
+    takes the disc's level, so that part of the rim has no contrast (a background of the sphere's brightness
+    beside it, a link across it)."""
     xs = -0.5 + (np.arange(w * SS) + 0.5) / SS
     ys = -0.5 + (np.arange(h * SS) + 0.5) / SS
     X, Y = np.meshgrid(xs, ys)
     disc = ((X - cu) ** 2 + (Y - cv_) ** 2 <= r * r).astype(np.float32)
     ground = np.full_like(disc, outside)
-    if dead_arc is not None:
-        ang = np.mod(np.arctan2(Y - cv_, X - cu) - dead_arc[0], 2 * math.pi)
-        ground[ang < dead_arc[1] - dead_arc[0]] = inside
+    for arc in ([dead_arc] if dead_arc is not None else []) + list(dead_arcs):
+        ang = np.mod(np.arctan2(Y - cv_, X - cu) - arc[0], 2 * math.pi)
+        ground[ang < arc[1] - arc[0]] = inside
     hi = disc * inside + (1 - disc) * ground
     return cv2.resize(hi, (w, h), interpolation=cv2.INTER_AREA).astype(np.float32)
 
@@ -63,6 +65,73 @@ def test_centre_at_the_known_radius_from_an_off_start(seed):
     assert fit is not None
     assert math.hypot(fit[0] - cu, fit[1] - cv_) < 0.1
     assert abs(fit[2] - r) < 0.2
+
+
+def test_luma_support_counts_the_rays_on_the_circle_and_their_widest_gap():
+    gray = _disc_gray(60, 60, 30.2, 29.7, 14.0)
+    frac, gap = luma_support(gray, None, (30.2, 29.7), 14.0)
+    assert frac > 0.95 and gap < math.radians(20)
+    frac_off, _ = luma_support(gray, None, (31.7, 29.7), 14.0)          # 1.5 px off: fewer rays within 0.5 px
+    assert frac_off < 0.6
+    half = _disc_gray(60, 60, 30.2, 29.7, 14.0, dead_arc=(-0.5 * math.pi, 0.5 * math.pi))
+    frac, gap = luma_support(half, None, (30.2, 29.7), 14.0)
+    assert 0.4 < frac < 0.6 and gap >= math.pi - 1e-9
+
+
+def _two_arcs(rng, r):
+    """A disc whose rim has contrast only on two opposite arcs of 68-80 deg each (a link and the other sphere
+    across it: 38-44 % of the rays), started 1-2 px off with the radius 1 % off."""
+    n = int(2 * r + 30)
+    cu, cv_ = n / 2 + rng.uniform(-1, 1), n / 2 + rng.uniform(-1, 1)
+    a0, live = rng.uniform(0, 2 * math.pi), math.radians(rng.uniform(68, 80))
+    dead = [(a0 + live, a0 + math.pi), (a0 + math.pi + live, a0 + 2 * math.pi)]
+    gray = _disc_gray(n, n, cu, cv_, r, dead_arcs=dead) + rng.normal(0, 1.5, (n, n)).astype(np.float32)
+    off = rng.uniform(1.0, 2.0) * np.array([math.cos(a0 + 0.5 * live), math.sin(a0 + 0.5 * live)])
+    return gray, (cu, cv_), (cu + off[0], cv_ + off[1]), r * rng.choice([0.99, 1.01])
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_a_rim_of_which_a_third_has_contrast_needs_the_relaxed_fraction(seed):
+    """Seeded: two opposite arcs with contrast, a third of the rim: the half-the-rays refine finds nothing, the
+    relaxed one (0.3) the centre within 0.15 px."""
+    rng = np.random.default_rng(100 + seed)
+    gray, (cu, cv_), start, radius = _two_arcs(rng, rng.uniform(8, 25))
+    assert refine_circle_on_luma_at_radius(gray, None, start, radius) is None
+    fit = refine_circle_on_luma_at_radius(gray, None, start, radius, min_fraction=0.3)
+    assert fit is not None and fit[3] < 0.5
+    assert math.hypot(fit[0] - cu, fit[1] - cv_) < 0.15
+
+
+def test_the_relaxed_fraction_refuses_a_rim_seen_on_one_side_only():
+    """A single arc of 140 deg (39 % of the rays) holds enough rays for 0.3 but lies on one side: refused."""
+    n, cu, cv_, r = 60, 30.3, 29.6, 14.0
+    gray = _disc_gray(n, n, cu, cv_, r, dead_arc=(math.radians(140), 2 * math.pi))
+    frac, gap = luma_support(gray, None, (cu, cv_), r)
+    assert 0.3 < frac < 0.5 and gap > math.pi
+    assert refine_circle_on_luma_at_radius(gray, None, (cu + 0.8, cv_ + 0.6), r, min_fraction=0.3) is None
+
+
+def _colour_image(gray):
+    img = np.repeat(np.clip(gray, 0, 255)[..., None], 3, axis=2).astype(np.uint8)
+    model = ColorModel(mean=[200, 170, 170, 0, 40, 200], std=[60] * 6, background=np.ones((6, 256)), prior=0.05)
+    return img, model
+
+
+def test_a_view_on_a_third_of_its_rim_is_measured_again_only_under_the_relaxed_guards():
+    """A colour view 1-2 px off with a third of its luma rim live: re-measured (``agree`` tight); refused when
+    the pair's radii differ by more than RELAXED_MAX_MISMATCH; and a view already on the centre is left
+    alone (its old centre lies as well on the rim as the new one)."""
+    rng = np.random.default_rng(7)
+    gray, (cu, cv_), start, radius = _two_arcs(rng, 12.0)
+    img, model = _colour_image(gray)
+    det = SphereDetection(uv=start, area_px=400.0, mean_prob=0.9, circularity=0.9, valid=True, method="chroma",
+                          circle_radius_px=radius)
+    new = luma_view_at_radius(img, model, det, radius, lambda uv, r: 0.0)
+    assert new is not None and new.method == "edge"
+    assert math.hypot(new.uv[0] - cu, new.uv[1] - cv_) < 0.15
+    assert luma_view_at_radius(img, model, det, radius, lambda uv, r: 1.5 * RELAXED_MAX_MISMATCH) is None
+    on_centre = replace(det, uv=(cu, cv_), circle_radius_px=12.0)
+    assert luma_view_at_radius(img, model, on_centre, 12.0, lambda uv, r: 0.0) is None
 
 
 def test_a_flat_patch_gives_none():

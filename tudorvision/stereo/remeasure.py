@@ -34,10 +34,21 @@ import numpy as np
 
 from .colormodel import ColorModel
 from .detection import SphereDetection
-from .rim_edge import chroma_circle, refine_luma_from_first_fit, sphere_chroma
+from .rim_edge import chroma_circle, luma_rim_points, refine_luma_from_first_fit, sphere_chroma
 from .segment import log_odds_image
 
-__all__ = ["chroma_view_at_radius", "luma_view_at_radius", "refine_circle_on_luma_at_radius"]
+__all__ = ["chroma_view_at_radius", "luma_support", "luma_view_at_radius", "refine_circle_on_luma_at_radius"]
+
+#: A view of at least this apparent radius (px) may be re-measured on a luma rim that holds fewer than half of
+#: its rays (a link or the other sphere across it), down to ``RELAXED_FRACTION`` of them, under three guards:
+#: those rays spread around the circle (no gap of half a turn), at least ``RELAXED_SUPPORT_MARGIN`` more of them
+#: than the old centre has on a circle of the same radius, and a pair whose radii agree within
+#: ``RELAXED_MAX_MISMATCH`` (log ratio). Smaller views keep the half (on the sphere family the relaxed rule made
+#: 4-5 px views worse).
+RELAXED_MIN_PX = 5.0
+RELAXED_FRACTION = 0.3
+RELAXED_SUPPORT_MARGIN = 0.1
+RELAXED_MAX_MISMATCH = 0.03
 
 #: ``agree(uv, radius_px)``: the pair's log radius mismatch with this view at ``uv`` and ``radius_px`` when the
 #: pair is consistent (radius and epipolar line), else None.
@@ -63,7 +74,43 @@ def _centre_at_radius(pts: np.ndarray, centre, radius: float, bands) -> tuple | 
     return float(c[0]), float(c[1])
 
 
-def refine_circle_on_luma_at_radius(gray, log_odds, centre, radius: float, *, min_contrast: float = 8.0):
+def luma_support(gray, log_odds, centre, radius: float, *, min_contrast: float = 8.0, tol_px: float = 0.5):
+    """How well a circle lies on the luma rim: the fraction of its rays with an edge point within ``tol_px`` of it,
+    and the widest angular gap between those points (radians; 2 pi when there are none).
+
+    Parameters
+    ----------
+    gray, log_odds, centre, radius, min_contrast
+        As for :func:`~tudorvision.stereo.rim_edge.luma_rim_points` (rays 3 px either side of the circle).
+    tol_px : float
+        Largest distance of an edge point from the circle, pixels.
+
+    Returns
+    -------
+    fraction : float
+    max_gap_rad : float
+
+    Examples
+    --------
+    >>> yy, xx = np.mgrid[0:40, 0:40]
+    >>> disc = np.clip(10.5 - np.hypot(xx - 20.0, yy - 20.0), 0, 1)
+    >>> gray = (60 + 100 * disc).astype(np.float32)
+    >>> gray[:, 20:] = 60 + 100 * disc[:, 20:] * 0.05        # only the left half of the rim has contrast
+    >>> frac, gap = luma_support(gray, None, (20.0, 20.0), 10.0)
+    >>> round(frac, 2), round(float(np.degrees(gap)))
+    (0.48, 191)
+    """
+    pts, n = luma_rim_points(gray, log_odds, centre, radius, min_contrast=min_contrast)
+    on = np.abs(np.hypot(pts[:, 0] - centre[0], pts[:, 1] - centre[1]) - radius) < tol_px
+    if not np.any(on):
+        return 0.0, 2.0 * math.pi
+    ang = np.sort(np.arctan2(pts[on, 1] - centre[1], pts[on, 0] - centre[0]))
+    gaps = np.diff(np.concatenate([ang, ang[:1] + 2.0 * math.pi]))
+    return float(np.count_nonzero(on)) / n, float(gaps.max())
+
+
+def refine_circle_on_luma_at_radius(gray, log_odds, centre, radius: float, *, min_contrast: float = 8.0,
+                                    min_fraction: float = 0.5):
     """The luma rim circle of a sphere whose radius is known (the other camera's), from an off centre, or None.
 
     A view measured on its colour (chroma edge or colour rim) can sit 1-3 px off the sphere while its radius
@@ -80,6 +127,9 @@ def refine_circle_on_luma_at_radius(gray, log_odds, centre, radius: float, *, mi
         As for :func:`~tudorvision.stereo.rim_edge.luma_rim_points`.
     radius : float
         The sphere's apparent radius in this view (pixels), e.g. predicted from the other camera's.
+    min_fraction : float
+        Smallest fraction of the rays within 0.5 px of the final circle. Below one half, those rays must
+        also spread around the circle (no gap of half a turn or more between them).
 
     Returns
     -------
@@ -104,9 +154,13 @@ def refine_circle_on_luma_at_radius(gray, log_odds, centre, radius: float, *, mi
         c = _centre_at_radius(pts, centre, float(radius), (3.0, 1.5, 1.0, 0.5))
         return None if c is None else (c[0], c[1], radius)
 
-    # from an off start fewer rays find the rim (0.35 of them suffice); the final refine asks half
-    return refine_luma_from_first_fit(gray, log_odds, centre, radius, first_fit, min_fraction=0.35,
-                                      min_contrast=min_contrast)
+    # from an off start fewer rays find the rim (0.35 of them suffice); the final refine asks min_fraction
+    fit = refine_luma_from_first_fit(gray, log_odds, centre, radius, first_fit, min_fraction=0.35,
+                                     min_contrast=min_contrast, fit_min_fraction=min_fraction)
+    if fit is None or min_fraction >= 0.5:
+        return fit
+    _, gap = luma_support(gray, log_odds, fit[:2], fit[2], min_contrast=min_contrast)
+    return fit if gap < math.pi else None
 
 
 def chroma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want_px: float,
@@ -150,6 +204,10 @@ def luma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want
                         min_contrast: float = 8.0) -> SphereDetection | None:
     """The view ``det`` measured again on its luma rim, started at the predicted radius, or None.
 
+    Half of the rays must lie on the new circle; for a view of ``RELAXED_MIN_PX`` or more, ``RELAXED_FRACTION``
+    of them under the guards described there (sphere family, seeds 0 / 2: 8-15 px 3D 1.77 / 2.15 -> 1.42 /
+    2.12 mm, 5-8 px 4.08 / 2.18 -> 4.08 / 1.96 mm; docs/benchmarks.md).
+
     Parameters
     ----------
     frame_bgr, model, det, want_px, agree
@@ -184,11 +242,18 @@ def luma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want
         return None
     win = np.ascontiguousarray(frame_bgr[y0:y1, x0:x1])
     gray = cv2.cvtColor(win, cv2.COLOR_BGR2GRAY).astype(np.float32)
-    fit = refine_circle_on_luma_at_radius(gray, log_odds_image(win, model), (det.uv[0] - x0, det.uv[1] - y0),
-                                          want_px, min_contrast=min_contrast)
+    log_odds = log_odds_image(win, model)
+    start = (det.uv[0] - x0, det.uv[1] - y0)
+    fit = refine_circle_on_luma_at_radius(gray, log_odds, start, want_px, min_contrast=min_contrast,
+                                          min_fraction=RELAXED_FRACTION if want_px >= RELAXED_MIN_PX else 0.5)
     if fit is None:
         return None
+    relaxed = fit[3] < 0.5
+    if relaxed and fit[3] < luma_support(gray, log_odds, start, fit[2], min_contrast=min_contrast)[0] + \
+            RELAXED_SUPPORT_MARGIN:
+        return None                      # the old centre lies about as well on the luma rim
     uv = (fit[0] + x0, fit[1] + y0)
-    if agree(uv, fit[2]) is None:
+    mis = agree(uv, fit[2])
+    if mis is None or (relaxed and mis > RELAXED_MAX_MISMATCH):
         return None
     return replace(det, uv=uv, method="edge", circle_radius_px=fit[2])

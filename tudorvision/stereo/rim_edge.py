@@ -272,7 +272,7 @@ def refine_circle_on_luma_wide(gray, log_odds, centre, radius: float, *, span_fr
 
 
 def refine_luma_from_first_fit(gray, log_odds, centre, radius: float, first_fit, *, span: float = 3.0,
-                               min_fraction: float = 0.5, min_contrast: float = 8.0):
+                               min_fraction: float = 0.5, min_contrast: float = 8.0, fit_min_fraction: float = 0.5):
     """A rough circle fitted to the luma rim points, kept only as a start from which the ordinary refine converges.
 
     The mechanism of :func:`refine_circle_on_luma_wide` and
@@ -289,6 +289,9 @@ def refine_luma_from_first_fit(gray, log_odds, centre, radius: float, first_fit,
         The rays reach this many pixels either side of the first circle.
     min_fraction : float
         Smallest fraction of the rays (and at least 8) that must find an edge point.
+    fit_min_fraction : float
+        ``min_fraction`` of the final :func:`refine_circle_on_luma`: the fraction of its rays within 0.5 px
+        of its circle.
 
     Returns
     -------
@@ -301,7 +304,8 @@ def refine_luma_from_first_fit(gray, log_odds, centre, radius: float, first_fit,
     fit = first_fit(pts)
     if fit is None:
         return None
-    return refine_circle_on_luma(gray, log_odds, fit[:2], fit[2], min_contrast=min_contrast)
+    return refine_circle_on_luma(gray, log_odds, fit[:2], fit[2], min_contrast=min_contrast,
+                                 min_fraction=fit_min_fraction)
 
 
 @functools.lru_cache(maxsize=64)
