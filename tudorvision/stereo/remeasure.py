@@ -44,11 +44,14 @@ __all__ = ["chroma_view_at_radius", "luma_support", "luma_view_at_radius", "refi
 #: those rays spread around the circle (no gap of half a turn), at least ``RELAXED_SUPPORT_MARGIN`` more of them
 #: than the old centre has on a circle of the same radius, and a pair whose radii agree within
 #: ``RELAXED_MAX_MISMATCH`` (log ratio). Smaller views keep the half (on the sphere family the relaxed rule made
-#: 4-5 px views worse).
+#: 4-5 px views worse), and so does a view whose colour circle is more than ``RELAXED_MAX_EXCESS`` larger than the
+#: radius predicted for it: a colour circle stops short of a shaded limb rather than beyond the silhouette, so
+#: there the predicting view's own radius is the doubtful one (on the family such views were pulled off).
 RELAXED_MIN_PX = 5.0
 RELAXED_FRACTION = 0.3
 RELAXED_SUPPORT_MARGIN = 0.1
 RELAXED_MAX_MISMATCH = 0.03
+RELAXED_MAX_EXCESS = 0.02
 
 #: ``agree(uv, radius_px)``: the pair's log radius mismatch with this view at ``uv`` and ``radius_px`` when the
 #: pair is consistent (radius and epipolar line), else None.
@@ -205,8 +208,8 @@ def luma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want
     """The view ``det`` measured again on its luma rim, started at the predicted radius, or None.
 
     Half of the rays must lie on the new circle; for a view of ``RELAXED_MIN_PX`` or more, ``RELAXED_FRACTION``
-    of them under the guards described there (sphere family, seeds 0 / 2: 8-15 px 3D 1.77 / 2.15 -> 1.42 /
-    2.12 mm, 5-8 px 4.08 / 2.18 -> 4.08 / 1.96 mm; docs/benchmarks.md).
+    of them under the guards described there (sphere family, seeds 0 / 2 / 3: 8-15 px 3D 1.77 / 2.15 / 1.47 ->
+    1.42 / 2.12 / 1.44 mm; docs/benchmarks.md).
 
     Parameters
     ----------
@@ -244,8 +247,9 @@ def luma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want
     gray = cv2.cvtColor(win, cv2.COLOR_BGR2GRAY).astype(np.float32)
     log_odds = log_odds_image(win, model)
     start = (det.uv[0] - x0, det.uv[1] - y0)
+    may_relax = want_px >= RELAXED_MIN_PX and not det.circle_radius_px > (1.0 + RELAXED_MAX_EXCESS) * want_px
     fit = refine_circle_on_luma_at_radius(gray, log_odds, start, want_px, min_contrast=min_contrast,
-                                          min_fraction=RELAXED_FRACTION if want_px >= RELAXED_MIN_PX else 0.5)
+                                          min_fraction=RELAXED_FRACTION if may_relax else 0.5)
     if fit is None:
         return None
     relaxed = fit[3] < 0.5
