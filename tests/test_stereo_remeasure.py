@@ -121,7 +121,7 @@ def test_a_view_on_a_third_of_its_rim_is_measured_again_only_under_the_relaxed_g
     """A colour view 1-2 px off with 38-44 % of its luma rim live: re-measured (``agree`` tight); refused when
     the pair's radii differ by more than RELAXED_MAX_MISMATCH; a view already on the centre is left alone
     (its old centre lies as well on the rim as the new one), and so is one whose colour circle is larger than
-    the radius predicted for it."""
+    the radius predicted for it, or whose radius comes from another colour view (``relax=False``)."""
     rng = np.random.default_rng(7)
     gray, (cu, cv_), start, radius = _two_arcs(rng, 12.0)
     img, model = _colour_image(gray)
@@ -131,6 +131,7 @@ def test_a_view_on_a_third_of_its_rim_is_measured_again_only_under_the_relaxed_g
     assert new is not None and new.method == "edge"
     assert math.hypot(new.uv[0] - cu, new.uv[1] - cv_) < 0.15
     assert luma_view_at_radius(img, model, det, radius, lambda uv, r: 1.5 * RELAXED_MAX_MISMATCH) is None
+    assert luma_view_at_radius(img, model, det, radius, lambda uv, r: 0.0, relax=False) is None   # no luma partner
     on_centre = replace(det, uv=(cu, cv_), circle_radius_px=12.0)
     assert luma_view_at_radius(img, model, on_centre, 12.0, lambda uv, r: 0.0) is None
     # a colour circle 5 % larger than the radius predicted for it: the prediction is the doubtful one

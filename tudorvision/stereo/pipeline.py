@@ -500,7 +500,8 @@ class StereoPipeline:
                 continue
             new = luma_view_at_radius(images[bad], self._models[bad][s], views[bad], want,
                                       self._agree(s, bad, good, dets, r_good),
-                                      min_contrast=self.options.tracker.segment.edge_min_contrast)
+                                      min_contrast=self.options.tracker.segment.edge_min_contrast,
+                                      relax=views[good].method == "edge")
             if new is not None:
                 self.n_luma_repaired += 1
                 out = {**out, bad: {**out[bad], s: new}}

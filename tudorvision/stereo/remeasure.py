@@ -204,7 +204,7 @@ def chroma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, wa
 
 
 def luma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want_px: float, agree: Agree, *,
-                        min_contrast: float = 8.0) -> SphereDetection | None:
+                        min_contrast: float = 8.0, relax: bool = True) -> SphereDetection | None:
     """The view ``det`` measured again on its luma rim, started at the predicted radius, or None.
 
     Half of the rays must lie on the new circle; for a view of ``RELAXED_MIN_PX`` or more, ``RELAXED_FRACTION``
@@ -217,6 +217,9 @@ def luma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want
         As for :func:`chroma_view_at_radius`; ``model`` gives the colour gate of the luma edge points.
     min_contrast : float
         Smallest luma contrast of a ray (``SegmentParams.edge_min_contrast``).
+    relax : bool
+        Whether the relaxed fraction may be used at all: only when ``want_px`` comes from a view on its luma
+        rim (two colour views give no radius to trust that far; on the sphere family such a pair went wrong).
 
     Returns
     -------
@@ -247,7 +250,7 @@ def luma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want
     gray = cv2.cvtColor(win, cv2.COLOR_BGR2GRAY).astype(np.float32)
     log_odds = log_odds_image(win, model)
     start = (det.uv[0] - x0, det.uv[1] - y0)
-    may_relax = want_px >= RELAXED_MIN_PX and not det.circle_radius_px > (1.0 + RELAXED_MAX_EXCESS) * want_px
+    may_relax = relax and want_px >= RELAXED_MIN_PX and not det.circle_radius_px > (1.0 + RELAXED_MAX_EXCESS) * want_px
     fit = refine_circle_on_luma_at_radius(gray, log_odds, start, want_px, min_contrast=min_contrast,
                                           min_fraction=RELAXED_FRACTION if may_relax else 0.5)
     if fit is None:
