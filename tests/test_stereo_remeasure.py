@@ -141,6 +141,27 @@ def test_a_view_on_a_third_of_its_rim_is_measured_again_only_under_the_relaxed_g
                                lambda uv, r: 0.0) is not None
 
 
+@pytest.mark.parametrize("seed", range(6))
+def test_a_colour_circle_several_pixels_off_is_found_from_the_wider_starts(seed):
+    """Seeded: a colour view 0.3-0.45 radii off the sphere (it took some background of its colour), radius
+    right: nothing from its own centre; half a radius either side of it the luma rim is found, within 0.15 px.
+    Without a luma partner (``relax=False``) the wider starts are not tried."""
+    rng = np.random.default_rng(300 + seed)
+    r = rng.uniform(7, 20)
+    n = int(4 * r + 30)
+    cu, cv_ = n / 2 + rng.uniform(-1, 1), n / 2 + rng.uniform(-1, 1)
+    gray = _disc_gray(n, n, cu, cv_, r) + rng.normal(0, 1.5, (n, n)).astype(np.float32)
+    img, model = _colour_image(gray)
+    a = rng.uniform(0, 2 * math.pi)
+    off = rng.uniform(0.3, 0.45) * r * np.array([math.cos(a), math.sin(a)])
+    det = SphereDetection(uv=(cu + off[0], cv_ + off[1]), area_px=3.0 * r * r, mean_prob=0.9, circularity=0.9,
+                          valid=True, method="chroma", circle_radius_px=r)
+    assert luma_view_at_radius(img, model, det, r, lambda uv, rr: 0.0, relax=False) is None
+    new = luma_view_at_radius(img, model, det, r, lambda uv, rr: math.hypot(uv[0] - det.uv[0], uv[1] - det.uv[1]))
+    assert new is not None and new.method == "edge"
+    assert math.hypot(new.uv[0] - cu, new.uv[1] - cv_) < 0.15 and abs(new.circle_radius_px - r) < 0.2
+
+
 def test_a_flat_patch_gives_none():
     gray = np.full((60, 60), 100.0, np.float32)
     assert refine_circle_on_luma_at_radius(gray, None, (30.0, 30.0), 12.0) is None

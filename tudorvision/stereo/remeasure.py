@@ -208,8 +208,11 @@ def luma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want
     """The view ``det`` measured again on its luma rim, started at the predicted radius, or None.
 
     Half of the rays must lie on the new circle; for a view of ``RELAXED_MIN_PX`` or more, ``RELAXED_FRACTION``
-    of them under the guards described there (sphere family, seeds 0 / 2 / 3: 8-15 px 3D 1.77 / 2.15 / 1.47 ->
-    1.42 / 2.12 / 1.44 mm; docs/benchmarks.md).
+    of them under the guards described there. When nothing is found from the view's own centre (and ``relax``),
+    the search starts again half a predicted radius from it in eight directions (half of the rays on the
+    circle), for a colour circle that took some background of its colour and sits several pixels off; of those
+    the one the pair agrees with best. Sphere family: docs/benchmarks.md, "Issue 15: a luma rim partly hidden,
+    and a colour circle several pixels off".
 
     Parameters
     ----------
@@ -218,8 +221,9 @@ def luma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want
     min_contrast : float
         Smallest luma contrast of a ray (``SegmentParams.edge_min_contrast``).
     relax : bool
-        Whether the relaxed fraction may be used at all: only when ``want_px`` comes from a view on its luma
-        rim (two colour views give no radius to trust that far; on the sphere family such a pair went wrong).
+        Whether the relaxed fraction and the wider starts may be used at all: only when ``want_px`` comes from
+        a view on its luma rim (two colour views give no radius to trust that far; on the sphere family such a
+        pair went wrong).
 
     Returns
     -------
@@ -240,19 +244,42 @@ def luma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want
     >>> new.method, round(new.uv[0], 1), round(new.uv[1], 1)
     ('edge', 40.3, 38.6)
     """
+    may_relax = relax and want_px >= RELAXED_MIN_PX and not det.circle_radius_px > (1.0 + RELAXED_MAX_EXCESS) * want_px
+    got = _luma_circle_near(frame_bgr, model, det.uv, want_px, agree, min_contrast,
+                            RELAXED_FRACTION if may_relax else 0.5)
+    if got is None and relax and want_px >= RELAXED_MIN_PX:
+        # a colour circle several pixels off (it took some background of its colour): started half a radius
+        # from it in eight directions, half of the rays on the circle, the start that agrees best
+        u0, v0 = det.uv
+        tries = [_luma_circle_near(frame_bgr, model, (u0 + du * want_px, v0 + dv * want_px), want_px, agree,
+                                   min_contrast, 0.5)
+                 for du, dv in _WIDER_STARTS]
+        got = min((t for t in tries if t is not None), key=lambda t: t[0], default=None)
+    if got is None:
+        return None
+    return replace(det, uv=got[1], method="edge", circle_radius_px=got[2])
+
+
+#: Starts of the wider search of :func:`luma_view_at_radius`, in predicted radii from the colour circle.
+_WIDER_STARTS = tuple((0.5 * math.cos(a), 0.5 * math.sin(a)) for a in np.arange(8) * (math.pi / 4))
+
+
+def _luma_circle_near(frame_bgr, model: ColorModel, centre_uv, want_px: float, agree: Agree, min_contrast: float,
+                      min_fraction: float):
+    """``(mismatch, (u, v), r)`` of the luma circle found from ``centre_uv`` at ``want_px`` that the pair agrees
+    with, or None (the relaxed guards of :data:`RELAXED_MIN_PX` apply when fewer than half its rays fit)."""
     h, w = frame_bgr.shape[:2]
     m = int(math.ceil(want_px)) + 7
-    x0, y0 = max(int(det.uv[0]) - m, 0), max(int(det.uv[1]) - m, 0)
-    x1, y1 = min(int(det.uv[0]) + m + 1, w), min(int(det.uv[1]) + m + 1, h)
+    x0, y0 = max(int(centre_uv[0]) - m, 0), max(int(centre_uv[1]) - m, 0)
+    x1, y1 = min(int(centre_uv[0]) + m + 1, w), min(int(centre_uv[1]) + m + 1, h)
     if x1 - x0 < 4 or y1 - y0 < 4:
         return None
     win = np.ascontiguousarray(frame_bgr[y0:y1, x0:x1])
     gray = cv2.cvtColor(win, cv2.COLOR_BGR2GRAY).astype(np.float32)
     log_odds = log_odds_image(win, model)
-    start = (det.uv[0] - x0, det.uv[1] - y0)
-    may_relax = relax and want_px >= RELAXED_MIN_PX and not det.circle_radius_px > (1.0 + RELAXED_MAX_EXCESS) * want_px
+    start = (centre_uv[0] - x0, centre_uv[1] - y0)
     fit = refine_circle_on_luma_at_radius(gray, log_odds, start, want_px, min_contrast=min_contrast,
-                                          min_fraction=RELAXED_FRACTION if may_relax else 0.5)
+                                          min_fraction=min_fraction)
     if fit is None:
         return None
     relaxed = fit[3] < 0.5
@@ -263,4 +290,4 @@ def luma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want
     mis = agree(uv, fit[2])
     if mis is None or (relaxed and mis > RELAXED_MAX_MISMATCH):
         return None
-    return replace(det, uv=uv, method="edge", circle_radius_px=fit[2])
+    return mis, uv, fit[2]
