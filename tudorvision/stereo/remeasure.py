@@ -210,8 +210,9 @@ def luma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want
     Half of the rays must lie on the new circle; for a view of ``RELAXED_MIN_PX`` or more, ``RELAXED_FRACTION``
     of them under the guards described there. When nothing is found from the view's own centre (and ``relax``),
     the search starts again half a predicted radius from it in eight directions (half of the rays on the
-    circle), for a colour circle that took some background of its colour and sits several pixels off; of those
-    the one the pair agrees with best. Sphere family: docs/benchmarks.md, "Issue 15: a luma rim partly hidden,
+    circle), for a colour circle that took some background of its colour and sits several pixels off; a circle
+    is kept only when two starts reach it (within ``WIDER_SAME_PX``), of those the one the pair agrees with
+    best. Sphere family: docs/benchmarks.md, "Issue 15: a luma rim partly hidden,
     and a colour circle several pixels off".
 
     Parameters
@@ -254,12 +255,18 @@ def luma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want
         tries = [_luma_circle_near(frame_bgr, model, (u0 + du * want_px, v0 + dv * want_px), want_px, agree,
                                    min_contrast, 0.5)
                  for du, dv in _WIDER_STARTS]
-        got = min((t for t in tries if t is not None), key=lambda t: t[0], default=None)
+        found = [t for t in tries if t is not None]
+        # a rim found from one start only may be a shading or blur edge: two starts must reach the same circle
+        agreed = [t for t in found if sum(math.hypot(t[1][0] - o[1][0], t[1][1] - o[1][1]) < WIDER_SAME_PX
+                                          for o in found) >= 2]
+        got = min(agreed, key=lambda t: t[0], default=None)
     if got is None:
         return None
     return replace(det, uv=got[1], method="edge", circle_radius_px=got[2])
 
 
+#: Circles found from two of the wider starts whose centres lie within this (px) are the same circle.
+WIDER_SAME_PX = 0.3
 #: Starts of the wider search of :func:`luma_view_at_radius`, in predicted radii from the colour circle.
 _WIDER_STARTS = tuple((0.5 * math.cos(a), 0.5 * math.sin(a)) for a in np.arange(8) * (math.pi / 4))
 
