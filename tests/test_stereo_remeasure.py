@@ -141,19 +141,20 @@ def test_a_view_on_a_third_of_its_rim_is_measured_again_only_under_the_relaxed_g
                                lambda uv, r: 0.0) is not None
 
 
-@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("seed", range(8))
 def test_a_colour_circle_several_pixels_off_is_found_from_the_wider_starts(seed):
-    """Seeded: a colour view 0.3-0.45 radii off the sphere (it took some background of its colour), radius
-    right: nothing from its own centre; half a radius either side of it the luma rim is found, within 0.15 px.
-    Without a luma partner (``relax=False``) the wider starts are not tried."""
+    """Seeded: a colour view of 12-15 px 0.38-0.45 radii (4.6-6.8 px) off the sphere (it took some background of its colour), radius
+    right: nothing from its own centre; from the starts half a radius from it the luma rim is found, within
+    0.15 px. The offset points between two of the eight starts (22.5 +- 10 deg off one), so that two of them
+    reach the rim, which the search asks for. Without a luma partner (``relax=False``) it is not tried."""
     rng = np.random.default_rng(300 + seed)
-    r = rng.uniform(7, 20)
+    r = rng.uniform(12, 15)
     n = int(4 * r + 30)
     cu, cv_ = n / 2 + rng.uniform(-1, 1), n / 2 + rng.uniform(-1, 1)
     gray = _disc_gray(n, n, cu, cv_, r) + rng.normal(0, 1.5, (n, n)).astype(np.float32)
     img, model = _colour_image(gray)
-    a = rng.uniform(0, 2 * math.pi)
-    off = rng.uniform(0.3, 0.45) * r * np.array([math.cos(a), math.sin(a)])
+    a = math.radians(45 * rng.integers(8) + 22.5 + rng.uniform(-10, 10))
+    off = rng.uniform(0.38, 0.45) * r * np.array([math.cos(a), math.sin(a)])
     det = SphereDetection(uv=(cu + off[0], cv_ + off[1]), area_px=3.0 * r * r, mean_prob=0.9, circularity=0.9,
                           valid=True, method="chroma", circle_radius_px=r)
     assert luma_view_at_radius(img, model, det, r, lambda uv, rr: 0.0, relax=False) is None
