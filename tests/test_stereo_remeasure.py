@@ -145,8 +145,9 @@ def test_a_view_on_a_third_of_its_rim_is_measured_again_only_under_the_relaxed_g
 def test_a_colour_circle_several_pixels_off_is_found_from_the_wider_starts(seed):
     """Seeded: a colour view of 12-15 px, 0.38-0.45 radii (4.6-6.8 px) off the sphere (it took some background
     of its colour), radius right: nothing from its own centre; from the starts half a radius from it the luma
-    rim is found, within 0.15 px. The offset points between two of the eight starts (22.5 +- 10 deg off one), so that two of them
-    reach the rim, which the search asks for. Without a luma partner (``relax=False``) it is not tried."""
+    rim is found, within 0.15 px. The offset points between two of the eight starts (22.5 +- 10 deg off
+    one), so that two of them reach the rim, which the search asks for. Without a luma partner
+    (``relax=False``) it is not tried."""
     rng = np.random.default_rng(300 + seed)
     r = rng.uniform(12, 15)
     n = int(4 * r + 30)
