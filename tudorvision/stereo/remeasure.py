@@ -245,17 +245,28 @@ def luma_view_at_radius(frame_bgr, model: ColorModel, det: SphereDetection, want
     >>> new.method, round(new.uv[0], 1), round(new.uv[1], 1)
     ('edge', 40.3, 38.6)
     """
-    may_relax = relax and want_px >= RELAXED_MIN_PX and not det.circle_radius_px > (1.0 + RELAXED_MAX_EXCESS) * want_px
-    got = _luma_circle_near(frame_bgr, model, det.uv, want_px, agree, min_contrast,
-                            RELAXED_FRACTION if may_relax else 0.5)
-    if got is None and relax and want_px >= RELAXED_MIN_PX:
+    wider = relax and want_px >= RELAXED_MIN_PX
+    may_relax = wider and not det.circle_radius_px > (1.0 + RELAXED_MAX_EXCESS) * want_px
+    # one window (luma and log-odds) for every start: the own centre's and, if needed, the wider ones
+    h, w = frame_bgr.shape[:2]
+    u0, v0 = det.uv
+    m = int(math.ceil((1.5 if wider else 1.0) * want_px)) + 7
+    x0, y0 = max(int(u0) - m, 0), max(int(v0) - m, 0)
+    x1, y1 = min(int(u0) + m + 1, w), min(int(v0) + m + 1, h)
+    if x1 - x0 < 4 or y1 - y0 < 4:
+        return None
+    win = np.ascontiguousarray(frame_bgr[y0:y1, x0:x1])
+    gray = cv2.cvtColor(win, cv2.COLOR_BGR2GRAY).astype(np.float32)
+    log_odds = log_odds_image(win, model)
+
+    def near(u, v, min_fraction):
+        return _luma_circle_near(gray, log_odds, (x0, y0), (u, v), want_px, agree, min_contrast, min_fraction)
+
+    got = near(u0, v0, RELAXED_FRACTION if may_relax else 0.5)
+    if got is None and wider:
         # a colour circle several pixels off (it took some background of its colour): started half a radius
         # from it in eight directions, half of the rays on the circle, the start that agrees best
-        u0, v0 = det.uv
-        tries = [_luma_circle_near(frame_bgr, model, (u0 + du * want_px, v0 + dv * want_px), want_px, agree,
-                                   min_contrast, 0.5)
-                 for du, dv in _WIDER_STARTS]
-        found = [t for t in tries if t is not None]
+        found = [t for du, dv in _WIDER_STARTS if (t := near(u0 + du * want_px, v0 + dv * want_px, 0.5)) is not None]
         # a rim found from one start only may be a shading or blur edge: two starts must reach the same circle
         agreed = [t for t in found if sum(math.hypot(t[1][0] - o[1][0], t[1][1] - o[1][1]) < WIDER_SAME_PX
                                           for o in found) >= 2]
@@ -271,19 +282,12 @@ WIDER_SAME_PX = 0.3
 _WIDER_STARTS = tuple((0.5 * math.cos(a), 0.5 * math.sin(a)) for a in np.arange(8) * (math.pi / 4))
 
 
-def _luma_circle_near(frame_bgr, model: ColorModel, centre_uv, want_px: float, agree: Agree, min_contrast: float,
+def _luma_circle_near(gray, log_odds, offset, centre_uv, want_px: float, agree: Agree, min_contrast: float,
                       min_fraction: float):
-    """``(mismatch, (u, v), r)`` of the luma circle found from ``centre_uv`` at ``want_px`` that the pair agrees
-    with, or None (the relaxed guards of :data:`RELAXED_MIN_PX` apply when fewer than half its rays fit)."""
-    h, w = frame_bgr.shape[:2]
-    m = int(math.ceil(want_px)) + 7
-    x0, y0 = max(int(centre_uv[0]) - m, 0), max(int(centre_uv[1]) - m, 0)
-    x1, y1 = min(int(centre_uv[0]) + m + 1, w), min(int(centre_uv[1]) + m + 1, h)
-    if x1 - x0 < 4 or y1 - y0 < 4:
-        return None
-    win = np.ascontiguousarray(frame_bgr[y0:y1, x0:x1])
-    gray = cv2.cvtColor(win, cv2.COLOR_BGR2GRAY).astype(np.float32)
-    log_odds = log_odds_image(win, model)
+    """``(mismatch, (u, v), r)`` of the luma circle found from ``centre_uv`` (image pixels) at ``want_px`` that the
+    pair agrees with, or None (the relaxed guards of :data:`RELAXED_MIN_PX` apply when fewer than half its rays
+    fit). ``gray``, ``log_odds``: the window whose top-left pixel is ``offset`` in the image."""
+    x0, y0 = offset
     start = (centre_uv[0] - x0, centre_uv[1] - y0)
     fit = refine_circle_on_luma_at_radius(gray, log_odds, start, want_px, min_contrast=min_contrast,
                                           min_fraction=min_fraction)
