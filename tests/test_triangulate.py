@@ -6,7 +6,7 @@ import pytest
 
 from tudorvision.geometry import invert_transform, make_frame, transform_points
 from tudorvision.io.calibration import Calibration, CameraModel, StereoExtrinsics
-from tudorvision.stereo.triangulate import (compensate_rolling_shutter, projection_matrices,
+from tudorvision.stereo.triangulate import (StereoRig, compensate_rolling_shutter, projection_matrices,
                                             rolling_shutter_times, triangulate_dlt,
                                             triangulate_points, triangulate_spheres,
                                             triangulate_stereo, undistort_points)
@@ -84,6 +84,38 @@ def test_stereo_triangulation_recovers_truth_with_distortion(method, stored_rect
     X_left = triangulate_stereo(uv_l, uv_r, cal, method=method)
     truth_left = transform_points(invert_transform(T_BASE_LEFT), X_base)
     assert np.abs(X_left - truth_left).max() < 1e-6
+
+
+@pytest.mark.parametrize("method", ["normalized", "rectified"])
+def test_stereo_rig_matches_triangulate_stereo_and_a_projected_epipolar_oracle(method):
+    rng = np.random.default_rng(15)
+    X_base = _workspace_points(rng, 40)
+    cal = _calibration()
+    uv_l = _project(X_base, T_BASE_LEFT, DIST_L) + rng.normal(scale=0.3, size=(40, 2))
+    uv_r = _project(X_base, T_BASE_RIGHT, DIST_R)
+    uv_r[:, 1] += rng.uniform(-5.0, 5.0, 40)            # off the epipolar line by a known few pixels
+    uv_l[7] = np.nan
+    rig = StereoRig(cal, method=method)
+    got = rig.triangulate(uv_l, uv_r)
+    want = triangulate_stereo(uv_l, uv_r, cal, method=method)
+    assert np.isnan(got[7]).all() and np.isfinite(np.delete(got, 7, axis=0)).all()
+    assert np.abs(np.delete(got - want, 7, axis=0)).max() < 1e-12
+    # oracle: the left ray's points at two depths projected into the ideal right image give the line
+    und_l = undistort_points(uv_l, K, DIST_L)
+    und_r = undistort_points(uv_r, K, DIST_R, P=K)
+    R, T = T_RIGHT_LEFT[:3, :3], T_RIGHT_LEFT[:3, 3]
+    epi = rig.epipolar_px(uv_l, uv_r)
+    assert np.isnan(epi[7])
+    for i in np.flatnonzero(np.isfinite(und_l[:, 0])):
+        ray = np.r_[und_l[i], 1.0]
+        a, b = ((K @ (R @ (z * ray) + T)) for z in (1.0, 6.0))
+        a, b = a[:2] / a[2], b[:2] / b[2]
+        d = b - a
+        dist = abs(d[0] * (und_r[i, 1] - a[1]) - d[1] * (und_r[i, 0] - a[0])) / np.hypot(*d)
+        assert abs(epi[i] - dist) < 1e-6
+    assert np.nanmax(epi) > 2.0                          # the offsets really moved the points off the lines
+    with pytest.raises(ValueError, match="method"):
+        StereoRig(cal, method="fast")
 
 
 def test_noise_gives_millimetre_level_errors_in_workspace():

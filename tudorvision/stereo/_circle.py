@@ -84,10 +84,14 @@ def fit_rim_circle(pts: np.ndarray, tol: float):
     na, nb = (a * a).sum(axis=1), (b * b).sum(axis=1)
     du = (b[:, 1] * na - a[:, 1] * nb) / det
     dv = (a[:, 0] * nb - b[:, 0] * na) / det
-    res = np.hypot(pts[:, 0] - (du + q[:, 0, 0])[:, None], pts[:, 1] - (dv + q[:, 0, 1])[:, None])
-    res -= np.hypot(du, dv)[:, None]
-    score = (np.abs(res) < tol).sum(axis=1) - 2 * (res > 2.0 * tol).sum(axis=1)
-    inl = np.abs(res[int(np.argmax(score))]) < tol
+    cu, cv_, r = du + q[:, 0, 0], dv + q[:, 0, 1], np.hypot(du, dv)
+    d2 = np.square(pts[:, 0] - cu[:, None])        # squared distances (k, n): no square root per point
+    d2 += np.square(pts[:, 1] - cv_[:, None])
+    lo = r - tol
+    lo2 = np.where(lo > 0.0, lo * lo, -1.0)[:, None]
+    near = (d2 > lo2) & (d2 < np.square(r + tol)[:, None])              # |distance - r| < tol
+    score = near.sum(axis=1) - 2 * (d2 > np.square(r + 2.0 * tol)[:, None]).sum(axis=1)
+    inl = near[int(np.argmax(score))]
     for _ in range(2):
         if np.count_nonzero(inl) < 5:
             return None

@@ -51,7 +51,7 @@ from .segment import SphereDetection, detect_spheres, regions_in_window
 from .stereo_radius import (MIN_GAP_PX, known_radius_verdict, predicted_radius_px, radius_ratio, region_is_larger,
                             region_is_part, view_radius_px)
 from .tracker2d import FrameTracker, TrackerParams
-from .triangulate import SphereTriangulation, triangulate_spheres
+from .triangulate import SphereTriangulation, StereoRig, triangulate_spheres
 
 __all__ = ["PipelineOptions", "StereoFrameResult", "StereoPipeline"]
 
@@ -247,10 +247,8 @@ class StereoPipeline:
         self.frame = "left" if self.T_base_left is None else "base"
         self._models = {cam: {s: color_models.get(cam, s) for s in self.spheres} for cam in ("left", "right")}
         self._trackers = {cam: FrameTracker(m, params=self.options.tracker) for cam, m in self._models.items()}
-        tx, ty, tz = stereo.T
-        self._E = np.array([[0.0, -tz, ty], [tz, 0.0, -tx], [-ty, tx, 0.0]]) @ stereo.R  # x_r^T E x_l = 0
+        self._rig = StereoRig(calibration, method=self.options.method)   # checked once, used per frame
         self._f = {c: 0.5 * (cm.fx + cm.fy) for c, cm in self.cameras.items()}
-        self._f_right = self._f["right"]
         self._last_left = {s: None for s in self.spheres}   # last consistent sphere centre, left frame
         self.n_repaired = 0
         self.n_inconsistent = 0
@@ -297,21 +295,10 @@ class StereoPipeline:
         ndarray, shape (N,)
             Distance in the right image, undistorted, in pixels of its mean focal length.
         """
-        from .triangulate import undistort_points
-
-        cl, cr = self.cameras["left"], self.cameras["right"]
-        xl = undistort_points(np.asarray(uv_left, float).reshape(-1, 2), cl.K, cl.dist)
-        xr = undistort_points(np.asarray(uv_right, float).reshape(-1, 2), cr.K, cr.dist)
-        hl = np.column_stack([xl, np.ones(len(xl))])
-        hr = np.column_stack([xr, np.ones(len(xr))])
-        lines = hl @ self._E.T                    # epipolar lines in the right normalised image
-        num = np.abs(np.sum(lines * hr, axis=1))
-        return self._f_right * num / np.hypot(lines[:, 0], lines[:, 1])
+        return self._rig.epipolar_px(uv_left, uv_right)
 
     def _left_points(self, uv_left, uv_right) -> np.ndarray:
-        from .triangulate import triangulate_stereo
-        return triangulate_stereo(np.reshape(uv_left, (-1, 2)), np.reshape(uv_right, (-1, 2)), self.calibration,
-                                  method=self.options.method)
+        return self._rig.triangulate(uv_left, uv_right)
 
     def _candidates(self, img, cam: str, sphere: str, anywhere: bool = False) -> list:
         """Valid regions of one sphere in a full frame (full resolution), heaviest first.
@@ -379,9 +366,13 @@ class StereoPipeline:
 
     def _triangulate(self, dets: dict) -> SphereTriangulation:
         """The valid detections' sphere centres in the left camera frame (NaN where a view is missing)."""
-        uvl = {s: np.array([dets["left"][s].uv if dets["left"][s].valid else _NAN2]) for s in self.spheres}
-        uvr = {s: np.array([dets["right"][s].uv if dets["right"][s].valid else _NAN2]) for s in self.spheres}
-        return triangulate_spheres(uvl, uvr, self.calibration, T_base_left=None, method=self.options.method)
+        uv = {c: [dets[c][s].uv if dets[c][s].valid else _NAN2 for s in self.spheres] for c in ("left", "right")}
+        p = self._rig.triangulate(uv["left"], uv["right"])
+        ok = np.isfinite(p).all(axis=1)
+        ee = p.mean(axis=0) if ok.all() else np.full(3, np.nan)
+        return SphereTriangulation(spheres={s: p[i:i + 1] for i, s in enumerate(self.spheres)},
+                                   sphere_valid={s: ok[i:i + 1] for i, s in enumerate(self.spheres)},
+                                   ee=ee[None], ee_valid=np.array([ok.all()]), frame="left")
 
     def _check_radii(self, dets: dict, images: dict, tri: SphereTriangulation) -> dict:
         """Compare each sphere's radii between the cameras; re-measure or refuse a view that disagrees.

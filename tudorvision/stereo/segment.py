@@ -234,15 +234,13 @@ def _candidates(log_odds: np.ndarray, params: SegmentParams, offset: tuple, imag
         lab = labels[y:y + h, x:x + w] == k
         if not seeds[y:y + h, x:x + w][lab].any():
             continue  # no seed inside: not grown
-        lo = log_odds[y:y + h, x:x + w][lab].astype(np.float64)
-        p = 1.0 / (1.0 + np.exp(-lo))
-        mean_prob = float(p.mean())
+        p_box = 1.0 / (1.0 + np.exp(-log_odds[y:y + h, x:x + w].astype(np.float64)))
+        mean_prob = float(p_box[lab].mean())
         # the silhouette: holes enclosed by the region (a specular highlight, markings) belong to it
         filled = _fill_holes(lab)
         area = int(np.count_nonzero(filled))
         mb = cv2.moments(filled.view(np.uint8), True)         # one C pass instead of pixel lists
         if params.weighting == "probability":
-            p_box = 1.0 / (1.0 + np.exp(-log_odds[y:y + h, x:x + w].astype(np.float64)))
             mw = cv2.moments(np.where(lab, p_box, filled.astype(np.float64)))     # holes weigh 1
         else:
             mw = mb
