@@ -292,6 +292,9 @@ class SphereDetection:
     blur : bool
         Segmented as a motion-blurred sphere (the blur-tolerant tables): its region may be larger than
         the sphere.
+    uv_view : tuple of float
+        This view's own centre when the stereo pipeline moved ``uv`` onto the epipolar plane of the other
+        view's (``PipelineOptions(epipolar_centres=True)``); ``(nan, nan)`` otherwise.
     """
 
     uv: tuple
@@ -309,6 +312,7 @@ class SphereDetection:
     method: str = "moment"
     circle_radius_px: float = float("nan")
     blur: bool = False
+    uv_view: tuple = (float("nan"), float("nan"))
 
     @property
     def radius_px(self) -> float:

@@ -51,11 +51,14 @@ from .segment import SphereDetection, detect_spheres, regions_in_window
 from .stereo_radius import (MIN_GAP_PX, known_radius_verdict, predicted_radius_px, radius_ratio, region_is_larger,
                             region_is_part, view_radius_px)
 from .tracker2d import FrameTracker, TrackerParams
+from .epipolar import consistent_centres
 from .triangulate import SphereTriangulation, StereoRig, triangulate_spheres
 
 __all__ = ["PipelineOptions", "StereoFrameResult", "StereoPipeline"]
 
 _NAN2 = (float("nan"), float("nan"))
+#: Relative standard deviations of a centre on the luma rim and on the colour (``epipolar_centres``; family: 1 : 2)
+SIGMA_LUMA_RIM, SIGMA_COLOUR = 1.0, 2.0
 
 @dataclass(frozen=True, kw_only=True)
 class PipelineOptions:
@@ -116,6 +119,14 @@ class PipelineOptions:
         A view without a circle (its centre is the region's moment) counts with its area radius, and alone
         when that is short on a sphere of 8 px or more ("the ... view's region is part of the sphere").
         None (default) disables it.
+    epipolar_centres : bool
+        A sphere seen in both views gets its two centres moved onto one epipolar plane, each by the least
+        that its standard deviation allows (:func:`~tudorvision.stereo.epipolar.consistent_centres`; a centre
+        on the luma rim counts twice as certain as one on the colour: ``SIGMA_LUMA_RIM``,
+        ``SIGMA_COLOUR``), after the checks above; the view's own centre stays in ``uv_view``. The
+        triangulated point is then the weighted least-squares one. Only pairs within ``max_epipolar_px``
+        (none when that is None); not with rolling-shutter compensation (a moving sphere's views are not
+        simultaneous there).
     sphere_separation_m : float or None
         Known distance between the sphere centres (two spheres); a frame
         whose triangulated distance differs by more than
@@ -132,6 +143,7 @@ class PipelineOptions:
     max_epipolar_px: float | None = 6.0
     max_radius_mismatch: float | None = 0.12
     sphere_radius_m: float | dict | None = None
+    epipolar_centres: bool = True
     sphere_separation_m: float | None = None
     separation_tol_m: float = 0.03
 
@@ -498,6 +510,22 @@ class StereoPipeline:
                 out = {**out, bad: {**out[bad], s: new}}
         return out
 
+    def _epipolar_centres(self, dets: dict) -> dict:
+        """Each sphere seen in both views with its centres moved onto one epipolar plane (``epipolar_centres``)."""
+        both = [s for s in self.spheres if dets["left"][s].valid and dets["right"][s].valid]
+        tol = self.options.max_epipolar_px
+        if both and tol is not None:    # only pairs the epipolar check passes
+            epi = self.epipolar_px([dets["left"][s].uv for s in both], [dets["right"][s].uv for s in both])
+            both = [s for s, e in zip(both, epi) if e <= tol]
+        if not both or tol is None:
+            return dets
+        sig = {c: [SIGMA_LUMA_RIM if dets[c][s].method == "edge" else SIGMA_COLOUR for s in both] for c in dets}
+        uv = dict(zip(("left", "right"), consistent_centres(self._rig, [dets["left"][s].uv for s in both],
+                                                            [dets["right"][s].uv for s in both],
+                                                            sig["left"], sig["right"])))
+        return {c: {**dets[c], **{s: replace(dets[c][s], uv=(float(uv[c][i, 0]), float(uv[c][i, 1])),
+                                             uv_view=dets[c][s].uv) for i, s in enumerate(both)}} for c in dets}
+
     def _check_image(self, img, cam: str, index: int) -> np.ndarray:
         arr = np.asarray(img)
         if arr.dtype != np.uint8 or arr.ndim != 3 or arr.shape[2] != 3:
@@ -579,7 +607,9 @@ class StereoPipeline:
         tri = self._triangulate(dets)
         checked = self._check_known_radius(self._check_radii(dets, {"left": frame.left, "right": frame.right}, tri),
                                            tri)
-        if checked is not dets:     # a view re-measured or a sphere refused
+        if opt.epipolar_centres and not self.rolling_shutter:
+            checked = self._epipolar_centres(checked)
+        if checked is not dets:     # a view re-measured or moved, or a sphere refused
             dets, tri = checked, self._triangulate(checked)
         for s in self.spheres:
             if tri.sphere_valid[s][0]:

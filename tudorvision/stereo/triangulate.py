@@ -378,7 +378,9 @@ class StereoRig:
             raise ValueError(f"uv_right: expected shape {a.shape} like uv_left, got {b.shape}")
         return a, b, np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
 
-    def _normalised(self, a, b):
+    def normalised(self, uv_left, uv_right) -> tuple:
+        """Undistorted normalised coordinates ``(x_left, x_right)``, each (N, 2), of finite raw pixels (N, 2)."""
+        a, b = (np.asarray(v, dtype=np.float64).reshape(-1, 2) for v in (uv_left, uv_right))
         kw = {"criteria": _UNDISTORT_CRITERIA}
         xl = cv2.undistortPoints(np.ascontiguousarray(a).reshape(-1, 1, 2), self.left.K, self._dist[0], **kw)
         xr = cv2.undistortPoints(np.ascontiguousarray(b).reshape(-1, 1, 2), self.right.K, self._dist[1], **kw)
@@ -400,7 +402,7 @@ class StereoRig:
         a, b, ok = self._pairs(uv_left, uv_right)
         out = np.full(len(a), np.nan)
         if ok.any():
-            xl, xr = self._normalised(a[ok], b[ok])
+            xl, xr = self.normalised(a[ok], b[ok])
             lines = xl @ self.E[:, :2].T + self.E[:, 2]             # E @ (x, y, 1) per left point
             num = np.abs(lines[:, 0] * xr[:, 0] + lines[:, 1] * xr[:, 1] + lines[:, 2])
             out[ok] = self.f_right_px * num / np.hypot(lines[:, 0], lines[:, 1])
@@ -413,7 +415,7 @@ class StereoRig:
             return _triangulate_rig(a, b, self.left, self.right, self.stereo, self.method)
         out = np.full((len(a), 3), np.nan)
         if ok.any():
-            xl, xr = self._normalised(a[ok], b[ok])
+            xl, xr = self.normalised(a[ok], b[ok])
             out[ok] = _triangulate_cv2(xl, xr, _P_IDENTITY, self._P2)
         return out
 
