@@ -9,7 +9,7 @@ from tudorvision.geometry import invert_transform, make_frame, transform_points
 from tudorvision.io import Calibration, CameraModel, StereoExtrinsics
 from tudorvision.io.frames import StereoFrame
 from tudorvision.stereo import ColorModelSet, PipelineOptions, StereoPipeline, fit_color_model
-from tudorvision.stereo.epipolar import consistent_centres, epipolar_correction
+from tudorvision.stereo.epipolar import consistent_centres, distort_normalised, epipolar_correction
 from tudorvision.stereo.triangulate import StereoRig, triangulate_stereo
 
 K = np.array([[900.0, 0.0, 319.5], [0.0, 880.0, 239.5], [0.0, 0.0, 1.0]])
@@ -79,16 +79,25 @@ def test_consistent_centres_meet_through_the_distortion_and_follow_the_weights()
     noisy_r = uv_r + rng.normal(scale=1.0, size=uv_r.shape)
     assert np.median(rig.epipolar_px(uv_l, noisy_r)) > 0.3
     # a near-certain left view: the right one alone moves, onto the left's epipolar line
-    cl, cr = consistent_centres(rig, uv_l, noisy_r, 1e-4, 1.0)
+    cl, cr, moved = consistent_centres(rig, uv_l, noisy_r, 1e-4, 1.0)
+    assert moved.all()
     assert rig.epipolar_px(cl, cr).max() < 1e-6
     assert np.abs(cl - uv_l).max() < 1e-4
     # the move takes out the error across the line, so the right centres come nearer the truth
     assert np.linalg.norm(cr - uv_r, axis=1).mean() < 0.85 * np.linalg.norm(noisy_r - uv_r, axis=1).mean()
     # the triangulated points of an already consistent pair do not move
-    cl2, cr2 = consistent_centres(rig, uv_l, uv_r, 1.0, 2.0)
+    cl2, cr2, _ = consistent_centres(rig, uv_l, uv_r, 1.0, 2.0)
     np.testing.assert_allclose(cl2, uv_l, atol=1e-6)
     np.testing.assert_allclose(cr2, uv_r, atol=1e-6)
     np.testing.assert_allclose(triangulate_stereo(cl2, cr2, cal), triangulate_stereo(uv_l, uv_r, cal), atol=1e-9)
+    # pairs beyond the tolerance are left as measured
+    far_r = noisy_r.copy()
+    far_r[:5, 1] += 12.0                      # far off the epipolar lines (the rig is not parallel)
+    cl3, cr3, moved3 = consistent_centres(rig, uv_l, far_r, 1.0, 1.0, max_epipolar_px=6.0)
+    epi = rig.epipolar_px(uv_l, far_r)
+    np.testing.assert_array_equal(moved3, epi <= 6.0)
+    assert not moved3[:5].all() and moved3[5:].all()
+    np.testing.assert_array_equal(cr3[~moved3], far_r[~moved3])
 
 
 def test_weighted_centres_are_nearer_the_truth_on_average():
@@ -99,7 +108,7 @@ def test_weighted_centres_are_nearer_the_truth_on_average():
     uv_l, uv_r = _project(X, T_BASE_L, DIST_L), _project(X, T_BASE_R, DIST_R)
     nl = uv_l + rng.normal(scale=0.25, size=uv_l.shape)
     nr = uv_r + rng.normal(scale=0.5, size=uv_r.shape)
-    cl, cr = consistent_centres(rig, nl, nr, 1.0, 2.0)
+    cl, cr, _ = consistent_centres(rig, nl, nr, 1.0, 2.0)
     raw_err = np.r_[np.linalg.norm(nl - uv_l, axis=1), np.linalg.norm(nr - uv_r, axis=1)]
     new_err = np.r_[np.linalg.norm(cl - uv_l, axis=1), np.linalg.norm(cr - uv_r, axis=1)]
     assert np.median(new_err) < 0.9 * np.median(raw_err)
@@ -145,3 +154,13 @@ def test_pipeline_moves_both_views_onto_one_row_and_keeps_the_view_centres():
     assert got.detections["right"]["green"].uv == pytest.approx(raw.detections["right"]["green"].uv, abs=1e-3)
     # the point is the triangulation of the moved centres
     np.testing.assert_allclose(got.spheres["red"], triangulate_stereo([dl.uv], [dr.uv], cal)[0], atol=1e-12)
+
+
+@pytest.mark.parametrize("n_coef", [0, 4, 5, 8])
+def test_distortion_matches_opencv_projection(n_coef):
+    rng = np.random.default_rng(20 + n_coef)
+    Kc = np.array([[910.0, 0.0, 322.0], [0.0, 890.0, 241.0], [0.0, 0.0, 1.0]])
+    d = rng.normal(scale=[0.2, 0.05, 1e-3, 1e-3, 0.01, 0.05, 0.01, 0.005][:n_coef])
+    x = rng.uniform(-0.4, 0.4, size=(50, 2))
+    want, _ = cv2.projectPoints(np.c_[x, np.ones(50)].reshape(-1, 1, 3), np.zeros(3), np.zeros(3), Kc, d)
+    np.testing.assert_allclose(distort_normalised(x, Kc, d), want.reshape(-1, 2), atol=1e-9)

@@ -71,6 +71,8 @@ def register(subparsers) -> None:
     s.add_argument("--full-frame", action="store_true", help="search every full frame (no tracking windows)")
     s.add_argument("--no-rolling-shutter", action="store_true",
                    help="do not compensate the rolling shutter even if the calibration has line_time_s")
+    s.add_argument("--no-epipolar-centres", action="store_true",
+                   help="keep each view's own sphere centre instead of moving the pair onto one epipolar plane")
     s.add_argument("--method", choices=("normalized", "rectified"), default="normalized",
                    help="triangulation route (default normalized)")
     s.add_argument("--sphere-separation", type=float, default=None, metavar="M",
@@ -351,7 +353,8 @@ def run_track_stereo(args) -> int:
     tracker, edge_note = luma_edge_params(args.luma_edge, args.seq, getattr(args, "centre", "circle"))
     print(edge_note)
     options = PipelineOptions(tracking=not args.full_frame, method=args.method, tracker=tracker,
-                              rolling_shutter=not args.no_rolling_shutter, sphere_separation_m=sep or None,
+                              rolling_shutter=not args.no_rolling_shutter,
+                              epipolar_centres=not args.no_epipolar_centres, sphere_separation_m=sep or None,
                               sphere_radius_m=None if radius_mm is None else radius_mm / 1000.0)
     log = None
     viewer = open_viewer(args, "tudorvision_stereo")

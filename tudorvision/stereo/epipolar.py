@@ -23,7 +23,9 @@ import numpy as np
 
 from .triangulate import StereoRig
 
-__all__ = ["epipolar_correction", "consistent_centres"]
+__all__ = ["epipolar_correction", "consistent_centres", "distort_normalised"]
+
+_ZERO3 = np.zeros(3)
 
 
 def epipolar_correction(x_left, x_right, E, f_left: float, f_right: float, sigma_left, sigma_right, *,
@@ -63,29 +65,30 @@ def epipolar_correction(x_left, x_right, E, f_left: float, f_right: float, sigma
     """
     xl = np.array(x_left, dtype=np.float64).reshape(-1, 2)
     xr = np.array(x_right, dtype=np.float64).reshape(-1, 2)
-    E = np.asarray(E, dtype=np.float64)
-    wl = 1.0 / np.square(np.broadcast_to(np.asarray(sigma_left, np.float64), (len(xl),)))
-    wr = 1.0 / np.square(np.broadcast_to(np.asarray(sigma_right, np.float64), (len(xl),)))
-    xl0, xr0 = xl, xr
-    for _ in range(iterations):     # linearised at the current pair, the whole move from the measured one
-        hl = np.c_[xl, np.ones(len(xl))]
-        hr = np.c_[xr, np.ones(len(xr))]
-        el = hl @ E.T                                    # E x_left: the line in the right view
-        er = hr @ E                                      # E^T x_right: the line in the left view
-        a = er[:, :2] / f_left                           # the constraint's gradient per pixel of the left move
-        b = el[:, :2] / f_right                          # ... and of the right move
-        # residual at the measured pair, to first order from the current one
-        c = -np.sum(hr * el, axis=1) + np.sum(a * (xl - xl0), axis=1) * f_left \
-            + np.sum(b * (xr - xr0), axis=1) * f_right
-        den = np.sum(a * a, axis=1) / wl + np.sum(b * b, axis=1) / wr
-        with np.errstate(divide="ignore", invalid="ignore"):
-            k = np.where(den > 0.0, c / den, 0.0)
-        xl = xl0 + (k / wl)[:, None] * a / f_left
-        xr = xr0 + (k / wr)[:, None] * b / f_right
+    (e00, e01, e02), (e10, e11, e12), (e20, e21, e22) = np.asarray(E, dtype=np.float64).tolist()
+    sl = np.resize(np.asarray(sigma_left, np.float64), len(xl)).tolist()     # a scalar or one per pair
+    sr = np.resize(np.asarray(sigma_right, np.float64), len(xl)).tolist()
+    fl, fr = float(f_left), float(f_right)
+    for i, ((ul0, vl0), (ur0, vr0)) in enumerate(zip(xl.tolist(), xr.tolist())):   # a few pairs per frame:
+        vl_l, vr_r = sl[i] * sl[i], sr[i] * sr[i]                                  # plain floats, no arrays
+        ul, vl, ur, vr = ul0, vl0, ur0, vr0
+        for _ in range(iterations):     # linearised at the current pair, the whole move from the measured one
+            l0, l1, l2 = e00 * ul + e01 * vl + e02, e10 * ul + e11 * vl + e12, e20 * ul + e21 * vl + e22
+            g0, g1 = e00 * ur + e10 * vr + e20, e01 * ur + e11 * vr + e21     # (E^T x_right)[:2]
+            a0, a1, b0, b1 = g0 / fl, g1 / fl, l0 / fr, l1 / fr               # gradient per pixel of each move
+            # the residual at the measured pair, to first order from the current one
+            c = -(ur * l0 + vr * l1 + l2) + (a0 * (ul - ul0) + a1 * (vl - vl0)) * fl \
+                + (b0 * (ur - ur0) + b1 * (vr - vr0)) * fr
+            den = (a0 * a0 + a1 * a1) * vl_l + (b0 * b0 + b1 * b1) * vr_r
+            k = c / den if den > 0.0 else 0.0
+            ul, vl = ul0 + k * vl_l * a0 / fl, vl0 + k * vl_l * a1 / fl
+            ur, vr = ur0 + k * vr_r * b0 / fr, vr0 + k * vr_r * b1 / fr
+        xl[i], xr[i] = (ul, vl), (ur, vr)
     return xl, xr
 
 
-def consistent_centres(rig: StereoRig, uv_left, uv_right, sigma_left, sigma_right) -> tuple:
+def consistent_centres(rig: StereoRig, uv_left, uv_right, sigma_left, sigma_right, *,
+                       max_epipolar_px: float = float("inf")) -> tuple:
     """Raw (distorted) pixel centres of the pairs moved onto one epipolar plane each.
 
     :func:`epipolar_correction` on the undistorted centres of ``rig``'s two
@@ -99,19 +102,56 @@ def consistent_centres(rig: StereoRig, uv_left, uv_right, sigma_left, sigma_righ
         Raw pixel centres, finite.
     sigma_left, sigma_right : float or array_like, shape (N,)
         Standard deviations of each view's centre (pixels, or any common unit).
+    max_epipolar_px : float
+        Pairs farther apart than this (``rig.epipolar_px``) are left as they are.
 
     Returns
     -------
     uv_left, uv_right : ndarray, shape (N, 2)
         Raw pixel centres whose undistorted rays meet.
+    moved : ndarray of bool, shape (N,)
+        The pairs that were moved (within ``max_epipolar_px``).
     """
-    xl, xr = rig.normalised(uv_left, uv_right)
-    xl, xr = epipolar_correction(xl, xr, rig.E, 0.5 * (rig.left.fx + rig.left.fy),
-                                 0.5 * (rig.right.fx + rig.right.fy), sigma_left, sigma_right)
+    a = np.array(uv_left, dtype=np.float64).reshape(-1, 2)
+    b = np.array(uv_right, dtype=np.float64).reshape(-1, 2)
+    xl, xr = rig.normalised(a, b)
+    moved = rig.epipolar_px_normalised(xl, xr) <= max_epipolar_px
+    if not moved.any():
+        return a, b, moved
+    sl = np.resize(np.asarray(sigma_left, np.float64), len(a))[moved]       # a scalar or one per pair
+    sr = np.resize(np.asarray(sigma_right, np.float64), len(a))[moved]
+    xl, xr = epipolar_correction(xl[moved], xr[moved], rig.E, 0.5 * (rig.left.fx + rig.left.fy),
+                                 0.5 * (rig.right.fx + rig.right.fy), sl, sr)
+    for cam, x, out in ((rig.left, xl, a), (rig.right, xr, b)):
+        out[moved] = distort_normalised(x, cam.K, cam.dist)
+    return a, b, moved
+
+
+def distort_normalised(x, K, dist) -> np.ndarray:
+    """Raw pixels (N, 2) of undistorted normalised coordinates ``x`` (N, 2): OpenCV's camera model.
+
+    The plain radial-tangential model (up to five coefficients ``k1 k2 p1 p2 k3``) is evaluated here
+    (a few points per frame: cheaper than a call into OpenCV); longer models go to :func:`cv2.projectPoints`.
+
+    Examples
+    --------
+    >>> K = np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]])
+    >>> distort_normalised(np.array([[0.1, -0.2]]), K, [0.1, 0, 0, 0, 0]).round(6).tolist()
+    [[370.25, 139.5]]
+    """
+    d = np.asarray(dist, np.float64).ravel()
+    x = np.asarray(x, np.float64).reshape(-1, 2)
+    if len(d) > 5:
+        rays = np.concatenate([x, np.ones((len(x), 1))], axis=1)
+        uv, _ = cv2.projectPoints(rays.reshape(-1, 1, 3), _ZERO3, _ZERO3, K, d)
+        return uv.reshape(-1, 2)
+    k1, k2, p1, p2, k3 = d.tolist() + [0.0] * (5 - len(d))
+    K = np.asarray(K, np.float64)
+    fx, cx, fy, cy = float(K[0, 0]), float(K[0, 2]), float(K[1, 1]), float(K[1, 2])     # as OpenCV: no skew
     out = []
-    for cam, x in ((rig.left, xl), (rig.right, xr)):
-        rays = np.c_[x, np.ones(len(x))]
-        uv, _ = cv2.projectPoints(rays.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), cam.K,
-                                  np.asarray(cam.dist, np.float64).ravel())
-        out.append(uv.reshape(-1, 2))
-    return out[0], out[1]
+    for u, v in x.tolist():     # a few points per frame: plain floats
+        r2 = u * u + v * v
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        out.append((fx * (u * radial + 2.0 * p1 * u * v + p2 * (r2 + 2.0 * u * u)) + cx,
+                    fy * (v * radial + p1 * (r2 + 2.0 * v * v) + 2.0 * p2 * u * v) + cy))
+    return np.array(out, dtype=np.float64).reshape(-1, 2)

@@ -514,17 +514,15 @@ class StereoPipeline:
         """Each sphere seen in both views with its centres moved onto one epipolar plane (``epipolar_centres``)."""
         both = [s for s in self.spheres if dets["left"][s].valid and dets["right"][s].valid]
         tol = self.options.max_epipolar_px
-        if both and tol is not None:    # only pairs the epipolar check passes
-            epi = self.epipolar_px([dets["left"][s].uv for s in both], [dets["right"][s].uv for s in both])
-            both = [s for s, e in zip(both, epi) if e <= tol]
-        if not both or tol is None:
+        if not both or tol is None:     # only pairs the epipolar check passes
             return dets
         sig = {c: [SIGMA_LUMA_RIM if dets[c][s].method == "edge" else SIGMA_COLOUR for s in both] for c in dets}
-        uv = dict(zip(("left", "right"), consistent_centres(self._rig, [dets["left"][s].uv for s in both],
-                                                            [dets["right"][s].uv for s in both],
-                                                            sig["left"], sig["right"])))
-        return {c: {**dets[c], **{s: replace(dets[c][s], uv=(float(uv[c][i, 0]), float(uv[c][i, 1])),
-                                             uv_view=dets[c][s].uv) for i, s in enumerate(both)}} for c in dets}
+        uvl, uvr, moved = consistent_centres(self._rig, [dets["left"][s].uv for s in both],
+                                             [dets["right"][s].uv for s in both], sig["left"], sig["right"],
+                                             max_epipolar_px=tol)
+        uv = {"left": uvl.tolist(), "right": uvr.tolist()}
+        return {c: {**dets[c], **{s: replace(dets[c][s], uv=tuple(uv[c][i]), uv_view=dets[c][s].uv)
+                                  for i, s in enumerate(both) if moved[i]}} for c in dets}
 
     def _check_image(self, img, cam: str, index: int) -> np.ndarray:
         arr = np.asarray(img)

@@ -338,8 +338,7 @@ def _triangulate_rig(a, b, left, right, stereo, method) -> np.ndarray:
 class StereoRig:
     """A calibrated stereo pair checked once, for many small calls: epipolar distances and triangulation.
 
-    The per-frame path of the tracking pipeline (a few points per call, where the per-call checks of
-    :func:`triangulate_stereo` cost more than the arithmetic). Same results as :func:`triangulate_stereo`.
+    The tracking pipeline's per-frame path (a few points per call); same results as :func:`triangulate_stereo`.
 
     Parameters
     ----------
@@ -372,8 +371,7 @@ class StereoRig:
         self._dist = (np.asarray(self.left.dist, np.float64).ravel(), np.asarray(self.right.dist, np.float64).ravel())
 
     def _pairs(self, uv_left, uv_right):
-        a = np.asarray(uv_left, dtype=np.float64).reshape(-1, 2)
-        b = np.asarray(uv_right, dtype=np.float64).reshape(-1, 2)
+        a, b = (np.asarray(v, dtype=np.float64).reshape(-1, 2) for v in (uv_left, uv_right))
         if a.shape != b.shape:
             raise ValueError(f"uv_right: expected shape {a.shape} like uv_left, got {b.shape}")
         return a, b, np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
@@ -387,26 +385,21 @@ class StereoRig:
         return xl.reshape(-1, 2), xr.reshape(-1, 2)
 
     def epipolar_px(self, uv_left, uv_right) -> np.ndarray:
-        """Distance of each right point from the epipolar line of its left point.
+        """Distance (N,) of each right point from the epipolar line of its left point, raw pixels (N, 2) in.
 
-        Parameters
-        ----------
-        uv_left, uv_right : array_like, shape (N, 2)
-            Raw (distorted) pixels; NaN rows give NaN.
-
-        Returns
-        -------
-        ndarray, shape (N,)
-            In the undistorted right image, in pixels of its mean focal length.
+        In the undistorted right image, in pixels of its mean focal length; NaN rows give NaN.
         """
         a, b, ok = self._pairs(uv_left, uv_right)
         out = np.full(len(a), np.nan)
         if ok.any():
-            xl, xr = self.normalised(a[ok], b[ok])
-            lines = xl @ self.E[:, :2].T + self.E[:, 2]             # E @ (x, y, 1) per left point
-            num = np.abs(lines[:, 0] * xr[:, 0] + lines[:, 1] * xr[:, 1] + lines[:, 2])
-            out[ok] = self.f_right_px * num / np.hypot(lines[:, 0], lines[:, 1])
+            out[ok] = self.epipolar_px_normalised(*self.normalised(a[ok], b[ok]))
         return out
+
+    def epipolar_px_normalised(self, x_left, x_right) -> np.ndarray:
+        """:meth:`epipolar_px` of undistorted normalised coordinates (N, 2) each."""
+        lines = x_left @ self.E[:, :2].T + self.E[:, 2]             # E @ (x, y, 1) per left point
+        num = np.abs(lines[:, 0] * x_right[:, 0] + lines[:, 1] * x_right[:, 1] + lines[:, 2])
+        return self.f_right_px * num / np.hypot(lines[:, 0], lines[:, 1])
 
     def triangulate(self, uv_left, uv_right) -> np.ndarray:
         """Points in the left camera frame, metres, shape (N, 3), from raw pixels (N, 2); NaN rows missing."""
@@ -416,7 +409,10 @@ class StereoRig:
         out = np.full((len(a), 3), np.nan)
         if ok.any():
             xl, xr = self.normalised(a[ok], b[ok])
-            out[ok] = _triangulate_cv2(xl, xr, _P_IDENTITY, self._P2)
+            X = cv2.triangulatePoints(_P_IDENTITY, self._P2, np.ascontiguousarray(xl.T), np.ascontiguousarray(xr.T))
+            w = X[3]
+            bad = np.abs(w) < 1e-300                         # at infinity (as _triangulate_cv2)
+            out[ok] = (X[:3] / (np.where(bad, np.nan, w) if bad.any() else w)).T
         return out
 
 
