@@ -520,6 +520,8 @@ class StereoPipeline:
         uvl, uvr, moved = consistent_centres(self._rig, [dets["left"][s].uv for s in both],
                                              [dets["right"][s].uv for s in both], sig["left"], sig["right"],
                                              max_epipolar_px=tol)
+        if not moved.any():
+            return dets
         uv = {"left": uvl.tolist(), "right": uvr.tolist()}
         return {c: {**dets[c], **{s: replace(dets[c][s], uv=tuple(uv[c][i]), uv_view=dets[c][s].uv)
                                   for i, s in enumerate(both) if moved[i]}} for c in dets}
