@@ -39,6 +39,12 @@ def _project(p_base, T_base_cam, dist):
     return uv.reshape(-1, 2)
 
 
+def _views(rng, n):
+    """``n`` random workspace points (base frame) and their exact raw pixels in both cameras."""
+    X = rng.uniform([-0.4, -0.4, 0.2], [0.4, 0.4, 1.0], size=(n, 3))
+    return X, _project(X, T_BASE_L, DIST_L), _project(X, T_BASE_R, DIST_R)
+
+
 def _skew(t):
     return np.array([[0.0, -t[2], t[1]], [t[2], 0.0, -t[0]], [-t[1], t[0], 0.0]])
 
@@ -74,8 +80,7 @@ def test_weighted_correction_matches_a_constrained_minimisation_oracle(seed):
 def test_consistent_centres_meet_through_the_distortion_and_follow_the_weights():
     cal, rig = _rig()
     rng = np.random.default_rng(7)
-    X = rng.uniform([-0.4, -0.4, 0.2], [0.4, 0.4, 1.0], size=(20, 3))
-    uv_l, uv_r = _project(X, T_BASE_L, DIST_L), _project(X, T_BASE_R, DIST_R)
+    _, uv_l, uv_r = _views(rng, 20)
     noisy_r = uv_r + rng.normal(scale=1.0, size=uv_r.shape)
     assert np.median(rig.epipolar_px(uv_l, noisy_r)) > 0.3
     # a near-certain left view: the right one alone moves, onto the left's epipolar line
@@ -104,8 +109,7 @@ def test_weighted_centres_are_nearer_the_truth_on_average():
     """Seeded property: with one view twice as noisy, the corrected centres and points beat the raw ones."""
     cal, rig = _rig()
     rng = np.random.default_rng(8)
-    X = rng.uniform([-0.4, -0.4, 0.2], [0.4, 0.4, 1.0], size=(400, 3))
-    uv_l, uv_r = _project(X, T_BASE_L, DIST_L), _project(X, T_BASE_R, DIST_R)
+    X, uv_l, uv_r = _views(rng, 400)
     nl = uv_l + rng.normal(scale=0.25, size=uv_l.shape)
     nr = uv_r + rng.normal(scale=0.5, size=uv_r.shape)
     cl, cr, _ = consistent_centres(rig, nl, nr, 1.0, 2.0)

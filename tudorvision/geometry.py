@@ -1,4 +1,4 @@
-"""Shared 3D geometry: plane and circle fits, rigid-transform helpers.
+"""Shared 3D geometry: plane and circle fits, rigid-transform helpers, lens distortion.
 
 Used by the stereo base-frame calibration (circle of the theta1 sweep) and by
 the RGB-D wall-camera calibration (circle of the theta2 sweep). Everything is
@@ -32,7 +32,7 @@ from ._checks import check_array, check_points, check_transform
 
 __all__ = [
     "PlaneFit", "CircleFit", "fit_plane", "fit_circle_3d", "make_frame", "invert_transform",
-    "transform_points", "rotation_angle", "transform_difference", "fit_rigid_transform",
+    "transform_points", "rotation_angle", "transform_difference", "fit_rigid_transform", "distort_normalized",
 ]
 
 _MAD_TO_SIGMA = 1.4826
@@ -470,3 +470,33 @@ def fit_rigid_transform(points_b, points_a) -> np.ndarray:
     T[:3, :3] = R
     T[:3, 3] = ca - R @ cb
     return T
+
+
+def distort_normalized(xy, dist) -> np.ndarray:
+    """Apply Brown–Conrady distortion to normalized coordinates.
+
+    Parameters
+    ----------
+    xy : ndarray, shape (..., 2)
+        Undistorted normalized coordinates ``(X/Z, Y/Z)``.
+    dist : array_like, shape (5,)
+        ``(k1, k2, p1, p2, k3)``.
+
+    Returns
+    -------
+    ndarray, shape (..., 2)
+        Distorted normalized coordinates.
+
+    Examples
+    --------
+    >>> distort_normalized(np.array([0.1, 0.0]), [0.1, 0, 0, 0, 0]).round(6).tolist()
+    [0.1001, 0.0]
+    """
+    k1, k2, p1, p2, k3 = np.asarray(dist, dtype=np.float64)
+    x, y = xy[..., 0], xy[..., 1]
+    x2, y2, xy_ = x * x, y * y, x * y
+    r2 = x2 + y2
+    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    xd = x * radial + 2.0 * p1 * xy_ + p2 * (r2 + 2.0 * x2)
+    yd = y * radial + p1 * (r2 + 2.0 * y2) + 2.0 * p2 * xy_
+    return np.stack([xd, yd], axis=-1)

@@ -25,6 +25,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .._checks import check_array, check_points, check_transform, check_vector
+from ..geometry import distort_normalized
 
 __all__ = [
     "PinholeCamera", "intrinsic_matrix", "look_at", "distort_normalized",
@@ -207,36 +208,6 @@ def look_at(eye_world, target_world, *, K, dist=None, width: int = 640, height: 
     T[:3, 0], T[:3, 1], T[:3, 2], T[:3, 3] = x, y, z, eye
     return PinholeCamera(K=K, dist=np.zeros(5) if dist is None else dist, width=width,
                          height=height, T_world_cam=T)
-
-
-def distort_normalized(xy, dist) -> np.ndarray:
-    """Apply Brown–Conrady distortion to normalized coordinates.
-
-    Parameters
-    ----------
-    xy : ndarray, shape (..., 2)
-        Undistorted normalized coordinates ``(X/Z, Y/Z)``.
-    dist : array_like, shape (5,)
-        ``(k1, k2, p1, p2, k3)``.
-
-    Returns
-    -------
-    ndarray, shape (..., 2)
-        Distorted normalized coordinates.
-
-    Examples
-    --------
-    >>> distort_normalized(np.array([0.1, 0.0]), [0.1, 0, 0, 0, 0]).round(6).tolist()
-    [0.1001, 0.0]
-    """
-    k1, k2, p1, p2, k3 = np.asarray(dist, dtype=np.float64)
-    x, y = xy[..., 0], xy[..., 1]
-    x2, y2, xy_ = x * x, y * y, x * y
-    r2 = x2 + y2
-    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    xd = x * radial + 2.0 * p1 * xy_ + p2 * (r2 + 2.0 * x2)
-    yd = y * radial + p1 * (r2 + 2.0 * y2) + 2.0 * p2 * xy_
-    return np.stack([xd, yd], axis=-1)
 
 
 def undistort_normalized(xy_d, dist, *, iterations: int = 20) -> np.ndarray:

@@ -21,6 +21,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from ..geometry import distort_normalized
 from .triangulate import StereoRig
 
 __all__ = ["epipolar_correction", "consistent_centres", "distort_normalised"]
@@ -66,8 +67,7 @@ def epipolar_correction(x_left, x_right, E, f_left: float, f_right: float, sigma
     xl = np.array(x_left, dtype=np.float64).reshape(-1, 2)
     xr = np.array(x_right, dtype=np.float64).reshape(-1, 2)
     (e00, e01, e02), (e10, e11, e12), (e20, e21, e22) = np.asarray(E, dtype=np.float64).tolist()
-    sl = np.resize(np.asarray(sigma_left, np.float64), len(xl)).tolist()     # a scalar or one per pair
-    sr = np.resize(np.asarray(sigma_right, np.float64), len(xl)).tolist()
+    sl, sr = (np.broadcast_to(np.asarray(v, np.float64), (len(xl),)).tolist() for v in (sigma_left, sigma_right))
     fl, fr = float(f_left), float(f_right)
     for i, ((ul0, vl0), (ur0, vr0)) in enumerate(zip(xl.tolist(), xr.tolist())):   # a few pairs per frame:
         vl_l, vr_r = sl[i] * sl[i], sr[i] * sr[i]                                  # plain floats, no arrays
@@ -118,10 +118,8 @@ def consistent_centres(rig: StereoRig, uv_left, uv_right, sigma_left, sigma_righ
     moved = rig.epipolar_px_normalised(xl, xr) <= max_epipolar_px
     if not moved.any():
         return a, b, moved
-    sl = np.resize(np.asarray(sigma_left, np.float64), len(a))[moved]       # a scalar or one per pair
-    sr = np.resize(np.asarray(sigma_right, np.float64), len(a))[moved]
-    xl, xr = epipolar_correction(xl[moved], xr[moved], rig.E, 0.5 * (rig.left.fx + rig.left.fy),
-                                 0.5 * (rig.right.fx + rig.right.fy), sl, sr)
+    sl, sr = (np.broadcast_to(np.asarray(v, np.float64), moved.shape)[moved] for v in (sigma_left, sigma_right))
+    xl, xr = epipolar_correction(xl[moved], xr[moved], rig.E, rig.f_left_px, rig.f_right_px, sl, sr)
     for cam, x, out in ((rig.left, xl, a), (rig.right, xr, b)):
         out[moved] = distort_normalised(x, cam.K, cam.dist)
     return a, b, moved
@@ -130,8 +128,8 @@ def consistent_centres(rig: StereoRig, uv_left, uv_right, sigma_left, sigma_righ
 def distort_normalised(x, K, dist) -> np.ndarray:
     """Raw pixels (N, 2) of undistorted normalised coordinates ``x`` (N, 2): OpenCV's camera model.
 
-    The plain radial-tangential model (up to five coefficients ``k1 k2 p1 p2 k3``) is evaluated here
-    (a few points per frame: cheaper than a call into OpenCV); longer models go to :func:`cv2.projectPoints`.
+    Up to five coefficients ``k1 k2 p1 p2 k3`` through :func:`tudorvision.geometry.distort_normalized` (a few
+    points per frame: cheaper than a call into OpenCV); longer models go to :func:`cv2.projectPoints`.
 
     Examples
     --------
@@ -141,17 +139,10 @@ def distort_normalised(x, K, dist) -> np.ndarray:
     """
     d = np.asarray(dist, np.float64).ravel()
     x = np.asarray(x, np.float64).reshape(-1, 2)
+    K = np.asarray(K, np.float64)
     if len(d) > 5:
         rays = np.concatenate([x, np.ones((len(x), 1))], axis=1)
         uv, _ = cv2.projectPoints(rays.reshape(-1, 1, 3), _ZERO3, _ZERO3, K, d)
         return uv.reshape(-1, 2)
-    k1, k2, p1, p2, k3 = d.tolist() + [0.0] * (5 - len(d))
-    K = np.asarray(K, np.float64)
-    fx, cx, fy, cy = float(K[0, 0]), float(K[0, 2]), float(K[1, 1]), float(K[1, 2])     # as OpenCV: no skew
-    out = []
-    for u, v in x.tolist():     # a few points per frame: plain floats
-        r2 = u * u + v * v
-        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        out.append((fx * (u * radial + 2.0 * p1 * u * v + p2 * (r2 + 2.0 * u * u)) + cx,
-                    fy * (v * radial + p1 * (r2 + 2.0 * v * v) + 2.0 * p2 * u * v) + cy))
-    return np.array(out, dtype=np.float64).reshape(-1, 2)
+    xd = distort_normalized(x, d if len(d) == 5 else np.concatenate([d, np.zeros(5 - len(d))]))
+    return xd * np.diagonal(K)[:2] + K[:2, 2]        # as OpenCV: no skew term

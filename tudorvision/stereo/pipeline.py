@@ -260,7 +260,7 @@ class StereoPipeline:
         self._models = {cam: {s: color_models.get(cam, s) for s in self.spheres} for cam in ("left", "right")}
         self._trackers = {cam: FrameTracker(m, params=self.options.tracker) for cam, m in self._models.items()}
         self._rig = StereoRig(calibration, method=self.options.method)   # checked once, used per frame
-        self._f = {c: 0.5 * (cm.fx + cm.fy) for c, cm in self.cameras.items()}
+        self._f = {"left": self._rig.f_left_px, "right": self._rig.f_right_px}     # mean focal lengths, px
         self._last_left = {s: None for s in self.spheres}   # last consistent sphere centre, left frame
         self.n_repaired = 0
         self.n_inconsistent = 0

@@ -209,13 +209,16 @@ def _triangulate_cv2(a, b, P1, P2) -> np.ndarray:
     out = np.full((len(a), 3), np.nan)
     ok = _valid_rows(a, b)
     if ok.any():
-        X = cv2.triangulatePoints(P1, P2, np.ascontiguousarray(a[ok].T), np.ascontiguousarray(b[ok].T))
-        w = X[3]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            pts = (X[:3] / w).T
-        pts[np.abs(w) < 1e-300] = np.nan
-        out[ok] = pts
+        out[ok] = _dlt_finite(a[ok], b[ok], P1, P2)
     return out
+
+
+def _dlt_finite(a, b, P1, P2) -> np.ndarray:
+    """:func:`cv2.triangulatePoints` of finite rows (N, 2) each, divided by w; NaN at infinity."""
+    X = cv2.triangulatePoints(P1, P2, np.ascontiguousarray(a.T), np.ascontiguousarray(b.T))
+    w = X[3]
+    at_infinity = np.abs(w) < 1e-300
+    return (X[:3] / (np.where(at_infinity, np.nan, w) if at_infinity.any() else w)).T
 
 
 def triangulate_dlt(uv_left, uv_right, P_left, P_right) -> np.ndarray:
@@ -366,7 +369,7 @@ class StereoRig:
         self.method = method
         tx, ty, tz = self.stereo.T
         self.E = np.array([[0.0, -tz, ty], [tz, 0.0, -tx], [-ty, tx, 0.0]]) @ self.stereo.R   # x_r^T E x_l = 0
-        self.f_right_px = 0.5 * (self.right.fx + self.right.fy)
+        self.f_left_px, self.f_right_px = (0.5 * (c.fx + c.fy) for c in (self.left, self.right))
         self._P2 = np.hstack([self.stereo.R, self.stereo.T[:, None]])
         self._dist = (np.asarray(self.left.dist, np.float64).ravel(), np.asarray(self.right.dist, np.float64).ravel())
 
@@ -378,7 +381,7 @@ class StereoRig:
 
     def normalised(self, uv_left, uv_right) -> tuple:
         """Undistorted normalised coordinates ``(x_left, x_right)``, each (N, 2), of finite raw pixels (N, 2)."""
-        a, b = (np.asarray(v, dtype=np.float64).reshape(-1, 2) for v in (uv_left, uv_right))
+        a, b, _ = self._pairs(uv_left, uv_right)
         kw = {"criteria": _UNDISTORT_CRITERIA}
         xl = cv2.undistortPoints(np.ascontiguousarray(a).reshape(-1, 1, 2), self.left.K, self._dist[0], **kw)
         xr = cv2.undistortPoints(np.ascontiguousarray(b).reshape(-1, 1, 2), self.right.K, self._dist[1], **kw)
@@ -408,11 +411,7 @@ class StereoRig:
             return _triangulate_rig(a, b, self.left, self.right, self.stereo, self.method)
         out = np.full((len(a), 3), np.nan)
         if ok.any():
-            xl, xr = self.normalised(a[ok], b[ok])
-            X = cv2.triangulatePoints(_P_IDENTITY, self._P2, np.ascontiguousarray(xl.T), np.ascontiguousarray(xr.T))
-            w = X[3]
-            bad = np.abs(w) < 1e-300                         # at infinity (as _triangulate_cv2)
-            out[ok] = (X[:3] / (np.where(bad, np.nan, w) if bad.any() else w)).T
+            out[ok] = _dlt_finite(*self.normalised(a[ok], b[ok]), _P_IDENTITY, self._P2)
         return out
 
 
