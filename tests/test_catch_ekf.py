@@ -139,6 +139,44 @@ def test_reset_on_a_new_throw():
     assert "restarted" in states and ekf2.throw_id == 1
 
 
+def test_a_gap_in_the_flight_continues_the_throw_when_the_ball_fits():
+    """The ball out of view for 0.3 s (a lob above the image) and back: the same throw, not a new one.
+
+    Oracle: a filter that never starts a new throw on a gap (``max_gap_s`` beyond the gap) fed the
+    same detections: identical states. With coasting off (``max_coast_s=0``) the gap restarts the
+    filter as before; a detection after the gap that does not fit the flight restarts it too.
+    """
+    rng = np.random.default_rng(11)
+    tf, pf, *_ = _flight(rng)
+    noisy = pf + rng.normal(scale=0.002, size=pf.shape)
+    seen = (tf < tf[2] + 1e-9) | (tf > tf[2] + 0.27)      # frames 3.. hidden for 0.3 s
+    k = 3                                                   # the first detection after the gap
+    assert tf[seen][k] - tf[seen][k - 1] > EKFOptions().max_gap_s and len(tf[seen]) >= k + 2
+    coast, plain, old = BallEKF(EKFOptions(n_init=2)), BallEKF(EKFOptions(n_init=2, max_gap_s=1.0)), \
+        BallEKF(EKFOptions(n_init=2, max_coast_s=0.0))
+    states = {"coast": [], "old": []}
+    for ti, pi in zip(tf[seen], noisy[seen]):
+        states["coast"].append(coast.step(ti, pi, _meas_cov(pi)))
+        plain.step(ti, pi, _meas_cov(pi))
+        states["old"].append(old.step(ti, pi, _meas_cov(pi)))
+    assert states["coast"][k] == "accepted" and "restarted" not in states["coast"] and coast.throw_id == 0
+    np.testing.assert_allclose(coast.x, plain.x, rtol=0, atol=1e-12)
+    assert states["old"][k] == "restarted" and old.throw_id == 1
+    # a detection after the gap 0.5 m off the flight starts a new throw
+    off = BallEKF(EKFOptions(n_init=2))
+    for ti, pi in zip(tf[seen][:k], noisy[seen][:k]):
+        off.step(ti, pi, _meas_cov(pi))
+    t4, p4 = tf[seen][k], noisy[seen][k] + [0.5, 0.0, 0.0]
+    assert off.step(t4, p4, _meas_cov(p4)) == "restarted"
+    # beyond max_coast_s even a fitting detection starts a new throw
+    late = BallEKF(EKFOptions(n_init=2, max_coast_s=0.28))
+    for ti, pi in zip(tf[seen][:k], noisy[seen][:k]):
+        late.step(ti, pi, _meas_cov(pi))
+    assert late.step(tf[seen][k], noisy[seen][k], _meas_cov(noisy[seen][k])) == "restarted"
+    with pytest.raises(ValueError, match="max_coast_s"):
+        EKFOptions(max_coast_s=-1.0)
+
+
 def test_init_and_update_reject_bad_input():
     with pytest.raises(ValueError, match="at least 2"):
         init_from_detections([0.0], np.zeros((1, 3)), np.eye(3)[None])

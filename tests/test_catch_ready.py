@@ -178,3 +178,36 @@ def test_the_demos_inner_edge_follows_joint_3s_setpoint_margin():
     assert demo_inner_reach_m(wider, p) == pytest.approx(inner_reach_m(p, np.deg2rad(12.0)))
     assert demo_inner_reach_m(wider, p) > demo_inner_reach_m(DemoOptions(), p)
     assert demo_inner_reach_m(DemoOptions(inner_pull=False), p) == 0.0
+
+
+@pytest.mark.parametrize("tol_m, interval_s", [(0.02, 0.2), (0.015, 0.2), (0.01, 0.1)])
+def test_the_demos_refinement_rule_reaches_the_planner(tol_m, interval_s):
+    """A refinement goes out when the crossing moved more than ``refine_tol_m`` and ``refine_interval_s`` passed.
+
+    Oracle: the crossing of a flight shifted sideways by ``d`` moves by ``d`` in the working plane (the
+    normal is the base y axis, the flight model does not depend on x).
+    """
+    from tudorvision.catch.ekf import BallModel
+    from tudorvision.catch.intercept import InterceptPlanner
+    from tudorvision.lab.catch.run import demo_intercept_options
+    from tudorvision.robot import load_robot_params
+
+    p = load_robot_params()
+    o = DemoOptions(refine_tol_m=tol_m, refine_interval_s=interval_s)
+    io = demo_intercept_options(o, p)
+    assert (io.refine_tol_m, io.min_interval_s, io.release_sigma_m) == (tol_m, interval_s, o.release_sigma_m)
+    planner = InterceptPlanner(io, model=BallModel(drag_k_per_m=o.drag_k_per_m), params=p)
+    P = np.diag([1e-6] * 3 + [1e-6] * 3)
+
+    def state(dx_m):
+        return np.array([0.2 + dx_m, -3.0, 1.3, 0.0, 5.0, 2.5])
+
+    first = planner.update(0.0, state(0.0), P)
+    assert first.reachable and first.send
+    for dt, dx, expect in [(interval_s / 2, 1.5 * tol_m, False),        # moved enough, too early
+                           (interval_s, 0.8 * tol_m, False),            # late enough, moved too little
+                           (interval_s, 1.2 * tol_m, True)]:            # both
+        it = planner.update(dt, state(dx), P)
+        moved = np.linalg.norm(it.p_base - first.p_base)
+        assert moved == pytest.approx(dx, abs=1e-6)
+        assert bool(it.send) is expect, (dt, dx)

@@ -56,7 +56,13 @@ class EKFOptions:
     init_velocity_sigma_m_s : float
         Floor of the initial velocity standard deviation.
     max_gap_s : float
-        A detection later than this after the last accepted one starts a new throw.
+        A detection later than this after the last accepted one starts a new throw, unless it
+        fits the flight predicted over the gap (below).
+    max_coast_s : float
+        A detection after a longer gap than ``max_gap_s`` but at most this long continues the
+        throw when it passes the gate against the flight predicted over the gap (the ball left
+        the image or the sensor's range for a while, e.g. a high lob above the image's top edge);
+        at most ``max_gap_s`` (e.g. 0): every longer gap starts a new throw (the behaviour before), seconds.
     max_rejections : int
         Consecutive gated detections after which the filter restarts (new throw).
     """
@@ -67,6 +73,7 @@ class EKFOptions:
     n_init: int = 3
     init_velocity_sigma_m_s: float = 0.05
     max_gap_s: float = 0.25
+    max_coast_s: float = 0.6
     max_rejections: int = 3
 
     def __post_init__(self):
@@ -74,6 +81,14 @@ class EKFOptions:
             raise ValueError(f"n_init: expected an integer >= 2, got {self.n_init}")
         if not self.gate_nis > 0 or not self.q_m2_s3 >= 0:
             raise ValueError("gate_nis, q_m2_s3: expected > 0 and >= 0")
+        if not self.max_gap_s > 0 or not self.max_coast_s >= 0:
+            raise ValueError(f"max_gap_s, max_coast_s: expected > 0 and >= 0, got {self.max_gap_s}, {self.max_coast_s}")
+
+
+def _nis(p_pred, P_pred, z, R) -> float:
+    """Normalised innovation squared of a position measurement ``z`` (R) against ``p_pred`` (P's first 3 rows)."""
+    y = np.asarray(z, float) - p_pred
+    return float(y @ np.linalg.solve(P_pred[:3, :3] + R, y))
 
 
 def process_noise(dt: float, q_m2_s3: float) -> np.ndarray:
@@ -353,9 +368,7 @@ class BallEKF:
         """
         z = check_array(z, "z", (3,))
         R = check_array(R, "R", (3, 3))
-        y = z - self._kf.x[:3, 0]
-        S = self._kf.P[:3, :3] + R
-        self.last_nis = float(y @ np.linalg.solve(S, y))
+        self.last_nis = _nis(self._kf.x[:3, 0], self._kf.P, z, R)
         if self.last_nis > self.options.gate_nis:
             self._rejections += 1
             return False
@@ -388,7 +401,7 @@ class BallEKF:
         z = check_array(z, "z", (3,))
         R = check_array(R, "R", (3, 3))
         restarted = False
-        if self.initialised and (t - self.t > o.max_gap_s or self._rejections >= o.max_rejections):
+        if self.initialised and (self._rejections >= o.max_rejections or not self._continues(t, z, R)):
             self.reset()
             restarted = True
         if not self.initialised:
@@ -417,6 +430,17 @@ class BallEKF:
             self._buffer.append((t, z, R))
             return "restarted"
         return "rejected"
+
+    def _continues(self, t: float, z, R) -> bool:
+        """Whether a detection at ``t`` belongs to the current throw as far as the gap goes."""
+        o = self.options
+        gap = t - self.t
+        if gap <= o.max_gap_s:
+            return True
+        if gap > o.max_coast_s:
+            return False
+        x, P = self.predict_at(t)
+        return _nis(x[:3], P, z, R) <= o.gate_nis
 
     def predict_at(self, t: float):
         """Predicted ``(x, P)`` at time ``t`` without changing the filter.

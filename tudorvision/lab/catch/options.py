@@ -58,6 +58,11 @@ class DemoOptions:
         standard deviations (and more than 2 cm); 0 (default since the camera stands behind the
         thrower): the 2 cm rule alone. The 2-sigma rule held back refinements that the better-seen
         flights made worth sending (the net went to an older estimate, 1-2.5 cm worse than the last).
+    refine_tol_m : float
+        A refinement is sent only if the intercept moved more than this since the last setpoint, m
+        (:class:`~tudorvision.catch.intercept.InterceptOptions`).
+    refine_interval_s : float
+        ... and at least this long after the previous setpoint, s.
     refine_min_joint_rad : float
         A refinement whose joint setpoint differs from the last one by less than this in every joint is
         not sent (a new setpoint re-plans the layer's profile, which costs more than it corrects), rad.
@@ -195,6 +200,8 @@ class DemoOptions:
     ball_radius_m: float = 0.045
     release_sigma_m: float = 0.1
     refine_sigma_factor: float = 0.0
+    refine_tol_m: float = 0.02
+    refine_interval_s: float = 0.2
     refine_min_joint_rad: float = float(np.deg2rad(0.5))
     overshoot_tol_rad: float = float(np.deg2rad(0.5))
     mode_f0_hz: float = 2.6

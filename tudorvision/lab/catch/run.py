@@ -47,10 +47,33 @@ from .scenario import FRAME_RATE_HZ, CatchScenario
 from .score import score_throw, summarize_throws
 from . import writers
 
-__all__ = ["demo_kinematics", "run_demo", "wall_camera_transform"]
+__all__ = ["demo_intercept_options", "demo_kinematics", "run_demo", "wall_camera_transform"]
 
 N_BACKGROUND_FRAMES = 10
 AFTER_CROSSING_S = 0.1      # frames go on this long after the true crossing
+
+
+def demo_intercept_options(options: DemoOptions, params) -> InterceptOptions:
+    """The intercept planner's release and refinement policy for the demo's options.
+
+    Parameters
+    ----------
+    options : DemoOptions
+        The demo's options (release threshold, refinement rules, ball, net and reach margins).
+    params : RobotParams
+        Robot parameters (the inner edge of the reach).
+
+    Returns
+    -------
+    InterceptOptions
+    """
+    o = options
+    # a crossing estimated a little beyond full stretch is released too: the net, pulled in by the reach margin,
+    # still takes the ball there (the estimate of a crossing at the edge of the reach flickers across it)
+    reach_tol = max(0.0, o.net_radius_m - o.ball_radius_m - o.reach_margin_m)
+    return InterceptOptions(release_sigma_m=o.release_sigma_m, refine_sigma_factor=o.refine_sigma_factor,
+                            refine_tol_m=o.refine_tol_m, min_interval_s=o.refine_interval_s,
+                            reach_tol_m=reach_tol, inner_reach_m=demo_inner_reach_m(o, params))
 
 
 def demo_kinematics(options: DemoOptions, params):
@@ -162,11 +185,7 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
     wall0 = time.perf_counter()
     km, inverse = demo_kinematics(o, params)
     ekf_opts = EKFOptions(**{**asdict(o.ekf), "model": BallModel(drag_k_per_m=o.drag_k_per_m)})
-    # a crossing estimated a little beyond full stretch is released too: the net, pulled in by the reach margin,
-    # still takes the ball there (the estimate of a crossing at the edge of the reach flickers across it)
-    reach_tol = max(0.0, o.net_radius_m - o.ball_radius_m - o.reach_margin_m)
-    iopts = InterceptOptions(release_sigma_m=o.release_sigma_m, refine_sigma_factor=o.refine_sigma_factor,
-                             reach_tol_m=reach_tol, inner_reach_m=demo_inner_reach_m(o, params))
+    iopts = demo_intercept_options(o, params)
     ik = CatchIK(inverse, params, compensate=o.compensate, theta1_rad=iopts.theta1_rad)
 
     world = CatchScenario(o, params, ik(np.asarray(o.ready_point_base, float), 0.0, elbow="up"))
