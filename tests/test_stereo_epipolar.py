@@ -9,7 +9,7 @@ from tudorvision.geometry import invert_transform, make_frame, transform_points
 from tudorvision.io import Calibration, CameraModel, StereoExtrinsics
 from tudorvision.io.frames import StereoFrame
 from tudorvision.stereo import ColorModelSet, PipelineOptions, StereoPipeline, fit_color_model
-from tudorvision.stereo.epipolar import consistent_centres, distort_normalised, epipolar_correction
+from tudorvision.stereo.epipolar import consistent_centres, normalised_to_pixels, epipolar_correction
 from tudorvision.stereo.triangulate import StereoRig, triangulate_stereo
 
 K = np.array([[900.0, 0.0, 319.5], [0.0, 880.0, 239.5], [0.0, 0.0, 1.0]])
@@ -167,4 +167,4 @@ def test_distortion_matches_opencv_projection(n_coef):
     d = rng.normal(scale=[0.2, 0.05, 1e-3, 1e-3, 0.01, 0.05, 0.01, 0.005][:n_coef])
     x = rng.uniform(-0.4, 0.4, size=(50, 2))
     want, _ = cv2.projectPoints(np.c_[x, np.ones(50)].reshape(-1, 1, 3), np.zeros(3), np.zeros(3), Kc, d)
-    np.testing.assert_allclose(distort_normalised(x, Kc, d), want.reshape(-1, 2), atol=1e-9)
+    np.testing.assert_allclose(normalised_to_pixels(x, Kc, d), want.reshape(-1, 2), atol=1e-9)

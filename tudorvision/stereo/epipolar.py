@@ -24,7 +24,7 @@ import numpy as np
 from ..geometry import distort_normalized
 from .triangulate import StereoRig
 
-__all__ = ["epipolar_correction", "consistent_centres", "distort_normalised"]
+__all__ = ["epipolar_correction", "consistent_centres", "normalised_to_pixels"]
 
 _ZERO3 = np.zeros(3)
 
@@ -121,11 +121,11 @@ def consistent_centres(rig: StereoRig, uv_left, uv_right, sigma_left, sigma_righ
     sl, sr = (np.broadcast_to(np.asarray(v, np.float64), moved.shape)[moved] for v in (sigma_left, sigma_right))
     xl, xr = epipolar_correction(xl[moved], xr[moved], rig.E, rig.f_left_px, rig.f_right_px, sl, sr)
     for cam, x, out in ((rig.left, xl, a), (rig.right, xr, b)):
-        out[moved] = distort_normalised(x, cam.K, cam.dist)
+        out[moved] = normalised_to_pixels(x, cam.K, cam.dist)
     return a, b, moved
 
 
-def distort_normalised(x, K, dist) -> np.ndarray:
+def normalised_to_pixels(x, K, dist) -> np.ndarray:
     """Raw pixels (N, 2) of undistorted normalised coordinates ``x`` (N, 2): OpenCV's camera model.
 
     Up to five coefficients ``k1 k2 p1 p2 k3`` through :func:`tudorvision.geometry.distort_normalized` (a few
@@ -134,7 +134,7 @@ def distort_normalised(x, K, dist) -> np.ndarray:
     Examples
     --------
     >>> K = np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]])
-    >>> distort_normalised(np.array([[0.1, -0.2]]), K, [0.1, 0, 0, 0, 0]).round(6).tolist()
+    >>> normalised_to_pixels(np.array([[0.1, -0.2]]), K, [0.1, 0, 0, 0, 0]).round(6).tolist()
     [[370.25, 139.5]]
     """
     d = np.asarray(dist, np.float64).ravel()

@@ -514,7 +514,7 @@ class StereoPipeline:
         """Each sphere seen in both views with its centres moved onto one epipolar plane (``epipolar_centres``)."""
         both = [s for s in self.spheres if dets["left"][s].valid and dets["right"][s].valid]
         tol = self.options.max_epipolar_px
-        if not both or tol is None:     # only pairs the epipolar check passes
+        if not both or tol is None:     # no epipolar check, no correction; the check's pairs only (below)
             return dets
         sig = {c: [SIGMA_LUMA_RIM if dets[c][s].method == "edge" else SIGMA_COLOUR for s in both] for c in dets}
         uvl, uvr, moved = consistent_centres(self._rig, [dets["left"][s].uv for s in both],
