@@ -162,3 +162,48 @@ def test_speed_fractions_are_checked():
     for bad in ({"late_speed_fraction": 1.5}, {"speed_fraction": 0.0}, {"late_speed_fraction": float("nan")}):
         with pytest.raises(ValueError, match="speed_fraction"):
             DemoOptions(**bad)
+
+
+@pytest.mark.parametrize("replan", ["restart", "blend"])
+def test_the_mirror_follows_the_layers_reference_through_a_replan(replan):
+    """The joint layer (a cascade core around the simulated arm) re-plans a setpoint in flight; the
+    agent's mirror, told the same mode, predicts its reference; with ``blend`` the reference's
+    acceleration has no step at the switch, with ``restart`` it drops to zero."""
+    from tudorvision.joint.controlled import CascadeCore
+    from tudorvision.lab.catch.agent import ReferenceMirror
+    from tudorvision.sim.arm import ElasticArm
+
+    v, a = 1.6, 6.9                                # within the layer's limits (125 deg/s, 400 deg/s^2)
+    start = np.deg2rad([0.0, 90.0, 0.0])
+    core = CascadeCore(ElasticArm(start.copy()), replan=replan)
+    mirror = ReferenceMirror(v, a, replan=replan)
+    ca = core.controlled
+    rows = []
+
+    def send(goal):
+        t = ca.arm.t
+        core.apply_setpoint(goal, max_speed_rad_s=np.full(3, v), max_accel_rad_s2=np.full(3, a))
+        mirror.sent(goal, t, theta_now=start, v_max=v)
+
+    def run(seconds):
+        for _ in range(int(round(seconds / ca.arm.dt))):
+            ca.step()
+            rows.append((ca.arm.t - ca.arm.dt, *ca.theta_ref, *ca.ddtheta_ref))
+
+    send(np.deg2rad([0.0, 60.0, 30.0]))
+    run(0.1)                                       # joint 2 and 3 accelerate
+    n_switch = len(rows)
+    send(np.deg2rad([0.0, 58.0, 33.0]))
+    run(0.8)
+    r = np.array(rows)[n_switch:]
+    mirrored = np.array([mirror.state(t)[0] for t in r[:, 0]])
+    # the restart plans from the reference of the sample before (one 0.5 ms step behind), the blend from now
+    assert np.max(np.abs(mirrored - r[:, 1:4])) < (1e-9 if replan == "blend" else 1e-3)
+    r = np.array(rows)
+    jump = np.abs(r[n_switch, 5:7] - r[n_switch - 1, 5:7])          # joints 2 and 3, rad/s^2
+    if replan == "blend":
+        assert np.max(jump) < 0.1
+    else:
+        assert np.max(jump) > 2.0
+    with pytest.raises(ValueError, match="replan"):
+        CascadeCore(ElasticArm(start.copy()), replan="smooth")

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from scipy.integrate import cumulative_trapezoid
 
-from tudorvision.joint.planner import OnlinePlanner, plan_motion, sinusoidal_transition
+from tudorvision.joint.planner import OnlinePlanner, blend_replan, plan_motion, sinusoidal_transition
 
 
 def test_transition_matches_integrated_acceleration():
@@ -97,3 +97,59 @@ def test_scalar_sampling_matches_vectorised():
             sca = m.sample_scalar(t)
             for a, b in zip(vec, sca):
                 assert np.allclose(a, b, atol=1e-12)
+
+
+def _random_switches(rng, n, vmax, amax):
+    """Motions cut at a random instant of their flight: (state at the switch, new goal, switch time)."""
+    for _ in range(n):
+        m = plan_motion(rng.uniform(-1.5, 1.5, 3), rng.uniform(-1.5, 1.5, 3), v_max=vmax, a_max=amax)
+        t = rng.uniform(0.0, m.duration_s)
+        yield m.sample(t), rng.uniform(-1.5, 1.5, 3), t
+
+
+def test_blended_replanning_keeps_angle_velocity_and_acceleration_continuous():
+    rng = np.random.default_rng(21)
+    vmax, amax = np.array([1.0, 0.8, 1.6]), np.array([3.0, 2.5, 7.0])
+    moving, blended = 0, 0
+    for (th, dth, ddth), goal, t in _random_switches(rng, 40, vmax, amax):
+        m = blend_replan(th, dth, ddth, goal, v_max=vmax, a_max=amax, t0=t)
+        start = m.sample(t)
+        on = m.blend_s > 0
+        moving += int(np.sum(np.abs(ddth) > 1e-6))
+        blended += int(np.sum(on))
+        assert np.allclose(start[0], th, atol=1e-12) and np.allclose(start[1], dth, atol=1e-12)
+        assert np.allclose(start[2][on], ddth[on], atol=1e-9)
+        # limits (checked by the planner at its samples: within 0.1 %), arrival, and continuity after the
+        # switch by finite differences of the sampled angle and velocity
+        _check_profile(m, vmax * (1 + 1e-3), amax * (1 + 1e-3))
+        for tq in rng.uniform(t, t + m.duration_s + 0.3, 8):
+            assert all(np.allclose(a, b, atol=1e-12) for a, b in zip(m.sample(tq), m.sample_scalar(tq)))
+    assert blended >= 0.95 * moving                  # the restart fallback is rare
+
+
+def test_a_blended_replan_to_the_same_goal_follows_the_old_motion_closer_than_a_restart():
+    vmax, amax = 1.6, 7.0
+    m = plan_motion([0.0], [1.0], v_max=vmax, a_max=amax)
+    tt = np.linspace(0.0, 1.6, 3201)
+    for t_switch in (0.1, 0.2, 0.3, 0.75, 0.9):            # accelerating and braking
+        th, dth, ddth = m.sample(t_switch)
+        blend = blend_replan(th, dth, ddth, [1.0], v_max=vmax, a_max=amax, t0=t_switch)
+        restart = plan_motion(th, [1.0], v_max=vmax, a_max=amax, dtheta_start=dth, t0=t_switch)
+        later = tt[tt >= t_switch]
+        dev_b = np.max(np.abs(blend.sample(later)[0] - m.sample(later)[0]))
+        dev_r = np.max(np.abs(restart.sample(later)[0] - m.sample(later)[0]))
+        assert dev_b < dev_r
+        assert blend.duration_s <= restart.duration_s + 1e-9
+        assert np.max(blend.sample(later)[0]) <= np.max(restart.sample(later)[0]) + 1e-9   # overshoot
+
+
+def test_online_planner_blend_mode_and_bad_mode():
+    pl = OnlinePlanner([0.0, 0.0], v_max=1.0, a_max=2.0, replan="blend")
+    pl.set_goal([1.0, -1.0], t=0.0)
+    before = pl.sample(0.3)
+    pl.set_goal([0.5, -1.2], t=0.3)
+    after = pl.sample(0.3)
+    assert all(np.allclose(a, b) for a, b in zip(before, after))
+    assert np.allclose(pl.sample(20.0)[0], [0.5, -1.2])
+    with pytest.raises(ValueError, match="replan"):
+        OnlinePlanner([0.0], v_max=1.0, a_max=2.0, replan="smooth")

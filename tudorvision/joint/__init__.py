@@ -21,7 +21,7 @@ if TYPE_CHECKING:  # the same names, for type checkers and the import-layer chec
     from .strain_dynamics import StrainDynamicsModel, fit_strain_dynamics
     from .damping import DampingConfig, StrainDamper, default_damping_config
     from .metrics import damping_metrics, settling_time
-    from .planner import JointMotion, OnlinePlanner, plan_motion
+    from .planner import BlendedMotion, JointMotion, OnlinePlanner, blend_replan, plan_motion
     from .protocol import (Ack, CollisionStrategy, Damping, JointSetpoint, JointVelocityCommand, Mode, ModeSwitch,
                            PayloadUpdate, ProtocolError, Reason, Refusal, State, StateFlags, StateRequest, decode,
                            encode)
@@ -40,7 +40,7 @@ _PROVIDERS = {
     "strain_dynamics": ("StrainDynamicsModel", "fit_strain_dynamics"),
     "damping": ("DampingConfig", "StrainDamper", "default_damping_config"),
     "metrics": ("damping_metrics", "settling_time"),
-    "planner": ("JointMotion", "OnlinePlanner", "plan_motion"),
+    "planner": ("JointMotion", "OnlinePlanner", "plan_motion", "BlendedMotion", "blend_replan"),
     "protocol": ("Ack", "CollisionStrategy", "Damping", "JointSetpoint", "JointVelocityCommand", "Mode", "ModeSwitch",
                  "PayloadUpdate", "ProtocolError", "Reason", "Refusal", "State", "StateFlags", "StateRequest",
                  "decode", "encode"),
@@ -66,6 +66,7 @@ __all__ = [
     "LossyUdpProxy", "FaultModel",
     # control: cascade, planning, damping, collision handling
     "CascadeGains", "JointCascade", "design_cascade", "JointMotion", "OnlinePlanner", "plan_motion",
+    "BlendedMotion", "blend_replan",
     "DampingConfig", "StrainDamper", "default_damping_config",
     "CollisionMonitor", "MomentumObserver", "ReactionConfig", "reaction_config", "StrainDynamicsModel",
     "fit_strain_dynamics", "damping_metrics", "settling_time",

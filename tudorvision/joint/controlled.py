@@ -26,7 +26,7 @@ from .collision import STRATEGY_OF_CODE, CollisionMonitor, reaction_config, root
 from .damping import LAWS, StrainDamper, default_damping_config
 from .damping_gains import gain_set_of
 from .plant import Plant
-from .planner import OnlinePlanner, plan_motion
+from .planner import REPLAN_MODES, OnlinePlanner, blend_replan, plan_motion
 from .cores import MAX_PAYLOAD_KG, CoreState
 
 __all__ = ["ControlledArm", "CascadeCore"]
@@ -59,6 +59,10 @@ class ControlledArm:
         Saturate the velocity-loop reference at the rated joint speeds
         (default True: a damping input on top of a fast profile cannot
         drive a joint past its rated speed).
+    replan : {"restart", "blend"}
+        How a setpoint re-plans a motion in flight: the acceleration restarts from zero (the seed's
+        B.6, default) or the current one fades out continuously
+        (:func:`tudorvision.joint.planner.blend_replan`).
 
     Examples
     --------
@@ -71,7 +75,10 @@ class ControlledArm:
     """
 
     def __init__(self, arm: Plant, *, gains=None, v_max=None, a_max=None, damping=None, friction=None,
-                 saturate_speed: bool = True):
+                 saturate_speed: bool = True, replan: str = "restart"):
+        if replan not in REPLAN_MODES:
+            raise ValueError(f"replan: expected one of {REPLAN_MODES}, got {replan!r}")
+        self.replan = replan
         self.arm = arm
         p = arm.params
         self.v_max = np.minimum(p.experiment_speed_rad_s, p.max_speed_rad_s) if v_max is None \
@@ -112,8 +119,12 @@ class ControlledArm:
         amax = self.a_max if a_max is None else np.broadcast_to(np.asarray(a_max, float), (3,))
         if np.any(vmax > p.max_speed_rad_s + 1e-9) or np.any(amax > p.max_accel_rad_s2 + 1e-9):
             raise ValueError("v_max, a_max: exceed the joint speed or acceleration limits")
-        self._planner.motion = plan_motion(self.theta_ref, goal, v_max=vmax, a_max=amax,
-                                     dtheta_start=self.dtheta_ref, t0=self.arm.t)
+        if self.replan == "blend" and self.mode == "setpoint":
+            th, dth, ddth = self._planner.motion.sample_scalar(self.arm.t)
+            self._planner.motion = blend_replan(th, dth, ddth, goal, v_max=vmax, a_max=amax, t0=self.arm.t)
+        else:
+            self._planner.motion = plan_motion(self.theta_ref, goal, v_max=vmax, a_max=amax,
+                                               dtheta_start=self.dtheta_ref, t0=self.arm.t)
         self.mode = "setpoint"
 
     def set_velocity(self, dtheta_cmd) -> None:
@@ -249,6 +260,8 @@ class CascadeCore:
         strain cancellation of the installed damper (``StrainDamper(...,
         strain_model=...)``, proportional gains ``ASSISTED_GAINS``); default
         none (the seed's double moving average alone).
+    replan : {"restart", "blend"}
+        How a setpoint re-plans a motion in flight (:class:`ControlledArm`); default the seed's restart.
 
     Examples
     --------
@@ -263,7 +276,7 @@ class CascadeCore:
 
     def __init__(self, arm: Plant, *, settle_band: float = 15e-6,
                  collision_model=None, collision_thresholds=None, collision_coupling=None, damping_model=None,
-                 collision_transient_gain: float = 0.0):
+                 collision_transient_gain: float = 0.0, replan: str = "restart"):
         self.damping_model = damping_model
         if not collision_transient_gain >= 0:
             raise ValueError(f"collision_transient_gain: expected >= 0, got {collision_transient_gain!r}")
@@ -277,7 +290,7 @@ class CascadeCore:
         self.collision_thresholds = None if collision_thresholds is None else \
             [float(x) for x in check_vector(collision_thresholds, "collision_thresholds", 2)]
         p = arm.params
-        self.controlled = ControlledArm(arm, v_max=p.max_speed_rad_s, a_max=p.max_accel_rad_s2)
+        self.controlled = ControlledArm(arm, v_max=p.max_speed_rad_s, a_max=p.max_accel_rad_s2, replan=replan)
         self.damping, self.collision = 0, 0
         #: payload mass the layer knows (kg): the lab's payload at start, then what
         #: :meth:`set_payload` says (the layer never reads the plant's payload afterwards)

@@ -15,7 +15,10 @@ approaches the goal from the other side, still without violating the limits.
 
 Re-planning in motion (:class:`OnlinePlanner`) keeps angle and velocity
 continuous; the acceleration restarts from the sin^2 shape (B.6 assumes zero
-initial acceleration), so it may jump at the switching instant.
+initial acceleration), so it may jump at the switching instant. With
+``replan="blend"`` (:func:`blend_replan`, :class:`BlendedMotion`) the
+acceleration at the switch fades out as ``a0 cos^2`` while the new profile
+starts, so angle, velocity and acceleration stay continuous and the limits hold.
 
 Joints are planned independently (each with its own limits), as in the seed.
 Angles in radians, time in seconds.
@@ -29,7 +32,11 @@ import numpy as np
 
 from .._checks import check_array
 
-__all__ = ["sinusoidal_transition", "JointMotion", "plan_motion", "OnlinePlanner"]
+__all__ = ["sinusoidal_transition", "JointMotion", "plan_motion", "OnlinePlanner", "BlendedMotion", "blend_replan",
+           "REPLAN_MODES"]
+
+#: How a motion is re-planned in flight: the acceleration restarts from zero, or fades out (continuous).
+REPLAN_MODES = ("restart", "blend")
 
 
 def sinusoidal_transition(tau, duration_s: float, v_start, dv):
@@ -259,6 +266,235 @@ def plan_motion(theta_start, theta_goal, *, v_max, a_max, dtheta_start=None,
                        t_acc=ta, t_cruise=tc, t_dec=td)
 
 
+def _blend_terms(tau, a0, blend_s):
+    """Offset of a ``a0 cos^2`` fade over ``blend_s`` from an instant velocity step ``a0 blend_s / 2``.
+
+    Returns ``(dp, dv, a)`` (rad, rad/s, rad/s^2) at times ``tau`` (s, clipped to ``[0, blend_s]``):
+    zero at ``tau = 0`` for ``dp``, ``-a0 blend_s / 2`` for ``dv`` and ``a0`` for ``a``; constant
+    ``a0 blend_s^2 (1/pi^2 - 1/4)``, 0 and 0 from ``blend_s`` on. ``blend_s`` must be positive.
+    """
+    t = np.clip(tau, 0.0, blend_s)
+    k = np.pi / blend_s
+    c = np.cos(k * t)
+    a = 0.5 * a0 * (1.0 + c)
+    dv = 0.5 * a0 * (t + np.sin(k * t) / k) - 0.5 * a0 * blend_s
+    dp = 0.5 * a0 * (0.5 * t * t + (1.0 - c) / (k * k)) - 0.5 * a0 * blend_s * t
+    return dp, dv, a
+
+
+@dataclass(frozen=True, kw_only=True)
+class BlendedMotion:
+    """A motion re-planned in flight with continuous acceleration (see :func:`blend_replan`).
+
+    The reference is ``base`` plus, per joint, the fade of the acceleration ``a0`` held at the switch
+    (``a0 cos^2(pi tau / (2 T_b))`` for ``tau < T_b``) less the velocity step ``a0 T_b / 2`` that
+    ``base`` already starts with; ``base`` aims at ``theta_goal`` less the fade's constant offset.
+
+    Attributes
+    ----------
+    base : JointMotion
+        The sin^2 motion from the switch, started at the faded velocity.
+    a0 : ndarray, shape (J,)
+        Acceleration at the switch, rad/s^2.
+    blend_s : ndarray, shape (J,)
+        Fade time ``T_b`` per joint, seconds (0: the acceleration restarts from zero for that joint).
+    theta_goal : ndarray, shape (J,)
+        Goal angles, rad.
+    """
+
+    base: JointMotion
+    a0: np.ndarray
+    blend_s: np.ndarray
+    theta_goal: np.ndarray
+
+    @property
+    def t0(self) -> float:
+        """Switching time, seconds."""
+        return self.base.t0
+
+    @property
+    def duration_s(self) -> float:
+        """Time until the last joint comes to rest."""
+        return max(self.base.duration_s, float(np.max(self.blend_s)))
+
+    def sample(self, t):
+        """Planned angles, velocities and accelerations at times ``t`` (see :meth:`JointMotion.sample`).
+
+        Parameters
+        ----------
+        t : float or array_like, shape (N,)
+            Absolute times, seconds.
+
+        Returns
+        -------
+        theta, dtheta, ddtheta : ndarray, shape (J,) or (N, J)
+        """
+        th, dth, ddth = (np.array(x, dtype=np.float64) for x in self.base.sample(t))
+        tau = np.maximum(np.asarray(t, dtype=np.float64) - self.t0, 0.0)
+        tau = tau[..., None] if np.ndim(tau) else tau
+        on = self.blend_s > 0
+        if np.any(on):
+            dp, dv, a = _blend_terms(tau, self.a0, np.where(on, self.blend_s, 1.0))
+            th += np.where(on, dp, 0.0); dth += np.where(on, dv, 0.0); ddth += np.where(on, a, 0.0)
+        done = tau >= self.duration_s
+        if np.any(done):
+            th = np.where(done, self.theta_goal, th)
+            dth, ddth = np.where(done, 0.0, dth), np.where(done, 0.0, ddth)
+        return th, dth, ddth
+
+    def sample_scalar(self, t: float):
+        """Fast pure-Python :meth:`sample` for one time (lists of J floats).
+
+        Parameters
+        ----------
+        t : float
+            Absolute time, seconds.
+
+        Returns
+        -------
+        theta, dtheta, ddtheta : list of J floats
+        """
+        th, dth, ddth = self.base.sample_scalar(t)
+        tau = max(float(t) - self.base.t0, 0.0)
+        if tau >= self.duration_s:
+            return [float(g) for g in self.theta_goal], [0.0] * len(th), [0.0] * len(th)
+        for j in range(len(th)):
+            tb = float(self.blend_s[j])
+            if tb <= 0.0:
+                continue
+            a0, u = float(self.a0[j]), min(tau, tb)
+            k = math.pi / tb
+            c = math.cos(k * u)
+            th[j] += 0.5 * a0 * (0.5 * u * u + (1.0 - c) / (k * k)) - 0.5 * a0 * tb * u
+            dth[j] += 0.5 * a0 * (u + math.sin(k * u) / k) - 0.5 * a0 * tb
+            ddth[j] += 0.5 * a0 * (1.0 + c)
+        return th, dth, ddth
+
+
+def _blend_joint(p0, v0, a0, goal, vmax, amax, tb, a_base, samples):
+    """Base phases of one joint blended over ``tb`` with base acceleration ``a_base``, or None (limits)."""
+    c = a0 * tb * tb * (1.0 / np.pi ** 2 - 0.25)
+    vb = v0 + 0.5 * a0 * tb
+    vp, t1, tc, t3 = _plan_1d(goal - c - p0, vb, vmax, a_base)
+    one = JointMotion(t0=0.0, theta0=np.array([p0]), dtheta0=np.array([vb]), theta_goal=np.array([goal - c]),
+                      v_peak=np.array([vp]), t_acc=np.array([t1]), t_cruise=np.array([tc]), t_dec=np.array([t3]))
+    edges = np.minimum([0.0, t1, t1 + tc, t1 + tc + t3, tb], tb)   # every base phase inside the fade, densely
+    tau = np.concatenate([np.linspace(a, b, samples) for a, b in zip(edges[:-1], edges[1:]) if b > a] or [[0.0]])
+    _, v, a = one._sample_joint(0, tau)
+    _, dv, da = _blend_terms(tau, a0, tb)
+    ok = (np.max(np.abs(a + da)) <= amax * (1.0 + 1e-9) + 1e-12
+          and np.max(np.abs(v + dv)) <= max(vmax, abs(v0)) * (1.0 + 1e-9) + 1e-12)
+    return (vb, goal - c, vp, t1, tc, t3) if ok else None
+
+
+def _fit_fade(p0, v0, a0, goal, vmax, amax, tb0, samples):
+    """Fade time and base phases of one joint (``(tb, row)``; ``row`` None: no fade fits the limits).
+
+    Tried in turn, the base at the full ``amax`` unless said: the nominal fade ``tb0``; the fade that
+    ends at the base's peak velocity (no first base transition; a few fixed-point steps); half and a
+    quarter of ``tb0``; ``tb0`` with the base's acceleration lowered (bisection down to ``amax / 2``).
+    """
+    row = _blend_joint(p0, v0, a0, goal, vmax, amax, tb0, amax, samples)
+    if row is not None:
+        return tb0, row
+    tb = tb0
+    for _ in range(4):                                   # fade straight into the base's peak velocity
+        vp = _plan_1d(goal - a0 * tb * tb * (1.0 / np.pi ** 2 - 0.25) - p0, v0 + 0.5 * a0 * tb, vmax, amax)[0]
+        if not (vp - v0) * a0 > 0:
+            break
+        tb = 2.0 * (vp - v0) / a0
+        if tb > 4.0 * tb0:
+            break
+        row = _blend_joint(p0, v0, a0, goal, vmax, amax, tb, amax, samples)
+        if row is not None:
+            return tb, row
+    for tb in (0.5 * tb0, 0.25 * tb0):
+        row = _blend_joint(p0, v0, a0, goal, vmax, amax, tb, amax, samples)
+        if row is not None:
+            return tb, row
+    lo, hi = 0.5 * amax, amax
+    best = _blend_joint(p0, v0, a0, goal, vmax, amax, tb0, lo, samples)
+    if best is not None:
+        for _ in range(6):
+            mid = 0.5 * (lo + hi)
+            r = _blend_joint(p0, v0, a0, goal, vmax, amax, tb0, mid, samples)
+            lo, hi, best = (mid, hi, r) if r is not None else (lo, mid, best)
+    return tb0, best
+
+
+def blend_replan(theta, dtheta, ddtheta, theta_goal, *, v_max, a_max, t0: float = 0.0,
+                 samples: int = 65) -> BlendedMotion:
+    """Re-plan in flight keeping the acceleration continuous (``replan="blend"``).
+
+    Per joint the acceleration ``a0`` at the switch fades as ``a0 cos^2(pi tau / (2 T_b))`` over
+    ``T_b = |a0| v_max / a_max^2`` (the jerk of a sin^2 transition to half the speed limit; shorter
+    where the faded velocity would pass ``v_max``), on top of a sin^2 motion (:func:`plan_motion`)
+    from the faded velocity ``v0 + a0 T_b / 2`` to the goal less the fade's offset. Where the sum
+    would exceed ``a_max`` the fade is fitted to end at the base's peak velocity, then shortened (to a
+    half and a quarter), then the base's acceleration lowered (down to half of ``a_max``); where the
+    sum still would, or ``a0`` is zero, that joint restarts from zero acceleration as
+    :func:`plan_motion` does. The sum is checked at ``samples`` points of every base phase inside the fade.
+
+    Parameters
+    ----------
+    theta, dtheta, ddtheta : array_like, shape (J,)
+        Reference angle (rad), velocity (rad/s) and acceleration (rad/s^2) at the switch.
+    theta_goal : array_like, shape (J,)
+        Goal angles, rad.
+    v_max, a_max : float or array_like, shape (J,)
+        Speed (rad/s) and acceleration (rad/s^2) limits, > 0.
+    t0 : float
+        Switching time, seconds.
+    samples : int
+        Points of the fade at which the limits are checked (>= 2).
+
+    Returns
+    -------
+    BlendedMotion
+
+    Raises
+    ------
+    ValueError
+        If shapes mismatch or a limit is not positive.
+
+    Examples
+    --------
+    >>> m = blend_replan([0.0], [0.5], [2.0], [1.0], v_max=1.0, a_max=2.0)
+    >>> [round(float(x[0]), 6) for x in m.sample(0.0)]     # angle, velocity and acceleration carry over
+    [0.0, 0.5, 2.0]
+    >>> round(float(m.sample(m.duration_s)[0][0]), 9)
+    1.0
+    """
+    th0 = check_array(np.atleast_1d(theta), "theta", (None,))
+    n = len(th0)
+    goal = check_array(np.atleast_1d(theta_goal), "theta_goal", (n,))
+    v0 = check_array(np.atleast_1d(dtheta), "dtheta", (n,))
+    acc0 = check_array(np.atleast_1d(ddtheta), "ddtheta", (n,))
+    vmax = np.broadcast_to(np.asarray(v_max, dtype=np.float64), (n,)).copy()
+    amax = np.broadcast_to(np.asarray(a_max, dtype=np.float64), (n,)).copy()
+    if np.any(~(vmax > 0)) or np.any(~(amax > 0)):
+        raise ValueError(f"v_max, a_max: expected positive limits, got {vmax.tolist()}, {amax.tolist()}")
+    samples = max(int(samples), 2)
+    rows, tbs, a_used = [], np.zeros(n), np.zeros(n)
+    for j in range(n):
+        a, v = float(acc0[j]), float(v0[j])
+        tb = abs(a) * vmax[j] / amax[j] ** 2 if abs(a) > 1e-9 else 0.0
+        if tb > 0.0:
+            tb = min(tb, 2.0 * max(vmax[j] - math.copysign(1.0, a) * v, 0.0) / abs(a))
+        row, tb0 = None, tb
+        if tb0 > 1e-6:
+            tb, row = _fit_fade(th0[j], v, a, goal[j], vmax[j], amax[j], tb0, samples)
+        if row is None:
+            tb, a = 0.0, 0.0
+            row = (v, goal[j]) + _plan_1d(goal[j] - th0[j], v, vmax[j], amax[j])
+        rows.append(row)
+        tbs[j], a_used[j] = tb, a
+    vb, gb, vp, ta, tc, td = (np.array(col, dtype=np.float64) for col in zip(*rows))
+    base = JointMotion(t0=float(t0), theta0=th0, dtheta0=vb, theta_goal=gb, v_peak=vp, t_acc=ta, t_cruise=tc,
+                       t_dec=td)
+    return BlendedMotion(base=base, a0=a_used, blend_s=tbs, theta_goal=goal)
+
+
 class OnlinePlanner:
     """Holds the current motion and re-plans when a new goal arrives (setpoint mode).
 
@@ -270,11 +506,14 @@ class OnlinePlanner:
         Limits, rad/s and rad/s^2.
     t0 : float, optional
         Start time, seconds.
+    replan : {"restart", "blend"}
+        How a new goal re-plans a motion in flight: the acceleration restarts from zero
+        (:func:`plan_motion`, the seed's B.6) or fades out continuously (:func:`blend_replan`).
 
     Raises
     ------
     ValueError
-        If a limit is not positive.
+        If a limit is not positive or ``replan`` is unknown.
 
     Examples
     --------
@@ -285,9 +524,11 @@ class OnlinePlanner:
     [0.5, -0.5]
     """
 
-    def __init__(self, theta_start, *, v_max, a_max, t0: float = 0.0):
+    def __init__(self, theta_start, *, v_max, a_max, t0: float = 0.0, replan: str = "restart"):
         th = check_array(np.atleast_1d(theta_start), "theta_start", (None,))
-        self.v_max, self.a_max = v_max, a_max
+        if replan not in REPLAN_MODES:
+            raise ValueError(f"replan: expected one of {REPLAN_MODES}, got {replan!r}")
+        self.v_max, self.a_max, self.replan = v_max, a_max, replan
         self.motion = plan_motion(th, th, v_max=v_max, a_max=a_max, t0=t0)
 
     def set_goal(self, theta_goal, t: float) -> None:
@@ -305,9 +546,12 @@ class OnlinePlanner:
         ValueError
             If ``theta_goal`` does not have shape (J,).
         """
-        th, dth, _ = self.motion.sample(float(t))
-        self.motion = plan_motion(th, theta_goal, v_max=self.v_max, a_max=self.a_max,
-                                  dtheta_start=dth, t0=float(t))
+        th, dth, ddth = self.motion.sample(float(t))
+        if self.replan == "blend":
+            self.motion = blend_replan(th, dth, ddth, theta_goal, v_max=self.v_max, a_max=self.a_max, t0=float(t))
+        else:
+            self.motion = plan_motion(th, theta_goal, v_max=self.v_max, a_max=self.a_max,
+                                      dtheta_start=dth, t0=float(t))
 
     def sample(self, t):
         """Planned ``(theta, dtheta, ddtheta)`` at time(s) ``t`` (see :meth:`JointMotion.sample`).

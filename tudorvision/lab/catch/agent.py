@@ -254,7 +254,7 @@ class CatchAgent:
         self._last_sent = None
         self._throw = -1
         self._pending = False
-        self.mirror = ReferenceMirror(self.max_speed, self.max_accel)
+        self.mirror = ReferenceMirror(self.max_speed, self.max_accel, replan=options.replan)
         self._speed = self.max_speed
         self._ready_goal = None
         self.log = ThrowLog()

@@ -71,6 +71,10 @@ class DemoOptions:
         restarts the acceleration from zero: sent while a joint brakes, it brakes too late;
         :class:`~tudorvision.lab.catch.agent.ReferenceMirror`) waits for a later frame, rad;
         ``inf``: refinements go out at once (the behaviour before).
+    replan : {"restart", "blend"}
+        How the joint layer re-plans a motion when a refinement arrives in flight (the simulated layer's
+        ``SimCore(replan=...)`` and the agent's mirror of it): the acceleration restarts from zero (the
+        seed's B.6 planner) or fades out continuously (:func:`tudorvision.joint.planner.blend_replan`).
     mode_f0_hz, mode_mass_kg : float
         The arm's first bending mode for the intercept profile (:func:`~tudorvision.lab.catch.profile.mode_frequency_hz`:
         ``mode_f0_hz`` with the bare net, Hz, falling with the estimated payload over ``mode_mass_kg``, kg):
@@ -207,6 +211,7 @@ class DemoOptions:
     mode_f0_hz: float = 2.6
     mode_mass_kg: float = 0.26
     arrive_before_s: float = 0.1
+    replan: str = "restart"
     speed_fraction: float = 0.75
     late_speed_fraction: float = 0.9
     accel_fraction: float = 1.0
@@ -240,6 +245,8 @@ class DemoOptions:
             raise ValueError(f"damping: expected off, proportional, integral or half_integrator, got {self.damping!r}")
         if self.plant not in PLANTS:
             raise ValueError(f"plant: expected one of {', '.join(PLANTS)}, got {self.plant!r}")
+        if self.replan not in ("restart", "blend"):
+            raise ValueError(f"replan: expected restart or blend, got {self.replan!r}")
         if not self.net_radius_m > 0 or not self.gap_s >= 0:
             raise ValueError("net_radius_m, gap_s: expected > 0 and >= 0")
         if not 0 < self.ball_radius_m < self.net_radius_m:

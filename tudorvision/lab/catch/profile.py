@@ -74,6 +74,9 @@ class ReferenceMirror:
         Default profile speed, rad/s (the demo's scalar bound, every joint).
     a_max : float
         Profile acceleration, rad/s^2.
+    replan : {"restart", "blend"}
+        How the layer re-plans a motion in flight (its ``ControlledArm(replan=...)``): the acceleration
+        restarts from zero, or fades out (:func:`tudorvision.joint.planner.blend_replan`).
 
     Attributes
     ----------
@@ -92,8 +95,8 @@ class ReferenceMirror:
     [0.0, 0.0, 0.0]
     """
 
-    def __init__(self, v_max: float, a_max: float):
-        self.v_max, self.a_max = float(v_max), float(a_max)
+    def __init__(self, v_max: float, a_max: float, replan: str = "restart"):
+        self.v_max, self.a_max, self.replan = float(v_max), float(a_max), replan
         self.motion = None
         self.segments: list = []
 
@@ -114,8 +117,12 @@ class ReferenceMirror:
 
     def plan(self, goal, t: float, v_max: float | None = None):
         """The motion the layer would plan for ``goal`` (rad, (3,)) sent at ``t`` (s) with speed ``v_max`` (rad/s)."""
-        from ...joint.planner import plan_motion
+        from ...joint.planner import blend_replan, plan_motion
 
+        if self.replan == "blend":
+            th, dth, ddth = self.motion.sample(float(t))
+            return blend_replan(th, dth, ddth, np.asarray(goal, float),
+                                v_max=self.v_max if v_max is None else float(v_max), a_max=self.a_max, t0=float(t))
         th, dth = self.state(t)
         return plan_motion(th, np.asarray(goal, float), v_max=self.v_max if v_max is None else float(v_max),
                            a_max=self.a_max, dtheta_start=dth, t0=float(t))

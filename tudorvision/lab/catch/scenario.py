@@ -234,7 +234,8 @@ class CatchScenario:
         self._payload = Payload.from_parts(params, balls=0)
         from ..data_collection import plant_config
 
-        self.sim = SimCore(theta_start, payload=self._payload, params=params, config=plant_config(o.plant))
+        self.sim = SimCore(theta_start, payload=self._payload, params=params, config=plant_config(o.plant),
+                           replan=o.replan)
         self.layer = LockstepLayer(self.sim, rate_hz=o.layer_rate_hz)
         self._T_world_base = T_WORLD_BASE
         self._flight = None          # (times_s, points_base) of the ball in the air
