@@ -473,3 +473,43 @@ def test_cli_demo_plant_and_camera_distance(tmp_path, capsys):
     assert "invalid choice: 'soft'" in capsys.readouterr().err
     assert main(["catch", str(tmp_path), "--plant", "stiff"]) != 0
     assert "only with 'catch demo'" in capsys.readouterr().err
+
+
+def test_a_cached_calibration_from_other_code_is_computed_again(tmp_path):
+    """The cache_dir entry names the code that wrote it: read when it matches, computed again (and replaced)
+    when it does not; the shipped calibration of the default placement is what the code computes now."""
+    import tudorvision.lab.catch.calibration as cal
+    from tudorvision.lab.catch.run import demo_kinematics
+    from tudorvision.lab.catch.scenario import CatchScenario
+    from tudorvision.robot import load_robot_params
+
+    p = load_robot_params()
+    o = DemoOptions(throws=1, render=False, cache_dir=str(tmp_path))
+    world = CatchScenario(o, p, np.deg2rad([0.0, 90.0, 0.0]))
+    deflection = demo_kinematics(o, p)[0].deflection
+    shipped, rep = cal.calibrate_wall_camera(o, p, world.T_base_cam, deflection=deflection)
+    assert rep["cached"]                                  # the default placement is shipped
+    packaged = cal._packaged
+    try:
+        cal._packaged = lambda key: None
+        cal._MEMORY.clear()
+        T, rep = cal.calibrate_wall_camera(o, p, world.T_base_cam, deflection=deflection)
+        assert not rep["cached"]
+        np.testing.assert_allclose(T, shipped, atol=1e-9)     # the shipped file is not stale
+        (path,) = tmp_path.glob("wall_calibration_*.json")
+        entry = json.loads(path.read_text())
+        assert entry["code"] == cal.calibration_code_hash()
+        forged = dict(entry, T_base_cam=np.eye(4).tolist())
+        path.write_text(json.dumps(forged))
+        cal._MEMORY.clear()
+        T2, rep2 = cal.calibrate_wall_camera(o, p, world.T_base_cam, deflection=deflection)
+        assert rep2["cached"] and np.allclose(T2, np.eye(4))  # same code: the cache is read as it is
+        path.write_text(json.dumps(dict(forged, code="0123456789abcdef")))
+        cal._MEMORY.clear()
+        T3, rep3 = cal.calibrate_wall_camera(o, p, world.T_base_cam, deflection=deflection)
+        assert not rep3["cached"]
+        np.testing.assert_allclose(T3, shipped, atol=1e-9)
+        assert json.loads(path.read_text())["code"] == cal.calibration_code_hash()   # replaced
+    finally:
+        cal._packaged = packaged
+        cal._MEMORY.clear()

@@ -15,7 +15,9 @@ used afterwards, lab side, to report the calibration's error.
 
 A calibration depends only on the camera placement and the sweep's seed, not
 on the throws: it is cached in memory and as JSON in ``DemoOptions.cache_dir``; the default
-placement's is shipped in ``tudorvision/catch/data`` (:func:`ship_calibration`).
+placement's is shipped in ``tudorvision/catch/data`` (:func:`ship_calibration`). A cached JSON
+names the code that computed it (a hash of :data:`CODE_FILES`); one written by other code is
+computed again, not read. The shipped one is checked against a fresh computation by the tests.
 """
 from __future__ import annotations
 
@@ -26,7 +28,8 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["wall_camera_position_world", "calibrate_wall_camera", "wall_depth_sensor",
-           "WALL_CAMERA_AIM_HEIGHT_M", "CALIBRATION_METHODS", "SWEEP_THETA2_DEG", "ship_calibration"]
+           "WALL_CAMERA_AIM_HEIGHT_M", "CALIBRATION_METHODS", "SWEEP_THETA2_DEG", "ship_calibration",
+           "calibration_code_hash", "CODE_FILES"]
 
 #: ``DemoOptions.calibration_method``: the seed's sweep construction alone, refined in the sweep plane
 #: from the sweep's mirror symmetry (:func:`tudorvision.rgbd.base_calib.refine_sweep_mirror`, model-free),
@@ -38,6 +41,26 @@ CALIBRATION_METHODS = ("seed", "seed+mirror", "seed+deflection", "seed+deflectio
 SWEEP_THETA2_DEG = tuple(float(a) for a in np.arange(10.0, 170.1, 10.0))
 WALL_CAMERA_AIM_HEIGHT_M = 1.0       # the throw scene's camera looks at the point this high above the base
 _MEMORY: dict = {}
+#: The sources (relative to the package) whose code decides a calibration: a cache entry written by other
+#: code is not read (:func:`calibration_code_hash`).
+CODE_FILES = ("rgbd/disc_track.py", "rgbd/disc3d.py", "rgbd/base_calib.py", "rgbd/frames.py", "lab/disc_sweep.py",
+              "lab/catch/calibration.py")
+
+
+def calibration_code_hash() -> str:
+    """A short hash of the calibration's sources (:data:`CODE_FILES`, line endings normalised).
+
+    Returns
+    -------
+    str
+        16 hex digits.
+    """
+    root = Path(__file__).resolve().parents[2]
+    h = hashlib.sha1()
+    for rel in CODE_FILES:
+        h.update(rel.encode())
+        h.update((root / rel).read_bytes().replace(b"\r\n", b"\n"))
+    return h.hexdigest()[:16]
 
 
 def wall_camera_position_world(options) -> np.ndarray:
@@ -228,11 +251,14 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
     T_true = np.asarray(T_base_cam_true, float)
     path = Path(options.cache_dir) / f"wall_calibration_{key}.json"
     cached = _MEMORY.get(key)
+    code = calibration_code_hash()
     if cached is None and path.is_file():
         try:
             cached = json.loads(path.read_text())
         except (OSError, ValueError):
             cached = None
+        if not isinstance(cached, dict) or cached.get("code") != code:
+            cached = None                   # written by other code (or damaged): computed again, then replaced
     if cached is None:
         cached = _packaged(key)
     if cached is not None:
@@ -273,7 +299,8 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
     if "mirror" in method.split("+"):
         T, info = refine_sweep_mirror(T, pts, sweep.theta_rad)
         rep.update(info)
-    entry = {"T_base_cam": np.asarray(T, float).tolist(), "T_base_cam_seed": T_seed.tolist(), "report": rep}
+    entry = {"T_base_cam": np.asarray(T, float).tolist(), "T_base_cam_seed": T_seed.tolist(), "report": rep,
+             "code": code}
     _MEMORY[key] = entry
     try:
         from ...io.atomic import write_text_atomic
