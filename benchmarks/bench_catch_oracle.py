@@ -29,12 +29,16 @@ reasons (ball hit the rim, arm late, other), the net's error against the target 
 the crossing (x / z mean and sd, RMS, p90 of the distance; arrived throws: caught or on the rim,
 crossings inside 0.8 m of the shoulder) and where the misses lie (distance and direction from the
 shoulder, balls in the net), with the ratio of caught against the baseline. Per throw rows go to
-``OUT/<variant>_s<seed>_n<throws>.csv``.
+``OUT/<variant>_<replan>_s<seed>_n<throws>.csv``.
 
 Run (2-core container: about 2 min per variant for 240 throws, 15 min for 1980)::
 
     .venv/bin/python benchmarks/bench_catch_oracle.py --throws 240 --seed 0 --variants baseline release own
     .venv/bin/python benchmarks/bench_catch_oracle.py --throws 1980 --seed 0 --variants release
+    .venv/bin/python benchmarks/bench_catch_oracle.py --throws 240 --seed 0 --variants baseline --replan blend
+
+``--replan blend``: the joint layer re-plans a move in flight with continuous acceleration
+(``DemoOptions.replan``); output files carry the mode in their names.
 """
 from __future__ import annotations
 
@@ -256,14 +260,16 @@ def main() -> None:
     ap.add_argument("--throws", type=int, default=240)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS))
+    ap.add_argument("--replan", choices=("restart", "blend"), default="restart",
+                    help="how the joint layer re-plans a move in flight (DemoOptions.replan)")
     ap.add_argument("--out", default="out/bench_catch_oracle")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     results = {}
     for v in args.variants:
-        rows, s, wall = run_variant(v, args.throws, args.seed)
-        write_rows(out / f"{v}_s{args.seed}_n{args.throws}.csv", rows)
+        rows, s, wall = run_variant(v, args.throws, args.seed, replan=args.replan)
+        write_rows(out / f"{v}_{args.replan}_s{args.seed}_n{args.throws}.csv", rows)
         c, err = _counts(rows), net_error(rows)
         assert c["n"] == s["crossing_workspace"] and c["caught"] == s["caught_in_workspace"], (c, s)
         results[v] = {"counts": c, "net_vs_target": err, "wall_s": wall, "misses": s.get("misses"),
@@ -279,7 +285,7 @@ def main() -> None:
         b = results["baseline"]["counts"]["caught"]
         for v, r in results.items():
             print(f"{v}: caught {r['counts']['caught']} vs baseline {b}: ratio {r['counts']['caught'] / b:.3f}")
-    (out / f"summary_s{args.seed}_n{args.throws}.json").write_text(json.dumps(results, indent=2))
+    (out / f"summary_{args.replan}_s{args.seed}_n{args.throws}.json").write_text(json.dumps(results, indent=2))
 
 
 if __name__ == "__main__":
