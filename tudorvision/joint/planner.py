@@ -218,6 +218,15 @@ def _plan_1d(d: float, v0: float, vmax: float, amax: float):
     return s * vp, t_acc, t_cruise, t_dec
 
 
+def _limits(v_max, a_max, n: int):
+    """Speed and acceleration limits as (n,) arrays; ValueError unless all positive."""
+    vmax = np.broadcast_to(np.asarray(v_max, dtype=np.float64), (n,)).copy()
+    amax = np.broadcast_to(np.asarray(a_max, dtype=np.float64), (n,)).copy()
+    if np.any(~(vmax > 0)) or np.any(~(amax > 0)):
+        raise ValueError(f"v_max, a_max: expected positive limits, got {vmax.tolist()}, {amax.tolist()}")
+    return vmax, amax
+
+
 def plan_motion(theta_start, theta_goal, *, v_max, a_max, dtheta_start=None,
                 t0: float = 0.0) -> JointMotion:
     """Plan a point-to-point motion with the sinusoidal acceleration profile (B.6).
@@ -253,10 +262,7 @@ def plan_motion(theta_start, theta_goal, *, v_max, a_max, dtheta_start=None,
     th0 = check_array(np.atleast_1d(theta_start), "theta_start", (None,))
     n = len(th0)
     goal = check_array(np.atleast_1d(theta_goal), "theta_goal", (n,))
-    vmax = np.broadcast_to(np.asarray(v_max, dtype=np.float64), (n,)).copy()
-    amax = np.broadcast_to(np.asarray(a_max, dtype=np.float64), (n,)).copy()
-    if np.any(~(vmax > 0)) or np.any(~(amax > 0)):
-        raise ValueError(f"v_max, a_max: expected positive limits, got {vmax.tolist()}, {amax.tolist()}")
+    vmax, amax = _limits(v_max, a_max, n)
     v0 = np.zeros(n) if dtheta_start is None else check_array(np.atleast_1d(dtheta_start),
                                                               "dtheta_start", (n,))
     vp, ta, tc, td = (np.zeros(n) for _ in range(4))
@@ -266,20 +272,30 @@ def plan_motion(theta_start, theta_goal, *, v_max, a_max, dtheta_start=None,
                        t_acc=ta, t_cruise=tc, t_dec=td)
 
 
+def _fade(u, a0, blend_s, cos, sin):
+    """The fade's ``(dp, dv, a)`` at ``u`` in ``[0, blend_s]`` (see :func:`_blend_terms`); ``cos``, ``sin``
+    from :mod:`math` (floats) or numpy (arrays)."""
+    k = math.pi / blend_s
+    c = cos(k * u)
+    return (0.5 * a0 * (0.5 * u * u + (1.0 - c) / (k * k)) - 0.5 * a0 * blend_s * u,
+            0.5 * a0 * (u + sin(k * u) / k) - 0.5 * a0 * blend_s,
+            0.5 * a0 * (1.0 + c))
+
+
+def _fade_offset(a0, blend_s):
+    """Where the fade leaves the angle against an instant velocity step ``a0 blend_s / 2``, rad."""
+    return a0 * blend_s * blend_s * (1.0 / math.pi ** 2 - 0.25)
+
+
 def _blend_terms(tau, a0, blend_s):
     """Offset of a ``a0 cos^2`` fade over ``blend_s`` from an instant velocity step ``a0 blend_s / 2``.
 
     Returns ``(dp, dv, a)`` (rad, rad/s, rad/s^2) at times ``tau`` (s, clipped to ``[0, blend_s]``):
     zero at ``tau = 0`` for ``dp``, ``-a0 blend_s / 2`` for ``dv`` and ``a0`` for ``a``; constant
-    ``a0 blend_s^2 (1/pi^2 - 1/4)``, 0 and 0 from ``blend_s`` on. ``blend_s`` must be positive.
+    ``a0 blend_s^2 (1/pi^2 - 1/4)`` (:func:`_fade_offset`), 0 and 0 from ``blend_s`` on. ``blend_s`` must be
+    positive.
     """
-    t = np.clip(tau, 0.0, blend_s)
-    k = np.pi / blend_s
-    c = np.cos(k * t)
-    a = 0.5 * a0 * (1.0 + c)
-    dv = 0.5 * a0 * (t + np.sin(k * t) / k) - 0.5 * a0 * blend_s
-    dp = 0.5 * a0 * (0.5 * t * t + (1.0 - c) / (k * k)) - 0.5 * a0 * blend_s * t
-    return dp, dv, a
+    return _fade(np.clip(tau, 0.0, blend_s), a0, blend_s, np.cos, np.sin)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -362,18 +378,14 @@ class BlendedMotion:
             tb = float(self.blend_s[j])
             if tb <= 0.0:
                 continue
-            a0, u = float(self.a0[j]), min(tau, tb)
-            k = math.pi / tb
-            c = math.cos(k * u)
-            th[j] += 0.5 * a0 * (0.5 * u * u + (1.0 - c) / (k * k)) - 0.5 * a0 * tb * u
-            dth[j] += 0.5 * a0 * (u + math.sin(k * u) / k) - 0.5 * a0 * tb
-            ddth[j] += 0.5 * a0 * (1.0 + c)
+            dp, dv, a = _fade(min(tau, tb), float(self.a0[j]), tb, math.cos, math.sin)
+            th[j] += dp; dth[j] += dv; ddth[j] += a
         return th, dth, ddth
 
 
 def _blend_joint(p0, v0, a0, goal, vmax, amax, tb, a_base, samples):
     """Base phases of one joint blended over ``tb`` with base acceleration ``a_base``, or None (limits)."""
-    c = a0 * tb * tb * (1.0 / np.pi ** 2 - 0.25)
+    c = _fade_offset(a0, tb)
     vb = v0 + 0.5 * a0 * tb
     vp, t1, tc, t3 = _plan_1d(goal - c - p0, vb, vmax, a_base)
     one = JointMotion(t0=0.0, theta0=np.array([p0]), dtheta0=np.array([vb]), theta_goal=np.array([goal - c]),
@@ -399,7 +411,7 @@ def _fit_fade(p0, v0, a0, goal, vmax, amax, tb0, samples):
         return tb0, row
     tb = tb0
     for _ in range(4):                                   # fade straight into the base's peak velocity
-        vp = _plan_1d(goal - a0 * tb * tb * (1.0 / np.pi ** 2 - 0.25) - p0, v0 + 0.5 * a0 * tb, vmax, amax)[0]
+        vp = _plan_1d(goal - _fade_offset(a0, tb) - p0, v0 + 0.5 * a0 * tb, vmax, amax)[0]
         if not (vp - v0) * a0 > 0:
             break
         tb = 2.0 * (vp - v0) / a0
@@ -471,10 +483,7 @@ def blend_replan(theta, dtheta, ddtheta, theta_goal, *, v_max, a_max, t0: float 
     goal = check_array(np.atleast_1d(theta_goal), "theta_goal", (n,))
     v0 = check_array(np.atleast_1d(dtheta), "dtheta", (n,))
     acc0 = check_array(np.atleast_1d(ddtheta), "ddtheta", (n,))
-    vmax = np.broadcast_to(np.asarray(v_max, dtype=np.float64), (n,)).copy()
-    amax = np.broadcast_to(np.asarray(a_max, dtype=np.float64), (n,)).copy()
-    if np.any(~(vmax > 0)) or np.any(~(amax > 0)):
-        raise ValueError(f"v_max, a_max: expected positive limits, got {vmax.tolist()}, {amax.tolist()}")
+    vmax, amax = _limits(v_max, a_max, n)
     samples = max(int(samples), 2)
     rows, tbs, a_used = [], np.zeros(n), np.zeros(n)
     for j in range(n):

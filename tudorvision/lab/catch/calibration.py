@@ -21,6 +21,7 @@ computed again, not read. The shipped one is checked against a fresh computation
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 from pathlib import Path
@@ -47,8 +48,9 @@ CODE_FILES = ("rgbd/disc_track.py", "rgbd/disc3d.py", "rgbd/base_calib.py", "rgb
               "lab/catch/calibration.py")
 
 
+@functools.lru_cache(maxsize=1)
 def calibration_code_hash() -> str:
-    """A short hash of the calibration's sources (:data:`CODE_FILES`, line endings normalised).
+    """A short hash of the calibration's sources (:data:`CODE_FILES`, line endings normalised; read once).
 
     Returns
     -------
