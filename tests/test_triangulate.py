@@ -118,6 +118,40 @@ def test_stereo_rig_matches_triangulate_stereo_and_a_projected_epipolar_oracle(m
         StereoRig(cal, method="fast")
 
 
+def test_stereo_rig_memo_gives_the_uncached_result_and_uses_remembered_points():
+    rng = np.random.default_rng(16)
+    cal = _calibration()
+    X_base = _workspace_points(rng, 60)
+    uv_l = _project(X_base, T_BASE_LEFT, DIST_L) + rng.normal(scale=0.3, size=(60, 2))
+    uv_r = _project(X_base, T_BASE_RIGHT, DIST_R) + rng.normal(scale=0.3, size=(60, 2))
+    rig, fresh = StereoRig(cal), StereoRig(cal)
+    rounds = []
+    for _ in range(2):                            # first call computes and memoises, second reads the memo
+        got = []
+        for i in range(0, 60, 3):                 # a frame's few points per call
+            got.append(rig.triangulate(uv_l[i:i + 3], uv_r[i:i + 3]))
+            assert np.abs(got[-1] - triangulate_stereo(uv_l[i:i + 3], uv_r[i:i + 3], cal)).max() < 1e-12
+            assert np.array_equal(rig.epipolar_px(uv_l[i:i + 3], uv_r[i:i + 3]),
+                                  StereoRig(cal).epipolar_px(uv_l[i:i + 3], uv_r[i:i + 3]))
+        rounds.append(np.concatenate(got))
+    assert np.array_equal(rounds[0], rounds[1])
+    assert len(rig._memo[0]) == 60 and len(rig._memo[1]) == 60
+    # points remembered with their normalised coordinates are triangulated from those (the oracle: the
+    # DLT on the normalised points themselves), not from undistorting the pixels again
+    xl, xr = undistort_points(uv_l[:2], K, DIST_L), undistort_points(uv_r[:2], K, DIST_R)
+    xl_moved = xl + [[1e-4, -2e-4], [0.0, 3e-4]]
+    rig.remember(uv_l[:2], xl_moved, 0)
+    P2 = np.hstack([T_RIGHT_LEFT[:3, :3], T_RIGHT_LEFT[:3, 3:]])
+    want = triangulate_dlt(xl_moved, xr, np.hstack([np.eye(3), np.zeros((3, 1))]), P2)
+    assert np.abs(rig.triangulate(uv_l[:2], uv_r[:2]) - want).max() < 1e-9
+    assert np.abs(fresh.triangulate(uv_l[:2], uv_r[:2]) - want).max() > 1e-5   # the move was real
+    # a memo that outgrows its size starts again instead of growing without bound
+    many = rng.uniform([0, 0], [640, 480], size=(5000, 2))
+    for i in range(0, 5000, 4):
+        rig.epipolar_px(many[i:i + 4], many[i:i + 4])
+    assert len(rig._memo[0]) <= 4096 + 8
+
+
 def test_noise_gives_millimetre_level_errors_in_workspace():
     rng = np.random.default_rng(12)
     X_base = _workspace_points(rng, 2000)

@@ -120,8 +120,9 @@ def consistent_centres(rig: StereoRig, uv_left, uv_right, sigma_left, sigma_righ
         return a, b, moved
     sl, sr = (np.broadcast_to(np.asarray(v, np.float64), moved.shape)[moved] for v in (sigma_left, sigma_right))
     xl, xr = epipolar_correction(xl[moved], xr[moved], rig.E, rig.f_left_px, rig.f_right_px, sl, sr)
-    for cam, x, out in ((rig.left, xl, a), (rig.right, xr, b)):
+    for i, (cam, x, out) in enumerate(((rig.left, xl, a), (rig.right, xr, b))):
         out[moved] = normalised_to_pixels(x, cam.K, cam.dist)
+        rig.remember(out[moved], x, i)      # triangulating the moved centres uses x itself
     return a, b, moved
 
 

@@ -330,12 +330,15 @@ class StereoPipeline:
         tol = self.options.max_epipolar_px
         if tol is None:
             return dets
+        both = [s for s in self.spheres if dets["left"][s].valid and dets["right"][s].valid]
+        epi_both = dict(zip(both, self.epipolar_px([dets["left"][s].uv for s in both],
+                                                   [dets["right"][s].uv for s in both]).tolist())) if both else {}
         for s in self.spheres:
             dl, dr = dets["left"][s], dets["right"][s]
             if not (dl.valid or dr.valid):
                 continue
             if dl.valid and dr.valid:
-                if self.epipolar_px([dl.uv], [dr.uv])[0] <= tol:
+                if epi_both[s] <= tol:
                     continue
                 self.n_inconsistent += 1
                 cands = {cam: self._candidates(images[cam], cam, s) for cam in ("left", "right")}

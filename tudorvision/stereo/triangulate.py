@@ -62,6 +62,10 @@ _UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-1
 
 _P_IDENTITY = np.hstack([np.eye(3), np.zeros((3, 1))])
 
+# StereoRig memoises the undistortion of calls with at most _MEMO_POINTS points, up to _MEMO_SIZE per camera
+_MEMO_POINTS = 8
+_MEMO_SIZE = 4096
+
 
 def _uv(value, name: str) -> np.ndarray:
     return check_points(value, name, dim=2, finite=False)
@@ -372,6 +376,7 @@ class StereoRig:
         self.f_left_px, self.f_right_px = (0.5 * (c.fx + c.fy) for c in (self.left, self.right))
         self._P2 = np.hstack([self.stereo.R, self.stereo.T[:, None]])
         self._dist = (np.asarray(self.left.dist, np.float64).ravel(), np.asarray(self.right.dist, np.float64).ravel())
+        self._memo = ({}, {})     # raw pixel (u, v) -> normalised (x, y), per camera (see _undistorted)
 
     def _pairs(self, uv_left, uv_right):
         a, b = (np.asarray(v, dtype=np.float64).reshape(-1, 2) for v in (uv_left, uv_right))
@@ -382,10 +387,38 @@ class StereoRig:
     def normalised(self, uv_left, uv_right) -> tuple:
         """Undistorted normalised coordinates ``(x_left, x_right)``, each (N, 2), of finite raw pixels (N, 2)."""
         a, b, _ = self._pairs(uv_left, uv_right)
-        kw = {"criteria": _UNDISTORT_CRITERIA}
-        xl = cv2.undistortPoints(np.ascontiguousarray(a).reshape(-1, 1, 2), self.left.K, self._dist[0], **kw)
-        xr = cv2.undistortPoints(np.ascontiguousarray(b).reshape(-1, 1, 2), self.right.K, self._dist[1], **kw)
-        return xl.reshape(-1, 2), xr.reshape(-1, 2)
+        return self._undistorted(a, 0), self._undistorted(b, 1)
+
+    def _undistorted(self, uv, cam: int) -> np.ndarray:
+        """Normalised coordinates (n, 2) of raw pixels ``uv`` (n, 2) of camera ``cam`` (0 left, 1 right).
+
+        Calls of a few points (a frame's centres, checked, triangulated and
+        triangulated again) are memoised by value: each centre is undistorted once.
+        """
+        few = len(uv) <= _MEMO_POINTS
+        if few:
+            memo = self._memo[cam]
+            keys = [tuple(p) for p in uv.tolist()]
+            if all(k in memo for k in keys):
+                return np.array([memo[k] for k in keys], dtype=np.float64).reshape(-1, 2)
+        cam_model = self.left if cam == 0 else self.right
+        x = cv2.undistortPoints(np.ascontiguousarray(uv).reshape(-1, 1, 2), cam_model.K, self._dist[cam],
+                                criteria=_UNDISTORT_CRITERIA).reshape(-1, 2)
+        if few:
+            self.remember(uv, x, cam)
+        return x
+
+    def remember(self, uv, x, cam: int) -> None:
+        """Record that raw pixels ``uv`` (n, 2) of camera ``cam`` (0 left, 1 right) undistort to ``x`` (n, 2).
+
+        For points made by distorting ``x`` (e.g. centres moved in normalised
+        coordinates): later calls then use ``x`` itself.
+        """
+        memo = self._memo[cam]
+        if len(memo) > _MEMO_SIZE:
+            memo.clear()
+        memo.update(zip((tuple(p) for p in np.asarray(uv, np.float64).reshape(-1, 2).tolist()),
+                        np.asarray(x, np.float64).reshape(-1, 2).tolist()))
 
     def epipolar_px(self, uv_left, uv_right) -> np.ndarray:
         """Distance (N,) of each right point from the epipolar line of its left point, raw pixels (N, 2) in.
