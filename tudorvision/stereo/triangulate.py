@@ -398,9 +398,10 @@ class StereoRig:
         few = len(uv) <= _MEMO_POINTS
         if few:
             memo = self._memo[cam]
-            keys = [tuple(p) for p in uv.tolist()]
-            if all(k in memo for k in keys):
-                return np.array([memo[k] for k in keys], dtype=np.float64).reshape(-1, 2)
+            try:
+                return np.array([memo[tuple(p)] for p in uv.tolist()], dtype=np.float64).reshape(-1, 2)
+            except KeyError:        # not seen yet (or the memo was just cleared)
+                pass
         cam_model = self.left if cam == 0 else self.right
         x = cv2.undistortPoints(np.ascontiguousarray(uv).reshape(-1, 1, 2), cam_model.K, self._dist[cam],
                                 criteria=_UNDISTORT_CRITERIA).reshape(-1, 2)
