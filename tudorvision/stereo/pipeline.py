@@ -22,7 +22,7 @@ per-frame 3D points are instantaneous; the trajectory is triangulated once
 more from the whole pixel tracks so that, when the calibration gives the
 cameras a rolling-shutter ``line_time_s``, every centroid is first moved
 from its row's read-out time to the frame timestamp
-(:func:`~tudorvision.stereo.triangulate.compensate_rolling_shutter`).
+(:func:`~tudorvision.stereo.rolling_shutter.compensate_rolling_shutter`).
 Velocity and acceleration are central finite differences
 (:func:`~tudorvision.stereo.trajectory.trajectory_from_points`).
 
@@ -309,9 +309,6 @@ class StereoPipeline:
         """
         return self._rig.epipolar_px(uv_left, uv_right)
 
-    def _left_points(self, uv_left, uv_right) -> np.ndarray:
-        return self._rig.triangulate(uv_left, uv_right)
-
     def _candidates(self, img, cam: str, sphere: str, anywhere: bool = False) -> list:
         """Valid regions of one sphere in a full frame (full resolution), heaviest first.
 
@@ -359,7 +356,7 @@ class StereoPipeline:
                 if ok.any():
                     prev = self._last_left[s]
                     if prev is not None:
-                        pts = self._left_points(ua, ub)
+                        pts = self._rig.triangulate(ua, ub)
                         score = np.where(ok, np.linalg.norm(pts - prev, axis=1), np.inf)
                     else:
                         score = np.where(ok, epi, np.inf)
@@ -473,7 +470,7 @@ class StereoPipeline:
 
         def agree(uv_bad, r_bad):
             uv, rr = {other: dets[other][s].uv, bad: uv_bad}, {other: r_other, bad: r_bad}
-            p2 = self._left_points([uv["left"]], [uv["right"]])[0]
+            p2 = self._rig.triangulate([uv["left"]], [uv["right"]])[0]
             mis = abs(math.log(radius_ratio(p2, rr["left"], rr["right"], f["left"], f["right"], stereo.R, stereo.T)))
             ok = mis <= tol and self.epipolar_px([uv["left"]], [uv["right"]])[0] <= \
                 (self.options.max_epipolar_px or math.inf)
@@ -601,7 +598,7 @@ class StereoPipeline:
         if opt.sphere_separation_m is not None and len(self.spheres) == 2 and \
                 all(dets[c][s].valid for c in ("left", "right") for s in self.spheres):
             a, b = self.spheres
-            pts = self._left_points([dets["left"][a].uv, dets["left"][b].uv],
+            pts = self._rig.triangulate([dets["left"][a].uv, dets["left"][b].uv],
                                     [dets["right"][a].uv, dets["right"][b].uv])
             sep = float(np.linalg.norm(pts[0] - pts[1]))
             if not abs(sep - opt.sphere_separation_m) <= opt.separation_tol_m:
