@@ -121,8 +121,9 @@ def consistent_centres(rig: StereoRig, uv_left, uv_right, sigma_left, sigma_righ
     sl, sr = (np.broadcast_to(np.asarray(v, np.float64), moved.shape)[moved] for v in (sigma_left, sigma_right))
     xl, xr = epipolar_correction(xl[moved], xr[moved], rig.E, rig.f_left_px, rig.f_right_px, sl, sr)
     for i, (cam, x, out) in enumerate(((rig.left, xl, a), (rig.right, xr, b))):
-        out[moved] = normalised_to_pixels(x, cam.K, cam.dist)
-        rig.remember(out[moved], x, i)      # triangulating the moved centres uses x itself
+        px = normalised_to_pixels(x, cam.K, cam.dist)
+        out[moved] = px
+        rig.remember(px, x, i)      # triangulating the moved centres uses x itself
     return a, b, moved
 
 

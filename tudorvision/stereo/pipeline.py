@@ -329,7 +329,7 @@ class StereoPipeline:
             return dets
         both = [s for s in self.spheres if dets["left"][s].valid and dets["right"][s].valid]
         epi_both = dict(zip(both, self.epipolar_px([dets["left"][s].uv for s in both],
-                                                   [dets["right"][s].uv for s in both]).tolist())) if both else {}
+                                                   [dets["right"][s].uv for s in both]).tolist()))
         for s in self.spheres:
             dl, dr = dets["left"][s], dets["right"][s]
             if not (dl.valid or dr.valid):
@@ -599,7 +599,7 @@ class StereoPipeline:
                 all(dets[c][s].valid for c in ("left", "right") for s in self.spheres):
             a, b = self.spheres
             pts = self._rig.triangulate([dets["left"][a].uv, dets["left"][b].uv],
-                                    [dets["right"][a].uv, dets["right"][b].uv])
+                                        [dets["right"][a].uv, dets["right"][b].uv])
             sep = float(np.linalg.norm(pts[0] - pts[1]))
             if not abs(sep - opt.sphere_separation_m) <= opt.separation_tol_m:
                 why = f"sphere separation {sep:.3f} m, expected {opt.sphere_separation_m:.3f} m"
