@@ -65,14 +65,16 @@ def test_simulated_detection_covariance_along_and_across_the_ray():
     ray = np.array([0.2, -0.1, 3.0]) / np.linalg.norm([0.2, -0.1, 3.0])
     # by hand: sigma_z(3 m) = 8.05 mm (the seed's fit in mm) over sqrt(n), n = 0.8 pi (525 * 0.045 / 3)^2
     # silhouette pixels, divided by the ray's z component; across: 1 px at 3 m = 3 / 525 m
-    n = 0.8 * np.pi * (525.0 * 0.045 / 3.0) ** 2
+    # silhouette pixels over the 14 pixels per independent sample of a real Kinect's correlated noise
+    n = 0.8 * np.pi * (525.0 * 0.045 / 3.0) ** 2 / 14.0
     s_along = 8.05e-3 / np.sqrt(n) / ray[2]
     np.testing.assert_allclose(C @ ray, s_along ** 2 * ray, rtol=1e-9, atol=1e-15)
     across = np.cross(ray, [1.0, 0.0, 0.0])
     across /= np.linalg.norm(across)
     np.testing.assert_allclose(across @ C @ across, (3.0 / 525.0) ** 2, rtol=1e-9)
     # with millimetre depth noise the silhouette's depth fixes the range better than a pixel the bearing
-    assert s_along < 3.0 / 525.0 / 5
+    # (by less with the correlated noise of a real Kinect: 2.4 mm against 5.7 mm at 3 m)
+    assert s_along < 3.0 / 525.0 / 2
     assert simulated_detection([0.0, 0.0, 6.0], K, rng) is None        # beyond 4.5 m
     assert simulated_detection([5.0, 0.0, 1.0], K, rng) is None        # outside the image
 
@@ -96,7 +98,7 @@ def test_cli_open_loop_on_recorded_throws(tmp_path, capsys):
     calib = save_calibration(cal.with_updates(transforms={"T_base_cam": T}), tmp_path / "calib.yaml")
     assert main(["catch", str(SAMPLE), "--calib", str(calib), "--out", str(tmp_path / "ol")]) == 0
     rows = list(csv.DictReader((tmp_path / "ol" / "predictions.csv").open()))
-    assert len(rows) >= 10
+    assert len(rows) >= 6                   # the ball within the camera's 4.5 m detection range: 8 frames
     truth = np.loadtxt(SAMPLE / "groundtruth" / "ball.csv", delimiter=",", skiprows=2)
     last = rows[-1]
     t = float(last["t_s"])
@@ -441,9 +443,10 @@ def test_wall_camera_reaches_the_arm_from_behind_the_thrower(tmp_path):
     T, rep = wall_camera_transform(o, p, world.T_base_cam, verbose=False)
     assert rep["cached"]            # the default placement's calibration is shipped (package data), not rendered
     assert rep["skipped_frames"] == 0 and rep["frames"] == 17 * 8 + 48          # theta2 10-170 deg, 8 frames each
-    assert rep["position_error_m"] < 0.01 and rep["rotation_error_deg"] < 0.25 and rep["error_at_arm_m"] < 0.01
+    # the depth noise correlated as a real Kinect's: 0.39 deg (0.6 cm at the base, 0.16 cm at the arm)
+    assert rep["position_error_m"] < 0.01 and rep["rotation_error_deg"] < 0.5 and rep["error_at_arm_m"] < 0.01
     assert rep["rotation_error_deg"] < rep["seed_method"]["rotation_error_deg"] - 0.1     # the lean removed
-    assert 0.003 < rep["circle_rmse_m"] < 0.02                  # the 10 cm depth noise at 6.9 m shows
+    assert 0.003 < rep["circle_rmse_m"] < 0.025                 # the 10 cm depth noise at 6.9 m shows
     # the Kinect's fit range alone (6 m) loses the disc at the arm: the sweep cannot be measured there
     from dataclasses import replace
     with pytest.raises(ValueError):

@@ -3,9 +3,10 @@ import cv2
 import numpy as np
 import pytest
 
-from tudorvision.sensors import KINECT_DEPTH_NOISE
+from tudorvision.sensors import KINECT_DEPTH_NOISE, DepthNoiseModel
 from tudorvision.sim.camera import look_at, project_points
 from tudorvision.sim.depth_sensor import DepthSensorModel, depth_mm_from_gbuffer
+from tudorvision.sim.raycast import GBuffer
 from tudorvision.sim.render import Rectangle, render_gbuffer, render_rgbd
 from tudorvision.sim.scenes import ArmGeometry, arm_geometry_from_joints, checkerboard_lab, stereo_lab
 from tudorvision.sim.scenes_rgbd import ball_throw, ballistic, eye_in_hand, planar_target, wall_disc
@@ -29,7 +30,10 @@ def test_depth_noise_std_matches_sigma_z(distance):
 
     The output is rounded to 1 mm, which adds 1/12 mm^2 of variance (Sheppard; exact up to
     exp(-2 pi^2 sigma^2 / step^2) < 1e-6 for sigma >= 0.8 mm); the pooled per-pixel variance minus it
-    estimates sigma^2 with a relative standard error sqrt(2 / (pixels * 99)).
+    estimates sigma^2 with a relative standard error sqrt(2 / (pixels * 99)) for independent pixels.
+    The noise is correlated between pixels (``noise_corr_px``, Gaussian correlation with scales 2 su, 2 sv):
+    the pooled variance then has sum(rho^2) = 2 pi su sv times that variance of its estimate, and the
+    mean sum(rho) = 4 pi su sv times the variance of a mean of independent pixels.
     """
     rng = np.random.default_rng(int(distance * 10))
     setup = planar_target(distance, rng, width=W, height=H)
@@ -42,11 +46,13 @@ def test_depth_noise_std_matches_sigma_z(distance):
     assert n_px > 30
     var_mm2 = frames[:, region].var(axis=0, ddof=1).mean() - 1.0 / 12.0
     sigma_mm = _sigma_mm(distance)
-    se_rel = np.sqrt(2.0 / (n_px * (n_frames - 1)))           # of the variance
+    su, sv = DepthSensorModel().noise_corr_px
+    sum_rho2, sum_rho = max(2 * np.pi * su * sv, 1.0), max(4 * np.pi * su * sv, 1.0)
+    se_rel = np.sqrt(2.0 * sum_rho2 / (n_px * (n_frames - 1)))           # of the variance
     assert abs(var_mm2 / sigma_mm ** 2 - 1) < 4 * se_rel
     # the mean is unbiased: within 4 standard errors (and the half-millimetre of rounding noise)
     mean_mm = frames[:, region].mean()
-    assert abs(mean_mm - 1000 * distance) < 4 * np.sqrt(sigma_mm ** 2 + 1 / 12) / np.sqrt(n_px * n_frames)
+    assert abs(mean_mm - 1000 * distance) < 4 * np.sqrt((sigma_mm ** 2 * sum_rho + 1 / 12) / (n_px * n_frames))
 
 
 def test_depth_is_z_along_axis_not_ray_length():
@@ -179,3 +185,34 @@ def test_moving_checkerboard_matches_static_boards():
         m_still = g_still.object_id == still.meta["object_ids"]["board"]
         assert m_move.sum() > 100 and np.array_equal(m_move, m_still)
         np.testing.assert_allclose(moving.meta["inner_corners_world"](k), still.meta["inner_corners_world"])
+
+
+def test_depth_noise_is_correlated_as_configured_and_scales_with_the_image_width():
+    """Neighbouring pixels of a flat target: correlation exp(-1 / (4 s^2)) along u and v (s of 0.9 px and more,
+    where the sampled Gaussian follows the continuous one), none with (0, 0), and a half-width image sees half
+    the correlation scale (the sensor's own pixels are 640 across)."""
+    from tudorvision.sim.depth_sensor import noise_field
+
+    def lag1(res):
+        return (np.corrcoef(res[:, 1:].ravel(), res[:, :-1].ravel())[0, 1],
+                np.corrcoef(res[1:, :].ravel(), res[:-1, :].ravel())[0, 1])
+
+    rng = np.random.default_rng(5)
+    for width, corr, expect in [(640, (1.5, 0.9), (np.exp(-1 / 9.0), np.exp(-1 / 3.24))),
+                                (320, (3.0, 1.8), (np.exp(-1 / 9.0), np.exp(-1 / 3.24))),
+                                (640, (0.0, 0.0), (0.0, 0.0))]:
+        sigma = 0.004
+        z = np.full((120, width), 2.0)
+        g = GBuffer(distance_m=z, depth_m=z, normal_world=np.zeros(z.shape + (3,), np.float32),
+                    object_id=np.ones(z.shape, np.int32), albedo_rgb=np.full(z.shape + (3,), 0.5, np.float32))
+        model = DepthSensorModel(noise_corr_px=corr, noise=DepthNoiseModel(coeffs=(0.0, 0.0, 0.0, sigma)),
+                                 units_per_m=10000.0, max_depth_m=6.0)
+        res = depth_mm_from_gbuffer(g, model, rng).astype(float) / 1e4 - 2.0
+        assert abs(res.std() / sigma - 1) < 0.06                        # each pixel keeps sigma_z
+        np.testing.assert_allclose(lag1(res), expect, atol=0.04)
+    f = noise_field((50, 60), np.random.default_rng(0), (2.0, 1.0), np.float32)
+    assert f.shape == (50, 60) and f.dtype == np.float32
+    with pytest.raises(ValueError, match="noise_corr_px"):
+        DepthSensorModel(noise_corr_px=(1.0,))
+    with pytest.raises(ValueError, match="noise_corr_px"):
+        DepthSensorModel(noise_corr_px=(-1.0, 0.5))

@@ -281,7 +281,7 @@ def test_joint_move_records_joint_angles(tmp_path, capsys):
 
 def test_calib_rgbd_base_records_disc_and_base_frame(tmp_path, capsys):
     rrd = tmp_path / "wall.rrd"
-    rc, out, err = _run(capsys, "calib", "rgbd-base", SAMPLE / "rgbd-disc", "--seed", "402,283",
+    rc, out, err = _run(capsys, "calib", "rgbd-base", SAMPLE / "rgbd-disc", "--seed", "402,284",
                         "--out", tmp_path / "wall.yaml", "--rerun", rrd)
     assert rc == 0, err
     rows = _entity_rows(rrd)

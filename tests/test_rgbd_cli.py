@@ -131,4 +131,5 @@ def test_detect_ball_on_virtual_lab_throws(lab_recordings, tmp_path):
     truth = np.column_stack([gt["x_cam_m"], gt["y_cam_m"], gt["z_cam_m"]])
     errs = [np.linalg.norm(np.array([float(r["x"]), float(r["y"]), float(r["z"])]) - truth[int(r["frame"])])
             for r in rows if r["valid"] == "1"]
-    assert len(errs) >= 5 and np.median(errs) < 0.003          # mm depth noise: 0.6 mm median (seed 3)
+    # mm depth noise correlated between pixels as a real Kinect's: 3.4 mm median (0.6 mm with independent pixels)
+    assert len(errs) >= 5 and np.median(errs) < 0.008

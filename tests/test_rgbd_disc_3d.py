@@ -47,7 +47,9 @@ def test_full_sweep_disc_in_ring_gives_the_base_frame(background):
     pts, skipped, o, a, rep = _calibrate(sw, Disc3DOptions(depth_model=MM_NOISE))
     err = np.linalg.norm(pts - sw.disc_centres_cam, axis=1)
     assert len(skipped) <= 1
-    assert np.nanmedian(err) < 0.006 and np.nanmax(err) < 0.03
+    # the depth noise is correlated between pixels as a real Kinect's (sim.depth_sensor.KINECT_NOISE_CORR_PX):
+    # the disc's points average less of it away than independent pixels would (median 5.4 -> 6.3 mm here)
+    assert np.nanmedian(err) < 0.008 and np.nanmax(err) < 0.03
     assert abs(rep["circle_radius_m"] - 0.84) < 0.03
     assert o < 0.015 and a < 1.5
 
@@ -115,7 +117,8 @@ def test_coarse_sweep_far_camera_near_wall(step_deg, background):
     opts = Disc3DOptions(depth_model=MM_NOISE)
     pts, skipped = track_disc_sweep(sw.depth_m, K, _seed_uv(sw, K), sw.theta_rad[:, 1], opts)
     err = np.linalg.norm(pts - sw.disc_centres_cam, axis=1)
-    assert skipped == {} and np.max(err) < 0.03 and np.median(err) < 0.015
+    # correlated depth noise (a real Kinect's), sigma_z 47 mm at 5.5 m: median 8.7-10.7 mm, worst 21-37 mm here
+    assert skipped == {} and np.max(err) < 0.045 and np.median(err) < 0.015
     if step_deg == 20.0:                # 10 poses: enough for the circle's outlier rejection
         sweep = ~sw.vertical
         T, rep = base_frame_from_theta2_sweep(pts[sweep], pts[sw.vertical], theta2_rad=sw.theta_rad[sweep, 1])

@@ -5,9 +5,18 @@ default the seed's Kinect fit :data:`tudorvision.sensors.KINECT_DEPTH_NOISE`
 (sigma read in millimetres: 1.35 mm at 1 m, 35 mm at 5 m). The output is
 rounded to ``1 / units_per_m`` (1 mm), which adds ``1 mm / sqrt(12)`` of
 quantisation spread where sigma is of that order (below about 1.5 m).
+
+The noise is spatially correlated, as a real Kinect's is (its depth comes
+from block matching of a speckle pattern): a white field smoothed by a
+Gaussian of standard deviations ``noise_corr_px`` (u, v) and scaled back to
+unit variance, so that each pixel keeps ``sigma_z(z)`` while the mean over a
+region averages far less noise away than independent pixels would
+(:data:`KINECT_NOISE_CORR_PX`, measured on a real frame;
+``benchmarks/bench_depth_noise_real.py``).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import cv2
@@ -16,7 +25,16 @@ import numpy as np
 from ..sensors import KINECT_DEPTH_NOISE, KINECT_RANGE_M, DepthNoiseModel
 from .raycast import GBuffer
 
-__all__ = ["DepthSensorModel", "depth_mm_from_gbuffer"]
+__all__ = ["DepthSensorModel", "depth_mm_from_gbuffer", "noise_field", "KINECT_NOISE_CORR_PX"]
+
+#: Standard deviations (u, v) of the Gaussian that correlates the depth noise, pixels. From the flat desk
+#: top of the real TUM frame ``../shared/realdata/rgbd_tum_desk/1_depth.png`` (rows 330-380, columns
+#: 90-200, 1.23 m; ``benchmarks/bench_depth_noise_real.py``): the residual of a smooth surface fit is
+#: correlated more along rows (0.66 / 0.53 / 0.34 at 1 / 2 / 4 px) than along columns (0.49 / 0.29 / 0.01),
+#: and 8 x 8 block means keep 12-27 times the variance independent pixels would leave (the fit's degree
+#: decides); this field keeps 11 there, and 11.5-15 over discs of 4-20 px radius (4 pi 1.5 0.9 = 17 at most).
+KINECT_NOISE_CORR_PX = (1.5, 0.9)
+NATIVE_WIDTH_PX = 640          # the width ``noise_corr_px`` is given for
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -38,6 +56,11 @@ class DepthSensorModel:
         Surfaces darker than this (mean linear RGB albedo) return no depth.
     units_per_m : float
         Scale of the 16-bit output (1000: millimetres).
+    noise_corr_px : tuple of float
+        Standard deviations (u, v) of the Gaussian that correlates the noise between pixels, in pixels
+        of an image 640 px wide (the sensor's own resolution; scaled with the image width, so that a
+        320 x 240 render sees half as many pixels of correlation) (:func:`noise_field`); ``(0, 0)``:
+        independent pixels (the lab before 2026-11-27).
 
     Raises
     ------
@@ -60,6 +83,7 @@ class DepthSensorModel:
     edge_width_px: int = 1
     min_albedo: float = 0.03
     units_per_m: float = 1000.0
+    noise_corr_px: tuple = KINECT_NOISE_CORR_PX
 
     def __post_init__(self):
         if not 0 <= self.min_depth_m < self.max_depth_m:
@@ -74,6 +98,33 @@ class DepthSensorModel:
         if not self.units_per_m > 0 or self.max_depth_m * self.units_per_m > 65535:
             raise ValueError(f"units_per_m: expected > 0 with max_depth_m * units_per_m <= 65535, "
                              f"got {self.units_per_m}")
+        try:
+            su, sv = (float(c) for c in self.noise_corr_px)
+        except (TypeError, ValueError):
+            raise ValueError(f"noise_corr_px: expected two numbers (u, v), got {self.noise_corr_px!r}") from None
+        if not (0 <= su <= 20 and 0 <= sv <= 20):
+            raise ValueError(f"noise_corr_px: expected two standard deviations in [0, 20] px, got {self.noise_corr_px!r}")
+
+    def corr_px_for_width(self, width_px: int) -> tuple:
+        """``noise_corr_px`` for an image ``width_px`` wide (it is given for 640 px).
+
+        Parameters
+        ----------
+        width_px : int
+            Width of the whole image, pixels.
+
+        Returns
+        -------
+        tuple of float
+            Standard deviations (u, v) of the correlating Gaussian in that image, pixels.
+
+        Examples
+        --------
+        >>> DepthSensorModel().corr_px_for_width(320)
+        (0.75, 0.45)
+        """
+        k = float(width_px) / NATIVE_WIDTH_PX
+        return (k * float(self.noise_corr_px[0]), k * float(self.noise_corr_px[1]))
 
     @property
     def sigma_coeffs_cm(self) -> DepthNoiseModel:
@@ -90,6 +141,61 @@ def depth_sigma_m(z_m, noise: DepthNoiseModel = KINECT_DEPTH_NOISE) -> np.ndarra
     return noise.sigma_m(z_m)
 
 
+def _gauss_1d(sigma: float) -> np.ndarray:
+    if sigma <= 0:
+        return np.ones(1)
+    r = int(math.ceil(4.0 * sigma))
+    k = np.exp(-0.5 * (np.arange(-r, r + 1) / sigma) ** 2)
+    return k / np.linalg.norm(k)           # unit energy: white noise keeps its variance through it
+
+
+def noise_field(shape, rng: np.random.Generator, corr_px=(0.0, 0.0), dtype=np.float64) -> np.ndarray:
+    """Zero-mean, unit-variance Gaussian noise image, correlated between neighbouring pixels.
+
+    One ``rng.standard_normal(shape, dtype)`` draw (returned as it is for ``corr_px = (0, 0)``; the same
+    draw whatever ``corr_px``, so the generator's later draws do not change with it) filtered by a
+    separable Gaussian of standard deviations ``corr_px`` (along u, along v) whose kernels have unit
+    energy, the image wrapped around at its borders: every pixel has variance 1, and pixels
+    ``(du, dv)`` apart (and not near opposite borders) have the correlation
+    ``exp(-du^2 / (4 su^2) - dv^2 / (4 sv^2))`` (for scales of about a pixel and more; a sampled Gaussian
+    narrower than that correlates neighbours less).
+
+    Parameters
+    ----------
+    shape : tuple of int
+        ``(H, W)``.
+    rng : numpy.random.Generator
+        Source of the draw.
+    corr_px : tuple of float
+        Standard deviations ``(su, sv)`` of the smoothing Gaussian, pixels (0: none along that axis).
+    dtype : numpy dtype
+        float32 or float64.
+
+    Returns
+    -------
+    ndarray, shape (H, W)
+        The field, ``dtype``.
+
+    Examples
+    --------
+    >>> f = noise_field((400, 400), np.random.default_rng(0), (1.5, 0.9))
+    >>> round(float(f.std()), 1), round(float(np.corrcoef(f[:, 1:].ravel(), f[:, :-1].ravel())[0, 1]), 1)   # exp(-1 / 9)
+    (1.0, 0.9)
+    >>> np.array_equal(noise_field((3, 4), np.random.default_rng(1)), np.random.default_rng(1).standard_normal((3, 4)))
+    True
+    """
+    n = rng.standard_normal(shape, dtype=dtype)
+    su, sv = (float(c) for c in corr_px)
+    if su <= 0 and sv <= 0:
+        return n
+    kx, ky = _gauss_1d(su).astype(dtype), _gauss_1d(sv).astype(dtype)
+    rx, ry = len(kx) // 2, len(ky) // 2
+    h, w = n.shape
+    # wrapped around (no mirrored border, whose repeated samples would raise the variance there)
+    wide = np.pad(n, ((ry, ry), (rx, rx)), mode="wrap")
+    return cv2.sepFilter2D(wide, -1, kx, ky)[ry:ry + h, rx:rx + w]
+
+
 def _edge_mask(z: np.ndarray, rel: float, width: int) -> np.ndarray:
     zf = np.where(np.isfinite(z), z, 1e9)
     edge = np.zeros(z.shape, bool)
@@ -103,11 +209,12 @@ def _edge_mask(z: np.ndarray, rel: float, width: int) -> np.ndarray:
 
 
 def depth_mm_from_gbuffer(gbuffer: GBuffer, model: DepthSensorModel,
-                          rng: np.random.Generator | None) -> np.ndarray:
+                          rng: np.random.Generator | None, *, image_width_px: int | None = None) -> np.ndarray:
     """Registered 16-bit depth image from a ray-cast G-buffer.
 
     Depth is z along the optical axis plus Gaussian noise of std
-    ``model.noise.sigma_m(z)``, rounded to ``1 / model.units_per_m`` metres;
+    ``model.noise.sigma_m(z)``, correlated between pixels by ``model.noise_corr_px``
+    (:func:`noise_field`), rounded to ``1 / model.units_per_m`` metres;
     0 marks invalid pixels (out of range, no hit, depth edges, dark surfaces).
 
     Parameters
@@ -117,7 +224,10 @@ def depth_mm_from_gbuffer(gbuffer: GBuffer, model: DepthSensorModel,
     model : DepthSensorModel
         Range, noise, edge and albedo rules, output scale.
     rng : numpy.random.Generator or None
-        Noise source (one ``standard_normal((H, W))`` draw); None: no noise.
+        Noise source (one ``standard_normal((H, W))`` draw, :func:`noise_field`); None: no noise.
+    image_width_px : int, optional
+        Width of the whole image when ``gbuffer`` is a crop of it (the noise's correlation scales with
+        it, :meth:`DepthSensorModel.corr_px_for_width`); default the G-buffer's own width.
 
     Returns
     -------
@@ -130,6 +240,7 @@ def depth_mm_from_gbuffer(gbuffer: GBuffer, model: DepthSensorModel,
     valid &= gbuffer.albedo_rgb.mean(axis=2) >= model.min_albedo
     zv = np.where(valid, z, 0.0)
     if rng is not None:
-        zv = model.noise.noisy_depth_m(zv, rng)
+        zv = zv + model.noise.sigma_m(zv) * noise_field(zv.shape, rng,
+                                                            model.corr_px_for_width(image_width_px or zv.shape[1]))
     out = np.clip(np.rint(zv * model.units_per_m), 1, 65535)
     return np.where(valid, out, 0).astype(np.uint16)

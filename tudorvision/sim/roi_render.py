@@ -195,7 +195,7 @@ class RoiRenderer:
             crop = self._crop(camera, a0, a1, b0, b1)
             box = np.s_[v0 - a0:v1 - a0, u0 - b0:u1 - b0]
             gb = render_gbuffer(crop, self.scene, t)
-            depth[v0:v1, u0:u1] = depth_mm_from_gbuffer(gb, self.depth_model, rng)[box]
+            depth[v0:v1, u0:u1] = depth_mm_from_gbuffer(gb, self.depth_model, rng, image_width_px=W)[box]
             if self.supersample == 1:
                 rad = render_radiance(crop, self.scene, t)[box]
             else:
@@ -258,6 +258,7 @@ class RoiRenderer:
         None when the plane itself would show depth edges (grazing view),
         so that the caller falls back to the full render.
         """
+        from .depth_sensor import noise_field
         from .render import depth_sigma_m
         m = self.depth_model
         z = self._ground_depth(camera)
@@ -277,7 +278,7 @@ class RoiRenderer:
             # float32 is ample before the millimetre rounding and halves the cost of the noise
             z32 = zv.astype(np.float32)
             sigma = depth_sigma_m(z32, m.sigma_coeffs_cm).astype(np.float32)
-            sigma *= rng.standard_normal(z.shape, dtype=np.float32)
+            sigma *= noise_field(z.shape, rng, m.corr_px_for_width(z.shape[1]), np.float32)
             z32 += sigma
             z32 *= np.float32(m.units_per_m)
             out = np.clip(np.rint(z32), 1, 65535).astype(np.uint16)

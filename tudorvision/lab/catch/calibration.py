@@ -45,7 +45,7 @@ _MEMORY: dict = {}
 #: The sources (relative to the package) whose code decides a calibration: a cache entry written by other
 #: code is not read (:func:`calibration_code_hash`).
 CODE_FILES = ("rgbd/disc_track.py", "rgbd/disc3d.py", "rgbd/base_calib.py", "rgbd/frames.py", "lab/disc_sweep.py",
-              "lab/catch/calibration.py")
+              "lab/catch/calibration.py", "sim/depth_sensor.py")
 
 
 @functools.lru_cache(maxsize=1)
@@ -171,7 +171,7 @@ def ship_calibration(cache_file) -> Path:
 
     For maintainers: the default placement's calibration is shipped, so that ``make demo`` and a fresh
     checkout read it instead of rendering and tracking the 184-frame sweep (the key names the sweep, its
-    seed, the sensor range, the method and the kinematics; any change gives a new key).
+    seed, the sensor's range and noise, the method and the kinematics; any change gives a new key).
 
     Parameters
     ----------
@@ -246,6 +246,7 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
         raise ValueError(f"calibrate_wall_camera: calibration_method {method!r} needs the deflection model")
     key_src = json.dumps({"sweep": repr(sp), "seed": int(options.calibration_seed), "v": 3,
                           "max_depth_m": sensor.max_depth_m, "method": method,
+                          "depth_noise": [list(sensor.noise.coeffs), list(sensor.noise_corr_px)],
                           **({"kinematics": [repr(options.collection), options.plant]}
                              if uses_model else {}),
                           **({"robot": robot_key(params)} if robot_key(params) else {})}, sort_keys=True)
