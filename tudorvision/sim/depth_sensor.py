@@ -103,7 +103,8 @@ class DepthSensorModel:
         except (TypeError, ValueError):
             raise ValueError(f"noise_corr_px: expected two numbers (u, v), got {self.noise_corr_px!r}") from None
         if not (0 <= su <= 20 and 0 <= sv <= 20):
-            raise ValueError(f"noise_corr_px: expected two standard deviations in [0, 20] px, got {self.noise_corr_px!r}")
+            raise ValueError(f"noise_corr_px: expected two standard deviations in [0, 20] px, "
+                             f"got {self.noise_corr_px!r}")
 
     def corr_px_for_width(self, width_px: int) -> tuple:
         """``noise_corr_px`` for an image ``width_px`` wide (it is given for 640 px).
@@ -179,7 +180,8 @@ def noise_field(shape, rng: np.random.Generator, corr_px=(0.0, 0.0), dtype=np.fl
     Examples
     --------
     >>> f = noise_field((400, 400), np.random.default_rng(0), (1.5, 0.9))
-    >>> round(float(f.std()), 1), round(float(np.corrcoef(f[:, 1:].ravel(), f[:, :-1].ravel())[0, 1]), 1)   # exp(-1 / 9)
+    >>> lag1 = np.corrcoef(f[:, 1:].ravel(), f[:, :-1].ravel())[0, 1]     # neighbours along u: exp(-1 / 9)
+    >>> round(float(f.std()), 1), round(float(lag1), 1)
     (1.0, 0.9)
     >>> np.array_equal(noise_field((3, 4), np.random.default_rng(1)), np.random.default_rng(1).standard_normal((3, 4)))
     True
