@@ -17,7 +17,10 @@ Here the disc is measured in 3D near where it is expected:
    total least-squares plane tilts away from the view under Kinect noise at
    5 m). When depth noise leaves the plane's tilt undetermined
    (its standard error above ``max_normal_std_deg``), the normal of the
-   previous frames is used, else the one facing the camera.
+   previous frames is used, else the one facing the camera; so too when the
+   fit is edge-on (it may be the noise's), but a patch that lies on the
+   edge-on plane where that plane runs on beyond it is the floor or a wall
+   seen at a grazing angle, not the disc.
 3. **Disc in the plane.** The inlier pixels form a mask; a closing fills noise
    holes and an opening with a kernel of ``opening_fraction`` of the disc's
    smaller image radius removes the thin links and anything else narrower than
@@ -500,6 +503,7 @@ def _disc_in_plane(g, P, inl, normal, h, rmse, nstd, tol, options, normal_prior)
     index[g.sel] = np.arange(len(P))
     normal_from = "fit"
     centre = None
+    edge = None                      # a determined fit seen edge-on (normal, offset), replaced by the fallback
 
     def fallback_plane():
         # the depth noise leaves the tilt undetermined: keep the previous frames' normal, or face the camera
@@ -524,6 +528,7 @@ def _disc_in_plane(g, P, inl, normal, h, rmse, nstd, tol, options, normal_prior)
         if minor_px < options.min_minor_px and normal_from == "fit":
             # an edge-on fit may be the noise's (depth scatter dwarfing the disc): try the fallback normal; a
             # truly edge-on disc then leaves too small a patch for the area check
+            edge = (normal, h)
             nstd = np.inf
             normal, normal_from, h, inl = fallback_plane()
             normal, h, cos_view, minor_px = facing(normal, h)
@@ -575,6 +580,17 @@ def _disc_in_plane(g, P, inl, normal, h, rmse, nstd, tol, options, normal_prior)
     if extent > options.max_extent_ratio:
         return skip_measurement(f"the plane found runs on beyond the disc ({100 * extent:.0f} % of the annulus "
                                 f"1.7-2.6 radii around it lies in it): a wall, the floor or a table, not the disc")
+    if edge is not None and abs(float(edge[0] @ centre)) > 1e-9:
+        # the floor (or a wall) seen at a grazing angle fits a determined plane edge-on; on the fallback plane facing
+        # the camera, a band of it cut by the window passes for the disc. Not the disc when the centre found lies on
+        # the edge-on plane and that plane runs on beyond it
+        on_edge = centre * (edge[1] / float(edge[0] @ centre))
+        if abs(float(on_edge[2] - centre[2])) <= tol:
+            extent = plane_extent_ratio(g.depth, K, on_edge, edge[0], R, tol)
+            if extent > options.max_extent_ratio:
+                return skip_measurement(f"the patch lies on a plane seen edge-on that runs on beyond it "
+                                        f"({100 * extent:.0f} % of the annulus 1.7-2.6 radii around it lies in it): "
+                                        f"the floor or a wall at a grazing angle, not the disc")
     reach = float(np.max(g.lat[g.sel])) if g.sel.any() else R
     off = float(np.hypot(*(centre[:2] / centre[2] - pred[:2] / zp)) * zp)
     if off > reach:
