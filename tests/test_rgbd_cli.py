@@ -105,16 +105,26 @@ def test_calib_rgbd_base_on_virtual_lab(lab_recordings, tmp_path, capsys):
     d_angle = np.degrees(rotation_angle(T[:3, :3].T @ T_true[:3, :3]))
     assert d_origin < 0.15 and d_angle < 8.0
     assert report["vertical_frames"] == [5, 11, 12, 13, 14]    # theta = [0, 90, 0] deg in joints.txt
-    assert len(report["points_used"]) + len(report["rejected"]) == len(seq) >= 10
-    assert {"circle_rmse_m", "rejected", "points_used", "mirror"} <= set(report)
+    yaw = seq.joints().theta_rad[:, 0] != 0.0                  # the theta1 sweep at the end (8 frames)
+    assert yaw.sum() == 8 and np.all(yaw[-8:])
+    assert len(report["points_used"]) + len(report["rejected"]) == len(seq) - 8 >= 10
+    assert {"circle_rmse_m", "rejected", "points_used", "mirror", "yaw"} <= set(report)
+    # the theta1 sweep turned the frame's tilt (--yaw auto: joints.txt has one), measured in every frame
+    assert report["yaw"]["yaw_points_used"] >= 7 and report["yaw"]["lost"] == {}
     # the sweep's mirror symmetry refined the frame (joints.txt has mirrored poses); --mirror off does not
     assert report["mirror"]["pairs"] >= 3
-    rep_off = tmp_path / "base_off.json"
-    assert main(["calib", "rgbd-base", str(path), "--seed", seed_uv, "--mirror", "off", "--report", str(rep_off)]) == 0
-    report_off = json.loads(rep_off.read_text())
-    assert report_off["mirror"] is None
-    turn = np.degrees(rotation_angle(np.array(report_off["T_base_cam"])[:3, :3].T @ T[:3, :3]))
+    runs = {}
+    for name, extra in (("mirror", ["--yaw", "off"]), ("none", ["--mirror", "off", "--yaw", "off"])):
+        rp = tmp_path / f"base_{name}.json"
+        assert main(["calib", "rgbd-base", str(path), "--seed", seed_uv, *extra, "--report", str(rp)]) == 0
+        runs[name] = json.loads(rp.read_text())
+    assert runs["none"]["mirror"] is None and runs["none"]["yaw"] is None and runs["mirror"]["yaw"] is None
+    T_m, T_none = np.array(runs["mirror"]["T_base_cam"]), np.array(runs["none"]["T_base_cam"])
+    turn = np.degrees(rotation_angle(T_none[:3, :3].T @ T_m[:3, :3]))
     assert abs(turn - abs(report["mirror"]["mirror_rotation_deg"])) < 1e-6
+    turn = np.degrees(rotation_angle(T_m[:3, :3].T @ T[:3, :3]))          # the yaw step: a turn about base x
+    assert abs(turn - abs(report["yaw"]["yaw_tilt_correction_deg"])) < 1e-6
+    assert abs(np.degrees(rotation_angle(T[:3, :3].T @ T_true[:3, :3]))) < 8.0
     # a seed off the disc (on the far, invalid background) is a clear error
     assert main(["calib", "rgbd-base", str(path), "--seed", "5,5", "--out", str(out)]) == 2
     assert "error" in capsys.readouterr().err

@@ -154,7 +154,9 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
         ``points_cam`` (N, 3) sweep centroids in sweep order (NaN when lost),
         ``frames`` (N,) their frame indices, ``theta2_rad`` (N,) or None,
         ``vertical_cam`` (M, 3), ``vertical_frames`` (M,), ``lost``
-        (frame -> reason).
+        (frame -> reason), ``yaw_depth`` (K, H, W) and ``yaw_theta_rad``
+        (K, 3): the frames of a theta1 sweep (theta1 off zero, theta3 zero;
+        K = 0 without joint angles or such frames), ``yaw_frames`` (K,).
 
     Raises
     ------
@@ -184,8 +186,11 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
             raise TudorVisionError(f"{seq.path}: joints.txt never reaches the vertical posture [0, 90, 0] deg "
                                    f"(within {joint_tol_deg} deg); pass --vertical-frame I")
     sweep = np.ones(n, bool)
+    yaw = np.zeros(n, bool)
     if thetas is not None:
         sweep = (np.abs(thetas[:, 0]) < tol) & (np.abs(thetas[:, 2]) < tol)
+        yaw = (np.abs(thetas[:, 0]) >= tol) & (np.abs(thetas[:, 2]) < tol) & ~vertical
+    yaw_depth = []
     if isinstance(options, Disc3DOptions):
         tracker3d = DiscSweepTracker(K, seed_uv, options)
     else:
@@ -194,6 +199,9 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
     lost = {}
     for f in progress(seq, total=n, desc="disc"):
         i = f.index
+        if yaw[i]:
+            yaw_depth.append(np.asarray(f.depth_m, np.float32))
+            continue
         if not (sweep[i] or vertical[i]):
             continue
         if isinstance(options, Disc3DOptions):
@@ -227,7 +235,9 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
     return {"points_cam": pts, "frames": np.array(circle_idx, int),
             "theta2_rad": None if thetas is None else thetas[circle_idx, 1],
             "vertical_cam": np.array([samples[i][0] for i in vidx]), "vertical_frames": np.array(vidx, int),
-            "lost": lost}
+            "lost": lost, "yaw_depth": np.array(yaw_depth).reshape(-1, K.height, K.width),
+            "yaw_theta_rad": np.zeros((0, 3)) if thetas is None else thetas[yaw],
+            "yaw_frames": np.nonzero(yaw)[0]}
 
 
 def _fit_base(args, seq, K, seed, opts, prm, recording):
@@ -246,6 +256,7 @@ def _fit_base(args, seq, K, seed, opts, prm, recording):
                                                    origin=args.origin, vertical=args.vertical,
                                                    link1_height_m=prm.link1_height_m)
     T_base_cam, rep["mirror"] = _mirror(args.mirror, T_base_cam, obs)
+    T_base_cam, rep["yaw"] = _yaw(args.yaw, T_base_cam, obs, K, opts, prm)
     rep["T_base_cam"] = np.asarray(T_base_cam, float).tolist()
     if recording is not None:
         rerun_log.log_base_frame(recording, T_base_cam, obs["points_cam"])
@@ -272,6 +283,37 @@ def _mirror(mode: str, T_base_cam, obs):
         return T_base_cam, {"skipped": str(exc)}
     print(f"mirror symmetry: {info['pairs']} mirrored pose pairs turned the frame by "
           f"{info['mirror_rotation_deg']:+.3f} deg in the sweep plane (spread {info['mirror_tilt_sd_deg']:.3f} deg)")
+    return T, info
+
+
+def _yaw(mode: str, T_base_cam, obs, K, opts, prm):
+    """``--yaw``: the tilt towards the camera from the frames of a theta1 sweep (:mod:`tudorvision.rgbd.yaw_sweep`)."""
+    from ..rgbd.disc3d import Disc3DOptions
+    from ..rgbd.yaw_sweep import measure_yaw_sweep, refine_tilt_from_yaw
+
+    if mode == "off":
+        return T_base_cam, None
+    why = None
+    if not isinstance(opts, Disc3DOptions):
+        why = "the disc3d detector only"
+    elif len(obs["yaw_frames"]) == 0:
+        why = "no theta1 sweep in joints.txt (frames with theta1 off zero and theta3 zero)"
+    if why is not None:
+        if mode == "on":
+            raise TudorVisionError(f"--yaw on: {why}")
+        return T_base_cam, {"skipped": why}
+    pts, skipped = measure_yaw_sweep(obs["yaw_depth"], K, T_base_cam, obs["yaw_theta_rad"], opts, robot=prm)
+    sweep_mean = np.nanmean(obs["points_cam"], axis=0)
+    try:
+        T, info = refine_tilt_from_yaw(T_base_cam, pts, pivot_cam=sweep_mean if np.all(np.isfinite(sweep_mean))
+                                       else None)
+    except TudorVisionError as exc:
+        if mode == "on":
+            raise TudorVisionError(f"--yaw on: {exc}") from None
+        return T_base_cam, {"skipped": str(exc), "lost": {int(obs["yaw_frames"][k]): r for k, r in skipped.items()}}
+    info["lost"] = {int(obs["yaw_frames"][k]): r for k, r in skipped.items()}
+    print(f"theta1 sweep: {info['yaw_points_used']} of {len(pts)} frames turned the frame's tilt towards the camera by "
+          f"{info['yaw_tilt_correction_deg']:+.3f} deg (standard error {info['yaw_tilt_std_deg']:.3f} deg)")
     return T, info
 
 
@@ -429,6 +471,11 @@ def register(calib_sub) -> None:
                         "assumes the disc centre on the link axis: an offset d across it tilts the result by d / "
                         "radius, as it does the vertical posture). 'auto' (default): when joints.txt gives "
                         "mirrored poses")
+    b.add_argument("--yaw", choices=("auto", "on", "off"), default="auto",
+                   help="refine the frame's tilt towards the camera from a theta1 sweep in the same recording "
+                        "(theta1 turned through e.g. +-45 deg at one theta2, theta3 = 0): the disc on a horizontal "
+                        "circle whose heights the image measures better than the sweep's depths. 'auto' (default): "
+                        "when joints.txt has such frames (disc3d detector)")
     b.add_argument("--joint-tol-deg", type=float, default=0.5, help="joint tolerance for sweep/vertical frames")
     b.add_argument("--out", help="calibration file to write or update (transforms: T_base_cam)")
     b.add_argument("--report", help="JSON report")

@@ -2,8 +2,9 @@
 
 The lab's side of the RGB-D base calibration: :func:`sample_disc_sweep`
 draws a set-up from a seed, :func:`render_disc_sweep` renders its theta2
-sweep (theta1 = theta3 = 0) and the vertical posture as depth frames with
-the joint angles, and keeps the ground truth (``T_base_cam``, disc centres)
+sweep (theta1 = theta3 = 0), the vertical posture and, when asked for, a
+theta1 sweep at one theta2 (the "yaw" poses: the disc on a horizontal circle
+about the base z axis) as depth frames with the joint angles, and keeps the ground truth (``T_base_cam``, disc centres)
 apart for the scorers. Perception gets only the depth frames, the
 intrinsics and the joint angles.
 
@@ -63,6 +64,15 @@ class DiscSweepParams:
         Sweep poses, degrees (theta1 = theta3 = 0).
     frames_per_pose, n_vertical : int
         Depth frames per sweep pose and of the vertical posture [0, 90, 0] deg.
+    yaw_theta1_deg : tuple of float
+        theta1 of the yaw poses [theta1, ``yaw_theta2_deg``, 0], degrees, rendered after the vertical
+        posture with ``yaw_frames_per_pose`` frames each; empty (the default): none. Many poses a frame
+        each are joint 1 turned slowly through the range (the disc at a new spot on the pixel grid in
+        every frame).
+    yaw_theta2_deg : float
+        theta2 of the yaw poses, degrees.
+    yaw_frames_per_pose : int
+        Depth frames per yaw pose.
     """
 
     camera_distance_m: float = 5.0
@@ -79,6 +89,9 @@ class DiscSweepParams:
     theta2_deg: tuple = tuple(np.arange(0.0, 180.1, 5.0))
     frames_per_pose: int = 2
     n_vertical: int = 10
+    yaw_theta1_deg: tuple = ()
+    yaw_theta2_deg: float = 45.0
+    yaw_frames_per_pose: int = 1
 
 
 @dataclass(frozen=True)
@@ -95,6 +108,9 @@ class DiscSweep:
         Intrinsics of the depth camera, pixels.
     vertical : ndarray of bool, shape (N,)
         Frames of the vertical posture (after the sweep).
+    yaw : ndarray of bool, shape (N,)
+        Frames of the yaw poses (after the vertical posture; none unless
+        ``params.yaw_theta1_deg`` names some).
     T_base_cam : ndarray, shape (4, 4)
         Ground truth: camera pose in the base frame.
     disc_centres_cam : ndarray, shape (N, 3)
@@ -107,6 +123,7 @@ class DiscSweep:
     theta_rad: np.ndarray
     K: np.ndarray
     vertical: np.ndarray
+    yaw: np.ndarray
     T_base_cam: np.ndarray
     disc_centres_cam: np.ndarray
     params: DiscSweepParams
@@ -188,6 +205,8 @@ def render_disc_sweep(params: DiscSweepParams, rng: np.random.Generator, *, widt
     prm = robot or load_robot_params()
     payload = Payload.from_parts(prm, plates=params.payload_plates)
     poses = [np.radians([0.0, a, 0.0]) for a in params.theta2_deg] + [np.radians([0.0, 90.0, 0.0])]
+    k_vertical = len(poses) - 1
+    poses += [np.radians([a, params.yaw_theta2_deg, 0.0]) for a in params.yaw_theta1_deg]
     states = [(th, *static_arm_state(th, payload, prm)) for th in poses]
     T_disc = [_tilt(fk_elastic(*s, prm), params.disc_tilt_rad, params.disc_tilt_axis_rad) for s in states]
     geoms = [elastic_arm_geometry(*s, prm) for s in states]
@@ -205,7 +224,8 @@ def render_disc_sweep(params: DiscSweepParams, rng: np.random.Generator, *, widt
     frames, thetas, vertical, truth = [], [], [], []
     for k in range(len(poses)):
         gb = render_gbuffer(cam, setup.scene, float(k))
-        n = params.n_vertical if k == len(poses) - 1 else params.frames_per_pose
+        n = params.n_vertical if k == k_vertical else (params.yaw_frames_per_pose if k > k_vertical
+                                                       else params.frames_per_pose)
         c = T_cam_base[:3, :3] @ T_disc[k][:3, 3] + T_cam_base[:3, 3]
         for _ in range(n):
             raw = depth_mm_from_gbuffer(gb, model, rng)
@@ -213,8 +233,9 @@ def render_disc_sweep(params: DiscSweepParams, rng: np.random.Generator, *, widt
             d[raw == 0] = np.nan
             frames.append(d)
             thetas.append(poses[k])
-            vertical.append(k == len(poses) - 1)
+            vertical.append(k == k_vertical)
             truth.append(c)
+    yaw = np.arange(len(frames)) >= len(frames) - len(params.yaw_theta1_deg) * params.yaw_frames_per_pose
     return DiscSweep(depth_m=np.stack(frames), theta_rad=np.array(thetas), K=np.asarray(cam.K, float),
-                     vertical=np.array(vertical), T_base_cam=setup.meta["T_base_cam"],
+                     vertical=np.array(vertical), yaw=yaw, T_base_cam=setup.meta["T_base_cam"],
                      disc_centres_cam=np.array(truth), params=params)

@@ -16,7 +16,7 @@ stereo-static        static poses spread over the workspace (accuracy benchmark)
 stereo-sweep         theta1 sweep with theta2 = theta3 = 0, then the vertical posture
 stereo-checkerboard  checkerboard pairs for stereo calibration
 rgbd-plane           planar target at stepped distances (one sequence per distance)
-rgbd-disc            wall camera, disc in the net, theta2 sweep, then the vertical posture
+rgbd-disc            wall camera, disc in the net, theta2 sweep, the vertical posture, a theta1 sweep
 rgbd-throws          9 cm balls thrown towards the robot, wall camera 5 m away (as for rgbd-disc)
 servo-views          eye-in-hand views of a black square on white ground
 """
@@ -425,7 +425,9 @@ def _wall_camera_truth(w, cam, T_world_base):
 
 
 def record_rgbd_disc(out, opts: RecordOptions):
-    """Wall camera calibration sweep: theta2 from -10 to 190 deg (theta1 = theta3 = 0), disc in the net."""
+    """Wall camera calibration sweep: theta2 from -10 to 190 deg (theta1 = theta3 = 0), disc in the net, the
+    vertical posture, then joint 1 turned through -45..45 deg at theta2 = 45 deg (one frame a pose: the theta1
+    sweep of ``calib rgbd-base --yaw``)."""
     out = Path(out)
     p = opts.params or load_robot_params()
     rng = np.random.default_rng(opts.seed)
@@ -433,10 +435,13 @@ def record_rgbd_disc(out, opts: RecordOptions):
     n = opts.frames or (11 if opts.small else 41)
     t2 = np.deg2rad(np.linspace(-10.0, 190.0, n))
     thetas = [np.array([0.0, a, 0.0]) for a in t2] + [np.deg2rad([0.0, 90.0, 0.0])]
+    n_yaw = 8 if opts.small else 26       # theta1 sweep poses, a frame each
+    thetas += [np.array([a, np.deg2rad(45.0), 0.0]) for a in np.deg2rad(np.linspace(-45.0, 45.0, n_yaw))]
     states = [(th, *static_arm_state(th, payload, p)) for th in thetas]
     per = 1 if opts.small else 6          # frames per sweep pose
     n_vertical = 4 if opts.small else 20  # frames of the vertical posture
-    frame_pose = np.concatenate([np.repeat(np.arange(len(states) - 1), per), np.full(n_vertical, len(states) - 1)])
+    frame_pose = np.concatenate([np.repeat(np.arange(len(t2)), per), np.full(n_vertical, len(t2)),
+                                 np.arange(len(t2) + 1, len(states))])
     idx = lambda t: int(frame_pose[min(int(round(t * KINECT_RATE_HZ)), len(frame_pose) - 1)])
     disc = lambda t: fk_elastic(*states[idx(t)], p)[:3, 3]
     geom = lambda t: elastic_arm_geometry(*states[idx(t)], p)
@@ -445,8 +450,8 @@ def record_rgbd_disc(out, opts: RecordOptions):
     times = np.arange(len(frame_pose)) / KINECT_RATE_HZ
     rows = []
     with _writer(out, "rgbd", KINECT_RATE_HZ, opts, calibration=_kinect_calibration(cam),
-                 description="wall RGB-D camera, disc in the net, theta2 sweep at theta1 = theta3 = 0, last pose "
-                             "the vertical posture [0, 90, 0] deg") as w:
+                 description="wall RGB-D camera, disc in the net, theta2 sweep at theta1 = theta3 = 0, then "
+                             "the vertical posture [0, 90, 0] deg, then theta1 -45..45 deg at theta2 = 45 deg") as w:
         for t in progress(times, desc="disc sweep", enabled=opts.show_progress):
             bgr, depth, _ = render_rgbd(cam, setup.scene, float(t), rng=rng)
             w.add_rgbd(float(t), bgr, depth)

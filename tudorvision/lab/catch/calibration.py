@@ -29,13 +29,21 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["wall_camera_position_world", "calibrate_wall_camera", "wall_depth_sensor",
-           "WALL_CAMERA_AIM_HEIGHT_M", "CALIBRATION_METHODS", "SWEEP_THETA2_DEG", "ship_calibration",
+           "WALL_CAMERA_AIM_HEIGHT_M", "CALIBRATION_METHODS", "SWEEP_THETA2_DEG", "YAW_THETA1_RANGE_DEG",
+           "YAW_THETA2_DEG", "ship_calibration",
            "calibration_code_hash", "CODE_FILES"]
 
 #: ``DemoOptions.calibration_method``: the seed's sweep construction alone, refined in the sweep plane
 #: from the sweep's mirror symmetry (:func:`tudorvision.rgbd.base_calib.refine_sweep_mirror`, model-free),
 #: with the agent's learnt deflection model (:func:`tudorvision.rgbd.base_calib.refine_sweep_in_plane`), or both.
-CALIBRATION_METHODS = ("seed", "seed+mirror", "seed+deflection", "seed+deflection+mirror")
+#: A method that names ``yaw`` adds a theta1 sweep (:data:`YAW_THETA1_RANGE_DEG` at theta2 = :data:`YAW_THETA2_DEG`) and
+#: turns the frame about base x so that z is normal to that sweep's plane
+#: (:func:`tudorvision.rgbd.yaw_sweep.refine_tilt_from_yaw`): the tilt towards the camera from heights, not depths.
+CALIBRATION_METHODS = ("seed", "seed+mirror", "seed+deflection", "seed+deflection+mirror", "seed+mirror+yaw")
+#: theta1 range of the yaw sweep, degrees (the disc seen up to 45 deg off its face): joint 1 turned slowly through
+#: it, one frame per pose, 13 times ``calibration_frames_per_pose`` frames; their theta2, degrees.
+YAW_THETA1_RANGE_DEG = (-45.0, 45.0)
+YAW_THETA2_DEG = 45.0
 #: The calibration sweep's theta2 poses, degrees. 10-170 deg: at 6.9 m the disc's depth in the horizontal
 #: poses (0 and 180 deg, the disc 29 cm above the base plate) came out 4-23 mm too far (a tilt of the
 #: fitted plane by 0.2-0.4 deg); the end poses are left out.
@@ -45,7 +53,7 @@ _MEMORY: dict = {}
 #: The sources (relative to the package) whose code decides a calibration: a cache entry written by other
 #: code is not read (:func:`calibration_code_hash`).
 CODE_FILES = ("rgbd/disc_track.py", "rgbd/disc3d.py", "rgbd/base_calib.py", "rgbd/frames.py", "lab/disc_sweep.py",
-              "lab/catch/calibration.py", "sim/depth_sensor.py")
+              "lab/catch/calibration.py", "sim/depth_sensor.py", "rgbd/yaw_sweep.py", "rgbd/disc_search.py")
 
 
 @functools.lru_cache(maxsize=1)
@@ -127,6 +135,9 @@ def _sweep_params(options, params):
     from ..disc_sweep import DiscSweepParams
 
     h1 = float(params.link1_height_m)
+    yaw = ()
+    if "yaw" in options.calibration_method.split("+"):
+        yaw = tuple(float(a) for a in np.linspace(*YAW_THETA1_RANGE_DEG, 13 * int(options.calibration_frames_per_pose)))
     d, h = float(options.camera_distance_m), float(options.camera_height_m)
     return DiscSweepParams(camera_distance_m=float(np.hypot(d, h - h1)), camera_height_m=h,
                            camera_azimuth_rad=0.0, camera_roll_rad=0.0,
@@ -134,7 +145,8 @@ def _sweep_params(options, params):
                            disc_tilt_rad=0.0, background="invalid", payload_plates=0,
                            theta2_deg=SWEEP_THETA2_DEG,
                            frames_per_pose=int(options.calibration_frames_per_pose),
-                           n_vertical=6 * int(options.calibration_frames_per_pose))
+                           n_vertical=6 * int(options.calibration_frames_per_pose),
+                           yaw_theta1_deg=yaw, yaw_theta2_deg=YAW_THETA2_DEG, yaw_frames_per_pose=1)
 
 
 def _errors(T_est, T_true):
@@ -235,6 +247,7 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
     from ...rgbd.disc3d import Disc3DOptions
     from ...rgbd.disc_track import track_disc_sweep
     from ...rgbd.frames import Intrinsics
+    from ...rgbd.yaw_sweep import measure_yaw_sweep, refine_tilt_from_yaw
     from ..disc_sweep import render_disc_sweep
 
     sp = _sweep_params(options, params)
@@ -285,10 +298,11 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
     seed_uv = (K.fx * c0[0] / c0[2] + K.cx, K.fy * c0[1] / c0[2] + K.cy)
     opts = Disc3DOptions(disc_radius_m=sp.disc_radius_m,
                          arm_radius_m=float(params.link2_length_m + params.link3_length_m))
-    pts, skipped = track_disc_sweep(sweep.depth_m, K, seed_uv, sweep.theta_rad[:, 1], opts)
-    sw = ~sweep.vertical
+    head = ~sweep.yaw                       # the theta2 sweep and the vertical posture, tracked from the click
+    pts, skipped = track_disc_sweep(sweep.depth_m[head], K, seed_uv, sweep.theta_rad[head, 1], opts)
+    sw = ~sweep.vertical[head]
     try:
-        T, fit = base_frame_from_theta2_sweep(pts[sw], pts[sweep.vertical], theta2_rad=sweep.theta_rad[sw, 1])
+        T, fit = base_frame_from_theta2_sweep(pts[sw], pts[~sw], theta2_rad=sweep.theta_rad[head][sw, 1])
     except (ValueError, TudorVisionError) as exc:
         raise TudorVisionError(f"catch demo: wall camera calibration failed: {exc}") from None
     rep = {"circle_rmse_m": float(fit["circle_rmse_m"]), "circle_radius_m": float(fit["circle_radius_m"]),
@@ -300,8 +314,16 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
         T, info = refine_sweep_in_plane(T, pts, sweep.theta_rad, deflection, payload_kg=0.0)
         rep.update(info)
     if "mirror" in method.split("+"):
-        T, info = refine_sweep_mirror(T, pts, sweep.theta_rad)
+        T, info = refine_sweep_mirror(T, pts, sweep.theta_rad[head])
         rep.update(info)
+    if "yaw" in method.split("+"):
+        yaw_pts, yaw_skipped = measure_yaw_sweep(sweep.depth_m[sweep.yaw], K, T, sweep.theta_rad[sweep.yaw], opts,
+                                                 robot=params)
+        try:
+            T, info = refine_tilt_from_yaw(T, yaw_pts, pivot_cam=np.nanmean(pts[sw], axis=0))
+        except TudorVisionError as exc:
+            raise TudorVisionError(f"catch demo: wall camera calibration failed: {exc}") from None
+        rep.update(info, yaw_frames=int(sweep.yaw.sum()), yaw_skipped_frames=len(yaw_skipped))
     entry = {"T_base_cam": np.asarray(T, float).tolist(), "T_base_cam_seed": T_seed.tolist(), "report": rep,
              "code": code}
     _MEMORY[key] = entry

@@ -158,7 +158,11 @@ class DemoOptions:
         :data:`~tudorvision.lab.catch.calibration.SWEEP_THETA2_DEG`; the vertical posture gets six times as
         many): at 6.8 m one disc centre has about 1.2 cm of depth noise, eight frames per pose average it.
     calibration_method : str
-        ``"seed+mirror"`` (default): the seed's sweep construction, then its in-plane angle and lateral
+        ``"seed+mirror+yaw"`` (default): ``"seed+mirror"``, then the tilt towards the camera from a theta1
+        sweep at theta2 = 45 deg (13 frames per ``calibration_frames_per_pose``, joint 1 turned through
+        +-45 deg; :func:`~tudorvision.rgbd.yaw_sweep.refine_tilt_from_yaw`: at 6.8 m the theta2 sweep alone
+        leaves 0.3-0.6 deg of it under the Kinect's correlated depth noise). ``"seed+mirror"``: the seed's
+        sweep construction, then its in-plane angle and lateral
         origin from the sweep's mirror symmetry about the vertical (no model:
         :func:`~tudorvision.rgbd.base_calib.refine_sweep_mirror`; the arm's vertical posture leans
         0.45 deg, and the residual tilt of gravity moves the predicted crossing); ``"seed+deflection"``:
@@ -233,7 +237,7 @@ class DemoOptions:
     camera_height_m: float = 2.0
     camera_max_depth_m: float = 8.0
     calibration_frames_per_pose: int = 8
-    calibration_method: str = "seed+mirror"
+    calibration_method: str = "seed+mirror+yaw"
     true_calibration: bool = False
     calibration_seed: int = 0
     plant: str = "seed_measured"

@@ -1,0 +1,191 @@
+"""A theta1 ("yaw") sweep corrects the base frame's tilt towards the camera.
+
+The seed's construction (:func:`tudorvision.rgbd.base_calib.base_frame_from_theta2_sweep`)
+takes the base z axis from a theta2 sweep: the disc moves in a vertical
+plane that faces the camera, so the tilt of z towards the camera (a rotation
+about the base x axis) rests on the disc's depth, the noisiest coordinate of
+an RGB-D camera, extrapolated from the upper half circle to its centre. With
+the seed's Kinect noise correlated as a real Kinect's, a wall camera 6.8 m
+away tilts that z by 0.3-0.6 deg (the catching demo), which puts a ball
+seen 3 m from the arm 15-30 mm too high or low.
+
+Turning joint 1 at one theta2 moves the disc on a horizontal circle about the
+base z axis: near and far poses differ in depth by up to
+``2 r sin(theta1_max)``, and the tilt of that circle's plane towards the
+camera rests on heights, which the image measures laterally. The static sag
+of the elastic arm is the same at every theta1 (its posture against gravity
+does not change), so the circle stays horizontal whatever the payload.
+
+:func:`measure_yaw_sweep` finds the disc in the yaw frames from the first
+estimate of the base frame and the rigid kinematics (no seed pixel needed);
+:func:`refine_tilt_from_yaw` turns the base frame about its x axis so that
+its z axis is the normal of the yaw points' plane. The roll about y (poorly
+determined by a yaw arc in front of the base) stays the sweep's.
+The heading (about z) is not taken from the yaw sweep: a disc seen 45 deg
+off its face is measured 6-10 mm off its centre within its plane, towards
+the camera's side (noise-free lab frames), which at the arc's two ends reads
+as a 0.4-0.5 deg heading error; the tilt is not affected (the shift is
+horizontal).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .._checks import TudorVisionError, check_array
+from ..geometry import invert_transform
+from ..robot import load_robot_params
+from ..robot.kinematics import T_base_ee
+from .disc3d import Disc3DOptions, measure_disc_3d, unit_vector
+from .frames import Intrinsics
+
+__all__ = ["measure_yaw_sweep", "refine_tilt_from_yaw"]
+
+
+def measure_yaw_sweep(depth_frames, intrinsics: Intrinsics, T_base_cam, theta_rad,
+                      options: Disc3DOptions = Disc3DOptions(), *, robot=None, margin_m: float = 0.15):
+    """Measure the disc in the frames of a theta1 sweep, predicted from a first base frame and the kinematics.
+
+    The first frame of each pose is searched within ``margin_m`` of the rigid
+    end-effector position (the elastic arm sags a few centimetres; a first
+    base frame is off by millimetres); later frames of the same pose within
+    ``options.min_margin_m`` (at least 3 cm) of the pose's mean so far, with
+    their mean normal as the prior.
+
+    Parameters
+    ----------
+    depth_frames : array_like, shape (N, H, W)
+        Depth (z) in metres, NaN or 0 = invalid.
+    intrinsics : Intrinsics
+        Pinhole intrinsics of the depth camera (pixels).
+    T_base_cam : array_like, shape (4, 4)
+        A first estimate of the camera pose in the base frame (``p_base = T_base_cam @ p_cam``).
+    theta_rad : array_like, shape (N, 3)
+        Joint angles per frame, rad.
+    options : Disc3DOptions
+        Disc radius, tolerances.
+    robot : RobotParams, optional
+        Link lengths for the prediction; default the packaged ``tudor.yaml``.
+    margin_m : float
+        How far the disc may be from the rigid prediction in a pose's first frame, metres.
+
+    Returns
+    -------
+    centres_cam : ndarray, shape (N, 3)
+        Disc centres, metres, camera frame; NaN rows where the disc was not measured.
+    skipped : dict
+        Frame index -> reason.
+
+    Raises
+    ------
+    ValueError
+        On arrays of the wrong shape or a non-positive margin.
+    """
+    T = check_array(T_base_cam, "T_base_cam", (4, 4))
+    th = check_array(theta_rad, "theta_rad", (None, 3))
+    frames = np.asarray(depth_frames)
+    if frames.ndim != 3 or len(frames) != len(th):
+        raise ValueError(f"depth_frames: expected shape (N, H, W) with N = {len(th)} (theta_rad), "
+                         f"got {frames.shape}")
+    if not margin_m > 0:
+        raise ValueError(f"margin_m: expected > 0, got {margin_m}")
+    T_cam_base = invert_transform(T)
+    prm = robot if robot is not None else load_robot_params()
+    pred_all = (T_cam_base @ T_base_ee(th, prm)[:, :, 3].T).T[:, :3]
+    out = np.full((len(th), 3), np.nan)
+    normals = np.full((len(th), 3), np.nan)
+    skipped = {}
+    for i in range(len(th)):
+        same = np.all(np.abs(th[:i] - th[i]) < np.radians(0.5), axis=1) & np.all(np.isfinite(out[:i]), axis=1)
+        if same.any():
+            pred, margin = out[:i][same].mean(axis=0), max(float(options.min_margin_m), 0.03)
+            prior = unit_vector(normals[:i][same].mean(axis=0))
+        else:
+            pred, margin, prior = pred_all[i], float(margin_m), None
+        m = measure_disc_3d(frames[i], intrinsics, pred, margin, options, normal_prior=prior)
+        if m.valid:
+            out[i], normals[i] = m.centre_cam, m.normal_cam
+        else:
+            skipped[i] = m.reason
+    return out, skipped
+
+
+def refine_tilt_from_yaw(T_base_cam, yaw_points_cam, *, pivot_cam=None, inlier_sigma: float = 3.5,
+                         min_points: int = 6, min_spread_m: float = 0.15):
+    """Turn a base frame about its x axis so that its z axis is normal to the yaw sweep's plane.
+
+    Parameters
+    ----------
+    T_base_cam : array_like, shape (4, 4)
+        The base frame to refine (``p_base = T_base_cam @ p_cam``), e.g. the seed's construction.
+    yaw_points_cam : array_like, shape (N, 3)
+        Disc centres of the yaw frames, metres, camera frame; NaN rows are skipped.
+    pivot_cam : array_like, shape (3,), optional
+        The point the frame turns about, camera frame: where the first estimate is best known (the
+        theta2 sweep's points' mean); default the base origin.
+    inlier_sigma : float
+        Points farther from the plane than this many robust standard deviations are left out (once).
+    min_points : int
+        Fewest valid inlier points.
+    min_spread_m : float
+        Fewest metres the points must spread along the base y axis (towards the camera): the tilt's lever.
+
+    Returns
+    -------
+    T_base_cam : ndarray, shape (4, 4)
+        The refined frame.
+    info : dict
+        ``yaw_tilt_correction_deg`` (the turn about base x applied), ``yaw_tilt_std_deg`` (its standard
+        error from the plane residuals), ``yaw_roll_deg`` (the plane's tilt about base y, not applied),
+        ``yaw_plane_rmse_m``, ``yaw_points_used``, ``yaw_spread_m``.
+
+    Raises
+    ------
+    TudorVisionError
+        Too few valid points or too little spread along base y.
+
+    Examples
+    --------
+    >>> a = np.radians(np.arange(-45.0, 45.1, 15.0))
+    >>> ring = np.c_[0.6 * np.cos(a), 0.6 * np.sin(a), np.full_like(a, 0.9)]    # base frame
+    >>> tilt = np.radians(0.5)                                                      # the first estimate's error
+    >>> R = np.array([[1, 0, 0], [0, np.cos(tilt), -np.sin(tilt)], [0, np.sin(tilt), np.cos(tilt)]])
+    >>> T = np.eye(4); T[:3, :3] = R                           # takes the points (as camera points) to R @ p
+    >>> T2, info = refine_tilt_from_yaw(T, ring)
+    >>> round(info["yaw_tilt_correction_deg"], 3), bool(np.allclose(T2[:3, :3], np.eye(3)))
+    (-0.5, True)
+    """
+    T = check_array(T_base_cam, "T_base_cam", (4, 4))
+    P = check_array(yaw_points_cam, "yaw_points_cam", (None, 3), finite=False)
+    P = P[np.all(np.isfinite(P), axis=1)]
+    if len(P) < min_points:
+        raise TudorVisionError(f"yaw sweep: {len(P)} valid disc centres, at least {min_points} needed")
+    Pb = P @ T[:3, :3].T + T[:3, 3]                      # base frame of the first estimate
+    keep = np.ones(len(Pb), bool)
+    for rejection in (True, False):                      # fit, leave the outliers out once, fit again
+        c = Pb[keep].mean(axis=0)
+        n = np.linalg.svd(Pb[keep] - c)[2][2]
+        n = n if n[2] > 0 else -n
+        r = (Pb - c) @ n
+        s = 1.4826 * np.median(np.abs(r - np.median(r)))
+        if rejection and s > 1e-9:
+            keep = np.abs(r - np.median(r)) <= inlier_sigma * s
+    if keep.sum() < min_points:
+        raise TudorVisionError(f"yaw sweep: {int(keep.sum())} disc centres on the plane, at least {min_points} needed")
+    y = Pb[keep, 1]
+    spread = float(np.ptp(y))
+    if spread < min_spread_m:
+        raise TudorVisionError(f"yaw sweep: the disc spreads {100 * spread:.1f} cm towards the camera, at least "
+                               f"{100 * min_spread_m:.0f} cm needed (turn joint 1 further)")
+    phi = float(np.arctan2(n[1], n[2]))                  # the turn about base x that takes n's y-z part onto z
+    Rc = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(phi), -np.sin(phi)], [0.0, np.sin(phi), np.cos(phi)]])
+    q = np.zeros(3) if pivot_cam is None else T[:3, :3] @ check_array(pivot_cam, "pivot_cam", (3,)) + T[:3, 3]
+    C = np.eye(4)
+    C[:3, :3] = Rc
+    C[:3, 3] = q - Rc @ q
+    rmse = float(np.sqrt(np.mean(r[keep] ** 2)))
+    se = rmse / float(np.sqrt(np.sum((y - y.mean()) ** 2)))
+    info = {"yaw_tilt_correction_deg": float(np.degrees(phi)), "yaw_tilt_std_deg": float(np.degrees(se)),
+            "yaw_roll_deg": float(np.degrees(np.arctan2(n[0], n[2]))), "yaw_plane_rmse_m": rmse,
+            "yaw_points_used": int(keep.sum()), "yaw_spread_m": spread}
+    return C @ T, info
+
