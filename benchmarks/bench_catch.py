@@ -302,7 +302,7 @@ def sessions_run(args) -> None:
 
     more = {} if args.camera_distance_m is None else {"camera_distance_m": args.camera_distance_m}
     ours = DemoOptions(render=False, throws=args.sessions_throws, seed=args.seed, plant=args.plant,
-                       cache_dir=args.cache, **more)
+                       cache_dir=args.cache, true_calibration=bool(args.true_calibration), **more)
     runs = {"ours (profile timed to the first mode)": (ours, args.out + "/sessions")}
     if args.peer_throws:
         peer = replace(ours, throws=args.peer_throws, mode_f0_hz=0.0, overshoot_tol_rad=float("inf"),
@@ -311,7 +311,7 @@ def sessions_run(args) -> None:
     rates = {}
     print(f"plant {args.plant}, seed {args.seed} (session seeds seed * 1000 + b), wall camera at "
           f"{ours.camera_distance_m} m, {ours.camera_height_m} m high (depth to {ours.camera_max_depth_m} m), "
-          f"calibrated from the disc sweep")
+          f"{'the TRUE camera-to-base transform (a diagnosis)' if ours.true_calibration else 'calibrated from the disc sweep'}")
     print_calibration(ours, args.out)
     print(f"{'run':48s} {'throws':>6s} {'cross':>6s} {'strict':>14s} {'95 % CI':>14s} {'centre':>14s}  misses, wall")
     for name, (o, out) in runs.items():
@@ -353,6 +353,9 @@ def main() -> None:
     ap.add_argument("--camera-distance-m", type=float, default=None,
                     help="with --sessions-throws: the wall camera's distance in front of the robot (default: "
                          "DemoOptions', 6.8 m, behind the thrower)")
+    ap.add_argument("--true-calibration", action="store_true",
+                    help="with --sessions-throws: catch with the true camera-to-base transform instead of the "
+                         "disc sweep's (a diagnosis: what the calibration costs)")
     args = ap.parse_args()
     print(f"machine: {cpu_model()}, {os.cpu_count()} cores, Python {platform.python_version()}")
     if args.sessions_throws:

@@ -108,6 +108,14 @@ def fit_models(scene, picks):
     both = [s for s in SPHERES if s in models["left"] and s in models["right"]]
     if not both:
         return None, refused
+    # what `tudorvision colormodel` warns of: left and right picks of different colour (one landed on the other
+    # sphere in front): the simulated user drops that sphere, as a user reading the warning would re-click it
+    for line in ColorModelSet({cam: {s: models[cam][s] for s in both} for cam in models}).colour_mismatches():
+        name = line.split(":")[0]
+        refused.append(f"left:{name}: {line}")
+        both.remove(name)
+    if not both:
+        return None, refused
     return ColorModelSet({cam: {s: models[cam][s] for s in both} for cam in models}), refused
 
 

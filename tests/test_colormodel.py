@@ -334,6 +334,36 @@ def test_pick_contrast_against_direct_statistics():
     assert pick_contrast(model, img[:20, :20], c, 6.0, 15.0) is None      # too little background
 
 
+def test_calibrated_prior_with_and_without_the_background_room():
+    """The prior is raised until the core passes p_seed by one logit, but by default no further than keeps
+    the background's 99.9th percentile one logit below p_grow; ``background_room=False`` (the local model's
+    second try) drops that limit."""
+    import math
+    from dataclasses import replace
+    from tudorvision.stereo._pick import calibrated_prior, pick_contrast
+    from tudorvision.stereo.detection import segment_params_for_radius
+    rng = np.random.default_rng(4)
+    img = make_frame(rng, two_spheres(RED_UV, GREEN_UV, radius=R), clutter=False)
+    fitted = fit_color_model(img, (200, 151), (208, 151), verify=False, calibrate_prior=False)
+    for _ in range(60):                                     # the sphere's colour sprinkled over the frame
+        x, y = int(rng.uniform(20, 620)), int(rng.uniform(20, 460))
+        if np.hypot(x - 200, y - 151) > 30.0:
+            cv2.circle(img, (x, y), 3, tuple(int(round(v)) for v in fitted.mean[2::-1]), -1)
+    c, params = np.array([200.0, 151.0]), segment_params_for_radius(None, 8.0)
+    logit = lambda p: math.log(p / (1.0 - p))               # noqa: E731
+    core, bg = pick_contrast(fitted, img, c, 6.0, 15.0)
+    # a prior so small that the core falls short of p_seed
+    model = replace(fitted, prior=1.0 / (1.0 + math.exp(core - fitted.log_prior_odds - 2.0)))
+    core, bg = pick_contrast(model, img, c, 6.0, 15.0)
+    assert core == pytest.approx(2.0, abs=1e-3) and bg > core
+    limited = calibrated_prior(model, img, c, 6.0, 15.0, params)
+    core_l, bg_l = pick_contrast(limited, img, c, 6.0, 15.0)
+    assert bg_l == pytest.approx(logit(params.p_grow) - 1.0, abs=1e-3) and core_l < logit(params.p_seed)
+    raised = calibrated_prior(model, img, c, 6.0, 15.0, params, background_room=False)
+    assert raised.prior > limited.prior
+    assert pick_contrast(raised, img, c, 6.0, 15.0)[0] == pytest.approx(logit(params.p_seed) + 1.0, abs=1e-3)
+
+
 @pytest.mark.skipif(not (REALDATA / "rgbd_kinect_room").is_dir(), reason="../shared/realdata not present")
 def test_red_sphere_on_a_warm_photograph_is_refused_in_plain_words():
     """The sphere family's set-up 8 (seed 0): a shaded red sphere against a brown-orange photograph in the
@@ -347,3 +377,49 @@ def test_red_sphere_on_a_warm_photograph_is_refused_in_plain_words():
     (u, v), r = scene.uv_true["left"]["red"], scene.radius_px["left"]["red"]     # the left view's is fine
     model = fit_color_model(scene.pick_frames["left"], (round(u), round(v)), (round(u + 0.8 * r), round(v)))
     assert model.radius_px == pytest.approx(0.8 * r, abs=1.0)
+
+
+@pytest.fixture(scope="module")
+def warm_scenes():
+    """The sphere family's set-ups 100 and 24 (seed 0): red spheres on the warm photographs."""
+    from tudorvision.lab.scene_family import render_family_scene, sample_family
+    family = sample_family(0, 101)
+    return {i: render_family_scene(family[i]) for i in (24, 100)}
+
+
+def _true_pick(scene, cam):
+    (u, v), r = scene.uv_true[cam]["red"], scene.radius_px[cam]["red"]
+    return (round(u), round(v)), (round(u + 0.8 * r), round(v))
+
+
+@pytest.mark.skipif(not (REALDATA / "rgbd_kinect_room").is_dir(), reason="../shared/realdata not present")
+def test_red_sphere_among_scattered_red_pixels_gets_a_local_model(warm_scenes, monkeypatch):
+    """Set-up 100: a 14 px red sphere on a red-brown photograph, in both cameras. The window around it
+    holds scattered pixels of its red, so its most sphere-like 0.1 % out-score the sphere's median pixel and
+    the prior limited by them leaves no seed (both picks were refused). Erosion removes those pixels: the
+    local model with the prior raised past them is accepted, and finds the sphere on the next frame (its
+    own noise) within half a pixel."""
+    import tudorvision.stereo._localmodel as localmodel
+    from tudorvision.stereo import detect_sphere
+    scene = warm_scenes[100]
+    for cam in ("left", "right"):
+        model = fit_color_model(scene.pick_frames[cam], *_true_pick(scene, cam))
+        assert model.is_local
+        det = detect_sphere(scene.frames[cam], model)
+        assert det.valid, det.reason
+        assert np.hypot(*(np.asarray(det.uv) - scene.uv_true[cam]["red"])) < 0.5
+    # the prior limited by the background's 99.9th percentile alone: refused, in the words it was before
+    real = localmodel.calibrated_prior
+    monkeypatch.setattr(localmodel, "calibrated_prior", lambda *args, **kw: real(*args))
+    with pytest.raises(TudorVisionError, match="its colour is as likely around the sphere as on it"):
+        fit_color_model(scene.pick_frames["right"], *_true_pick(scene, "right"))
+
+
+@pytest.mark.skipif(not (REALDATA / "rgbd_kinect_room").is_dir(), reason="../shared/realdata not present")
+def test_red_sphere_on_a_red_floor_is_still_refused(warm_scenes):
+    """Set-up 24, right camera: a 5 px red sphere on a floor of the same red. Even a full-covariance RGB
+    Gaussian of the sphere's true pixels admits, at 80 % of them, 15 sphere areas of the floor within four
+    radii: no colour model singles it out, and the raised prior does not make it pass."""
+    scene = warm_scenes[24]
+    with pytest.raises(TudorVisionError, match="does not single out the picked sphere .*nor in its neighbourhood"):
+        fit_color_model(scene.pick_frames["right"], *_true_pick(scene, "right"))

@@ -36,6 +36,10 @@ LOCAL_SCALE, LOCAL_MIN_PX = 4.0, 12.0
 #: A local model's background starts this many picked radii from the pick: the window is small, so the sphere's
 #: own limb (a pick short of the rim puts it up to 1.2-1.9 picked radii out) would weigh in its histogram.
 LOCAL_MARGIN = 2.5
+#: A local model whose prior was raised past the background's most sphere-like pixels (see fit_local_model) is
+#: accepted only when its region is centred within this many picked radii of the pick, with an area radius in
+#: this range of picked radii.
+RESCUE_FIT = (0.3, (0.7, 1.6))
 
 
 def smooth_pmf(counts: np.ndarray, sigma: float, circular: bool, floor: float) -> np.ndarray:
@@ -88,6 +92,16 @@ def fit_local_model(model: ColorModel, img: np.ndarray, c: np.ndarray, radius: f
     picked radii and no other valid region in the window has a quarter of
     its mass (a look-alike that a search could take).
 
+    When that model fails, one more is tried: its prior raised until the
+    core passes ``p_seed`` by one logit even where that lifts the window's
+    most sphere-like 0.1 % of pixels past ``p_grow`` (a warm photograph's
+    scattered pixels of the sphere's red: erosion removes them, and the
+    checks above see the regions they form). It is accepted only under the
+    same checks with a tighter fit: the region centred within
+    ``RESCUE_FIT[0]`` picked radii of the pick, its area radius within
+    ``RESCUE_FIT[1]`` picked radii. Otherwise the first model's reason is
+    returned.
+
     Returns ``(ColorModel, "")`` or ``(None, reason)``.
     """
     r_bg = max(r_bg, LOCAL_MARGIN * radius)
@@ -104,22 +118,39 @@ def fit_local_model(model: ColorModel, img: np.ndarray, c: np.ndarray, radius: f
         return None, "too little background around the pick"
     prior = float(np.clip(math.pi * radius ** 2 / (ww * hh), 1e-3, 0.2))
     local = replace(model, background=background_pmf(rgbhsv_rows(win, outside)), prior=prior, local_radius_px=half)
-    local = calibrated_prior(local, np.ascontiguousarray(win), c - (x0, y0), r_core, r_bg, params)
+    win, cw = np.ascontiguousarray(win), c - (x0, y0)
+    first = calibrated_prior(local, win, cw, r_core, r_bg, params)
+    why = _local_verdict(first, img, win, c, cw, radius, r_core, r_bg, params, roi, None)
+    if not why:
+        return first, ""
+    rescue = calibrated_prior(local, win, cw, r_core, r_bg, params, background_room=False)
+    if rescue.prior > first.prior and not _local_verdict(rescue, img, win, c, cw, radius, r_core, r_bg, params, roi,
+                                                         RESCUE_FIT):
+        return rescue, ""
+    return None, why
+
+
+def _local_verdict(local: ColorModel, img, win, c, cw, radius, r_core, r_bg, params, roi, fit) -> str:
+    """Why ``local`` does not single out the pick in its window ("" when it does); ``fit``: stricter (off, size)."""
     found = regions_in_window(FramePlanes(img), local, params, roi, False)
     if not found or not found[0].valid:
-        contrast = pick_contrast(local, np.ascontiguousarray(win), c - (x0, y0), r_core, r_bg)
+        contrast = pick_contrast(local, win, cw, r_core, r_bg)
         if contrast is not None and contrast[0] <= contrast[1]:
-            return None, (f"its colour is as likely around the sphere as on it (the picked core's median "
-                          f"log-odds {contrast[0]:.1f}, the surroundings' most sphere-like 0.1 % {contrast[1]:.1f})")
-        return None, found[0].reason if found else "no pixel above p_seed near the pick"
+            return (f"its colour is as likely around the sphere as on it (the picked core's median "
+                    f"log-odds {contrast[0]:.1f}, the surroundings' most sphere-like 0.1 % {contrast[1]:.1f})")
+        return found[0].reason if found else "no pixel above p_seed near the pick"
     det = found[0]
-    if math.hypot(det.uv[0] - c[0], det.uv[1] - c[1]) > radius:
-        return None, f"the best region near the pick lies at ({det.uv[0]:.1f}, {det.uv[1]:.1f})"
+    off = math.hypot(det.uv[0] - c[0], det.uv[1] - c[1])
+    if off > radius:
+        return f"the best region near the pick lies at ({det.uv[0]:.1f}, {det.uv[1]:.1f})"
     if det.touches_window:
-        return None, "the sphere's colour runs on into its surroundings"
-    if not 0.5 * radius <= det.radius_px <= 2.5 * radius:
-        return None, f"the region near the pick has radius {det.radius_px:.1f} px, not that of the pick"
+        return "the sphere's colour runs on into its surroundings"
+    lo, hi = (0.5, 2.5) if fit is None else fit[1]
+    if not lo * radius <= det.radius_px <= hi * radius:
+        return f"the region near the pick has radius {det.radius_px:.1f} px, not that of the pick"
+    if fit is not None and off > fit[0] * radius:
+        return f"the region near the pick is centred {off:.1f} px from it"
     mass = det.area_px * det.mean_prob
     if any(d.valid and d.area_px * d.mean_prob >= 0.25 * mass for d in found[1:]):
-        return None, "another region of the sphere's colour lies near the pick"
-    return local, ""
+        return "another region of the sphere's colour lies near the pick"
+    return ""

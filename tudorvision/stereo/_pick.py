@@ -117,14 +117,19 @@ def pick_contrast(model: ColorModel, img: np.ndarray, c: np.ndarray, r_core: flo
 
 
 def calibrated_prior(model: ColorModel, img: np.ndarray, c: np.ndarray, r_core: float, r_bg: float,
-                     params) -> ColorModel:
-    """``model`` with its prior raised so the picked core passes ``params.p_seed`` (see ``calibrate_prior``)."""
+                     params, *, background_room: bool = True) -> ColorModel:
+    """``model`` with its prior raised so the picked core passes ``params.p_seed`` (see ``calibrate_prior``).
+
+    ``background_room=False`` drops the limit set by the background's 99.9th percentile (the core then
+    passes ``p_seed`` by one logit, the prior at most 0.5): for a local model, whose acceptance judges the
+    regions the background's sphere-like pixels form instead of counting them one by one.
+    """
     contrast = pick_contrast(model, img, c, r_core, r_bg)
     if contrast is None:
         return model
     need = math.log(params.p_seed / (1.0 - params.p_seed)) + 1.0 - contrast[0]
     room = math.log(params.p_grow / (1.0 - params.p_grow)) - 1.0 - contrast[1]
-    delta = min(need, room)
+    delta = min(need, room) if background_room else need
     if not delta > 0:
         return model
     prior = 1.0 / (1.0 + math.exp(-(model.log_prior_odds + delta)))

@@ -147,7 +147,10 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
         around the pick (``ColorModel.local_radius_px``), and it is accepted
         when, in that window, the pick's region is the heaviest valid one,
         does not reach the window's edge, has about the picked radius and no
-        other region has a quarter of its mass. Searches with a local model
+        other region has a quarter of its mass (failing that, once more with
+        the prior raised past the window's scattered look-alike pixels, the
+        region then centred within 0.3 picked radii of the pick and its area
+        radius 0.7-1.6 of them). Searches with a local model
         cover that window around the sphere's last position instead of the
         full frame (``ColorModel.local_roi``), so look-alikes elsewhere are
         not examined; a sphere that leaves the window while unseen is not
