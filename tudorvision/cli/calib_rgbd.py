@@ -304,14 +304,15 @@ def _yaw(mode: str, T_base_cam, obs, K, opts, prm):
         return T_base_cam, {"skipped": why}
     pts, skipped = measure_yaw_sweep(obs["yaw_depth"], K, T_base_cam, obs["yaw_theta_rad"], opts, robot=prm)
     sweep_mean = np.nanmean(obs["points_cam"], axis=0)
+    lost = {int(obs["yaw_frames"][k]): r for k, r in skipped.items()}
     try:
         T, info = refine_tilt_from_yaw(T_base_cam, pts, pivot_cam=sweep_mean if np.all(np.isfinite(sweep_mean))
                                        else None)
     except TudorVisionError as exc:
         if mode == "on":
             raise TudorVisionError(f"--yaw on: {exc}") from None
-        return T_base_cam, {"skipped": str(exc), "lost": {int(obs["yaw_frames"][k]): r for k, r in skipped.items()}}
-    info["lost"] = {int(obs["yaw_frames"][k]): r for k, r in skipped.items()}
+        return T_base_cam, {"skipped": str(exc), "lost": lost}
+    info["lost"] = lost
     print(f"theta1 sweep: {info['yaw_points_used']} of {len(pts)} frames turned the frame's tilt towards the camera by "
           f"{info['yaw_tilt_correction_deg']:+.3f} deg (standard error {info['yaw_tilt_std_deg']:.3f} deg)")
     return T, info

@@ -31,8 +31,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._checks import TudorVisionError, check_array
-from ..geometry import invert_transform
+from .._checks import TudorVisionError, check_array, check_transform
+from ..geometry import fit_plane, invert_transform, transform_points
 from ..robot import load_robot_params
 from ..robot.kinematics import T_base_ee
 from .disc3d import Disc3DOptions, measure_disc_3d, unit_vector
@@ -80,7 +80,7 @@ def measure_yaw_sweep(depth_frames, intrinsics: Intrinsics, T_base_cam, theta_ra
     ValueError
         On arrays of the wrong shape or a non-positive margin.
     """
-    T = check_array(T_base_cam, "T_base_cam", (4, 4))
+    T = check_transform(T_base_cam, "T_base_cam")
     th = check_array(theta_rad, "theta_rad", (None, 3))
     frames = np.asarray(depth_frames)
     if frames.ndim != 3 or len(frames) != len(th):
@@ -90,7 +90,7 @@ def measure_yaw_sweep(depth_frames, intrinsics: Intrinsics, T_base_cam, theta_ra
         raise ValueError(f"margin_m: expected > 0, got {margin_m}")
     T_cam_base = invert_transform(T)
     prm = robot if robot is not None else load_robot_params()
-    pred_all = (T_cam_base @ T_base_ee(th, prm)[:, :, 3].T).T[:, :3]
+    pred_all = transform_points(T_cam_base, T_base_ee(th, prm)[:, :3, 3])
     out = np.full((len(th), 3), np.nan)
     normals = np.full((len(th), 3), np.nan)
     skipped = {}
@@ -154,18 +154,17 @@ def refine_tilt_from_yaw(T_base_cam, yaw_points_cam, *, pivot_cam=None, inlier_s
     >>> round(info["yaw_tilt_correction_deg"], 3), bool(np.allclose(T2[:3, :3], np.eye(3)))
     (-0.5, True)
     """
-    T = check_array(T_base_cam, "T_base_cam", (4, 4))
+    T = check_transform(T_base_cam, "T_base_cam")
     P = check_array(yaw_points_cam, "yaw_points_cam", (None, 3), finite=False)
     P = P[np.all(np.isfinite(P), axis=1)]
     if len(P) < min_points:
         raise TudorVisionError(f"yaw sweep: {len(P)} valid disc centres, at least {min_points} needed")
-    Pb = P @ T[:3, :3].T + T[:3, 3]                      # base frame of the first estimate
+    Pb = transform_points(T, P)                          # base frame of the first estimate
     keep = np.ones(len(Pb), bool)
     for rejection in (True, False):                      # fit, leave the outliers out once, fit again
-        c = Pb[keep].mean(axis=0)
-        n = np.linalg.svd(Pb[keep] - c)[2][2]
-        n = n if n[2] > 0 else -n
-        r = (Pb - c) @ n
+        plane = fit_plane(Pb[keep], normal_hint=[0.0, 0.0, 1.0])
+        n = plane.normal
+        r = (Pb - plane.centroid) @ n
         s = 1.4826 * np.median(np.abs(r - np.median(r)))
         if rejection and s > 1e-9:
             keep = np.abs(r - np.median(r)) <= inlier_sigma * s
@@ -178,11 +177,11 @@ def refine_tilt_from_yaw(T_base_cam, yaw_points_cam, *, pivot_cam=None, inlier_s
                                f"{100 * min_spread_m:.0f} cm needed (turn joint 1 further)")
     phi = float(np.arctan2(n[1], n[2]))                  # the turn about base x that takes n's y-z part onto z
     Rc = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(phi), -np.sin(phi)], [0.0, np.sin(phi), np.cos(phi)]])
-    q = np.zeros(3) if pivot_cam is None else T[:3, :3] @ check_array(pivot_cam, "pivot_cam", (3,)) + T[:3, 3]
+    q = np.zeros(3) if pivot_cam is None else transform_points(T, check_array(pivot_cam, "pivot_cam", (3,)))
     C = np.eye(4)
     C[:3, :3] = Rc
     C[:3, 3] = q - Rc @ q
-    rmse = float(np.sqrt(np.mean(r[keep] ** 2)))
+    rmse = plane.rmse
     se = rmse / float(np.sqrt(np.sum((y - y.mean()) ** 2)))
     info = {"yaw_tilt_correction_deg": float(np.degrees(phi)), "yaw_tilt_std_deg": float(np.degrees(se)),
             "yaw_roll_deg": float(np.degrees(np.arctan2(n[0], n[2]))), "yaw_plane_rmse_m": rmse,
