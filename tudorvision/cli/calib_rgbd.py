@@ -307,7 +307,7 @@ def _yaw(mode: str, T_base_cam, obs, K, opts, prm):
     lost = {int(obs["yaw_frames"][k]): r for k, r in skipped.items()}
     try:
         T, info = refine_tilt_from_yaw(T_base_cam, pts, pivot_cam=sweep_mean if np.all(np.isfinite(sweep_mean))
-                                       else None)
+                                       else None, theta_rad=obs["yaw_theta_rad"], robot=prm)
     except TudorVisionError as exc:
         if mode == "on":
             raise TudorVisionError(f"--yaw on: {exc}") from None

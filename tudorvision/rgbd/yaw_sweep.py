@@ -19,20 +19,26 @@ does not change), so the circle stays horizontal whatever the payload.
 :func:`measure_yaw_sweep` finds the disc in the yaw frames from the first
 estimate of the base frame and the rigid kinematics (no seed pixel needed);
 :func:`refine_tilt_from_yaw` turns the base frame about its x axis so that
-its z axis is the normal of the yaw points' plane. The roll about y (poorly
+its z axis is the normal of the yaw points' plane. With the joint angles,
+each point keeps its viewing ray and takes its distance along it from the
+arc (the rigid kinematics, its horizontal radius and offset fitted to the
+points: the elastic links bend the disc outwards): a camera looking down
+turns depth noise along the rays into height, and a plane fitted to the
+measured depths leans towards the rays' slope. The roll about y (poorly
 determined by a yaw arc in front of the base) stays the sweep's.
 The heading (about z) is not taken from the yaw sweep: a disc seen 45 deg
 off its face is measured 6-10 mm off its centre within its plane, towards
 the camera's side (noise-free lab frames), which at the arc's two ends reads
 as a 0.4-0.5 deg heading error; the tilt is not affected (the shift is
-horizontal).
+horizontal). A catch does not need it: a turn about the vertical keeps
+gravity vertical (the lab's catch is the same with 0.14 deg of heading).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from .._checks import TudorVisionError, check_array, check_transform
-from ..geometry import fit_plane, invert_transform, transform_points
+from ..geometry import fit_plane, invert_transform, rotation_angle, transform_points
 from ..robot import load_robot_params
 from ..robot.kinematics import T_base_ee
 from .disc3d import Disc3DOptions, measure_disc_3d, unit_vector
@@ -109,8 +115,9 @@ def measure_yaw_sweep(depth_frames, intrinsics: Intrinsics, T_base_cam, theta_ra
     return out, skipped
 
 
-def refine_tilt_from_yaw(T_base_cam, yaw_points_cam, *, pivot_cam=None, inlier_sigma: float = 3.5,
-                         min_points: int = 6, min_spread_m: float = 0.15):
+def refine_tilt_from_yaw(T_base_cam, yaw_points_cam, *, pivot_cam=None, theta_rad=None, robot=None,
+                         inlier_sigma: float = 3.5, min_points: int = 6, min_spread_m: float = 0.15,
+                         iterations: int = 3):
     """Turn a base frame about its x axis so that its z axis is normal to the yaw sweep's plane.
 
     Parameters
@@ -122,12 +129,23 @@ def refine_tilt_from_yaw(T_base_cam, yaw_points_cam, *, pivot_cam=None, inlier_s
     pivot_cam : array_like, shape (3,), optional
         The point the frame turns about, camera frame: where the first estimate is best known (the
         theta2 sweep's points' mean); default the base origin.
+    theta_rad : array_like, shape (N, 3), optional
+        Joint angles of the yaw frames, rad. Given, each disc centre keeps its viewing ray (what the image
+        measures) but takes its distance along the ray from the kinematics (the rigid end-effector
+        position through the current base frame), re-predicted after each turn: the depth noise no longer
+        tilts the plane (the camera looks down, so a point moved along its ray also moves in height, and
+        the scatter of the depths pulls a least-squares plane towards the rays' slope). Without it the
+        measured depths are used.
+    robot : RobotParams, optional
+        Link lengths for ``theta_rad``; default the packaged ``tudor.yaml``.
     inlier_sigma : float
         Points farther from the plane than this many robust standard deviations are left out (once).
     min_points : int
         Fewest valid inlier points.
     min_spread_m : float
         Fewest metres the points must spread along the base y axis (towards the camera): the tilt's lever.
+    iterations : int
+        Turns applied in sequence with ``theta_rad`` (each from the depths the previous frame predicts).
 
     Returns
     -------
@@ -156,9 +174,58 @@ def refine_tilt_from_yaw(T_base_cam, yaw_points_cam, *, pivot_cam=None, inlier_s
     """
     T = check_transform(T_base_cam, "T_base_cam")
     P = check_array(yaw_points_cam, "yaw_points_cam", (None, 3), finite=False)
-    P = P[np.all(np.isfinite(P), axis=1)]
-    if len(P) < min_points:
-        raise TudorVisionError(f"yaw sweep: {len(P)} valid disc centres, at least {min_points} needed")
+    ok = np.all(np.isfinite(P), axis=1)
+    if len(P[ok]) < min_points:
+        raise TudorVisionError(f"yaw sweep: {int(ok.sum())} valid disc centres, at least {min_points} needed")
+    if theta_rad is None:
+        return _turn_to_plane(T, P[ok], pivot_cam, inlier_sigma, min_points, min_spread_m)
+    th = check_array(theta_rad, "theta_rad", (len(P), 3))
+    prm = robot if robot is not None else load_robot_params()
+    rays = P[ok] / np.linalg.norm(P[ok], axis=1, keepdims=True)
+    ee_base = T_base_ee(th[ok], prm)[:, :3, 3]
+    T0, total = T, 0.0
+    for _ in range(max(1, int(iterations))):
+        pred, scale = _arc_prediction(transform_points(T, P[ok]), ee_base)
+        along = np.sum(rays * transform_points(invert_transform(T), pred), axis=1)
+        T, info = _turn_to_plane(T, rays * along[:, None], pivot_cam, inlier_sigma, min_points, min_spread_m)
+        total += info["yaw_tilt_correction_deg"]
+    info["yaw_tilt_correction_deg"] = float(np.degrees(rotation_angle(T[:3, :3] @ T0[:3, :3].T)) * np.sign(total))
+    info.update(yaw_depth_from="kinematics", yaw_radius_scale=scale)
+    return T, info
+
+
+def _arc_prediction(Pb, ee_base):
+    """The rigid arc scaled and shifted horizontally to the measured points (base frame), and the scale.
+
+    The elastic arm's disc runs on a wider circle than the rigid kinematics say (its links bend down and
+    out), and a radius off by ``dr`` would tilt the plane by about ``0.15 dr / r`` through the rays'
+    slope; so the horizontal radius ``k r`` and offset come from the points, each axis weighted by its
+    scatter (base x lies across the view, y along it): ``Pb[:, :2] ~ k ee[:, :2] + c``; the height is the
+    kinematics' shifted by the points' median sag.
+    """
+    A = ee_base[:, :2]
+    rows, rhs, parts = [], [], []
+    for ax in (0, 1):
+        M = np.zeros((len(A), 3))
+        M[:, 0], M[:, 1 + ax] = A[:, ax], 1.0
+        parts.append((M, Pb[:, ax]))
+    w = []
+    for M, b in parts:                              # each axis's scatter from its own fit
+        x = np.linalg.lstsq(M, b, rcond=None)[0]
+        r = b - M @ x
+        w.append(1.0 / max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-4))
+    for (M, b), wi in zip(parts, w):
+        rows.append(wi * M)
+        rhs.append(wi * b)
+    k, cx, cy = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
+    pred = ee_base.copy()
+    pred[:, 0], pred[:, 1] = k * A[:, 0] + cx, k * A[:, 1] + cy
+    pred[:, 2] += float(np.median(Pb[:, 2] - ee_base[:, 2]))       # the sag: the rays' slope differs with depth
+    return pred, float(k)
+
+
+def _turn_to_plane(T, P, pivot_cam, inlier_sigma, min_points, min_spread_m):
+    """One turn about base x that makes base z the normal of the points' plane (see refine_tilt_from_yaw)."""
     Pb = transform_points(T, P)                          # base frame of the first estimate
     keep = np.ones(len(Pb), bool)
     for rejection in (True, False):                      # fit, leave the outliers out once, fit again
@@ -185,6 +252,6 @@ def refine_tilt_from_yaw(T_base_cam, yaw_points_cam, *, pivot_cam=None, inlier_s
     se = rmse / float(np.sqrt(np.sum((y - y.mean()) ** 2)))
     info = {"yaw_tilt_correction_deg": float(np.degrees(phi)), "yaw_tilt_std_deg": float(np.degrees(se)),
             "yaw_roll_deg": float(np.degrees(np.arctan2(n[0], n[2]))), "yaw_plane_rmse_m": rmse,
-            "yaw_points_used": int(keep.sum()), "yaw_spread_m": spread}
+            "yaw_points_used": int(keep.sum()), "yaw_spread_m": spread, "yaw_depth_from": "measured"}
     return C @ T, info
 

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["wall_camera_position_world", "calibrate_wall_camera", "wall_depth_sensor",
-           "WALL_CAMERA_AIM_HEIGHT_M", "CALIBRATION_METHODS", "SWEEP_THETA2_DEG", "YAW_THETA1_RANGE_DEG",
+           "WALL_CAMERA_AIM_HEIGHT_M", "CALIBRATION_METHODS", "SWEEP_THETA2_DEG", "YAW_THETA1_RANGE_DEG", "YAW_POSES",
            "YAW_THETA2_DEG", "ship_calibration",
            "calibration_code_hash", "CODE_FILES"]
 
@@ -41,9 +41,11 @@ __all__ = ["wall_camera_position_world", "calibrate_wall_camera", "wall_depth_se
 #: (:func:`tudorvision.rgbd.yaw_sweep.refine_tilt_from_yaw`): the tilt towards the camera from heights, not depths.
 CALIBRATION_METHODS = ("seed", "seed+mirror", "seed+deflection", "seed+deflection+mirror", "seed+mirror+yaw")
 #: theta1 range of the yaw sweep, degrees (the disc seen up to 45 deg off its face): joint 1 turned slowly through
-#: it, one frame per pose, 13 times ``calibration_frames_per_pose`` frames; their theta2, degrees.
+#: it, one frame per pose, :data:`YAW_POSES` times ``calibration_frames_per_pose`` frames (416 by default: 14 s
+#: at 30 Hz; 104 left the tilt 0.01-0.16 deg off over calibration seeds 0-5, 416 0.00-0.08 deg); their theta2, degrees.
 YAW_THETA1_RANGE_DEG = (-45.0, 45.0)
 YAW_THETA2_DEG = 45.0
+YAW_POSES = 52
 #: The calibration sweep's theta2 poses, degrees. 10-170 deg: at 6.9 m the disc's depth in the horizontal
 #: poses (0 and 180 deg, the disc 29 cm above the base plate) came out 4-23 mm too far (a tilt of the
 #: fitted plane by 0.2-0.4 deg); the end poses are left out.
@@ -137,7 +139,8 @@ def _sweep_params(options, params):
     h1 = float(params.link1_height_m)
     yaw = ()
     if "yaw" in options.calibration_method.split("+"):
-        yaw = tuple(float(a) for a in np.linspace(*YAW_THETA1_RANGE_DEG, 13 * int(options.calibration_frames_per_pose)))
+        n_yaw = YAW_POSES * int(options.calibration_frames_per_pose)
+        yaw = tuple(float(a) for a in np.linspace(*YAW_THETA1_RANGE_DEG, n_yaw))
     d, h = float(options.camera_distance_m), float(options.camera_height_m)
     return DiscSweepParams(camera_distance_m=float(np.hypot(d, h - h1)), camera_height_m=h,
                            camera_azimuth_rad=0.0, camera_roll_rad=0.0,
@@ -320,7 +323,8 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
         yaw_pts, yaw_skipped = measure_yaw_sweep(sweep.depth_m[sweep.yaw], K, T, sweep.theta_rad[sweep.yaw], opts,
                                                  robot=params)
         try:
-            T, info = refine_tilt_from_yaw(T, yaw_pts, pivot_cam=np.nanmean(pts[sw], axis=0))
+            T, info = refine_tilt_from_yaw(T, yaw_pts, pivot_cam=np.nanmean(pts[sw], axis=0),
+                                           theta_rad=sweep.theta_rad[sweep.yaw], robot=params)
         except TudorVisionError as exc:
             raise TudorVisionError(f"catch demo: wall camera calibration failed: {exc}") from None
         rep.update(info, yaw_frames=int(sweep.yaw.sum()), yaw_skipped_frames=len(yaw_skipped))
