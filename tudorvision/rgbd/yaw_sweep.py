@@ -38,7 +38,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._checks import TudorVisionError, check_array, check_transform
-from ..geometry import fit_plane, invert_transform, rotation_angle, transform_points
+from ..geometry import fit_plane, invert_transform, transform_points
 from ..robot import load_robot_params
 from ..robot.kinematics import T_base_ee
 from .disc3d import Disc3DOptions, measure_disc_3d, unit_vector
@@ -131,8 +131,9 @@ def refine_tilt_from_yaw(T_base_cam, yaw_points_cam, *, pivot_cam=None, theta_ra
         theta2 sweep's points' mean); default the base origin.
     theta_rad : array_like, shape (N, 3), optional
         Joint angles of the yaw frames, rad. Given, each disc centre keeps its viewing ray (what the image
-        measures) but takes its distance along the ray from the kinematics (the rigid end-effector
-        position through the current base frame), re-predicted after each turn: the depth noise no longer
+        measures) but takes its distance along the ray from the arc (the rigid end-effector positions, their
+        horizontal radius and offset fitted to the points, through the current base frame), re-predicted
+        after each turn: the depth noise no longer
         tilts the plane (the camera looks down, so a point moved along its ray also moves in height, and
         the scatter of the depths pulls a least-squares plane towards the rays' slope). Without it the
         measured depths are used.
@@ -154,7 +155,8 @@ def refine_tilt_from_yaw(T_base_cam, yaw_points_cam, *, pivot_cam=None, theta_ra
     info : dict
         ``yaw_tilt_correction_deg`` (the turn about base x applied), ``yaw_tilt_std_deg`` (its standard
         error from the plane residuals), ``yaw_roll_deg`` (the plane's tilt about base y, not applied),
-        ``yaw_plane_rmse_m``, ``yaw_points_used``, ``yaw_spread_m``.
+        ``yaw_plane_rmse_m``, ``yaw_points_used``, ``yaw_spread_m``, ``yaw_depth_from`` (``"measured"`` or
+        ``"kinematics"``) and, with ``theta_rad``, ``yaw_radius_scale`` (the arc's radius over the rigid one).
 
     Raises
     ------
@@ -175,7 +177,7 @@ def refine_tilt_from_yaw(T_base_cam, yaw_points_cam, *, pivot_cam=None, theta_ra
     T = check_transform(T_base_cam, "T_base_cam")
     P = check_array(yaw_points_cam, "yaw_points_cam", (None, 3), finite=False)
     ok = np.all(np.isfinite(P), axis=1)
-    if len(P[ok]) < min_points:
+    if ok.sum() < min_points:
         raise TudorVisionError(f"yaw sweep: {int(ok.sum())} valid disc centres, at least {min_points} needed")
     if theta_rad is None:
         return _turn_to_plane(T, P[ok], pivot_cam, inlier_sigma, min_points, min_spread_m)
@@ -183,13 +185,13 @@ def refine_tilt_from_yaw(T_base_cam, yaw_points_cam, *, pivot_cam=None, theta_ra
     prm = robot if robot is not None else load_robot_params()
     rays = P[ok] / np.linalg.norm(P[ok], axis=1, keepdims=True)
     ee_base = T_base_ee(th[ok], prm)[:, :3, 3]
-    T0, total = T, 0.0
+    T0 = T
     for _ in range(max(1, int(iterations))):
         pred, scale = _arc_prediction(transform_points(T, P[ok]), ee_base)
         along = np.sum(rays * transform_points(invert_transform(T), pred), axis=1)
         T, info = _turn_to_plane(T, rays * along[:, None], pivot_cam, inlier_sigma, min_points, min_spread_m)
-        total += info["yaw_tilt_correction_deg"]
-    info["yaw_tilt_correction_deg"] = float(np.degrees(rotation_angle(T[:3, :3] @ T0[:3, :3].T)) * np.sign(total))
+    R = T[:3, :3] @ T0[:3, :3].T                        # the turns compose to one about base x
+    info["yaw_tilt_correction_deg"] = float(np.degrees(np.arctan2(R[2, 1], R[1, 1])))
     info.update(yaw_depth_from="kinematics", yaw_radius_scale=scale)
     return T, info
 
@@ -204,19 +206,14 @@ def _arc_prediction(Pb, ee_base):
     kinematics' shifted by the points' median sag.
     """
     A = ee_base[:, :2]
-    rows, rhs, parts = [], [], []
-    for ax in (0, 1):
+    rows, rhs = [], []
+    for ax in (0, 1):                               # unknowns (k, cx, cy); each axis weighted by its own fit's scatter
         M = np.zeros((len(A), 3))
         M[:, 0], M[:, 1 + ax] = A[:, ax], 1.0
-        parts.append((M, Pb[:, ax]))
-    w = []
-    for M, b in parts:                              # each axis's scatter from its own fit
-        x = np.linalg.lstsq(M, b, rcond=None)[0]
-        r = b - M @ x
-        w.append(1.0 / max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-4))
-    for (M, b), wi in zip(parts, w):
-        rows.append(wi * M)
-        rhs.append(wi * b)
+        r = Pb[:, ax] - M @ np.linalg.lstsq(M, Pb[:, ax], rcond=None)[0]
+        w = 1.0 / max(1.4826 * float(np.median(np.abs(r - np.median(r)))), 1e-4)
+        rows.append(w * M)
+        rhs.append(w * Pb[:, ax])
     k, cx, cy = np.linalg.lstsq(np.vstack(rows), np.concatenate(rhs), rcond=None)[0]
     pred = ee_base.copy()
     pred[:, 0], pred[:, 1] = k * A[:, 0] + cx, k * A[:, 1] + cy
