@@ -64,19 +64,23 @@ def test_simulated_detection_covariance_along_and_across_the_ray():
     p, C = simulated_detection([0.2, -0.1, 3.0], K, rng)
     ray = np.array([0.2, -0.1, 3.0]) / np.linalg.norm([0.2, -0.1, 3.0])
     # by hand: sigma_z(3 m) = 8.05 mm (the seed's fit in mm) over sqrt(n), n = 0.8 pi (525 * 0.045 / 3)^2
-    # silhouette pixels, divided by the ray's z component; across: 1 px at 3 m = 3 / 525 m
-    # silhouette pixels over the 14 pixels per independent sample of a real Kinect's correlated noise
+    # silhouette pixels, divided by the ray's z component; across: 0.5 px at 3 m = 1.5 / 525 m (the detector's
+    # centroid on ragged, real-Kinect-like depth edges), silhouette pixels over the 14 pixels per independent
+    # sample of a real Kinect's correlated noise
     n = 0.8 * np.pi * (525.0 * 0.045 / 3.0) ** 2 / 14.0
     s_along = 8.05e-3 / np.sqrt(n) / ray[2]
     np.testing.assert_allclose(C @ ray, s_along ** 2 * ray, rtol=1e-9, atol=1e-15)
     across = np.cross(ray, [1.0, 0.0, 0.0])
     across /= np.linalg.norm(across)
-    np.testing.assert_allclose(across @ C @ across, (3.0 / 525.0) ** 2, rtol=1e-9)
-    # with millimetre depth noise the silhouette's depth fixes the range better than a pixel the bearing
-    # (by less with the correlated noise of a real Kinect: 2.4 mm against 5.7 mm at 3 m)
-    assert s_along < 3.0 / 525.0 / 2
+    np.testing.assert_allclose(across @ C @ across, (1.5 / 525.0) ** 2, rtol=1e-9)
+    # with millimetre depth noise the silhouette's depth fixes the range a little better than the centroid the
+    # bearing (2.4 mm against 2.9 mm at 3 m)
+    assert s_along < 1.5 / 525.0
     assert simulated_detection([0.0, 0.0, 6.0], K, rng) is None        # beyond 4.5 m
     assert simulated_detection([5.0, 0.0, 1.0], K, rng) is None        # outside the image
+    # cut by the top border (11.8 px radius at 2 m): dropped, as the detector drops it; wholly inside: kept
+    assert simulated_detection([0.0, (5.0 - 239.5) * 2.0 / 525.0, 2.0], K, rng) is None
+    assert simulated_detection([0.0, (15.0 - 239.5) * 2.0 / 525.0, 2.0], K, rng) is not None
 
 
 def test_demo_options_reject_bad_values():

@@ -216,3 +216,57 @@ def test_depth_noise_is_correlated_as_configured_and_scales_with_the_image_width
         DepthSensorModel(noise_corr_px=(1.0,))
     with pytest.raises(ValueError, match="noise_corr_px"):
         DepthSensorModel(noise_corr_px=(-1.0, 0.5))
+
+
+def _step_edge(c0, shape=(480, 640), slope=0.03):
+    """A straight depth edge: 1.5 m from column ``c0 + slope (v - 240)`` rightwards, 2.5 m to its left."""
+    vv, uu = np.mgrid[0:shape[0], 0:shape[1]].astype(float)
+    z = np.where(uu >= c0 + slope * (vv - 240.0), 1.5, 2.5)
+    return GBuffer(distance_m=z, depth_m=z, normal_world=np.zeros(z.shape + (3,), np.float32),
+                   object_id=np.ones(z.shape, np.int32), albedo_rgb=np.full(z.shape + (3,), 0.5, np.float32))
+
+
+def _edge_cols(depth_mm, rows):
+    """First column of the near (1.5 m) side per row."""
+    return np.array([np.nonzero((depth_mm[r] > 1350) & (depth_mm[r] < 1700))[0][0] for r in rows], float)
+
+
+@pytest.mark.parametrize("jitter, sd_range", [((0.0, 0.0), (0.2, 0.35)), ((0.9, 2.0), (0.75, 1.05)),
+                                              ((0.5, 2.0), (0.45, 0.7))])
+def test_edge_jitter_scatters_a_straight_edge_as_configured_without_moving_it(jitter, sd_range):
+    """A straight step edge through the sensor: the first near column per row scatters about the true edge
+    line by the jitter (plus the whole-pixel rounding, 0.29 px for a slanted edge) and is unbiased (the true
+    edge of row v is at ``ceil(c0 + 0.03 (v - 240))``, the pixels on either side of a jump invalid); the
+    real Kinect's monitor sides give 0.77 / 0.92 px (``benchmarks/bench_depth_noise_real.py``)."""
+    rows = np.arange(100, 400)
+    sds, offsets = [], []
+    for i in range(6):
+        c0 = 300.3 + 0.37 * i
+        d = depth_mm_from_gbuffer(_step_edge(c0), DepthSensorModel(edge_jitter_px=jitter), np.random.default_rng(i))
+        cols = _edge_cols(d, rows)
+        truth = np.ceil(c0 + 0.03 * (rows - 240.0))
+        res = cols - np.polyval(np.polyfit(rows, cols, 1), rows)
+        sds.append(res.std())
+        offsets.append(np.mean(cols - (truth + 1)))
+    assert sd_range[0] < np.mean(sds) < sd_range[1]
+    assert abs(np.mean(offsets)) < 0.15
+
+
+def test_edge_jitter_leaves_smooth_surfaces_and_the_noise_draw_alone():
+    """A steep but smooth plane (1 mm per pixel, no depth edge) without depth noise comes out exactly as with
+    no jitter, and the depth noise itself is the same draw with and without jitter (drawn first)."""
+    vv, uu = np.mgrid[0:120, 0:160].astype(float)
+    z = 2.0 + 0.001 * uu + 0.0005 * vv
+    g = GBuffer(distance_m=z, depth_m=z, normal_world=np.zeros(z.shape + (3,), np.float32),
+                object_id=np.ones(z.shape, np.int32), albedo_rgb=np.full(z.shape + (3,), 0.5, np.float32))
+    quiet = DepthNoiseModel(coeffs=(0.0,), floor_m=0.0)
+    a = depth_mm_from_gbuffer(g, DepthSensorModel(noise=quiet), np.random.default_rng(0))
+    b = depth_mm_from_gbuffer(g, DepthSensorModel(noise=quiet, edge_jitter_px=(0.0, 0.0)), np.random.default_rng(0))
+    np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(a, depth_mm_from_gbuffer(g, DepthSensorModel(noise=quiet), None))
+    a = depth_mm_from_gbuffer(g, DepthSensorModel(), np.random.default_rng(3))
+    b = depth_mm_from_gbuffer(g, DepthSensorModel(edge_jitter_px=(0.0, 0.0)), np.random.default_rng(3))
+    np.testing.assert_array_equal(a, b)
+    for bad in [(1.0,), (-0.5, 2.0), (0.9, 30.0), "x"]:
+        with pytest.raises(ValueError, match="edge_jitter_px"):
+            DepthSensorModel(edge_jitter_px=bad)

@@ -43,7 +43,8 @@ from .ball_color import ColorBallDetector, ColorBallOptions, PixelDetection
 from .frames import Intrinsics
 
 __all__ = ["BallDetectorOptions", "BallDetection", "DepthBackground", "detect_balls", "BallDetector",
-           "ball_center_cam_from_pixels", "ColorBallOptions", "ColorBallDetector", "PixelDetection"]
+           "ball_center_cam_from_pixels", "detection_covariance", "ColorBallOptions", "ColorBallDetector",
+           "PixelDetection"]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -65,7 +66,15 @@ class BallDetectorOptions:
     area_ratio : tuple of float
         Accepted range of (valid silhouette pixels) / (expected area pi r^2).
     pixel_sigma_px : float
-        Standard deviation of the silhouette centroid, pixels.
+        Standard deviation of the silhouette centroid across the viewing ray, pixels. Default 0.5: the
+        detector on the virtual lab's rendered throws, whose depth edges wander as a real Kinect's do
+        (:data:`tudorvision.sim.depth_sensor.KINECT_EDGE_JITTER_PX`, measured on a real frame), scatters
+        0.30-0.50 px (robust sd per axis; balls of 5-25 px radius, 0.8-4.5 m; 2026-11-28), a little
+        more on small, far balls (the edge scatter averages over a shorter rim).
+    border_margin_px : float
+        A ball whose expected silhouette (its projected radius about the centroid) comes nearer than
+        this to the image border gives no detection: the border cuts its silhouette and pulls the
+        centroid inwards (by up to 10 px on the lab's throws); negative: keep them.
     noise_correlation_px : float
         Pixels per independent depth sample (1: independent pixel noise). Default 14: a real
         Kinect's depth noise is correlated over a few pixels (block matching), so the mean of a
@@ -86,7 +95,8 @@ class BallDetectorOptions:
     n_sigma: float = 4.0
     min_depth_diff_m: float = 0.1
     area_ratio: tuple = (0.3, 2.0)
-    pixel_sigma_px: float = 1.0
+    pixel_sigma_px: float = 0.5
+    border_margin_px: float = 1.0
     noise_correlation_px: float = 14.0
     max_candidates: int = 5
     depth_model: DepthNoiseModel = field(default=KINECT_DEPTH_NOISE)
@@ -103,6 +113,11 @@ class BallDetectorOptions:
         if not self.noise_correlation_px >= 1:
             raise ValueError(f"noise_correlation_px: expected >= 1 pixel per independent sample, "
                              f"got {self.noise_correlation_px}")
+        if not self.pixel_sigma_px > 0:
+            raise ValueError(f"pixel_sigma_px: expected > 0, got {self.pixel_sigma_px}")
+        if np.isnan(self.border_margin_px) or self.border_margin_px == np.inf:
+            raise ValueError(f"border_margin_px: expected a number of pixels (-inf: keep all), "
+                             f"got {self.border_margin_px}")
 
 
 @dataclass(frozen=True)
@@ -271,7 +286,32 @@ def ball_center_cam_from_pixels(u, v, z, intrinsics: Intrinsics, radius_m: float
     return dist * d, np.array([uc, vc])
 
 
-def _covariance(p: np.ndarray, n: int, intrinsics: Intrinsics, o: BallDetectorOptions) -> np.ndarray:
+def detection_covariance(p: np.ndarray, n: float, intrinsics: Intrinsics, o: BallDetectorOptions) -> np.ndarray:
+    """Covariance of a detected centre: ``sigma_z(z)^2 / n_eff`` along the ray, ``(pixel_sigma_px z / f)^2`` across.
+
+    Parameters
+    ----------
+    p : ndarray, shape (3,)
+        The centre, metres, camera optical frame.
+    n : float
+        Valid silhouette pixels (``n_eff = max(1, n / noise_correlation_px)``).
+    intrinsics : Intrinsics
+        The depth camera's intrinsics (pixels).
+    o : BallDetectorOptions
+        ``depth_model``, ``noise_correlation_px`` and ``pixel_sigma_px``.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        Covariance, m^2, camera frame.
+
+    Examples
+    --------
+    >>> C = detection_covariance(np.array([0.0, 0.0, 2.0]), 140, Intrinsics(525.0, 525.0, 320, 240, 640, 480),
+    ...                          BallDetectorOptions())
+    >>> round(float(np.sqrt(C[0, 0])) * 525 / 2.0, 3)             # across the ray: pixel_sigma_px
+    0.5
+    """
     r = p / np.linalg.norm(p)
     z = p[2]
     n_eff = max(1.0, n / o.noise_correlation_px)
@@ -376,6 +416,8 @@ def _refine(d: np.ndarray, bg: DepthBackground, uc: float, vc: float, z0: float,
     if not (o.min_range_m < p[2] < o.max_range_m + R):
         return None
     r_px = f * R / p[2]
+    if min(uc, vc, K.width - 1 - uc, K.height - 1 - vc) - r_px < o.border_margin_px:
+        return None                      # cut by the border: the centroid is pulled inwards
     ratio = n_px / (np.pi * r_px ** 2)
     if not o.area_ratio[0] <= ratio <= o.area_ratio[1]:
         return None
@@ -397,7 +439,7 @@ def _refine(d: np.ndarray, bg: DepthBackground, uc: float, vc: float, z0: float,
                                         if np.isfinite(bb[ok]).any() else p[2], o.max_range_m + 2.0)))
     if float(diff.mean()) < max(o.min_depth_diff_m, 1.5 * o.n_sigma * sig / np.sqrt(ok.sum())):
         return None
-    return BallDetection(np.array([uc, vc]), p, _covariance(p, n_px, K, o), n_px, float(ratio), float(r_px))
+    return BallDetection(np.array([uc, vc]), p, detection_covariance(p, n_px, K, o), n_px, float(ratio), float(r_px))
 
 
 class BallDetector:

@@ -25,7 +25,8 @@ import numpy as np
 from ..sensors import KINECT_DEPTH_NOISE, KINECT_RANGE_M, DepthNoiseModel
 from .raycast import GBuffer
 
-__all__ = ["DepthSensorModel", "depth_mm_from_gbuffer", "noise_field", "KINECT_NOISE_CORR_PX"]
+__all__ = ["DepthSensorModel", "depth_mm_from_gbuffer", "noise_field", "KINECT_NOISE_CORR_PX",
+           "KINECT_EDGE_JITTER_PX"]
 
 #: Standard deviations (u, v) of the Gaussian that correlates the depth noise, pixels. From the flat desk
 #: top of the real TUM frame ``../shared/realdata/rgbd_tum_desk/1_depth.png`` (rows 330-380, columns
@@ -34,6 +35,13 @@ __all__ = ["DepthSensorModel", "depth_mm_from_gbuffer", "noise_field", "KINECT_N
 #: and 8 x 8 block means keep 12-27 times the variance independent pixels would leave (the fit's degree
 #: decides); this field keeps 11 there, and 11.5-15 over discs of 4-20 px radius (4 pi 1.5 0.9 = 17 at most).
 KINECT_NOISE_CORR_PX = (1.5, 0.9)
+#: Lateral jitter of depth edges: standard deviation (pixels) of the shift of a pixel's sample and the standard
+#: deviation (pixels) of the Gaussian that correlates it between neighbours. From the straight vertical sides
+#: of the monitor in the real TUM frame ``../shared/realdata/rgbd_tum_desk/1_depth.png`` (rows 105-204, 1.4-1.6 m):
+#: the edge column's residual from a line has 0.77 / 0.92 px sd, correlated 0.80 / 0.75, 0.70 / 0.48 and
+#: 0.38 / 0.23 at 1, 2 and 4 rows (``benchmarks/bench_depth_noise_real.py``, edge section); a 0.9 px shift
+#: smoothed over 2 px, rounded to whole pixels, gives 0.86 px there (``tests/test_depth_sensor.py``).
+KINECT_EDGE_JITTER_PX = (0.9, 2.0)
 NATIVE_WIDTH_PX = 640          # the width ``noise_corr_px`` is given for
 
 
@@ -61,6 +69,14 @@ class DepthSensorModel:
         of an image 640 px wide (the sensor's own resolution; scaled with the image width, so that a
         320 x 240 render sees half as many pixels of correlation) (:func:`noise_field`); ``(0, 0)``:
         independent pixels (the lab before 2026-11-27).
+    edge_jitter_px : tuple of float
+        ``(sigma, corr)``, pixels of a 640 px wide image (scaled like ``noise_corr_px``): every pixel
+        samples the scene at a point shifted by a Gaussian of standard deviation ``sigma`` along u and v,
+        correlated between pixels by a Gaussian of ``corr`` (:func:`noise_field`), rounded to whole
+        pixels, where that point lies across a depth edge (a jump of more than ``edge_jump_rel``; a
+        smooth surface keeps its own sample), as a real Kinect's block matching places depth edges
+        (:data:`KINECT_EDGE_JITTER_PX`);
+        ``(0, 0)``: edges where the scene has them (the lab before 2026-11-28).
 
     Raises
     ------
@@ -84,6 +100,7 @@ class DepthSensorModel:
     min_albedo: float = 0.03
     units_per_m: float = 1000.0
     noise_corr_px: tuple = KINECT_NOISE_CORR_PX
+    edge_jitter_px: tuple = KINECT_EDGE_JITTER_PX
 
     def __post_init__(self):
         if not 0 <= self.min_depth_m < self.max_depth_m:
@@ -105,6 +122,14 @@ class DepthSensorModel:
         if not (0 <= su <= 20 and 0 <= sv <= 20):
             raise ValueError(f"noise_corr_px: expected two standard deviations in [0, 20] px, "
                              f"got {self.noise_corr_px!r}")
+        try:
+            js, jc = (float(c) for c in self.edge_jitter_px)
+        except (TypeError, ValueError):
+            raise ValueError(f"edge_jitter_px: expected two numbers (sigma, corr), got {self.edge_jitter_px!r}") \
+                from None
+        if not (0 <= js <= 5 and 0 <= jc <= 20):
+            raise ValueError(f"edge_jitter_px: expected sigma in [0, 5] px and corr in [0, 20] px, "
+                             f"got {self.edge_jitter_px!r}")
 
     def corr_px_for_width(self, width_px: int) -> tuple:
         """``noise_corr_px`` for an image ``width_px`` wide (it is given for 640 px).
@@ -126,6 +151,26 @@ class DepthSensorModel:
         """
         k = float(width_px) / NATIVE_WIDTH_PX
         return (k * float(self.noise_corr_px[0]), k * float(self.noise_corr_px[1]))
+
+    def jitter_reach_px(self, width_px: int) -> int:
+        """How far (whole pixels) the edge jitter can move an edge in an image ``width_px`` wide: 4 sigma.
+
+        Parameters
+        ----------
+        width_px : int
+            Width of the whole image, pixels.
+
+        Returns
+        -------
+        int
+            ``ceil(4 sigma)`` with sigma scaled to that width; 0 without jitter.
+
+        Examples
+        --------
+        >>> DepthSensorModel().jitter_reach_px(640), DepthSensorModel(edge_jitter_px=(0, 0)).jitter_reach_px(640)
+        (4, 0)
+        """
+        return int(math.ceil(4.0 * float(self.edge_jitter_px[0]) * float(width_px) / NATIVE_WIDTH_PX))
 
     @property
     def sigma_coeffs_cm(self) -> DepthNoiseModel:
@@ -198,6 +243,38 @@ def noise_field(shape, rng: np.random.Generator, corr_px=(0.0, 0.0), dtype=np.fl
     return cv2.sepFilter2D(wide, -1, kx, ky)[ry:ry + h, rx:rx + w]
 
 
+def _jittered(z: np.ndarray, albedo: np.ndarray, model: DepthSensorModel, rng, width_px: int):
+    """Depth and albedo resampled at positions shifted by the edge jitter (nearest pixel, clipped), where the
+    shifted sample lies across a depth edge (a jump of more than ``edge_jump_rel``); elsewhere unchanged.
+
+    The two fields are drawn whole (the generator's later draws do not depend on the scene); only pixels
+    within the jitter's reach of a depth edge are resampled.
+    """
+    k = float(width_px) / NATIVE_WIDTH_PX
+    sigma, corr = k * float(model.edge_jitter_px[0]), k * float(model.edge_jitter_px[1])
+    if sigma <= 0:
+        return z, albedo
+    du = noise_field(z.shape, rng, (corr, corr), np.float32)
+    dv = noise_field(z.shape, rng, (corr, corr), np.float32)
+    reach = model.jitter_reach_px(width_px)
+    near = _edge_mask(z, model.edge_jump_rel, 1)
+    if not near.any():
+        return z, albedo
+    near = cv2.dilate(near.view(np.uint8), np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)).astype(bool)
+    v, u = np.nonzero(near)
+    h, w = z.shape
+    iu = np.clip(np.rint(u + sigma * du[v, u]).astype(np.intp), 0, w - 1)
+    iv = np.clip(np.rint(v + sigma * dv[v, u]).astype(np.intp), 0, h - 1)
+    z0, zj = z[v, u], z[iv, iu]
+    # only across a depth edge: a smooth surface keeps its own sample (block matching is sub-pixel there)
+    with np.errstate(invalid="ignore"):
+        across = ~(np.abs(zj - z0) <= model.edge_jump_rel * np.minimum(z0, zj))
+    z, albedo = z.copy(), albedo.copy()
+    z[v[across], u[across]] = zj[across]
+    albedo[v[across], u[across]] = albedo[iv[across], iu[across]]
+    return z, albedo
+
+
 def _edge_mask(z: np.ndarray, rel: float, width: int) -> np.ndarray:
     zf = np.where(np.isfinite(z), z, 1e9)
     edge = np.zeros(z.shape, bool)
@@ -218,6 +295,11 @@ def depth_mm_from_gbuffer(gbuffer: GBuffer, model: DepthSensorModel,
     ``model.noise.sigma_m(z)``, correlated between pixels by ``model.noise_corr_px``
     (:func:`noise_field`), rounded to ``1 / model.units_per_m`` metres;
     0 marks invalid pixels (out of range, no hit, depth edges, dark surfaces).
+    With noise, a pixel whose position shifted by the edge jitter
+    (``model.edge_jitter_px``, whole pixels, clipped to the buffer) lies
+    across a depth edge first takes the G-buffer's sample there, so that
+    depth edges wander as a real sensor's do; the depth noise is drawn
+    first, then the two jitter fields.
 
     Parameters
     ----------
@@ -226,7 +308,8 @@ def depth_mm_from_gbuffer(gbuffer: GBuffer, model: DepthSensorModel,
     model : DepthSensorModel
         Range, noise, edge and albedo rules, output scale.
     rng : numpy.random.Generator or None
-        Noise source (one ``standard_normal((H, W))`` draw, :func:`noise_field`); None: no noise.
+        Noise source (``standard_normal((H, W))`` draws: depth noise, then jitter along u and v,
+        :func:`noise_field`); None: no noise, no jitter.
     image_width_px : int, optional
         Width of the whole image when ``gbuffer`` is a crop of it (the noise's correlation scales with
         it, :meth:`DepthSensorModel.corr_px_for_width`); default the G-buffer's own width.
@@ -236,13 +319,17 @@ def depth_mm_from_gbuffer(gbuffer: GBuffer, model: DepthSensorModel,
     ndarray, shape (H, W), uint16
         Raw depth in ``1 / model.units_per_m`` metres, 0 = invalid.
     """
-    z = gbuffer.depth_m
+    z, albedo = gbuffer.depth_m, gbuffer.albedo_rgb
+    width = image_width_px or z.shape[1]
+    noise = None
+    if rng is not None:
+        noise = noise_field(z.shape, rng, model.corr_px_for_width(width))
+        z, albedo = _jittered(z, albedo, model, rng, width)
     valid = np.isfinite(z) & (z >= model.min_depth_m) & (z <= model.max_depth_m)
     valid &= ~_edge_mask(z, model.edge_jump_rel, int(model.edge_width_px))
-    valid &= gbuffer.albedo_rgb.mean(axis=2) >= model.min_albedo
+    valid &= albedo.mean(axis=2) >= model.min_albedo
     zv = np.where(valid, z, 0.0)
-    if rng is not None:
-        zv = zv + model.noise.sigma_m(zv) * noise_field(zv.shape, rng,
-                                                            model.corr_px_for_width(image_width_px or zv.shape[1]))
+    if noise is not None:
+        zv = zv + model.noise.sigma_m(zv) * noise
     out = np.clip(np.rint(zv * model.units_per_m), 1, 65535)
     return np.where(valid, out, 0).astype(np.uint16)

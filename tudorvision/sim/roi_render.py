@@ -168,6 +168,9 @@ class RoiRenderer:
         if boxes:
             v0, v1 = min(b[0] for b in boxes), max(b[1] for b in boxes)
             u0, u1 = min(b[2] for b in boxes), max(b[3] for b in boxes)
+            if rng is not None:     # the edge jitter moves the box's edges outwards by up to this much
+                j = self.depth_model.jitter_reach_px(W)
+                v0, v1, u0, u1 = max(v0 - j, 0), min(v1 + j, H), max(u0 - j, 0), min(u1 + j, W)
             if (v1 - v0) * (u1 - u0) > self.max_fraction * H * W:
                 return self._full(camera, t, rng)
         else:

@@ -59,7 +59,8 @@ def simulated_detection(p_cam, intrinsics, rng, *, options=None, scale: float = 
     tuple of ndarray or None
         ``(p_cam, cov_cam)``: noisy centre (3,) in metres and its covariance
         (3, 3) in m^2, camera frame; ``None`` when the ball is out of the
-        detection range or outside the image.
+        detection range or its silhouette is not wholly inside the image
+        (``options.border_margin_px``, as the detector).
 
     Examples
     --------
@@ -71,7 +72,7 @@ def simulated_detection(p_cam, intrinsics, rng, *, options=None, scale: float = 
     >>> simulated_detection([0.0, 0.0, 6.0], K, np.random.default_rng(0)) is None
     True
     """
-    from ...rgbd.ball import BallDetectorOptions
+    from ...rgbd.ball import BallDetectorOptions, detection_covariance
 
     o = options or BallDetectorOptions()
     p = np.asarray(p_cam, float)
@@ -80,15 +81,10 @@ def simulated_detection(p_cam, intrinsics, rng, *, options=None, scale: float = 
         return None
     K = intrinsics
     u, v = K.fx * p[0] / z + K.cx, K.fy * p[1] / z + K.cy
-    if not (0 <= u < K.width and 0 <= v < K.height):
-        return None
     f = float(np.sqrt(K.fx * K.fy))
-    n = max(1.0, area_ratio * np.pi * (f * o.ball_radius_m / z) ** 2 / o.noise_correlation_px)
-    r = p / np.linalg.norm(p)
-    s_along = float(o.depth_model.sigma_m(z)) / np.sqrt(n) / max(r[2], 1e-6)
-    s_lat = o.pixel_sigma_px * z / f
-    P = np.outer(r, r)
-    C = s_along ** 2 * P + s_lat ** 2 * (np.eye(3) - P)
+    if min(u, v, K.width - 1 - u, K.height - 1 - v) - f * o.ball_radius_m / z < o.border_margin_px:
+        return None            # the detector drops a ball cut by the image border
+    C = detection_covariance(p, area_ratio * np.pi * (f * o.ball_radius_m / z) ** 2, K, o)
     return rng.multivariate_normal(p, scale ** 2 * C), C
 
 
