@@ -45,6 +45,20 @@ KINECT_EDGE_JITTER_PX = (0.9, 2.0)
 NATIVE_WIDTH_PX = 640          # the width ``noise_corr_px`` is given for
 
 
+def _width_scale(width_px) -> float:
+    """Pixel scales given for the sensor's own 640 px wide image, in an image ``width_px`` wide."""
+    return float(width_px) / NATIVE_WIDTH_PX
+
+
+def _two_numbers(name: str, value, labels: str) -> tuple:
+    """``value`` as two floats, or a ValueError naming ``name``."""
+    try:
+        a, b = (float(c) for c in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name}: expected two numbers {labels}, got {value!r}") from None
+    return a, b
+
+
 @dataclass(frozen=True, kw_only=True)
 class DepthSensorModel:
     """Kinect-like depth sensor model.
@@ -115,18 +129,11 @@ class DepthSensorModel:
         if not self.units_per_m > 0 or self.max_depth_m * self.units_per_m > 65535:
             raise ValueError(f"units_per_m: expected > 0 with max_depth_m * units_per_m <= 65535, "
                              f"got {self.units_per_m}")
-        try:
-            su, sv = (float(c) for c in self.noise_corr_px)
-        except (TypeError, ValueError):
-            raise ValueError(f"noise_corr_px: expected two numbers (u, v), got {self.noise_corr_px!r}") from None
+        su, sv = _two_numbers("noise_corr_px", self.noise_corr_px, "(u, v)")
         if not (0 <= su <= 20 and 0 <= sv <= 20):
             raise ValueError(f"noise_corr_px: expected two standard deviations in [0, 20] px, "
                              f"got {self.noise_corr_px!r}")
-        try:
-            js, jc = (float(c) for c in self.edge_jitter_px)
-        except (TypeError, ValueError):
-            raise ValueError(f"edge_jitter_px: expected two numbers (sigma, corr), got {self.edge_jitter_px!r}") \
-                from None
+        js, jc = _two_numbers("edge_jitter_px", self.edge_jitter_px, "(sigma, corr)")
         if not (0 <= js <= 5 and 0 <= jc <= 20):
             raise ValueError(f"edge_jitter_px: expected sigma in [0, 5] px and corr in [0, 20] px, "
                              f"got {self.edge_jitter_px!r}")
@@ -149,7 +156,7 @@ class DepthSensorModel:
         >>> DepthSensorModel().corr_px_for_width(320)
         (0.75, 0.45)
         """
-        k = float(width_px) / NATIVE_WIDTH_PX
+        k = _width_scale(width_px)
         return (k * float(self.noise_corr_px[0]), k * float(self.noise_corr_px[1]))
 
     def jitter_reach_px(self, width_px: int) -> int:
@@ -170,7 +177,7 @@ class DepthSensorModel:
         >>> DepthSensorModel().jitter_reach_px(640), DepthSensorModel(edge_jitter_px=(0, 0)).jitter_reach_px(640)
         (4, 0)
         """
-        return int(math.ceil(4.0 * float(self.edge_jitter_px[0]) * float(width_px) / NATIVE_WIDTH_PX))
+        return int(math.ceil(4.0 * float(self.edge_jitter_px[0]) * _width_scale(width_px)))
 
     @property
     def sigma_coeffs_cm(self) -> DepthNoiseModel:
@@ -250,7 +257,7 @@ def _jittered(z: np.ndarray, albedo: np.ndarray, model: DepthSensorModel, rng, w
     The two fields are drawn whole (the generator's later draws do not depend on the scene); only pixels
     within the jitter's reach of a depth edge are resampled.
     """
-    k = float(width_px) / NATIVE_WIDTH_PX
+    k = _width_scale(width_px)
     sigma, corr = k * float(model.edge_jitter_px[0]), k * float(model.edge_jitter_px[1])
     if sigma <= 0:
         return z, albedo
