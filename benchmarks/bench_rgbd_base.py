@@ -24,7 +24,10 @@ Estimators, same frames, same run:
 
 Both feed :func:`tudorvision.rgbd.base_calib.base_frame_from_theta2_sweep`; the row
 ``disc3d+mirror`` refines ours from the sweep's mirror symmetry
-(:func:`tudorvision.rgbd.base_calib.refine_sweep_mirror`, ``calib rgbd-base --mirror``).
+(:func:`tudorvision.rgbd.base_calib.refine_sweep_mirror`, ``calib rgbd-base --mirror``), and
+prints the bootstrap spread ``calib rgbd-base`` reports for it
+(:func:`tudorvision.rgbd.base_spread.sweep_calibration_spread`, 95 %): how often it holds the
+true error, and whether the set-ups beyond the target were warned.
 Target: <= 1 cm and <= 1 deg for every set-up.
 
 Run::
@@ -45,6 +48,7 @@ from tudorvision._checks import TudorVisionError
 from tudorvision.geometry import invert_transform, rotation_angle
 from tudorvision.lab.disc_sweep import render_disc_sweep, sample_disc_sweep
 from tudorvision.rgbd.base_calib import base_frame_from_theta2_sweep, refine_sweep_mirror
+from tudorvision.rgbd.base_spread import sweep_calibration_spread
 from tudorvision.rgbd.disc import DiscOptions, DiscTracker
 from tudorvision.rgbd.disc3d import Disc3DOptions
 from tudorvision.rgbd.disc_track import DiscSweepTracker
@@ -92,11 +96,25 @@ def score(sw, pts, mirror=False):
             "radius": rep["circle_radius_m"]}
 
 
+def spread(sw, pts, n_boot):
+    """The bootstrap spread ``calib rgbd-base`` reports (mirror-refined), cm and degrees."""
+    sweep = ~sw.vertical
+    try:
+        T, _ = base_frame_from_theta2_sweep(pts[sweep], pts[sw.vertical], theta2_rad=sw.theta_rad[sweep, 1])
+        T, _ = refine_sweep_mirror(T, pts[sweep], sw.theta_rad[sweep])
+        s = sweep_calibration_spread(T, pts[sweep], pts[sw.vertical], sw.theta_rad[sweep, 1], mirror=True,
+                                     n_boot=n_boot)
+    except (TudorVisionError, ValueError):
+        return {"spread_cm": np.inf, "spread_deg": np.inf}
+    return {"spread_cm": 100 * s["translation_p95_m"], "spread_deg": s["rotation_p95_deg"]}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--setups", type=int, default=12)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--step-deg", type=float, default=5.0, help="theta2 step of the sweep, degrees (default 5)")
+    ap.add_argument("--spread-refits", type=int, default=100, help="bootstrap refits of the spread (default 100)")
     ap.add_argument("--frames-per-pose", type=int, default=2, help="depth frames per sweep pose (default 2)")
     ap.add_argument("--sigma-unit", choices=("mm", "cm"), help="read the seed's sigma_z fit in this unit "
                                                                 "(default: as tudorvision.sensors does)")
@@ -128,11 +146,12 @@ def main() -> None:
             res[name]["s"] = time.perf_counter() - t0
             if name == "disc3d":
                 res["disc3d+mirror"] = dict(score(sw, pts, mirror=True), s=res[name]["s"])
+                res["disc3d+mirror"].update(spread(sw, pts, args.spread_refits))
         rows.append((k, p, res))
         o, q, m = res["disc3d"], res["uniform"], res["disc3d+mirror"]
         print(f"set-up {k:2d}: {p.camera_distance_m:.2f} m, {p.background:7s}, tilt {np.degrees(p.disc_tilt_rad):4.1f}"
               f" deg, az {np.degrees(p.camera_azimuth_rad):+5.1f} deg | disc3d {o['t_cm']:6.2f} cm {o['r_deg']:6.2f}"
-              f" deg ({o['n']}/{len(sw.depth_m)} frames, {o['s']:.1f} s), +mirror {m['t_cm']:5.2f} cm {m['r_deg']:5.2f} deg | uniform {q['t_cm']:7.2f} cm "
+              f" deg ({o['n']}/{len(sw.depth_m)} frames, {o['s']:.1f} s), +mirror {m['t_cm']:5.2f} cm {m['r_deg']:5.2f} deg (spread {m['spread_cm']:.2f} cm {m['spread_deg']:.2f} deg) | uniform {q['t_cm']:7.2f} cm "
               f"{q['r_deg']:7.2f} deg ({q['n']} frames) {q['why']} | render {t_render:.1f} s", flush=True)
     print()
     for name in ("disc3d", "disc3d+mirror", "uniform"):
@@ -141,6 +160,14 @@ def main() -> None:
         ok = int(np.sum((t <= 1.0) & (a <= 1.0)))
         print(f"{name:13s}: translation median {np.median(t):.2f} cm, max {np.max(t):.2f} cm; rotation median "
               f"{np.median(a):.2f} deg, max {np.max(a):.2f} deg; within 1 cm / 1 deg: {ok}/{len(rows)}")
+    inside = [(r["disc3d+mirror"]["t_cm"] <= r["disc3d+mirror"]["spread_cm"],
+               r["disc3d+mirror"]["r_deg"] <= r["disc3d+mirror"]["spread_deg"]) for _, _, r in rows]
+    warned = [r["disc3d+mirror"]["spread_cm"] > 1.0 or r["disc3d+mirror"]["spread_deg"] > 1.0 for _, _, r in rows]
+    missed = [not (r["disc3d+mirror"]["t_cm"] <= 1.0 and r["disc3d+mirror"]["r_deg"] <= 1.0) for _, _, r in rows]
+    print(f"spread (95 %, {args.spread_refits} refits) holds the true error: translation {sum(i for i, _ in inside)}"
+          f"/{len(rows)}, rotation {sum(j for _, j in inside)}/{len(rows)}; set-ups warned (spread beyond 1 cm or "
+          f"1 deg) {sum(warned)}, of the set-ups beyond 1 cm / 1 deg warned {sum(w for w, x in zip(warned, missed) if x)}"
+          f"/{sum(missed)}")
     t_o = np.median([r["disc3d"]["t_cm"] for _, _, r in rows])
     t_p = np.median([r["uniform"]["t_cm"] for _, _, r in rows])
     a_o = np.median([r["disc3d"]["r_deg"] for _, _, r in rows])

@@ -115,12 +115,18 @@ def test_calib_rgbd_base_on_virtual_lab(lab_recordings, tmp_path, capsys):
     assert report["yaw"]["yaw_points_used"] >= 7 and report["yaw"]["lost"] == {}
     # the sweep's mirror symmetry refined the frame (joints.txt has mirrored poses); --mirror off does not
     assert report["mirror"]["pairs"] >= 3
+    # the bootstrap spread of the sweep part: 32 frames at 5 m leave it centimetres wide (and say so)
+    spread = report["spread"]
+    assert spread["n_boot"] >= 80 and 0.002 < spread["translation_p95_m"] < 0.5
+    assert ("warning" in spread) == (spread["translation_p95_m"] > 0.01 or spread["rotation_p95_deg"] > 1.0)
     runs = {}
-    for name, extra in (("mirror", ["--yaw", "off"]), ("none", ["--mirror", "off", "--yaw", "off"])):
+    for name, extra in (("mirror", ["--yaw", "off", "--spread-refits", "0"]),
+                        ("none", ["--mirror", "off", "--yaw", "off", "--spread-refits", "0"])):
         rp = tmp_path / f"base_{name}.json"
         assert main(["calib", "rgbd-base", str(path), "--seed", seed_uv, *extra, "--report", str(rp)]) == 0
         runs[name] = json.loads(rp.read_text())
     assert runs["none"]["mirror"] is None and runs["none"]["yaw"] is None and runs["mirror"]["yaw"] is None
+    assert runs["none"]["spread"] is None
     T_m, T_none = np.array(runs["mirror"]["T_base_cam"]), np.array(runs["none"]["T_base_cam"])
     turn = np.degrees(rotation_angle(T_none[:3, :3].T @ T_m[:3, :3]))
     assert abs(turn - abs(report["mirror"]["mirror_rotation_deg"])) < 1e-6

@@ -256,11 +256,37 @@ def _fit_base(args, seq, K, seed, opts, prm, recording):
                                                    origin=args.origin, vertical=args.vertical,
                                                    link1_height_m=prm.link1_height_m)
     T_base_cam, rep["mirror"] = _mirror(args.mirror, T_base_cam, obs)
+    rep["spread"] = _spread(args, T_base_cam, obs, rep, prm)
     T_base_cam, rep["yaw"] = _yaw(args.yaw, T_base_cam, obs, K, opts, prm)
     rep["T_base_cam"] = np.asarray(T_base_cam, float).tolist()
     if recording is not None:
         rerun_log.log_base_frame(recording, T_base_cam, obs["points_cam"])
     return T_base_cam, rep, obs
+
+
+def _spread(args, T_base_cam, obs, rep, prm):
+    """``--spread-refits``: how far the sweep's own scatter lets the frame be off (:mod:`tudorvision.rgbd.base_spread`)."""
+    import sys
+    from ..rgbd.base_spread import sweep_calibration_spread
+
+    if args.spread_refits <= 0:
+        return None
+    mirrored = isinstance(rep.get("mirror"), dict) and "skipped" not in rep["mirror"]
+    try:
+        s = sweep_calibration_spread(T_base_cam, obs["points_cam"], obs["vertical_cam"], obs["theta2_rad"],
+                                     mirror=mirrored, n_boot=args.spread_refits, origin=args.origin,
+                                     vertical=args.vertical, link1_height_m=prm.link1_height_m)
+    except (TudorVisionError, ValueError) as exc:
+        print(f"warning: sweep spread not estimated: {exc}", file=sys.stderr)
+        return {"skipped": str(exc)}
+    print(f"sweep spread ({s['n_boot']} refits on resampled samples): origin within "
+          f"{100 * s['translation_p95_m']:.2f} cm, axes within {s['rotation_p95_deg']:.2f} deg (95 %)")
+    if s["translation_p95_m"] > args.max_spread_m or s["rotation_p95_deg"] > args.max_spread_deg:
+        s["warning"] = (f"the sweep's own scatter lets the base frame be {100 * s['translation_p95_m']:.2f} cm / "
+                        f"{s['rotation_p95_deg']:.2f} deg off (95 %): record more depth frames per pose, more poses "
+                        f"or from closer")
+        print(f"warning: {s['warning']}", file=sys.stderr)
+    return s
 
 
 def _mirror(mode: str, T_base_cam, obs):
@@ -477,6 +503,12 @@ def register(calib_sub) -> None:
                         "(theta1 turned through e.g. +-45 deg at one theta2, theta3 = 0): the disc on a horizontal "
                         "circle whose heights the image measures better than the sweep's depths. 'auto' (default): "
                         "when joints.txt has such frames (disc3d detector)")
+    b.add_argument("--spread-refits", type=int, default=100,
+                   help="refits on resampled sweep samples that estimate how far the depth noise lets the frame be "
+                        "off (default 100, about 5 s; 0: off); a 95 %% spread beyond --max-spread-m or "
+                        "--max-spread-deg prints a warning")
+    b.add_argument("--max-spread-m", type=float, default=0.01, help="spread warning level, metres (default 0.01)")
+    b.add_argument("--max-spread-deg", type=float, default=1.0, help="spread warning level, degrees (default 1)")
     b.add_argument("--joint-tol-deg", type=float, default=0.5, help="joint tolerance for sweep/vertical frames")
     b.add_argument("--out", help="calibration file to write or update (transforms: T_base_cam)")
     b.add_argument("--report", help="JSON report")
