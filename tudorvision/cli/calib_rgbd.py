@@ -507,8 +507,10 @@ def register(calib_sub) -> None:
                    help="refits on resampled sweep samples that estimate how far the depth noise lets the frame be "
                         "off (default 100, about 5 s; 0: off); a 95 %% spread beyond --max-spread-m or "
                         "--max-spread-deg prints a warning")
-    b.add_argument("--max-spread-m", type=float, default=0.01, help="spread warning level, metres (default 0.01)")
-    b.add_argument("--max-spread-deg", type=float, default=1.0, help="spread warning level, degrees (default 1)")
+    b.add_argument("--max-spread-m", type=float, default=0.005,
+                   help="spread warning level, metres (default 0.005: half of 1 cm, as the lab's true errors reached "
+                        "up to twice the spread)")
+    b.add_argument("--max-spread-deg", type=float, default=0.5, help="spread warning level, degrees (default 0.5)")
     b.add_argument("--joint-tol-deg", type=float, default=0.5, help="joint tolerance for sweep/vertical frames")
     b.add_argument("--out", help="calibration file to write or update (transforms: T_base_cam)")
     b.add_argument("--report", help="JSON report")
