@@ -92,17 +92,17 @@ def score(sw, pts, mirror=False):
                 "n": int(np.isfinite(pts[:, 0]).sum())}
     t = float(np.linalg.norm(invert_transform(T)[:3, 3] - invert_transform(sw.T_base_cam)[:3, 3]))
     r = float(np.degrees(rotation_angle(T[:3, :3].T @ sw.T_base_cam[:3, :3])))
-    return {"ok": True, "why": "", "t_cm": 100 * t, "r_deg": r, "n": int(np.isfinite(pts[:, 0]).sum()),
+    return {"ok": True, "why": "", "t_cm": 100 * t, "r_deg": r, "n": int(np.isfinite(pts[:, 0]).sum()), "T": T,
             "radius": rep["circle_radius_m"]}
 
 
-def spread(sw, pts, n_boot):
-    """The bootstrap spread ``calib rgbd-base`` reports (mirror-refined), cm and degrees."""
+def spread(sw, pts, scored, n_boot):
+    """The bootstrap spread ``calib rgbd-base`` reports about ``scored``'s mirror-refined frame, cm and degrees."""
     sweep = ~sw.vertical
+    if not scored["ok"]:
+        return {"spread_cm": np.inf, "spread_deg": np.inf}
     try:
-        T, _ = base_frame_from_theta2_sweep(pts[sweep], pts[sw.vertical], theta2_rad=sw.theta_rad[sweep, 1])
-        T, _ = refine_sweep_mirror(T, pts[sweep], sw.theta_rad[sweep])
-        s = sweep_calibration_spread(T, pts[sweep], pts[sw.vertical], sw.theta_rad[sweep, 1], mirror=True,
+        s = sweep_calibration_spread(scored["T"], pts[sweep], pts[sw.vertical], sw.theta_rad[sweep, 1], mirror=True,
                                      n_boot=n_boot)
     except (TudorVisionError, ValueError):
         return {"spread_cm": np.inf, "spread_deg": np.inf}
@@ -146,7 +146,7 @@ def main() -> None:
             res[name]["s"] = time.perf_counter() - t0
             if name == "disc3d":
                 res["disc3d+mirror"] = dict(score(sw, pts, mirror=True), s=res[name]["s"])
-                res["disc3d+mirror"].update(spread(sw, pts, args.spread_refits))
+                res["disc3d+mirror"].update(spread(sw, pts, res["disc3d+mirror"], args.spread_refits))
         rows.append((k, p, res))
         o, q, m = res["disc3d"], res["uniform"], res["disc3d+mirror"]
         print(f"set-up {k:2d}: {p.camera_distance_m:.2f} m, {p.background:7s}, tilt {np.degrees(p.disc_tilt_rad):4.1f}"

@@ -43,7 +43,7 @@ from .ball_color import ColorBallDetector, ColorBallOptions, PixelDetection
 from .frames import Intrinsics
 
 __all__ = ["BallDetectorOptions", "BallDetection", "DepthBackground", "detect_balls", "BallDetector",
-           "ball_center_cam_from_pixels", "detection_covariance", "ColorBallOptions", "ColorBallDetector",
+           "ball_center_cam_from_pixels", "detection_covariance", "cut_by_border", "ColorBallOptions", "ColorBallDetector",
            "PixelDetection"]
 
 
@@ -286,6 +286,37 @@ def ball_center_cam_from_pixels(u, v, z, intrinsics: Intrinsics, radius_m: float
     return dist * d, np.array([uc, vc])
 
 
+def cut_by_border(u: float, v: float, r_px: float, intrinsics: Intrinsics, o: BallDetectorOptions) -> bool:
+    """Whether a ball's expected silhouette comes nearer than ``o.border_margin_px`` to the image border.
+
+    Such a ball gives no detection: the border cuts its silhouette and pulls the centroid inwards.
+
+    Parameters
+    ----------
+    u, v : float
+        The silhouette's centre, pixels.
+    r_px : float
+        Its expected radius, pixels.
+    intrinsics : Intrinsics
+        The image size (pixels).
+    o : BallDetectorOptions
+        ``border_margin_px``.
+
+    Returns
+    -------
+    bool
+
+    Examples
+    --------
+    >>> K = Intrinsics(525.0, 525.0, 320, 240, 640, 480)
+    >>> cut_by_border(10.0, 240.0, 9.5, K, BallDetectorOptions()), cut_by_border(320.0, 240.0, 9.5, K,
+    ...                                                                           BallDetectorOptions())
+    (True, False)
+    """
+    K = intrinsics
+    return min(u, v, K.width - 1 - u, K.height - 1 - v) - r_px < o.border_margin_px
+
+
 def detection_covariance(p: np.ndarray, n: float, intrinsics: Intrinsics, o: BallDetectorOptions) -> np.ndarray:
     """Covariance of a detected centre: ``sigma_z(z)^2 / n_eff`` along the ray, ``(pixel_sigma_px z / f)^2`` across.
 
@@ -416,7 +447,7 @@ def _refine(d: np.ndarray, bg: DepthBackground, uc: float, vc: float, z0: float,
     if not (o.min_range_m < p[2] < o.max_range_m + R):
         return None
     r_px = f * R / p[2]
-    if min(uc, vc, K.width - 1 - uc, K.height - 1 - vc) - r_px < o.border_margin_px:
+    if cut_by_border(uc, vc, r_px, K, o):
         return None                      # cut by the border: the centroid is pulled inwards
     ratio = n_px / (np.pi * r_px ** 2)
     if not o.area_ratio[0] <= ratio <= o.area_ratio[1]:

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._checks import TudorVisionError, check_points
+from .._checks import TudorVisionError, check_points, check_transform
 from ..geometry import invert_transform, rotation_angle
 from .base_calib import base_frame_from_theta2_sweep, refine_sweep_mirror
 
@@ -65,7 +65,8 @@ def sweep_calibration_spread(T_base_cam, points_cam, vertical_cam, theta2_rad=No
     Raises
     ------
     ValueError
-        If ``n_boot`` is below 20 or ``mirror`` is asked without joint angles.
+        If ``n_boot`` is below 20, ``mirror`` is asked without joint angles or
+        ``T_base_cam`` is not a rigid transform.
     TudorVisionError
         If fewer than half of the refits succeed.
 
@@ -86,7 +87,7 @@ def sweep_calibration_spread(T_base_cam, points_cam, vertical_cam, theta2_rad=No
         raise ValueError(f"n_boot: expected at least 20 refits, got {n_boot}")
     if mirror and theta2_rad is None:
         raise ValueError("mirror: the mirror refinement needs theta2_rad")
-    T0 = np.asarray(T_base_cam, float)
+    T0 = check_transform(T_base_cam, "T_base_cam")
     pts = check_points(points_cam, "points_cam", finite=False)
     vert = check_points(vertical_cam, "vertical_cam", finite=False)
     th = None if theta2_rad is None else np.asarray(theta2_rad, float).reshape(-1)

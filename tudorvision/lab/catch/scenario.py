@@ -72,7 +72,7 @@ def simulated_detection(p_cam, intrinsics, rng, *, options=None, scale: float = 
     >>> simulated_detection([0.0, 0.0, 6.0], K, np.random.default_rng(0)) is None
     True
     """
-    from ...rgbd.ball import BallDetectorOptions, detection_covariance
+    from ...rgbd.ball import BallDetectorOptions, cut_by_border, detection_covariance
 
     o = options or BallDetectorOptions()
     p = np.asarray(p_cam, float)
@@ -81,10 +81,10 @@ def simulated_detection(p_cam, intrinsics, rng, *, options=None, scale: float = 
         return None
     K = intrinsics
     u, v = K.fx * p[0] / z + K.cx, K.fy * p[1] / z + K.cy
-    f = float(np.sqrt(K.fx * K.fy))
-    if min(u, v, K.width - 1 - u, K.height - 1 - v) - f * o.ball_radius_m / z < o.border_margin_px:
+    r_px = float(np.sqrt(K.fx * K.fy)) * o.ball_radius_m / z
+    if cut_by_border(u, v, r_px, K, o):
         return None            # the detector drops a ball cut by the image border
-    C = detection_covariance(p, area_ratio * np.pi * (f * o.ball_radius_m / z) ** 2, K, o)
+    C = detection_covariance(p, area_ratio * np.pi * r_px ** 2, K, o)
     return rng.multivariate_normal(p, scale ** 2 * C), C
 
 
