@@ -37,6 +37,9 @@ Run (2-core container: about 2 min per variant for 240 throws, 15 min for 1980):
     .venv/bin/python benchmarks/bench_catch_oracle.py --throws 1980 --seed 0 --variants release
     .venv/bin/python benchmarks/bench_catch_oracle.py --throws 240 --seed 0 --variants baseline --replan blend
 
+``--set release_sigma_m=0.1``: any numeric :class:`DemoOptions` field for every variant (the
+demo before the twentieth session's release rule); the output files carry it in their names.
+
 ``--replan blend``: the joint layer re-plans a move in flight with continuous acceleration
 (``DemoOptions.replan``); output files carry the mode in their names.
 """
@@ -44,6 +47,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import json
 import math
 import tempfile
@@ -262,14 +266,27 @@ def main() -> None:
     ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS))
     ap.add_argument("--replan", choices=("restart", "blend"), default="restart",
                     help="how the joint layer re-plans a move in flight (DemoOptions.replan)")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="a numeric DemoOptions field for every variant, e.g. release_sigma_m=0.1 (repeatable)")
     ap.add_argument("--out", default="out/bench_catch_oracle")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    fields = {f.name for f in dataclasses.fields(DemoOptions)}
+    extra = {}
+    for item in args.set:
+        name, _, value = item.partition("=")
+        if name not in fields or not value:
+            ap.error(f"--set {item!r}: expected NAME=VALUE with NAME a DemoOptions field")
+        try:
+            extra[name] = float(value)
+        except ValueError:
+            ap.error(f"--set {item!r}: VALUE must be a number")
+    tag = "".join(f"_{k}{v:g}" for k, v in sorted(extra.items()))
     results = {}
     for v in args.variants:
-        rows, s, wall = run_variant(v, args.throws, args.seed, replan=args.replan)
-        write_rows(out / f"{v}_{args.replan}_s{args.seed}_n{args.throws}.csv", rows)
+        rows, s, wall = run_variant(v, args.throws, args.seed, replan=args.replan, **extra)
+        write_rows(out / f"{v}_{args.replan}{tag}_s{args.seed}_n{args.throws}.csv", rows)
         c, err = _counts(rows), net_error(rows)
         assert c["n"] == s["crossing_workspace"] and c["caught"] == s["caught_in_workspace"], (c, s)
         results[v] = {"counts": c, "net_vs_target": err, "wall_s": wall, "misses": s.get("misses"),
@@ -285,7 +302,7 @@ def main() -> None:
         b = results["baseline"]["counts"]["caught"]
         for v, r in results.items():
             print(f"{v}: caught {r['counts']['caught']} vs baseline {b}: ratio {r['counts']['caught'] / b:.3f}")
-    (out / f"summary_{args.replan}_s{args.seed}_n{args.throws}.json").write_text(json.dumps(results, indent=2))
+    (out / f"summary_{args.replan}{tag}_s{args.seed}_n{args.throws}.json").write_text(json.dumps(results, indent=2))
 
 
 if __name__ == "__main__":

@@ -211,3 +211,39 @@ def test_the_demos_refinement_rule_reaches_the_planner(tol_m, interval_s):
         moved = np.linalg.norm(it.p_base - first.p_base)
         assert moved == pytest.approx(dx, abs=1e-6)
         assert bool(it.send) is expect, (dt, dx)
+
+
+def test_a_much_sharper_estimate_refines_before_the_interval():
+    """``refine_sharper``: inside ``min_interval_s`` a refinement goes out only when the estimate's standard
+    deviation fell to at most that fraction of the released one's (and it moved more than ``refine_tol_m``).
+
+    The crossing's sigma is read back from the planner (process noise adds to the state's), so the oracle is
+    the rule itself on the measured ratios, with cases chosen clearly on each side of it.
+    """
+    from tudorvision.catch.ekf import BallModel
+    from tudorvision.catch.intercept import InterceptOptions, InterceptPlanner
+    from tudorvision.robot import load_robot_params
+
+    p = load_robot_params()
+
+    def state(dx_m):
+        return np.array([0.2 + dx_m, -3.0, 1.3, 0.0, 5.0, 2.5])
+
+    def P(sd_m):
+        return np.diag([sd_m ** 2] * 3 + [(2.0 * sd_m) ** 2] * 3)
+
+    for sharper in (0.0, 0.5):
+        planner = InterceptPlanner(InterceptOptions(release_sigma_m=0.5, refine_tol_m=0.02, min_interval_s=0.2,
+                                                    refine_sharper=sharper),
+                                   model=BallModel(drag_k_per_m=0.012), params=p)
+        first = planner.update(0.0, state(0.0), P(0.05))
+        assert first.send and first.sigma_m > 0.05
+        a = planner.update(0.033, state(0.05), P(0.04))        # a little sharper, moved 5 cm: waits
+        assert a.sigma_m > 0.7 * first.sigma_m and not a.send
+        b = planner.update(0.066, state(0.01), P(0.01))        # much sharper, moved 1 cm: nothing to correct
+        assert b.sigma_m < 0.4 * first.sigma_m and not b.send
+        c = planner.update(0.1, state(0.05), P(0.01))          # much sharper, moved 5 cm
+        assert c.sigma_m < 0.4 * first.sigma_m
+        assert bool(c.send) is (sharper > 0.0)
+    with pytest.raises(ValueError, match="refine_sharper"):
+        InterceptOptions(refine_sharper=1.0)

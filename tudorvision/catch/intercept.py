@@ -352,6 +352,10 @@ class InterceptOptions:
         ... and at least this long after the previous one (every new setpoint re-plans the
         joint layer's smooth point-to-point profile; re-planning at the camera rate would
         keep the arm in the slow start of the profile), seconds.
+    refine_sharper : float
+        ... unless the new estimate's standard deviation is at most this fraction of the released
+        one's: an early, rough release is then corrected at once instead of after ``min_interval_s``
+        (0: the interval always applies). In [0, 1).
     margin_rad : float
         Joint-range margin for reachability.
     reach_tol_m : float
@@ -377,6 +381,7 @@ class InterceptOptions:
     refine_tol_m: float = 0.02
     refine_sigma_factor: float = 0.0
     min_interval_s: float = 0.2
+    refine_sharper: float = 0.0
     margin_rad: float = np.deg2rad(2.0)
     reach_tol_m: float = 0.0
     inner_reach_m: float = 0.0
@@ -384,10 +389,10 @@ class InterceptOptions:
 
     def __post_init__(self):
         if (not self.release_sigma_m > 0 or not self.refine_tol_m >= 0 or not self.reach_tol_m >= 0
-                or not self.inner_reach_m >= 0):
-            raise ValueError(f"release_sigma_m, refine_tol_m, reach_tol_m, inner_reach_m: expected > 0, >= 0, >= 0 "
-                             f"and >= 0, got {self.release_sigma_m}, {self.refine_tol_m}, {self.reach_tol_m}, "
-                             f"{self.inner_reach_m}")
+                or not self.inner_reach_m >= 0 or not 0.0 <= self.refine_sharper < 1.0):
+            raise ValueError(f"release_sigma_m, refine_tol_m, reach_tol_m, inner_reach_m, refine_sharper: expected "
+                             f"> 0, >= 0, >= 0, >= 0 and in [0, 1), got {self.release_sigma_m}, {self.refine_tol_m}, "
+                             f"{self.reach_tol_m}, {self.inner_reach_m}, {self.refine_sharper}")
 
 
 @dataclass(frozen=True)
@@ -522,8 +527,9 @@ class InterceptPlanner:
         send = False
         if ok and c.sigma_m <= o.release_sigma_m:
             tol = max(o.refine_tol_m, o.refine_sigma_factor * c.sigma_m)
-            send = self.released is None or (np.linalg.norm(c.p_base - self.released.p_base) > tol
-                                              and t - self.released.t >= o.min_interval_s)
+            r = self.released
+            send = r is None or (np.linalg.norm(c.p_base - r.p_base) > tol
+                                 and (t - r.t >= o.min_interval_s or c.sigma_m <= o.refine_sharper * r.sigma_m))
         it = Intercept(t=float(t), t_cross=float(t) + c.dt_s, p_base=c.p_base, cov_base=c.cov_base,
                        sigma_m=c.sigma_m, reachable=ok, send=send)
         if send:

@@ -52,7 +52,9 @@ class DemoOptions:
     ball_radius_m : float
         Radius of the ball, a sphere, m (rendering, the detector and the catch criterion).
     release_sigma_m : float
-        Intercept release threshold (largest in-plane standard deviation), m.
+        Intercept release threshold (largest in-plane standard deviation), m. 0.5 m: in practice the
+        first reachable estimate of the two-detection filter (0.1-0.2 m sigma), a frame (33 ms) before
+        the 0.1 m of earlier versions; the refinements correct it (docs/catch.md, twentieth session).
     refine_sigma_factor : float
         A refinement is sent only if the intercept moved more than this many of its current
         standard deviations (and more than 2 cm); 0 (default since the camera stands behind the
@@ -62,7 +64,10 @@ class DemoOptions:
         A refinement is sent only if the intercept moved more than this since the last setpoint, m
         (:class:`~tudorvision.catch.intercept.InterceptOptions`).
     refine_interval_s : float
-        ... and at least this long after the previous setpoint, s.
+        ... and at least this long after the previous setpoint, s ...
+    refine_sharper : float
+        ... unless the new estimate's standard deviation is at most this fraction of the last sent
+        one's (an early, rough release corrected at once; 0: the interval always applies).
     refine_min_joint_rad : float
         A refinement whose joint setpoint differs from the last one by less than this in every joint is
         not sent (a new setpoint re-plans the layer's profile, which costs more than it corrects), rad.
@@ -206,10 +211,11 @@ class DemoOptions:
     target_height_m: tuple = (0.45, 1.2)
     net_radius_m: float = 0.09
     ball_radius_m: float = 0.045
-    release_sigma_m: float = 0.1
+    release_sigma_m: float = 0.5
     refine_sigma_factor: float = 0.0
     refine_tol_m: float = 0.02
     refine_interval_s: float = 0.2
+    refine_sharper: float = 0.0
     refine_min_joint_rad: float = float(np.deg2rad(0.5))
     overshoot_tol_rad: float = float(np.deg2rad(0.5))
     mode_f0_hz: float = 2.6
