@@ -247,3 +247,5 @@ def test_a_much_sharper_estimate_refines_before_the_interval():
         assert bool(c.send) is (sharper > 0.0)
     with pytest.raises(ValueError, match="refine_sharper"):
         InterceptOptions(refine_sharper=1.0)
+    with pytest.raises(ValueError, match="refine_sharper"):
+        DemoOptions(refine_sharper=-0.1)

@@ -276,6 +276,8 @@ class DemoOptions:
         if margin.shape not in ((), (3,)) or not np.all(np.isfinite(margin)) or np.any(margin < 0):
             raise ValueError(f"setpoint_margin_rad: expected one or three angles >= 0, rad, "
                              f"got {self.setpoint_margin_rad!r}")
+        if not 0.0 <= self.refine_sharper < 1.0:
+            raise ValueError(f"refine_sharper: expected [0, 1), got {self.refine_sharper}")
         if int(self.calibration_frames_per_pose) != self.calibration_frames_per_pose \
                 or self.calibration_frames_per_pose < 1:
             raise ValueError(f"calibration_frames_per_pose: expected a positive integer, "
