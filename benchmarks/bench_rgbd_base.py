@@ -48,7 +48,7 @@ from tudorvision._checks import TudorVisionError
 from tudorvision.geometry import invert_transform, rotation_angle
 from tudorvision.lab.disc_sweep import render_disc_sweep, sample_disc_sweep
 from tudorvision.rgbd.base_calib import base_frame_from_theta2_sweep, refine_sweep_mirror
-from tudorvision.rgbd.base_spread import sweep_calibration_spread
+from tudorvision.rgbd.base_spread import SPREAD_WARN_DEG, SPREAD_WARN_M, sweep_calibration_spread
 from tudorvision.rgbd.disc import DiscOptions, DiscTracker
 from tudorvision.rgbd.disc3d import Disc3DOptions
 from tudorvision.rgbd.disc_track import DiscSweepTracker
@@ -163,11 +163,12 @@ def main() -> None:
     inside = [(r["disc3d+mirror"]["t_cm"] <= r["disc3d+mirror"]["spread_cm"],
                r["disc3d+mirror"]["r_deg"] <= r["disc3d+mirror"]["spread_deg"]) for _, _, r in rows]
     # calib rgbd-base's default warning level: half the target (the true error reached twice the spread)
-    warned = [r["disc3d+mirror"]["spread_cm"] > 0.5 or r["disc3d+mirror"]["spread_deg"] > 0.5 for _, _, r in rows]
+    warned = [r["disc3d+mirror"]["spread_cm"] > 100 * SPREAD_WARN_M or r["disc3d+mirror"]["spread_deg"] > SPREAD_WARN_DEG
+              for _, _, r in rows]
     missed = [not (r["disc3d+mirror"]["t_cm"] <= 1.0 and r["disc3d+mirror"]["r_deg"] <= 1.0) for _, _, r in rows]
     print(f"spread (95 %, {args.spread_refits} refits) holds the true error: translation {sum(i for i, _ in inside)}"
-          f"/{len(rows)}, rotation {sum(j for _, j in inside)}/{len(rows)}; set-ups warned (spread beyond 0.5 cm or "
-          f"0.5 deg) {sum(warned)}, of the set-ups beyond 1 cm / 1 deg warned {sum(w for w, x in zip(warned, missed) if x)}"
+          f"/{len(rows)}, rotation {sum(j for _, j in inside)}/{len(rows)}; set-ups warned (spread beyond {100 * SPREAD_WARN_M:g} cm or "
+          f"{SPREAD_WARN_DEG:g} deg) {sum(warned)}, of the set-ups beyond 1 cm / 1 deg warned {sum(w for w, x in zip(warned, missed) if x)}"
           f"/{sum(missed)}")
     t_o = np.median([r["disc3d"]["t_cm"] for _, _, r in rows])
     t_p = np.median([r["uniform"]["t_cm"] for _, _, r in rows])

@@ -265,7 +265,7 @@ def _fit_base(args, seq, K, seed, opts, prm, recording):
 
 
 def _spread(args, T_base_cam, obs, rep, prm):
-    """``--spread-refits``: how far the sweep's own scatter lets the frame be off (:mod:`tudorvision.rgbd.base_spread`)."""
+    """``--spread-refits``: how far the sweep's own scatter lets the frame be off (``rgbd.base_spread``)."""
     import sys
     from ..rgbd.base_spread import sweep_calibration_spread
 
@@ -447,6 +447,8 @@ def check_sweep_fit(radius_m: float, rmse_m: float, *, params=None, radius_tol_m
 
 def register(calib_sub) -> None:
     """Add ``rgbd-depth`` and ``rgbd-base`` to the ``calib`` group."""
+    from ..rgbd.base_spread import SPREAD_WARN_DEG, SPREAD_WARN_M
+
     p = calib_sub.add_parser(
         "rgbd-depth", help="depth noise model sigma_z(z) from planar-target sequences",
         description="Planar target perpendicular to the optical axis, one sequence per distance (about 100 "
@@ -507,10 +509,11 @@ def register(calib_sub) -> None:
                    help="refits on resampled sweep samples that estimate how far the depth noise lets the frame be "
                         "off (default 100, about 5 s; 0: off); a 95 %% spread beyond --max-spread-m or "
                         "--max-spread-deg prints a warning")
-    b.add_argument("--max-spread-m", type=float, default=0.005,
-                   help="spread warning level, metres (default 0.005: half of 1 cm, as the lab's true errors reached "
-                        "up to twice the spread)")
-    b.add_argument("--max-spread-deg", type=float, default=0.5, help="spread warning level, degrees (default 0.5)")
+    b.add_argument("--max-spread-m", type=float, default=SPREAD_WARN_M,
+                   help=f"spread warning level, metres (default {SPREAD_WARN_M:g}: half of 1 cm, as the lab's true "
+                        f"errors reached up to twice the spread)")
+    b.add_argument("--max-spread-deg", type=float, default=SPREAD_WARN_DEG,
+                   help=f"spread warning level, degrees (default {SPREAD_WARN_DEG:g})")
     b.add_argument("--joint-tol-deg", type=float, default=0.5, help="joint tolerance for sweep/vertical frames")
     b.add_argument("--out", help="calibration file to write or update (transforms: T_base_cam)")
     b.add_argument("--report", help="JSON report")

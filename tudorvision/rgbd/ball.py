@@ -43,8 +43,8 @@ from .ball_color import ColorBallDetector, ColorBallOptions, PixelDetection
 from .frames import Intrinsics
 
 __all__ = ["BallDetectorOptions", "BallDetection", "DepthBackground", "detect_balls", "BallDetector",
-           "ball_center_cam_from_pixels", "detection_covariance", "cut_by_border", "ColorBallOptions", "ColorBallDetector",
-           "PixelDetection"]
+           "ball_center_cam_from_pixels", "detection_covariance", "cut_by_border", "ColorBallOptions",
+           "ColorBallDetector", "PixelDetection"]
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -25,6 +25,13 @@ from .._checks import TudorVisionError, check_points, check_transform
 from ..geometry import invert_transform, rotation_angle
 from .base_calib import base_frame_from_theta2_sweep, refine_sweep_mirror
 
+__all__ = ["sweep_calibration_spread", "SPREAD_WARN_M", "SPREAD_WARN_DEG"]
+
+#: Spread (95 %) beyond which ``calib rgbd-base`` warns, metres and degrees: half the 1 cm / 1 deg a user
+#: needs, as the lab's true errors reached up to twice the spread.
+SPREAD_WARN_M = 0.005
+SPREAD_WARN_DEG = 0.5
+
 
 def sweep_calibration_spread(T_base_cam, points_cam, vertical_cam, theta2_rad=None, *, mirror: bool = False,
                              n_boot: int = 100, rng: np.random.Generator | None = None, **fit_options) -> dict:
