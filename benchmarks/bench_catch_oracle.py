@@ -37,7 +37,7 @@ Run (2-core container: about 2 min per variant for 240 throws, 15 min for 1980):
     .venv/bin/python benchmarks/bench_catch_oracle.py --throws 1980 --seed 0 --variants release
     .venv/bin/python benchmarks/bench_catch_oracle.py --throws 240 --seed 0 --variants baseline --replan blend
 
-``--set release_sigma_m=0.1``: any numeric :class:`DemoOptions` field for every variant (the
+``--set release_sigma_m=0.1``: any numeric :class:`DemoOptions` field (a switch: 0 or 1) for every variant (the
 demo before the twentieth session's release rule); the output files carry it in their names.
 
 ``--replan blend``: the joint layer re-plans a move in flight with continuous acceleration
@@ -267,12 +267,13 @@ def main() -> None:
     ap.add_argument("--replan", choices=("restart", "blend"), default="restart",
                     help="how the joint layer re-plans a move in flight (DemoOptions.replan)")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                    help="a numeric DemoOptions field for every variant, e.g. release_sigma_m=0.1 (repeatable)")
+                    help="a numeric DemoOptions field (a switch: 0 or 1) for every variant, e.g. release_sigma_m=0.1 "
+                         "(repeatable)")
     ap.add_argument("--out", default="out/bench_catch_oracle")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    fields = {f.name for f in dataclasses.fields(DemoOptions)}
+    fields = {f.name: f for f in dataclasses.fields(DemoOptions)}
     extra = {}
     for item in args.set:
         name, _, value = item.partition("=")
@@ -282,6 +283,10 @@ def main() -> None:
             extra[name] = float(value)
         except ValueError:
             ap.error(f"--set {item!r}: VALUE must be a number")
+        if fields[name].type in (bool, "bool"):     # a switch: 0 or 1
+            if extra[name] not in (0.0, 1.0):
+                ap.error(f"--set {item!r}: {name} is a switch, VALUE must be 0 or 1")
+            extra[name] = bool(extra[name])
     tag = "".join(f"_{k}{v:g}" for k, v in sorted(extra.items()))
     results = {}
     for v in args.variants:

@@ -207,3 +207,20 @@ def test_the_mirror_follows_the_layers_reference_through_a_replan(replan):
         assert np.max(jump) > 2.0
     with pytest.raises(ValueError, match="replan"):
         CascadeCore(ElasticArm(start.copy()), replan="smooth")
+
+
+@pytest.mark.parametrize("payload_kg, rel", [(0.12, 0.01), (0.0, 0.045), (0.3, 0.045)])
+def test_elbow_frequency_factor_is_the_lab_plants_linearised_mode(payload_kg, rel):
+    """The agent's table of the first mode against the elbow angle matches the plant's linear modes (oracle)."""
+    import math
+
+    from tudorvision.lab.catch.profile import elbow_frequency_factor
+    from tudorvision.lab.plant_modes import linear_modes
+    from tudorvision.sim.model import PlantConfig
+
+    cfg = PlantConfig()
+    ref = linear_modes(np.deg2rad([0.0, 60.0, 62.0]), payload_kg, cfg)["modes_hz"][0]
+    for th2, th3 in ((75.0, 27.0), (20.0, -85.0), (-4.0, 101.0)):      # joint 2 and the elbow's sign play no part
+        f = linear_modes(np.deg2rad([0.0, th2, th3]), payload_kg, cfg)["modes_hz"][0]
+        assert elbow_frequency_factor(math.radians(th3)) == pytest.approx(f / ref, rel=rel)
+    assert elbow_frequency_factor(math.radians(100.0)) > 1.15 > 1.0 > elbow_frequency_factor(0.0)

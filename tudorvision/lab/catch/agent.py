@@ -25,7 +25,7 @@ import numpy as np
 
 from ...catch.intercept import inner_reach_m, net_target
 from ...catch.perception import detection_to_base
-from .profile import ReferenceMirror, mode_frequency_hz
+from .profile import ReferenceMirror, elbow_frequency_factor, mode_frequency_hz
 
 __all__ = ["CatchAgent", "CatchIK", "ThrowLog", "WEIGH_REST_SPEED_RAD_S", "pause_and_weigh",
            "profile_limits", "demo_inner_reach_m", "PREDICTION_COLUMNS", "SETPOINT_COLUMNS"]
@@ -387,6 +387,8 @@ class CatchAgent:
         self._pending = False
         self._ready_goal = None                # the intercept supersedes a ready move still waiting
         f = mode_frequency_hz(self.payload_est_kg, o.mode_f0_hz, o.mode_mass_kg) if o.mode_f0_hz > 0 else 0.0
+        if o.mode_elbow_map:
+            f *= elbow_frequency_factor(th[2])     # the mode at the goal, where the residual swing rings
         deadline = it.t_cross - o.arrive_before_s
         speed = None
         if self.mirror.motion is not None:

@@ -87,6 +87,10 @@ class DemoOptions:
         arrive ``arrive_before_s`` before the predicted crossing
         (:meth:`~tudorvision.lab.catch.profile.ReferenceMirror.choose_speed`); ``mode_f0_hz=0``: always the
         full profile speed (the behaviour before).
+    mode_elbow_map : bool
+        Scale that frequency by the goal's elbow angle (:func:`~tudorvision.lab.catch.profile.elbow_frequency_factor`:
+        a folded elbow rings up to 18 % faster than the ready pose, a stretched arm 10 % slower); False: one
+        frequency for every pose.
     arrive_before_s : float
         The profile must end this long before the crossing the agent predicts, s (0.1 since
         2026-11-26: the net has a little longer to settle; 0.05 caught 9 fewer of 211 development throws).
@@ -220,6 +224,7 @@ class DemoOptions:
     overshoot_tol_rad: float = float(np.deg2rad(0.5))
     mode_f0_hz: float = 2.6
     mode_mass_kg: float = 0.26
+    mode_elbow_map: bool = False
     arrive_before_s: float = 0.1
     replan: str = "restart"
     speed_fraction: float = 0.75

@@ -33,10 +33,31 @@ import math
 
 import numpy as np
 
-__all__ = ["ReferenceMirror", "mode_frequency_hz", "SPEED_CANDIDATES"]
+__all__ = ["ReferenceMirror", "mode_frequency_hz", "elbow_frequency_factor", "SPEED_CANDIDATES"]
 
 #: Profile speeds tried by :meth:`ReferenceMirror.choose_speed`, fractions of the demo's profile speed.
 SPEED_CANDIDATES = (1.0, 0.85, 0.72, 0.62, 0.54, 0.47, 0.41, 0.36, 0.31, 0.27, 0.23)
+
+
+#: The first mode's frequency against the elbow angle |theta3| (deg, 0 to 100 in 10 deg steps), relative to the
+#: ready pose's 62 deg: the lab's linearised modes (:func:`tudorvision.lab.plant_modes.linear_modes`, 120 g
+#: plate, joint 2 at 60 deg; joint 2 does not change it), identified once as the seed measured its figure 4.8.
+#: The same ratio holds within 4 % from 0 to 360 g of payload (the table is the 120 g one).
+ELBOW_FACTOR = (0.902, 0.904, 0.912, 0.924, 0.941, 0.965, 0.993, 1.029, 1.071, 1.12, 1.177)
+
+
+def elbow_frequency_factor(theta3_rad: float) -> float:
+    """The first mode's frequency at elbow angle ``theta3_rad`` relative to the ready pose's (:data:`ELBOW_FACTOR`).
+
+    A folded elbow (|theta3| near 100 deg) rings 18 % faster than the ready pose, a stretched arm 10 % slower.
+
+    Examples
+    --------
+    >>> round(elbow_frequency_factor(math.radians(62.0)), 2), round(elbow_frequency_factor(math.radians(-100.0)), 3)
+    (1.0, 1.177)
+    """
+    deg = min(abs(math.degrees(float(theta3_rad))), 100.0)
+    return float(np.interp(deg, np.arange(0.0, 101.0, 10.0), ELBOW_FACTOR))
 
 
 def mode_frequency_hz(payload_kg: float, f0_hz: float = 2.6, mass_kg: float = 0.26) -> float:
