@@ -37,7 +37,8 @@ Run (2-core container: about 2 min per variant for 240 throws, 15 min for 1980):
     .venv/bin/python benchmarks/bench_catch_oracle.py --throws 1980 --seed 0 --variants release
     .venv/bin/python benchmarks/bench_catch_oracle.py --throws 240 --seed 0 --variants baseline --replan blend
 
-``--set release_sigma_m=0.1``: any numeric :class:`DemoOptions` field (a switch: 0 or 1) for every variant (the
+``--set release_sigma_m=0.1``: any numeric :class:`DemoOptions` field (a switch: 0 or 1; a choice by
+name, e.g. ``weigh=settled``) for every variant (the
 demo before the twentieth session's release rule); the output files carry it in their names.
 
 ``--replan blend``: the joint layer re-plans a move in flight with continuous acceleration
@@ -279,6 +280,9 @@ def main() -> None:
         name, _, value = item.partition("=")
         if name not in fields or not value:
             ap.error(f"--set {item!r}: expected NAME=VALUE with NAME a DemoOptions field")
+        if fields[name].type in (str, "str"):        # a named choice, checked by DemoOptions
+            extra[name] = value
+            continue
         try:
             extra[name] = float(value)
         except ValueError:
@@ -287,7 +291,11 @@ def main() -> None:
             if extra[name] not in (0.0, 1.0):
                 ap.error(f"--set {item!r}: {name} is a switch, VALUE must be 0 or 1")
             extra[name] = bool(extra[name])
-    tag = "".join(f"_{k}{v:g}" for k, v in sorted(extra.items()))
+    try:
+        DemoOptions(**extra)                          # checked here, not after the first variant's run
+    except (TypeError, ValueError) as e:
+        ap.error(f"--set: {e}")
+    tag = "".join(f"_{k}{v if isinstance(v, str) else format(v, 'g')}" for k, v in sorted(extra.items()))
     results = {}
     for v in args.variants:
         rows, s, wall = run_variant(v, args.throws, args.seed, replan=args.replan, **extra)

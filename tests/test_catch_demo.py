@@ -525,3 +525,49 @@ def test_a_cached_calibration_from_other_code_is_computed_again(tmp_path):
     finally:
         cal._packaged = packaged
         cal._MEMORY.clear()
+
+
+def test_settled_weighing_fits_the_ringing_mode_out_after_the_ready_move():
+    """weigh="settled": the joints never rest below the threshold, but the strains after the mirrored
+    reference rests (plus 0.2 s) still weigh the payload, at their static part, not their biased mean."""
+    from types import SimpleNamespace
+
+    from tudorvision.lab.catch.agent import WEIGH_MIN_SAMPLES, CatchAgent, static_strain
+    from tudorvision.lab.catch.options import trained_payload_range_kg
+    from tudorvision.lab.catch.profile import mode_frequency_hz
+    from tudorvision.lab.data_collection import CollectionOptions
+    from tudorvision.robot import load_robot_params
+
+    f = mode_frequency_hz(0.0)          # the agent's mode with no payload estimated yet
+
+    class Layer:
+        t = 0.0
+        adapter = SimpleNamespace(set_payload=lambda kg: None, set_mode=lambda *a, **kw: None)
+
+        def advance_to(self, t):
+            self.t = t
+
+        def state(self):
+            ring = 0.3 * np.sin(2 * np.pi * f * self.t + 0.4)       # decays too slowly to matter here
+            return SimpleNamespace(strains=(0.1 + ring, 0.2, 0.3, 0.4), theta_dot=(0.0, 0.05, 0.0),
+                                   theta=np.deg2rad([0.0, 60.0, 60.0]), flags=0)
+
+    strain = SimpleNamespace(payload=lambda theta23, eps: np.asarray(eps)[:, 0])    # "kg" = gauge 0
+    p = load_robot_params()
+    for weigh, expect_n in (("rest", 0), ("settled", 18)):
+        layer = Layer()
+        agent = CatchAgent(layer, None, strain, None, None, np.eye(4), options=DemoOptions(weigh=weigh), params=p,
+                           payload_range_kg=trained_payload_range_kg(CollectionOptions()))
+        agent.mirror.motion = SimpleNamespace(t0=0.0, duration_s=0.41)    # the ready move's reference ends at 0.41 s
+        t, strains = agent.wait(0.0, 1.2, 30.0)
+        assert t == pytest.approx(1.2) and len(strains) == expect_n       # 0.61-1.2 s at 30 Hz: 18 samples
+        if strains:
+            assert len(strains) >= WEIGH_MIN_SAMPLES
+            assert abs(np.mean(strains, axis=0)[0] - 0.1) > 0.01          # the plain mean is 20 % off ...
+            agent.weigh(strains)
+            assert agent.payload_est_kg == pytest.approx(0.1, abs=1e-9)   # ... the static part is not
+    # the reference rests only 0.25 s before the pause ends: 0.1 s after it leaves 5 samples, too few
+    agent.mirror.motion = SimpleNamespace(t0=1.2, duration_s=0.95)
+    assert agent.wait(1.2, 1.2, 30.0)[1] == []
+    E = np.c_[0.1 + 0.3 * np.sin(2 * np.pi * f * np.arange(12) / 30.0), np.zeros(12)]
+    assert static_strain(E, 30.0, f) == pytest.approx([0.1, 0.0], abs=1e-9)
