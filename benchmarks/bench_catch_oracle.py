@@ -38,7 +38,7 @@ Run (2-core container: about 2 min per variant for 240 throws, 15 min for 1980):
     .venv/bin/python benchmarks/bench_catch_oracle.py --throws 240 --seed 0 --variants baseline --replan blend
 
 ``--set release_sigma_m=0.1``: any numeric :class:`DemoOptions` field (a switch: 0 or 1; a choice by
-name, e.g. ``weigh=settled``) for every variant (the
+name, e.g. ``damping=integral``) for every variant (the
 demo before the twentieth session's release rule); the output files carry it in their names.
 
 ``--replan blend``: the joint layer re-plans a move in flight with continuous acceleration

@@ -31,8 +31,6 @@ __all__ = ["CatchAgent", "CatchIK", "ThrowLog", "WEIGH_REST_SPEED_RAD_S", "pause
            "profile_limits", "demo_inner_reach_m", "PREDICTION_COLUMNS", "SETPOINT_COLUMNS"]
 
 WEIGH_REST_SPEED_RAD_S = 0.02   # joints slower than this throughout the weighing window: the arm rests
-WEIGH_WINDOW_S = 0.6            # the weighing window at the end of a pause, s
-WEIGH_MIN_SAMPLES = 9           # "settled" weighing: at least 0.3 s of samples at 30 Hz after the reference rests
 ARRIVED_TOL_RAD = float(np.deg2rad(1.0))
 
 #: Columns of the agent's prediction rows (``predictions.csv``): one per intercept estimate.
@@ -87,31 +85,7 @@ def demo_inner_reach_m(options, params) -> float:
     return inner_reach_m(params, float(margin[2]))
 
 
-def pause_and_sample(layer, t_now: float, duration: float, rate: float, on_frame=None):
-    """Advance the layer by ``duration`` s, sampling its state at ``rate`` (Hz) after every step.
-
-    Returns
-    -------
-    tuple
-        ``(t_end, times (N,), strains (N, G), joint speeds |theta_dot| (N, 3))``, s, the layer's strain
-        units, rad/s.
-    """
-    t_end = t_now + duration
-    times, strains, speeds = [], [], []
-    while t_now < t_end - 1e-9:
-        t_now = min(t_now + 1.0 / rate, t_end)
-        layer.advance_to(t_now)
-        if on_frame is not None:
-            on_frame(t_now)
-        st = layer.state()
-        times.append(t_now)
-        strains.append(np.asarray(st.strains, float))
-        speeds.append(np.abs(np.asarray(st.theta_dot, float)))
-    return t_now, np.asarray(times), np.asarray(strains), np.asarray(speeds)
-
-
-def pause_and_weigh(layer, t_now: float, duration: float, rate: float, weigh_s: float = WEIGH_WINDOW_S,
-                    on_frame=None):
+def pause_and_weigh(layer, t_now: float, duration: float, rate: float, weigh_s: float = 0.6, on_frame=None):
     """Advance the layer by ``duration`` s; strains sampled at ``rate`` over the last ``weigh_s`` s.
 
     Parameters
@@ -137,40 +111,18 @@ def pause_and_weigh(layer, t_now: float, duration: float, rate: float, weigh_s: 
         :data:`WEIGH_REST_SPEED_RAD_S` during the weighing window (the arm
         had not reached the ready pose yet: its strains carry the motion, not the payload).
     """
-    t_end, times, strains, speeds = pause_and_sample(layer, t_now, duration, rate, on_frame)
-    win = t_now + duration - times < weigh_s
-    if not win.any() or speeds[win].max() > WEIGH_REST_SPEED_RAD_S:
-        return t_end, []
-    return t_end, list(strains[win])
-
-
-def static_strain(strains, rate_hz: float, f_hz: float) -> np.ndarray:
-    """The strains' static part under a ringing mode: ``c`` of ``c + a cos(w t) + b sin(w t)`` per gauge.
-
-    Parameters
-    ----------
-    strains : ndarray, shape (N, G)
-        Samples at ``rate_hz`` (Hz), N >= 3.
-    f_hz : float
-        The mode's frequency, Hz (``w = 2 pi f``).
-
-    Returns
-    -------
-    ndarray, shape (G,)
-        The least-squares offsets. A window of 1.2 periods averages a swing of amplitude ``A`` to up to
-        ``0.13 A``; the fit removes it.
-
-    Examples
-    --------
-    >>> t = np.arange(18) / 30.0
-    >>> E = np.c_[1.0 + 0.5 * np.sin(2 * np.pi * 2.0 * t + 0.3), -2.0 + 0.1 * np.cos(2 * np.pi * 2.0 * t)]
-    >>> static_strain(E, 30.0, 2.0).round(9).tolist(), bool(abs(E[:, 0].mean() - 1.0) > 0.01)
-    ([1.0, -2.0], True)
-    """
-    E = np.asarray(strains, float)
-    w = 2.0 * np.pi * float(f_hz) * np.arange(len(E)) / float(rate_hz)
-    X = np.c_[np.ones(len(E)), np.cos(w), np.sin(w)]
-    return np.linalg.lstsq(X, E, rcond=None)[0][0]
+    t_end = t_now + duration
+    strains, moving = [], False
+    while t_now < t_end - 1e-9:
+        t_now = min(t_now + 1.0 / rate, t_end)
+        layer.advance_to(t_now)
+        if on_frame is not None:
+            on_frame(t_now)
+        if t_end - t_now < weigh_s:
+            st = layer.state()
+            strains.append(np.asarray(st.strains))
+            moving |= bool(np.max(np.abs(st.theta_dot)) > WEIGH_REST_SPEED_RAD_S)
+    return t_now, ([] if moving else strains)
 
 
 class CatchIK:
@@ -284,8 +236,6 @@ class CatchAgent:
         self.options, self.params = options, params
         self.inner_reach_m = demo_inner_reach_m(options, params)
         self.payload_range_kg = payload_range_kg
-        self._weigh_rate_hz = 30.0       # the camera's frame rate, the pauses' sampling (set by :meth:`wait`)
-        self._weigh_fit = False          # the strains to weigh still ring: fit the mode out (:meth:`wait`)
         self.mount_kg = float(params.end_effector_mount_mass_kg)
         self.max_speed, self.max_accel = profile_limits(options, params)
         self.late_speed = float(options.late_speed_fraction) * float(np.min(params.max_speed_rad_s))
@@ -479,14 +429,9 @@ class CatchAgent:
         self.send(goal, t)
 
     def wait(self, t_now: float, duration: float, rate: float):
-        """Wait ``duration`` s (advancing the lockstep layer); the strains to weigh the payload with.
+        """Wait ``duration`` s (advancing the lockstep layer); strains of the last 0.6 s at rest.
 
         Every frame it clears a fault stop and sends a ready move that was waiting (:meth:`return_to_ready`).
-        ``DemoOptions.weigh="rest"``: the strains of the last 0.6 s when the joints rested throughout
-        (:func:`pause_and_weigh`). ``"settled"``: those, or else the strains from 0.2 s (else 0.1 s) after the
-        mirrored reference came to rest, at least :data:`WEIGH_MIN_SAMPLES` of them, whose static part
-        :meth:`weigh` then takes with the ringing mode fitted out (after a long intercept move the ready
-        move often ends only 0.2-0.45 s before the next throw, and the rest rule skipped half the weighings).
 
         Returns
         -------
@@ -497,21 +442,7 @@ class CatchAgent:
             self.recover(t)
             self._send_ready(t)
 
-        self._weigh_rate_hz, self._weigh_fit = float(rate), False
-        if self.options.weigh != "settled":
-            return pause_and_weigh(self.layer, t_now, duration, rate, on_frame=on_frame)
-        t_end, times, strains, speeds = pause_and_sample(self.layer, t_now, duration, rate, on_frame)
-        win = t_end - times < WEIGH_WINDOW_S
-        if win.any() and speeds[win].max() <= WEIGH_REST_SPEED_RAD_S:
-            return t_end, list(strains[win])
-        m = self.mirror.motion
-        t_rest = m.t0 + m.duration_s if m is not None else -np.inf
-        for settle_s in (0.2, 0.1):
-            keep = times >= t_rest + settle_s
-            if np.count_nonzero(keep) >= WEIGH_MIN_SAMPLES:
-                self._weigh_fit = True
-                return t_end, list(strains[keep])
-        return t_end, []
+        return pause_and_weigh(self.layer, t_now, duration, rate, on_frame=on_frame)
 
     def weigh(self, strains) -> None:
         """Estimate the payload from strains sampled at rest and tell the layer (it schedules its damping on it).
@@ -523,12 +454,6 @@ class CatchAgent:
         if not len(strains):
             return
         st = self.layer.state()
-        E = np.asarray(strains, float)
-        static = E.mean(axis=0)
-        o = self.options
-        if self._weigh_fit and len(E) >= WEIGH_MIN_SAMPLES:
-            mode = (o.mode_f0_hz, o.mode_mass_kg) if o.mode_f0_hz > 0 else ()    # else the function's defaults
-            static = static_strain(E, self._weigh_rate_hz, mode_frequency_hz(self.payload_est_kg, *mode))
-        m = self.strain_model.payload(np.asarray(st.theta)[None, 1:], static[None])[0]
+        m = self.strain_model.payload(np.asarray(st.theta)[None, 1:], np.mean(strains, axis=0)[None])[0]
         self.payload_est_kg = float(np.clip(m, *self.payload_range_kg))
         self.adapter.set_payload(self.mount_kg + self.payload_est_kg)

@@ -91,10 +91,6 @@ class DemoOptions:
         Scale that frequency by the goal's elbow angle (:func:`~tudorvision.lab.catch.profile.elbow_frequency_factor`:
         a folded elbow rings up to 18 % faster than the ready pose, a stretched arm 10 % slower); False: one
         frequency for every pose.
-    weigh : {"rest", "settled"}
-        When the payload is weighed between throws (:meth:`~tudorvision.lab.catch.agent.CatchAgent.wait`):
-        only with the joints at rest over the last 0.6 s of the pause (``"rest"``), or also from the
-        strains after the ready move, the ringing mode fitted out (``"settled"``).
     arrive_before_s : float
         The profile must end this long before the crossing the agent predicts, s (0.1 since
         2026-11-26: the net has a little longer to settle; 0.05 caught 9 fewer of 211 development throws).
@@ -229,7 +225,6 @@ class DemoOptions:
     mode_f0_hz: float = 2.6
     mode_mass_kg: float = 0.26
     mode_elbow_map: bool = False
-    weigh: str = "rest"
     arrive_before_s: float = 0.1
     replan: str = "restart"
     speed_fraction: float = 0.75
@@ -263,8 +258,6 @@ class DemoOptions:
             raise ValueError(f"throws: expected a positive integer, got {self.throws}")
         if self.damping not in DAMPING_LAWS:
             raise ValueError(f"damping: expected off, proportional, integral or half_integrator, got {self.damping!r}")
-        if self.weigh not in ("rest", "settled"):
-            raise ValueError(f"weigh: expected rest or settled, got {self.weigh!r}")
         if self.plant not in PLANTS:
             raise ValueError(f"plant: expected one of {', '.join(PLANTS)}, got {self.plant!r}")
         if self.replan not in ("restart", "blend"):
