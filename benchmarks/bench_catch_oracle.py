@@ -37,9 +37,9 @@ Run (2-core container: about 2 min per variant for 240 throws, 15 min for 1980):
     .venv/bin/python benchmarks/bench_catch_oracle.py --throws 1980 --seed 0 --variants release
     .venv/bin/python benchmarks/bench_catch_oracle.py --throws 240 --seed 0 --variants baseline --replan blend
 
-``--set release_sigma_m=0.1``: any numeric :class:`DemoOptions` field (a switch: 0 or 1; a choice by
-name, e.g. ``damping=integral``) for every variant (the
-demo before the twentieth session's release rule); the output files carry it in their names.
+``--set NAME=VALUE`` (repeatable): a :class:`DemoOptions` field for every variant: a number, a switch (0 or 1)
+or a choice by name, e.g. ``release_sigma_m=0.1`` (the demo before the twentieth session's release rule) or
+``damping=integral``; the output files carry it in their names.
 
 ``--replan blend``: the joint layer re-plans a move in flight with continuous acceleration
 (``DemoOptions.replan``); output files carry the mode in their names.
@@ -268,8 +268,8 @@ def main() -> None:
     ap.add_argument("--replan", choices=("restart", "blend"), default="restart",
                     help="how the joint layer re-plans a move in flight (DemoOptions.replan)")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                    help="a numeric DemoOptions field (a switch: 0 or 1) for every variant, e.g. release_sigma_m=0.1 "
-                         "(repeatable)")
+                    help="a DemoOptions field for every variant: a number, a switch (0 or 1) or a choice by name, "
+                         "e.g. release_sigma_m=0.1 or damping=integral (repeatable)")
     ap.add_argument("--out", default="out/bench_catch_oracle")
     args = ap.parse_args()
     out = Path(args.out)

@@ -56,8 +56,8 @@ def elbow_frequency_factor(theta3_rad: float) -> float:
     >>> round(elbow_frequency_factor(math.radians(62.0)), 2), round(elbow_frequency_factor(math.radians(-100.0)), 3)
     (1.0, 1.177)
     """
-    deg = min(abs(math.degrees(float(theta3_rad))), 100.0)
-    return float(np.interp(deg, np.arange(0.0, 101.0, 10.0), ELBOW_FACTOR))
+    grid_deg = 10.0 * np.arange(len(ELBOW_FACTOR))
+    return float(np.interp(abs(math.degrees(float(theta3_rad))), grid_deg, ELBOW_FACTOR))   # held beyond 100 deg
 
 
 def mode_frequency_hz(payload_kg: float, f0_hz: float = 2.6, mass_kg: float = 0.26) -> float:
