@@ -25,7 +25,7 @@ import numpy as np
 
 from ...catch.intercept import inner_reach_m, net_target
 from ...catch.perception import detection_to_base
-from .profile import ReferenceMirror, elbow_frequency_factor, mode_frequency_hz
+from .profile import ReferenceMirror, elbow_frequency_factor, mode_frequency_hz, overshoot_lead_target
 
 __all__ = ["CatchAgent", "CatchIK", "ThrowLog", "WEIGH_REST_SPEED_RAD_S", "pause_and_weigh",
            "profile_limits", "demo_inner_reach_m", "PREDICTION_COLUMNS", "SETPOINT_COLUMNS"]
@@ -365,17 +365,43 @@ class CatchAgent:
                 self._intercept(t, it, np.asarray(st.theta))
         return p_b, rec
 
-    def _intercept(self, t: float, it, theta_now) -> None:
-        o = self.options
+    def _goal(self, p_base, theta_now):
+        """Joint setpoint (rad, (3,)) for the net at ``p_base`` (m) inside the setpoint margins; None: unreachable."""
         try:
-            th = self.ik(net_target(it.p_base, self.ik.theta1_rad, self.params, reach_margin_m=o.reach_margin_m,
-                                    inner_reach_m=self.inner_reach_m), self.payload_est_kg, near=theta_now)
+            th = self.ik(p_base, self.payload_est_kg, near=theta_now)
         except ValueError:
-            return
+            return None
         # the joints overshoot (joint 2 by up to 8 deg) on fast moves: a setpoint near the edge of a range
         # tripped the layer's range fault (1 deg tolerance); margins per joint
-        margin = np.asarray(o.setpoint_margin_rad, float)
-        th = np.clip(th, self.lims[:, 0] + margin, self.lims[:, 1] - margin)
+        margin = np.asarray(self.options.setpoint_margin_rad, float)
+        return np.clip(th, self.lims[:, 0] + margin, self.lims[:, 1] - margin)
+
+    def _profile_speed(self, th, t: float, deadline: float, f: float):
+        """The profile speed for setpoint ``th`` sent at ``t`` (rad/s; None: the layer's default)."""
+        if self.mirror.motion is None:
+            return None
+        return self.mirror.late_speed(th, t, deadline, f, self.mirror.choose_speed(th, t, deadline, f),
+                                      self.late_speed)
+
+    def _intercept(self, t: float, it, theta_now) -> None:
+        o = self.options
+        target = net_target(it.p_base, self.ik.theta1_rad, self.params, reach_margin_m=o.reach_margin_m,
+                            inner_reach_m=self.inner_reach_m)
+        th = self._goal(target, theta_now)
+        if th is None:
+            return
+        f = mode_frequency_hz(self.payload_est_kg, o.mode_f0_hz, o.mode_mass_kg) if o.mode_f0_hz > 0 else 0.0
+        deadline = it.t_cross - o.arrive_before_s
+        if o.overshoot_lead_m > 0 and self.mirror.motion is not None:
+            # when the planned profile would end, hence how far the net will still be carried past its goal
+            f_goal = f * (elbow_frequency_factor(th[2]) if o.mode_elbow_map else 1.0)
+            speed = self._profile_speed(th, t, deadline, f_goal)
+            t_end = self.mirror.plan(th, t, speed).duration_s + t
+            th = self._goal(overshoot_lead_target(target, self.ready_point_base, o.overshoot_lead_m,
+                                                  it.t_cross - t_end, fade_s=o.overshoot_fade_s,
+                                                  full_move_m=o.overshoot_full_move_m), theta_now)
+            if th is None:
+                return
         if self.log.setpoint is not None:
             if np.max(np.abs(th - self.log.setpoint)) < o.refine_min_joint_rad:
                 self._pending = False         # nothing worth a new profile
@@ -386,15 +412,9 @@ class CatchAgent:
                 return
         self._pending = False
         self._ready_goal = None                # the intercept supersedes a ready move still waiting
-        f = mode_frequency_hz(self.payload_est_kg, o.mode_f0_hz, o.mode_mass_kg) if o.mode_f0_hz > 0 else 0.0
         if o.mode_elbow_map:
             f *= elbow_frequency_factor(th[2])     # the mode at the goal, where the residual swing rings
-        deadline = it.t_cross - o.arrive_before_s
-        speed = None
-        if self.mirror.motion is not None:
-            speed = self.mirror.late_speed(th, t, deadline, f, self.mirror.choose_speed(th, t, deadline, f),
-                                           self.late_speed)
-        self.send(th, t, speed)
+        self.send(th, t, self._profile_speed(th, t, deadline, f))
         self.log.setpoint, self.log.t_arrived_s = th, None
         self.setpoints.append([self._throw, t, *th, *it.p_base])
         if self.log.t_first_setpoint_s is None:

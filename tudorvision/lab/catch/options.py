@@ -91,6 +91,11 @@ class DemoOptions:
         Scale that frequency by the goal's elbow angle (:func:`~tudorvision.lab.catch.profile.elbow_frequency_factor`:
         a folded elbow rings up to 18 % faster than the ready pose, a stretched arm 10 % slower); False: one
         frequency for every pose.
+    overshoot_lead_m, overshoot_fade_s, overshoot_full_move_m : float
+        The net target moved back along its move from the ready point by the overshoot expected at the
+        crossing (:func:`~tudorvision.lab.catch.profile.overshoot_lead_target`): ``overshoot_lead_m`` (m)
+        for a move of ``overshoot_full_move_m`` (m) or more whose planned profile ends at the predicted
+        crossing, falling to zero for one that ends ``overshoot_fade_s`` (s) before it; 0: no lead.
     arrive_before_s : float
         The profile must end this long before the crossing the agent predicts, s (0.1 since
         2026-11-26: the net has a little longer to settle; 0.05 caught 9 fewer of 211 development throws).
@@ -225,6 +230,9 @@ class DemoOptions:
     mode_f0_hz: float = 2.6
     mode_mass_kg: float = 0.26
     mode_elbow_map: bool = False
+    overshoot_lead_m: float = 0.0
+    overshoot_fade_s: float = 0.25
+    overshoot_full_move_m: float = 0.2
     arrive_before_s: float = 0.1
     replan: str = "restart"
     speed_fraction: float = 0.75
@@ -281,6 +289,11 @@ class DemoOptions:
         if margin.shape not in ((), (3,)) or not np.all(np.isfinite(margin)) or np.any(margin < 0):
             raise ValueError(f"setpoint_margin_rad: expected one or three angles >= 0, rad, "
                              f"got {self.setpoint_margin_rad!r}")
+        if not (0.0 <= self.overshoot_lead_m <= 0.05 and self.overshoot_fade_s > 0
+                and self.overshoot_full_move_m > 0):
+            raise ValueError(f"overshoot_lead_m, overshoot_fade_s, overshoot_full_move_m: expected 0-0.05 m, > 0 s and "
+                             f"> 0 m, got {self.overshoot_lead_m}, {self.overshoot_fade_s}, "
+                             f"{self.overshoot_full_move_m}")
         if not 0.0 <= self.refine_sharper < 1.0:
             raise ValueError(f"refine_sharper: expected [0, 1), got {self.refine_sharper}")
         if int(self.calibration_frames_per_pose) != self.calibration_frames_per_pose \
