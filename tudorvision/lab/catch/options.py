@@ -81,7 +81,8 @@ class DemoOptions:
         ``SimCore(replan=...)`` and the agent's mirror of it): the acceleration restarts from zero (the
         seed's B.6 planner) or fades out continuously (:func:`tudorvision.joint.planner.blend_replan`).
     mode_f0_hz, mode_mass_kg : float
-        The arm's first bending mode for the intercept profile (:func:`~tudorvision.lab.catch.profile.mode_frequency_hz`:
+        The arm's first bending mode for the intercept profile
+        (:func:`~tudorvision.lab.catch.profile.mode_frequency_hz`:
         ``mode_f0_hz`` with the bare net, Hz, falling with the estimated payload over ``mode_mass_kg``, kg):
         each intercept setpoint gets the profile speed whose accelerations excite it least and still
         arrive ``arrive_before_s`` before the predicted crossing
@@ -281,7 +282,8 @@ class DemoOptions:
             raise ValueError(f"camera_distance_m, camera_height_m: expected 1-8 m and 0.5-3 m, got "
                              f"{self.camera_distance_m}, {self.camera_height_m}")
         if self.calibration_method not in CALIBRATION_METHODS:
-            raise ValueError(f"calibration_method: expected one of {CALIBRATION_METHODS}, got {self.calibration_method!r}")
+            raise ValueError(f"calibration_method: expected one of {CALIBRATION_METHODS}, "
+                             f"got {self.calibration_method!r}")
         if not 0.6 < self.camera_max_depth_m <= 10.0:
             raise ValueError(f"camera_max_depth_m: expected 0.6-10 m, got {self.camera_max_depth_m}")
         if not (0.0 < self.speed_fraction <= 1.0 and 0.0 <= self.late_speed_fraction <= 1.0):
