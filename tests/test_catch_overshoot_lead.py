@@ -5,12 +5,14 @@ may aim short by what it expects (``DemoOptions.overshoot_lead_m``, off by defau
 """
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from _catch_stubs import LayerStub
+from _catch_stubs import LayerStub, identity_ik_agent
 from tudorvision.lab.catch.options import DemoOptions
 from tudorvision.lab.catch.profile import overshoot_lead_target
 
@@ -54,31 +56,16 @@ def test_demo_options_refuse_an_impossible_lead(kw):
         DemoOptions(**kw)
 
 
-def _agent(layer, monkeypatch, **kw):
-    import tudorvision.lab.catch.agent as agent_mod
-    from tudorvision.robot import load_robot_params
-
-    monkeypatch.setattr(agent_mod, "net_target", lambda p, *a, **k: np.asarray(p, float))
-
-    def ik(p, payload, near=None, elbow=None):
-        return np.asarray(p, float)          # the "target" is the joint setpoint itself
-
-    ik.theta1_rad = 0.0
-    o = DemoOptions(ready_point_base=tuple(np.deg2rad([0.0, 60.0, 60.0])), **kw)
-    return agent_mod.CatchAgent(layer, ik, None, None, None, np.eye(4), options=o, params=load_robot_params(),
-                                payload_range_kg=(0.0, 0.4))
-
-
 @pytest.mark.parametrize("lead", [0.0, 0.02])
 def test_the_agent_sends_the_target_moved_back_only_when_the_net_arrives_late(monkeypatch, lead):
     goal = np.deg2rad([0.0, 20.0, 70.0])
     sent = {}
     for name, t_cross in (("tight", 0.05), ("early", 30.0)):
         layer = LayerStub()
-        agent = _agent(layer, monkeypatch, overshoot_lead_m=lead)
+        agent = identity_ik_agent(layer, monkeypatch, (0.0, 60.0, 60.0), overshoot_lead_m=lead)
         agent.begin_throw(0)
         agent.return_to_ready(0.0)                      # the arm rests at the ready pose: the mirror knows it
-        agent._intercept(5.0, type("It", (), {"p_base": goal, "t_cross": 5.0 + t_cross})(), layer.theta)
+        agent._intercept(5.0, SimpleNamespace(p_base=goal, t_cross=5.0 + t_cross), layer.theta)
         sent[name] = layer.sent[-1]
     assert np.allclose(sent["early"], goal)              # arrives long before the crossing: no lead
     ready = np.deg2rad([0.0, 60.0, 60.0])

@@ -12,7 +12,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from _catch_stubs import LayerStub
+from _catch_stubs import LayerStub, identity_ik_agent
 from tudorvision.lab.catch.options import DemoOptions
 
 
@@ -40,18 +40,7 @@ def test_path_range_is_the_planners_replan():
 
 
 def _agent(layer, monkeypatch):
-    import tudorvision.lab.catch.agent as agent_mod
-    from tudorvision.robot import load_robot_params
-
-    monkeypatch.setattr(agent_mod, "net_target", lambda p, *a, **k: np.asarray(p, float))
-
-    def ik(p, payload, near=None, elbow=None):
-        return np.asarray(p, float)          # the "target" is the joint setpoint itself
-
-    ik.theta1_rad = 0.0
-    o = DemoOptions(ready_point_base=tuple(np.deg2rad([0.0, 57.0, 57.0])))
-    return agent_mod.CatchAgent(layer, ik, None, None, None, np.eye(4), options=o, params=load_robot_params(),
-                                payload_range_kg=(0.0, 0.4))
+    return identity_ik_agent(layer, monkeypatch, (0.0, 57.0, 57.0))
 
 
 def test_ready_move_waits_while_its_replan_would_leave_a_joint_range(monkeypatch):

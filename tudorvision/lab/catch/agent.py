@@ -376,6 +376,15 @@ class CatchAgent:
         margin = np.asarray(self.options.setpoint_margin_rad, float)
         return np.clip(th, self.lims[:, 0] + margin, self.lims[:, 1] - margin)
 
+    def _mode_hz(self, goal) -> float:
+        """The first mode's frequency for the profile to goal ``goal`` (rad, (3,)), Hz; 0: no mode (full speed)."""
+        o = self.options
+        if not o.mode_f0_hz > 0:
+            return 0.0
+        f = mode_frequency_hz(self.payload_est_kg, o.mode_f0_hz, o.mode_mass_kg)
+        # with the elbow map, the mode at the goal, where the residual swing rings
+        return f * elbow_frequency_factor(goal[2]) if o.mode_elbow_map else f
+
     def _profile_speed(self, th, t: float, deadline: float, f: float):
         """The profile speed for setpoint ``th`` sent at ``t`` (rad/s; None: the layer's default)."""
         if self.mirror.motion is None:
@@ -390,12 +399,10 @@ class CatchAgent:
         th = self._goal(target, theta_now)
         if th is None:
             return
-        f = mode_frequency_hz(self.payload_est_kg, o.mode_f0_hz, o.mode_mass_kg) if o.mode_f0_hz > 0 else 0.0
         deadline = it.t_cross - o.arrive_before_s
         if o.overshoot_lead_m > 0 and self.mirror.motion is not None:
             # when the planned profile would end, hence how far the net will still be carried past its goal
-            f_goal = f * (elbow_frequency_factor(th[2]) if o.mode_elbow_map else 1.0)
-            speed = self._profile_speed(th, t, deadline, f_goal)
+            speed = self._profile_speed(th, t, deadline, self._mode_hz(th))
             t_end = self.mirror.plan(th, t, speed).duration_s + t
             th = self._goal(overshoot_lead_target(target, self.ready_point_base, o.overshoot_lead_m,
                                                   it.t_cross - t_end, fade_s=o.overshoot_fade_s,
@@ -412,9 +419,7 @@ class CatchAgent:
                 return
         self._pending = False
         self._ready_goal = None                # the intercept supersedes a ready move still waiting
-        if o.mode_elbow_map:
-            f *= elbow_frequency_factor(th[2])     # the mode at the goal, where the residual swing rings
-        self.send(th, t, self._profile_speed(th, t, deadline, f))
+        self.send(th, t, self._profile_speed(th, t, deadline, self._mode_hz(th)))
         self.log.setpoint, self.log.t_arrived_s = th, None
         self.setpoints.append([self._throw, t, *th, *it.p_base])
         if self.log.t_first_setpoint_s is None:
