@@ -74,6 +74,28 @@ def test_rendered_sample_has_each_sphere_where_the_truth_says():
     assert abs(np.linalg.norm(scene.centers_left["red"] - scene.centers_left["green"]) - 0.16) < 1e-6
 
 
+def test_static_frames_are_the_same_view_with_their_own_noise():
+    """More frames of a static set-up: the first frames unchanged, the extra ones the same image up to noise."""
+    params = sample_scene_params(np.random.default_rng(11), textures=[])
+    params = type(params)(**{**asdict(params), "jpeg_quality": None})
+    plain, more = render_family_scene(params), render_family_scene(params, static_frames=3)
+    assert plain.static_frames == () and len(more.static_frames) == 3
+    for cam in ("left", "right"):
+        assert np.array_equal(plain.frames[cam], more.frames[cam])          # their own random stream
+        assert np.array_equal(plain.pick_frames[cam], more.pick_frames[cam])
+        ref = more.frames[cam].astype(float)
+        # the pick frame is the same view with independent noise: the extra frames differ from the tracking frame
+        # as much as it does, and from each other
+        noise = np.abs(more.pick_frames[cam].astype(float) - ref).mean()
+        extra = [f[cam].astype(float) for f in more.static_frames]
+        for a in extra:
+            assert 0.5 * noise < np.abs(a - ref).mean() < 2.0 * noise
+        assert not np.array_equal(extra[0], extra[1])
+        # averaging frames averages the noise: the mean of the four frames is nearer the pick frame's view
+        pick = more.pick_frames[cam].astype(float)
+        assert np.abs(np.mean([ref, *extra], axis=0) - pick).mean() < np.abs(ref - pick).mean()
+
+
 def test_truth_matches_the_ray_cast_silhouette_centroid():
     """Oracle: the exact silhouette centroid against the first moment of the ray-cast sphere mask."""
     params = sample_scene_params(np.random.default_rng(5), textures=[])

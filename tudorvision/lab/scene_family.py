@@ -272,6 +272,9 @@ class FamilyScene:
         True sphere centres, shape (3,), metres, left camera optical frame.
     note : str
         Texture fallback note ("" when photographs were used).
+    static_frames : tuple of dict
+        More frames of the same static view (``{"left", "right"}`` each), every one with its own sensor noise
+        (and JPEG): a static sphere recorded for a while (empty unless asked for).
     """
 
     params: SceneParams
@@ -282,6 +285,7 @@ class FamilyScene:
     radius_px: dict
     centers_left: dict
     note: str = ""
+    static_frames: tuple = ()
 
 
 def apparent_radius_px(camera: PinholeCamera, center_world, radius_m: float) -> float:
@@ -364,13 +368,16 @@ def _occluder(p: SceneParams, center, cam_mid):
                    name="occluder")
 
 
-def render_family_scene(params: SceneParams) -> FamilyScene:
+def render_family_scene(params: SceneParams, *, static_frames: int = 0) -> FamilyScene:
     """Render one set-up of the family with both cameras.
 
     Parameters
     ----------
     params : SceneParams
         A set-up from :func:`sample_scene_params`.
+    static_frames : int
+        How many more frames of the same static view to render, each with its own sensor noise; drawn from a
+        random stream of their own, so that the other frames do not depend on it.
 
     Returns
     -------
@@ -395,21 +402,29 @@ def render_family_scene(params: SceneParams) -> FamilyScene:
     sphere_ids = [ids["red_sphere"], ids["green_sphere"]]
     sensor = SensorModel(gain=p.exposure_gain, full_well_e=p.full_well_e, read_noise_e=p.read_noise_e)
     frames, picks, uv_true, radius_px = {}, {}, {}, {}
+    more = [{} for _ in range(int(static_frames))]
+    rng_more = np.random.default_rng([p.seed, 1])
+
+    def expose(rad, rng):
+        img = apply_sensor(rad, sensor, rng)
+        if p.jpeg_quality is not None:
+            ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(p.jpeg_quality)])
+            img = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+        return img
+
     for name, cam in cams.items():
         rad = render_radiance(cam, scene, 0.0)
         rad = rad + specular_radiance(cam, render_gbuffer(cam, scene), lights, sphere_ids,
                                       strength=p.specular_strength, shininess=p.shininess)
         rad *= np.asarray(p.wb_gains, np.float32)
         for store in (frames, picks):
-            img = apply_sensor(rad, sensor, rng)
-            if p.jpeg_quality is not None:
-                ok, buf = cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, int(p.jpeg_quality)])
-                img = cv2.imdecode(buf, cv2.IMREAD_COLOR)
-            store[name] = img
+            store[name] = expose(rad, rng)
+        for store in more:
+            store[name] = expose(rad, rng_more)
         uv_true[name] = {s: sphere_image_truth(cam, lambda t, c=arm.sphere_centers_base[s]: c, p.sphere_radius_m, 0.0)
                          for s in SPHERES}
         radius_px[name] = {s: apparent_radius_px(cam, arm.sphere_centers_base[s], p.sphere_radius_m) for s in SPHERES}
     T_left_world = np.linalg.inv(cams["left"].T_world_cam)
     centers_left = {s: T_left_world[:3, :3] @ arm.sphere_centers_base[s] + T_left_world[:3, 3] for s in SPHERES}
     return FamilyScene(params=p, frames=frames, pick_frames=picks, cameras=cams, uv_true=uv_true,
-                       radius_px=radius_px, centers_left=centers_left, note=note)
+                       radius_px=radius_px, centers_left=centers_left, note=note, static_frames=tuple(more))
