@@ -31,11 +31,13 @@ crossings inside 0.8 m of the shoulder) and where the misses lie (distance and d
 shoulder, balls in the net), with the ratio of caught against the baseline. Per throw rows go to
 ``OUT/<variant>_<replan>_s<seed>_n<throws>.csv``.
 
-Run (2-core container: about 2 min per variant for 240 throws, 15 min for 1980)::
+Run (2-core container: about 2 min per variant for 240 throws, 15 min for 1980; ``--workers N`` spreads the
+sessions of every seed given over N processes, the same records as the serial run)::
 
     .venv/bin/python benchmarks/bench_catch_oracle.py --throws 240 --seed 0 --variants baseline release own
     .venv/bin/python benchmarks/bench_catch_oracle.py --throws 1980 --seed 0 --variants release
     .venv/bin/python benchmarks/bench_catch_oracle.py --throws 240 --seed 0 --variants baseline --replan blend
+    .venv/bin/python benchmarks/bench_catch_oracle.py --throws 480 --seed 500 600 700 --variants baseline --workers 16
 
 ``--set NAME=VALUE`` (repeatable): a :class:`DemoOptions` field for every variant: a number, a switch (0 or 1)
 or a choice by name, e.g. ``release_sigma_m=0.1`` (the demo before the twentieth session's release rule) or
@@ -63,7 +65,8 @@ from tudorvision.lab.catch import run as demo_run
 from tudorvision.lab.catch.agent import CatchAgent
 from tudorvision.lab.catch.options import DemoOptions
 from tudorvision.lab.catch.scenario import CatchScenario
-from tudorvision.lab.catch.sessions import run_sessions
+from tudorvision.lab.catch.score import ThrowResult, summarize_throws
+from tudorvision.lab.catch.sessions import MAX_SESSIONS, catch_session_task, plan_sessions, run_sessions
 from tudorvision.robot import load_robot_params
 
 VARIANTS = ("baseline", "release", "second", "third", "own")
@@ -201,6 +204,46 @@ def run_variant(variant: str, throws: int, seed: int, **kw) -> tuple[list, dict,
     return list(RECORDS), s, time.perf_counter() - t0
 
 
+def _worker_init(variant: str) -> None:
+    """A pool worker: the oracle's classes in the demo's path, as :func:`run_variant` sets them for its run."""
+    demo_run.CatchScenario, demo_run.CatchAgent = OracleScenario, RecordingAgent
+    demo_run.CatchPerception, demo_run.score_throw = OraclePerception, scoring_wrapper(demo_run.score_throw)
+    CURRENT["variant"] = variant
+
+
+def _session_job(options: DemoOptions) -> tuple:
+    """One session in a pool worker: (its seed, its records, its result as ``catch_session_task`` returns it)."""
+    del RECORDS[:]
+    res = catch_session_task(options)
+    return int(options.seed), list(RECORDS), res
+
+
+def run_variant_pool(variant: str, throws: int, seeds, workers: int, **kw) -> dict:
+    """:func:`run_variant` for several seeds at once, the sessions spread over ``workers`` processes.
+
+    Every session runs as in the serial path (its own seed ``seed * 1000 + b``, a fresh arm), so the records
+    equal the serial run's on the same machine; returns ``{seed: (records, summary, wall s)}`` with the
+    summary's counts from :func:`summarize_throws` over the sessions' throws.
+    """
+    import multiprocessing
+
+    t0 = time.perf_counter()
+    jobs = []
+    for seed in seeds:
+        o = DemoOptions(render=False, throws=throws, seed=seed, rerun=False, plots=False, **kw)
+        jobs += [task.args[0] for task in plan_sessions(o)]
+    with multiprocessing.get_context("fork").Pool(workers, initializer=_worker_init, initargs=(variant,)) as pool:
+        done = pool.map(_session_job, jobs, chunksize=1)
+    wall = time.perf_counter() - t0
+    out = {}
+    for seed in seeds:
+        mine = [d for d in done if d[0] // MAX_SESSIONS == seed]
+        s = summarize_throws([ThrowResult(**t) for _, _, res in mine for t in res["per_throw"]])
+        s["layer_faults_cleared"] = sum(int(res["layer_faults_cleared"]) for _, _, res in mine)
+        out[seed] = ([r for _, recs, _ in mine for r in recs], s, wall)
+    return out
+
+
 def _counts(rows) -> dict:
     ws = [r for r in rows if r["crossing_workspace"]]
     n, k = len(ws), sum(r["caught"] for r in ws)
@@ -263,7 +306,9 @@ def write_rows(path: Path, rows) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--throws", type=int, default=240)
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, nargs="+", default=[0], help="one or more seeds, each run and reported alone")
+    ap.add_argument("--workers", type=int, default=1,
+                    help="processes the sessions are spread over (all seeds' sessions in one pool); 1: serial")
     ap.add_argument("--variants", nargs="+", choices=VARIANTS, default=list(VARIANTS))
     ap.add_argument("--replan", choices=("restart", "blend"), default="restart",
                     help="how the joint layer re-plans a move in flight (DemoOptions.replan)")
@@ -296,15 +341,29 @@ def main() -> None:
     except (TypeError, ValueError) as e:
         ap.error(f"--set: {e}")
     tag = "".join(f"_{k}{v if isinstance(v, str) else format(v, 'g')}" for k, v in sorted(extra.items()))
+    if args.workers < 1:
+        ap.error(f"--workers {args.workers}: expected at least 1")
+    if args.workers == 1:
+        for seed in args.seed:
+            report(args, out, tag, seed, {v: run_variant(v, args.throws, seed, replan=args.replan, **extra)
+                                          for v in args.variants})
+    else:
+        runs = {v: run_variant_pool(v, args.throws, args.seed, args.workers, replan=args.replan, **extra)
+                for v in args.variants}
+        for seed in args.seed:
+            report(args, out, tag, seed, {v: runs[v][seed] for v in args.variants})
+
+
+def report(args, out: Path, tag: str, seed: int, runs) -> None:
+    """Print and write one seed's results: ``runs`` maps each variant to ``(records, summary, wall s)``."""
     results = {}
-    for v in args.variants:
-        rows, s, wall = run_variant(v, args.throws, args.seed, replan=args.replan, **extra)
-        write_rows(out / f"{v}_{args.replan}{tag}_s{args.seed}_n{args.throws}.csv", rows)
+    for v, (rows, s, wall) in runs.items():
+        write_rows(out / f"{v}_{args.replan}{tag}_s{seed}_n{args.throws}.csv", rows)
         c, err = _counts(rows), net_error(rows)
         assert c["n"] == s["crossing_workspace"] and c["caught"] == s["caught_in_workspace"], (c, s)
         results[v] = {"counts": c, "net_vs_target": err, "wall_s": wall, "misses": s.get("misses"),
                       "layer_faults_cleared": s.get("layer_faults_cleared")}
-        print(f"{v:8s} seed {args.seed} throws {args.throws}: crossing {c['n']} caught {c['caught']} "
+        print(f"{v:8s} seed {seed} throws {args.throws}: crossing {c['n']} caught {c['caught']} "
               f"({100 * c['rate']:.1f} %) rim {c['rim']} late {c['late']} other {c['other']}  "
               f"faults {s.get('layer_faults_cleared')}  [{wall:.0f} s]", flush=True)
         print("  net - target (cm): " + ", ".join(f"{k} {val:.2f}" if isinstance(val, float) else f"{k} {val}"
@@ -315,7 +374,7 @@ def main() -> None:
         b = results["baseline"]["counts"]["caught"]
         for v, r in results.items():
             print(f"{v}: caught {r['counts']['caught']} vs baseline {b}: ratio {r['counts']['caught'] / b:.3f}")
-    (out / f"summary_{args.replan}{tag}_s{args.seed}_n{args.throws}.json").write_text(json.dumps(results, indent=2))
+    (out / f"summary_{args.replan}{tag}_s{seed}_n{args.throws}.json").write_text(json.dumps(results, indent=2))
 
 
 if __name__ == "__main__":
