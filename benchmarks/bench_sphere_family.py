@@ -161,9 +161,11 @@ def run_ours_static(scene, cal, models):
         for i, pair in enumerate(pairs):
             res = pipe.process(StereoFrame(t=i / 50.0, index=i, left=pair["left"], right=pair["right"]))
             for s in res.spheres:
-                p[s].append(np.asarray(res.spheres[s], float))
-                for cam in ("left", "right"):
-                    uv[cam][s].append(np.asarray(res.uv(cam, s), float))
+                xyz = np.asarray(res.spheres[s], float)
+                if np.all(np.isfinite(xyz)):                     # a sphere missing in a frame is NaN there
+                    p[s].append(xyz)
+                    for cam in ("left", "right"):
+                        uv[cam][s].append(np.asarray(res.uv(cam, s), float))
 
     def mean(vals, nan):
         return np.mean(vals, axis=0) if 2 * len(vals) >= len(pairs) else nan
