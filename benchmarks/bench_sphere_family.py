@@ -70,7 +70,7 @@ from tudorvision.stereo import (ColorModelSet, PipelineOptions, SegmentParams, S
                                 TrackerParams, fit_color_model, triangulate_spheres)
 
 BINS = [(3, 4), (4, 5), (5, 8), (8, 15), (15, 30), (30, 80)]   # the issue's targets start at 4 px
-METHODS = ("ours", "ours, clear views", "ours, known radius", "ours, static mean", "seed centroid", "peer HSV",
+METHODS = ("ours", "ours, clear views", "ours, known radius", "ours, static median", "seed centroid", "peer HSV",
            "oracle", "0.25 px bound")
 #: "0.25 px bound": the 3D RMS implied by image centres off by exactly the issue's 2D target (isotropic Gaussian
 #: per camera whose median radial error is TARGET_PX), from the triangulation's Jacobian at the true centres.
@@ -144,12 +144,12 @@ def run_ours(scene, cal, models, centroid, known_radius=False):
 
 
 def run_ours_static(scene, cal, models):
-    """As :func:`run_ours` over the frame and ``scene.static_frames`` in turn, each centre the mean over its frames.
+    """As :func:`run_ours` over the frame and ``scene.static_frames`` in turn, each centre the median over its frames.
 
     A static sphere recorded for ``1 + len(scene.static_frames)`` frames (each with its own sensor noise): the
     tracker runs through them as ``tudorvision track stereo`` runs through a recording, and a sphere's image
-    and 3D centres are the means over the frames it was found in; found in fewer than half of them, it counts
-    as not found.
+    and 3D centres are the medians (per coordinate) over the frames it was found in (a mean let the odd frame
+    whose segmentation took part of the sphere pull it); found in fewer than half of them, it counts as not found.
     """
     nan2, nan3 = np.full(2, np.nan), np.full(3, np.nan)
     pairs = [scene.frames, *scene.static_frames]
@@ -167,10 +167,11 @@ def run_ours_static(scene, cal, models):
                     for cam in ("left", "right"):
                         uv[cam][s].append(np.asarray(res.uv(cam, s), float))
 
-    def mean(vals, nan):
-        return np.mean(vals, axis=0) if 2 * len(vals) >= len(pairs) else nan
+    def median(vals, nan):
+        return np.median(vals, axis=0) if 2 * len(vals) >= len(pairs) else nan
 
-    return ({cam: {s: mean(uv[cam][s], nan2) for s in SPHERES} for cam in uv}, {s: mean(p[s], nan3) for s in SPHERES})
+    return ({cam: {s: median(uv[cam][s], nan2) for s in SPHERES} for cam in uv},
+            {s: median(p[s], nan3) for s in SPHERES})
 
 
 def run_peer(scene, cal):
@@ -193,7 +194,7 @@ def evaluate(scene):
     t_ours = time.perf_counter() - t0
     results["ours, known radius"] = run_ours(scene, cal, models, "shape", known_radius=True)
     if scene.static_frames:
-        results["ours, static mean"] = run_ours_static(scene, cal, models)
+        results["ours, static median"] = run_ours_static(scene, cal, models)
     results["seed centroid"] = run_ours(scene, cal, models, "moment")
     t0 = time.perf_counter()
     results["peer HSV"] = run_peer(scene, cal)
@@ -299,7 +300,7 @@ def main(argv=None) -> int:
                     help="procedural textures instead of the real photographs (for comparison)")
     ap.add_argument("--static-frames", type=int, default=0, metavar="K",
                     help="also track each static set-up over K more frames with their own sensor noise "
-                         "(rows 'ours, static mean': centres averaged over the 1 + K frames)")
+                         "(rows 'ours, static median': the median centre over the 1 + K frames)")
     args = ap.parse_args(argv)
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
                             cwd=os.path.join(HERE, "..")).stdout.strip()
