@@ -99,6 +99,11 @@ class DemoOptions:
         crossing, falling to zero for one that ends ``overshoot_fade_s`` (s) before it; 0: no lead. Default
         12 mm, 0.25 s, 0.2 m (2026-11-27, twenty-second session): seed 0 caught 755 of 840 crossing throws against
         734 without it, held-out seeds 100 / 200 / 300 / 400 184 / 196 / 200 / 185 against 183 / 185 / 191 / 174.
+    ball_swing_length_m : float
+        The caught balls hang in the net's bag this far below the ring and swing
+        (:class:`~tudorvision.sim.net_balls.SwingingBalls`: at about 1.6 Hz for 0.1 m, the fabric damping the swing
+        at 0.1 of critical), as the seed's do; 0: point masses fixed at the end effector (the lab before
+        2026-11-27, twenty-third session).
     arrive_before_s : float
         The profile must end this long before the crossing the agent predicts, s (0.1 since
         2026-11-26: the net has a little longer to settle; 0.05 caught 9 fewer of 211 development throws).
@@ -236,6 +241,7 @@ class DemoOptions:
     overshoot_lead_m: float = 0.012
     overshoot_fade_s: float = 0.25
     overshoot_full_move_m: float = 0.2
+    ball_swing_length_m: float = 0.1
     arrive_before_s: float = 0.1
     replan: str = "restart"
     speed_fraction: float = 0.75
@@ -289,6 +295,8 @@ class DemoOptions:
         if not (0.0 < self.speed_fraction <= 1.0 and 0.0 <= self.late_speed_fraction <= 1.0):
             raise ValueError(f"speed_fraction, late_speed_fraction: expected (0, 1] and [0, 1] of the slowest "
                              f"joint's limit, got {self.speed_fraction}, {self.late_speed_fraction}")
+        if not 0.0 <= self.ball_swing_length_m <= 0.5:
+            raise ValueError(f"ball_swing_length_m: expected 0-0.5 m, got {self.ball_swing_length_m}")
         margin = np.asarray(self.setpoint_margin_rad, float)
         if margin.shape not in ((), (3,)) or not np.all(np.isfinite(margin)) or np.any(margin < 0):
             raise ValueError(f"setpoint_margin_rad: expected one or three angles >= 0, rad, "

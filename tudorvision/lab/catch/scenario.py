@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...sim.arm import Payload
+from ...sim.net_balls import SwingingBalls
 from ..lockstep import LockstepLayer
 from ..simulation import SimCore
 
@@ -230,8 +231,12 @@ class CatchScenario:
         self._payload = Payload.from_parts(params, balls=0)
         from ..data_collection import plant_config
 
-        self.sim = SimCore(theta_start, payload=self._payload, params=params, config=plant_config(o.plant),
-                           replan=o.replan)
+        config = plant_config(o.plant)
+        # the balls hang in the net and swing (``ball_swing_length_m`` > 0): the plant's point payload stays the
+        # bare mount, the balls' weight and swing reach the end effector through the bag
+        self.swing = SwingingBalls(config.dt, length_m=o.ball_swing_length_m) if o.ball_swing_length_m > 0 else None
+        self.sim = SimCore(theta_start, payload=self._payload, params=params, config=config, replan=o.replan,
+                           obstacles=() if self.swing is None else (self.swing,))
         self.layer = LockstepLayer(self.sim, rate_hz=o.layer_rate_hz)
         self._T_world_base = T_WORLD_BASE
         self._flight = None          # (times_s, points_base) of the ball in the air
@@ -274,7 +279,7 @@ class CatchScenario:
     @property
     def payload_added_kg(self) -> float:
         """True payload on top of the end-effector mount (the balls in the net), kg."""
-        return self._payload.mass_kg - self.mount_kg
+        return self.balls * float(self.params.ball_mass_kg)
 
     # ---------------------------------------------------------------- the thrower
     def throw(self, index: int, t_now: float) -> Throw:
@@ -335,6 +340,9 @@ class CatchScenario:
         ``caught``); one that touched the rim bounced off and adds nothing.
         """
         self.balls += 1
+        if self.swing is not None:
+            self.swing.set_mass(self.payload_added_kg)
+            return
         self._payload = Payload.from_parts(self.params, balls=self.balls)
         self.sim.arm.set_payload(self._payload)
 
@@ -351,6 +359,8 @@ class CatchScenario:
         """
         self.balls = 0
         self.emptied += 1
+        if self.swing is not None:
+            self.swing.set_mass(0.0)
         self._payload = Payload.from_parts(self.params, balls=0)
         self.sim.arm.set_payload(self._payload)
         self.layer.adapter.set_payload(self.mount_kg)
