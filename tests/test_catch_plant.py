@@ -29,6 +29,36 @@ def test_demo_builds_its_arm_on_the_plant_it_is_told():
         DemoOptions(plant="rubber")
 
 
+def test_caught_balls_swing_in_the_bag_or_sit_at_the_end_effector():
+    """``ball_swing_length_m``: caught balls hang in the bag (the plant's point payload stays the bare mount) or, at 0,
+    are point masses of the plant's payload; the true payload on top of the mount is the balls' mass either way."""
+    from tudorvision.lab.catch.scenario import CatchScenario
+    from tudorvision.robot import load_robot_params
+
+    p = load_robot_params()
+    th = np.deg2rad([0.0, 60.0, 60.0])
+    swing = CatchScenario(DemoOptions(render=False), p, th)
+    fixed = CatchScenario(DemoOptions(render=False, ball_swing_length_m=0.0), p, th)
+    try:
+        assert DemoOptions().ball_swing_length_m == 0.1
+        assert swing.swing is not None and swing.sim.arm.obstacles == (swing.swing,)
+        assert fixed.swing is None and fixed.sim.arm.obstacles == ()
+        bare = swing.sim.arm.payload_kg
+        for world in (swing, fixed):
+            world.catch_ball()
+            world.catch_ball()
+            assert world.payload_added_kg == pytest.approx(2 * p.ball_mass_kg)
+        assert swing.swing.mass_kg == pytest.approx(2 * p.ball_mass_kg) and swing.sim.arm.payload_kg == bare
+        assert fixed.sim.arm.payload_kg == pytest.approx(bare + 2 * p.ball_mass_kg)
+        swing.empty_net()
+        assert swing.swing.mass_kg == 0.0 and swing.payload_added_kg == 0.0
+    finally:
+        swing.close()
+        fixed.close()
+    with pytest.raises(ValueError, match="ball_swing_length_m"):
+        DemoOptions(ball_swing_length_m=-0.1)
+
+
 def test_shipped_soft_plant_collection_matches_its_plant_and_differs_from_the_stiff_one():
     """The settled end effector of the seed-measured plant sags several mm more (hub springs, backlash):
     the shipped collections are the two plants' own, the stiff one under its old name."""

@@ -101,7 +101,7 @@ class DemoOptions:
         734 without it, held-out seeds 100 / 200 / 300 / 400 184 / 196 / 200 / 185 against 183 / 185 / 191 / 174.
     ball_swing_length_m : float
         The caught balls hang in the net's bag this far below the ring and swing
-        (:class:`~tudorvision.sim.net_balls.SwingingBalls`: at about 1.6 Hz for 0.1 m, the fabric damping the swing
+        (:class:`~tudorvision.sim.net_balls.SwingingBalls`: at 1.55 Hz for 0.1 m, the fabric damping the swing
         at 0.1 of critical), as the seed's do; 0: point masses fixed at the end effector (the lab before
         2026-11-27, twenty-third session).
     arrive_before_s : float
