@@ -136,7 +136,8 @@ class Throw:
     t_release_s : float
         Release time on the demo's clock, s.
     times_s : ndarray, shape (N,)
-        Flight sample times from the release, s (trimmed 30 cm past the plane or once the ball's bottom is 5 cm above the floor).
+        Flight sample times from the release, s (trimmed 30 cm past the plane or once the ball's bottom is 5 cm
+        above the floor).
     points_base : ndarray, shape (N, 3)
         Ball centres of the trimmed flight, metres, base frame.
     t_cross_rel_s : float or None
