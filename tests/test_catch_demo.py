@@ -468,18 +468,24 @@ def test_cli_demo_plant_and_camera_distance(tmp_path, capsys):
     values give a one-line error."""
     out = tmp_path / "d"
     assert main(["catch", "demo", "--throws", "1", "--no-render", "--no-rerun", "--plant", "stiff",
-                 "--camera-distance-m", "6.5", "--out", str(out)]) == 0
+                 "--camera-distance-m", "6.5", "--ball-swing-length-m", "0", "--out", str(out)]) == 0
     s = json.loads((out / "summary.json").read_text())
     assert s["plant"] == "stiff" and s["camera_position_world_m"][1] == pytest.approx(-6.5)
+    assert s["ball_swing_length_m"] == 0.0
     assert s["calibration"]["source"] == "disc sweep"
     assert main(["catch", "demo", "--throws", "1", "--no-render", "--no-rerun", "--out", str(tmp_path / "e")]) == 0
     s = json.loads((tmp_path / "e" / "summary.json").read_text())
     assert s["plant"] == "seed_measured" and s["camera_position_world_m"][1] == pytest.approx(-6.8)  # defaults
+    assert s["ball_swing_length_m"] == 0.1
     capsys.readouterr()
     assert main(["catch", "demo", "--camera-distance-m", "9", "--out", str(tmp_path / "f")]) != 0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--camera-distance-m" in err[0] and "1-7.8 m" in err[0]
     assert not (tmp_path / "f").exists()
+    assert main(["catch", "demo", "--ball-swing-length-m", "0.9", "--out", str(tmp_path / "g")]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--ball-swing-length-m" in err[0] and "0-0.5 m" in err[0]
+    assert not (tmp_path / "g").exists()
     with pytest.raises(SystemExit):
         main(["catch", "demo", "--plant", "soft"])
     assert "invalid choice: 'soft'" in capsys.readouterr().err

@@ -163,8 +163,9 @@ def _write(path, cols, rows):
 def _cmd_catch(args) -> int:
     if args.target != "demo" and (args.scheduler or args.workers or args.session_throws or args.rerun_stale):
         raise TudorVisionError("--scheduler, --workers, --session-throws, --rerun-stale: only with 'catch demo'")
-    if args.target != "demo" and (args.plant is not None or args.camera_distance_m is not None):
-        raise TudorVisionError("--plant, --camera-distance-m: only with 'catch demo'")
+    if args.target != "demo" and (args.plant is not None or args.camera_distance_m is not None
+                                  or args.ball_swing_length_m is not None):
+        raise TudorVisionError("--plant, --camera-distance-m, --ball-swing-length-m: only with 'catch demo'")
     if args.target == "demo":
         from ..lab.catch_demo import DemoOptions, run_demo
 
@@ -177,6 +178,12 @@ def _cmd_catch(args) -> int:
                 raise TudorVisionError(f"--camera-distance-m: expected 1-7.8 m in front of the robot (the wall "
                                        f"camera's depth reaches 8 m, the arm must stay in range), got {d:g}")
             more["camera_distance_m"] = float(d)
+        if args.ball_swing_length_m is not None:
+            L = args.ball_swing_length_m
+            if not (np.isfinite(L) and 0.0 <= L <= 0.5):
+                raise TudorVisionError(f"--ball-swing-length-m: expected 0-0.5 m (0: the balls as point masses at the "
+                                       f"end effector), got {L:g}")
+            more["ball_swing_length_m"] = float(L)
         opts = DemoOptions(throws=args.throws, seed=args.seed, render=not args.no_render, damping=args.damping,
                            compensate=not args.rigid, rerun=not args.no_rerun,
                            params=robot_from_args(args) if args.robot else None, **more)
@@ -279,6 +286,9 @@ def register(subparsers) -> None:
     p.add_argument("--camera-distance-m", type=float, default=None, metavar="M",
                    help="demo: the wall camera stands M metres in front of the robot, for the throws and its "
                         "disc-sweep calibration (default 6.8: behind the thrower, as in the seed; 1-7.8)")
+    p.add_argument("--ball-swing-length-m", type=float, default=None, metavar="M",
+                   help="demo: caught balls hang M metres below the ring in the net's bag and swing (default 0.1); "
+                        "0: point masses at the end effector (the lab before the twenty-third session)")
     add_viewer_arguments(p, file_help="rerun recording (.rrd) of detections, intercepts, net and setpoints "
                                       "(demo default: OUT/catch.rrd; SEQ: none)")
     p.add_argument("--scheduler", default=None, metavar="serial|local|ADDRESS",

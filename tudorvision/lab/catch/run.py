@@ -260,7 +260,7 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
         "caught_centre_in_workspace": score["caught_centre_in_workspace"],
         "rim_contacts_in_workspace": score["rim_contacts_in_workspace"],
         "calibration": calib, "camera_position_world_m": [float(x) for x in wall_camera_position_world(o)],
-        "camera_max_depth_m": o.camera_max_depth_m, "plant": o.plant,
+        "camera_max_depth_m": o.camera_max_depth_m, "plant": o.plant, "ball_swing_length_m": o.ball_swing_length_m,
         "seed": o.seed, "render": o.render, "damping": o.damping, "compensate": o.compensate,
         "net_radius_m": o.net_radius_m, "balls_in_net": world.balls, "net_emptied": world.emptied,
         "median_pred_error_m": score["median_pred_error_m"],
