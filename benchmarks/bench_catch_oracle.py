@@ -186,12 +186,18 @@ def scoring_wrapper(score):
     return wrapped
 
 
-def run_variant(variant: str, throws: int, seed: int, **kw) -> tuple[list, dict, float]:
-    """Run one variant through the demo's session path; returns (records, summary, wall s)."""
+def _patch(variant: str) -> tuple:
+    """Put the oracle's classes in the demo's path for ``variant``; returns what they replaced."""
     saved = (demo_run.CatchScenario, demo_run.CatchAgent, demo_run.CatchPerception, demo_run.score_throw)
     demo_run.CatchScenario, demo_run.CatchAgent = OracleScenario, RecordingAgent
     demo_run.CatchPerception, demo_run.score_throw = OraclePerception, scoring_wrapper(saved[3])
     CURRENT["variant"] = variant
+    return saved
+
+
+def run_variant(variant: str, throws: int, seed: int, **kw) -> tuple[list, dict, float]:
+    """Run one variant through the demo's session path; returns (records, summary, wall s)."""
+    saved = _patch(variant)
     del RECORDS[:]
     t0 = time.perf_counter()
     try:
@@ -202,13 +208,6 @@ def run_variant(variant: str, throws: int, seed: int, **kw) -> tuple[list, dict,
         demo_run.CatchScenario, demo_run.CatchAgent, demo_run.CatchPerception, demo_run.score_throw = saved
     s = {k: v for k, v in s.items() if k != "per_throw"}
     return list(RECORDS), s, time.perf_counter() - t0
-
-
-def _worker_init(variant: str) -> None:
-    """A pool worker: the oracle's classes in the demo's path, as :func:`run_variant` sets them for its run."""
-    demo_run.CatchScenario, demo_run.CatchAgent = OracleScenario, RecordingAgent
-    demo_run.CatchPerception, demo_run.score_throw = OraclePerception, scoring_wrapper(demo_run.score_throw)
-    CURRENT["variant"] = variant
 
 
 def _session_job(options: DemoOptions) -> tuple:
@@ -232,7 +231,7 @@ def run_variant_pool(variant: str, throws: int, seeds, workers: int, **kw) -> di
     for seed in seeds:
         o = DemoOptions(render=False, throws=throws, seed=seed, rerun=False, plots=False, **kw)
         jobs += [task.args[0] for task in plan_sessions(o)]
-    with multiprocessing.get_context("fork").Pool(workers, initializer=_worker_init, initargs=(variant,)) as pool:
+    with multiprocessing.get_context("fork").Pool(workers, initializer=_patch, initargs=(variant,)) as pool:
         done = pool.map(_session_job, jobs, chunksize=1)
     wall = time.perf_counter() - t0
     out = {}

@@ -120,6 +120,14 @@ def fit_models(scene, picks):
     return ColorModelSet({cam: {s: models[cam][s] for s in both} for cam in models}), refused
 
 
+def _pipeline(scene, cal, models, centroid="shape", known_radius=False):
+    """The pipeline as ``track stereo`` runs it (tracking mode: the first frame a full search; luma rim under JPEG)."""
+    seg = SegmentParams(centroid=centroid, edge_refine=scene.params.jpeg_quality is not None)
+    opts = PipelineOptions(tracker=TrackerParams(segment=seg),
+                           sphere_radius_m=scene.params.sphere_radius_m if known_radius else None)
+    return StereoPipeline(cal, models, options=opts)
+
+
 def run_ours(scene, cal, models, centroid, known_radius=False):
     """{cam: {sphere: uv}}, {sphere: p_left} from one pipeline frame (NaN where not found)."""
     nan2, nan3 = np.full(2, np.nan), np.full(3, np.nan)
@@ -127,10 +135,7 @@ def run_ours(scene, cal, models, centroid, known_radius=False):
     p = {s: nan3 for s in SPHERES}
     if models is None:
         return uv, p
-    seg = SegmentParams(centroid=centroid, edge_refine=scene.params.jpeg_quality is not None)
-    opts = PipelineOptions(tracker=TrackerParams(segment=seg),   # tracking mode, as the CLI: first frame full search
-                           sphere_radius_m=scene.params.sphere_radius_m if known_radius else None)
-    pipe = StereoPipeline(cal, models, options=opts)
+    pipe = _pipeline(scene, cal, models, centroid, known_radius)
     res = pipe.process(StereoFrame(t=0.0, index=0, left=scene.frames["left"], right=scene.frames["right"]))
     key = {"shape": "ours", "moment": "seed centroid"}[centroid] + (", known radius" if known_radius else "")
     RADIUS_CHECK[key] = [a + b for a, b in zip(RADIUS_CHECK.get(key, (0, 0, 0)),
@@ -156,8 +161,7 @@ def run_ours_static(scene, cal, models):
     uv = {cam: {s: [] for s in SPHERES} for cam in ("left", "right")}
     p = {s: [] for s in SPHERES}
     if models is not None:
-        seg = SegmentParams(centroid="shape", edge_refine=scene.params.jpeg_quality is not None)
-        pipe = StereoPipeline(cal, models, options=PipelineOptions(tracker=TrackerParams(segment=seg)))
+        pipe = _pipeline(scene, cal, models)
         for i, pair in enumerate(pairs):
             res = pipe.process(StereoFrame(t=i / 50.0, index=i, left=pair["left"], right=pair["right"]))
             for s in res.spheres:

@@ -172,18 +172,17 @@ def _cmd_catch(args) -> int:
         more = {}
         if args.plant is not None:
             more["plant"] = args.plant
-        if args.camera_distance_m is not None:
-            d = args.camera_distance_m
-            if not (np.isfinite(d) and 1.0 <= d <= 7.8):
-                raise TudorVisionError(f"--camera-distance-m: expected 1-7.8 m in front of the robot (the wall "
-                                       f"camera's depth reaches 8 m, the arm must stay in range), got {d:g}")
-            more["camera_distance_m"] = float(d)
-        if args.ball_swing_length_m is not None:
-            L = args.ball_swing_length_m
-            if not (np.isfinite(L) and 0.0 <= L <= 0.5):
-                raise TudorVisionError(f"--ball-swing-length-m: expected 0-0.5 m (0: the balls as point masses at the "
-                                       f"end effector), got {L:g}")
-            more["ball_swing_length_m"] = float(L)
+        for name, lo, hi, why in (("camera_distance_m", 1.0, 7.8, "in front of the robot (the wall camera's depth "
+                                   "reaches 8 m, the arm must stay in range)"),
+                                  ("ball_swing_length_m", 0.0, 0.5, "(0: the balls as point masses at the end "
+                                   "effector)")):
+            value = getattr(args, name)
+            if value is None:
+                continue
+            if not (np.isfinite(value) and lo <= value <= hi):
+                flag = "--" + name.replace("_", "-")
+                raise TudorVisionError(f"{flag}: expected {lo:g}-{hi:g} m {why}, got {value:g}")
+            more[name] = float(value)
         opts = DemoOptions(throws=args.throws, seed=args.seed, render=not args.no_render, damping=args.damping,
                            compensate=not args.rigid, rerun=not args.no_rerun,
                            params=robot_from_args(args) if args.robot else None, **more)

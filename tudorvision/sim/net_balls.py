@@ -11,7 +11,8 @@ applies the returned force in the next step, joint torques and link modes both.
 
 At rest the bag transmits the balls' weight, so the static deflection, the strains and the payload
 estimated from them are those of point masses; in motion the balls lag, swing at about
-``sqrt(g / length_m) / (2 pi)`` Hz (1.6 Hz for 0.1 m, near the arm's first mode) and pull the net about.
+``sqrt(g / length_m) / (2 pi)`` Hz (1.55 Hz for 0.1 m with the bag's stretch, near the arm's first mode) and
+pull the net about.
 """
 from __future__ import annotations
 
@@ -60,6 +61,8 @@ class SwingingBalls:
         w_ax = 2 * math.pi * float(axial_hz)
         self._k_per_kg, self._c_per_kg = w_ax * w_ax, 2 * float(axial_zeta) * w_ax
         self._swing_per_s = 2 * float(swing_zeta) * math.sqrt(self.g / self.length_m)
+        self._gravity = np.array([0.0, 0.0, -self.g])
+        self._none = np.zeros(3)
         self.mass_kg = 0.0
         self.bob_base = None
         self._v_bob = None
@@ -86,21 +89,21 @@ class SwingingBalls:
             The end effector's position (m) and velocity (m/s), base frame.
         """
         if self.mass_kg == 0.0:
-            return np.zeros(3)
+            return self._none.copy()
         p, v = np.asarray(p_base, float), np.asarray(v_base, float)
         if self.bob_base is None:            # the balls start hanging at rest, the bag stretched by their weight
-            self.bob_base = p - np.array([0.0, 0.0, self.length_m + self.g / self._k_per_kg])
+            self.bob_base = p + self._gravity * ((self.length_m + self.g / self._k_per_kg) / self.g)
             self._v_bob = v.copy()
         d = self.bob_base - p
         dist = float(np.linalg.norm(d))
-        n = d / dist if dist > 1e-9 else np.array([0.0, 0.0, -1.0])
+        n = d / dist if dist > 1e-9 else self._gravity / self.g
         dv = self._v_bob - v
         along = float(dv @ n)
         stretch = dist - self.length_m
         pull = 0.0 if stretch <= 0 else max(0.0, self._k_per_kg * stretch + self._c_per_kg * along)
         # per kg of balls: the bag's pull towards the ring and the fabric's damping of the swing across it
         a_bag = -pull * n - self._swing_per_s * (dv - along * n)
-        a = a_bag + np.array([0.0, 0.0, -self.g])
+        a = a_bag + self._gravity
         self._v_bob = self._v_bob + a * self.dt
         self.bob_base = self.bob_base + self._v_bob * self.dt
         return -self.mass_kg * a_bag
