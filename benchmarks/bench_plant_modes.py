@@ -35,6 +35,8 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=6.0, help="ring-down seconds per pose")
     ap.add_argument("--png", help="write the two maps as a PNG")
     ap.add_argument("--json", help="write the grid numbers as JSON")
+    ap.add_argument("--servo", metavar="T_D,T_L", help="time constants of the holding cascade, s "
+                    "(default the joint layer's design_cascade defaults)")
     ap.add_argument("--identify", action="store_true",
                     help="only the linearised grid search of the hub stiffnesses (identify_hub_stiffness)")
     a = ap.parse_args(argv)
@@ -47,7 +49,8 @@ def main(argv=None) -> int:
         return 0
     cfg = PlantConfig()                   # the seed-measured default
     t0 = time.perf_counter()
-    m = modes_map(a.step, a.payload_kg, cfg, a.duration)
+    servo = tuple(float(x) for x in a.servo.split(",")) if a.servo else None
+    m = modes_map(a.step, a.payload_kg, cfg, a.duration, servo_time_constants_s=servo)
     wall = time.perf_counter() - t0
     t2s, t3s = np.array(m["theta2_deg"]), np.array(m["theta3_deg"])
     F, Z, FL = np.array(m["ringdown_hz"]), np.array(m["decay_per_s"]), np.array(m["linear_hz"])
@@ -60,6 +63,7 @@ def main(argv=None) -> int:
     def row(name, lab, seed):
         print(f"{name:42s} lab {lab:7.3f}   seed {seed:6.2f}   lab/seed {lab / seed:5.2f}")
 
+    print(f"holding cascade (t_d, t_l): {servo or 'design_cascade defaults'}")
     print(f"grid {len(t2s)} x {len(t3s)} poses (step {a.step:g} deg), payload {a.payload_kg} kg, "
           f"{a.duration:g} s ring-downs, {wall:.0f} s wall ({wall / F.size:.2f} s per pose)")
     row("fig 4.6 link 2 first (theta=0,0,0), Hz", fig46["link2_hz"][0], SEED["link2_hz"][0])

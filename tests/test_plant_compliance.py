@@ -162,3 +162,35 @@ def test_hub_stiffness_grid_search_picks_the_minimax_pair():
     assert len(table) == 9 and best == (1000.0, 600.0)
     worst = {(r[0], r[1]): r[-1] for r in table}
     assert worst[best] == min(worst.values()) < 0.05 < worst[(math.inf, math.inf)]
+
+
+def test_a_stiffer_holding_servo_rings_longer_and_at_the_held_joint_frequency():
+    """The decay floor is the holding cascade's: with (t_d, t_l) small the joints act as held (oracle: the
+    linearised held-joint frequency) and the ring-down decays slower than under the joint layer's defaults."""
+    cfg = PlantConfig.seed_measured(coulomb_friction=False)
+    th = D([0, 0, 0])
+    lin = linear_modes(th, 0.3, cfg)
+    rates, freqs = [], []
+    for tc in (None, (0.0015, 0.005), (0.0008, 0.002)):
+        s = ring_down(th, 0.3, cfg, duration_s=5.0, servo_time_constants_s=tc).strain[:, 0]
+        freqs.append(dominant_frequency_hz(s, cfg.dt))
+        rates.append(decay_rate_per_s(s, cfg.dt, freqs[-1]))
+    assert rates[0] > rates[1] > rates[2] > 0
+    assert rates[0] > 2 * rates[2] and rates[2] < 0.04
+    assert freqs[2] == pytest.approx(lin["link2_hz"][0], rel=0.005)
+    assert abs(freqs[0] / lin["link2_hz"][0] - 1) > abs(freqs[2] / lin["link2_hz"][0] - 1)
+    with pytest.raises(ValueError, match="servo_time_constants_s"):
+        ring_down(th, 0.3, cfg, duration_s=2.0, servo_time_constants_s=(0.001, -1.0))
+
+
+def test_sim_modes_cli_takes_the_holding_servo_and_checks_it(tmp_path, capsys):
+    out = tmp_path / "m.json"
+    assert main(["sim", "modes", "--at", "0,0,0", "--duration", "4", "--servo-time-constants-s", "0.0015,0.005",
+                 "--out", str(out)]) == 0
+    r = json.loads(out.read_text())
+    assert r["servo_time_constants_s"] == [0.0015, 0.005] and r["decay_per_s"] > 0
+    for bad in ("0.001", "a,b", "0.001,5", "0,0.01"):
+        rc = main(["sim", "modes", "--at", "0,0,0", "--servo-time-constants-s", bad, "--out", str(tmp_path / "x.json")])
+        err = capsys.readouterr().err.strip()
+        assert rc != 0 and "--servo-time-constants-s" in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "x.json").exists()

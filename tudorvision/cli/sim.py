@@ -94,10 +94,20 @@ def _cmd_modes(args) -> int:
         raise TudorVisionError(f"--payload-kg: expected 0 .. 2 kg, got {args.payload_kg}")
     if not (math.isfinite(args.duration) and 2.0 <= args.duration <= 120.0):
         raise TudorVisionError(f"--duration: expected 2 .. 120 s, got {args.duration}")
+    servo = None
+    if args.servo_time_constants_s is not None:
+        try:
+            servo = [float(x) for x in args.servo_time_constants_s.split(",")]
+        except ValueError:
+            servo = []
+        if len(servo) != 2 or not all(math.isfinite(x) and 1e-4 <= x <= 1.0 for x in servo):
+            raise TudorVisionError("--servo-time-constants-s: expected T_D,T_L in seconds, each 0.0001 .. 1, "
+                                   f"got {args.servo_time_constants_s!r}")
     cfg = PlantConfig.stiff() if args.stiff else PlantConfig()
-    r = plant_modes(th, args.payload_kg, cfg, args.duration, params=params)
+    r = plant_modes(th, args.payload_kg, cfg, args.duration, params=params, servo_time_constants_s=servo)
     out = {"theta_deg": [float(x) for x in np.rad2deg(th)], "payload_kg": args.payload_kg,
-           "plant": "stiff" if args.stiff else "seed_measured", **r}
+           "plant": "stiff" if args.stiff else "seed_measured",
+           "servo_time_constants_s": servo or "design_cascade defaults", **r}
     write_text_atomic(args.out, json.dumps(out, indent=2) + "\n")
     print(f"link 2: {r['link2_hz'][0]:.2f} / {r['link2_hz'][1]:.2f} Hz, link 3: {r['link3_hz'][0]:.2f} Hz, "
           f"ring-down {r['ringdown_hz']:.2f} Hz decaying at {r['decay_per_s']:.3f} 1/s; wrote {args.out}")
@@ -146,6 +156,9 @@ def register(sub) -> None:
     m.add_argument("--payload-kg", type=float, default=0.3, help="plate payload, kg (default 0.3)")
     m.add_argument("--duration", type=float, default=8.0, help="ring-down seconds (default 8)")
     m.add_argument("--stiff", action="store_true", help="the default rigid-hub plant instead of the seed-measured one")
+    m.add_argument("--servo-time-constants-s", metavar="T_D,T_L",
+                   help="velocity filter and position-loop lag of the holding joint cascade, s (default the "
+                        "joint layer's 0.003,0.01; the seed does not give its own; a stiffer hold decays slower)")
     m.add_argument("--out", required=True, help="JSON output")
     add_robot_option(m, "the simulated arm: blades, payload mount, joint ranges")
     m.set_defaults(func=_cmd_modes)

@@ -102,8 +102,20 @@ def linear_modes(theta_rad, payload_kg: float, config: PlantConfig, params: Robo
             "decay_linear_per_s": float(decay[0]), "modes_hz": [float(x) for x in f]}
 
 
+def _servo_kw(servo_time_constants_s) -> dict:
+    """``design_cascade`` keywords for ``(t_d, t_l)`` (checked: two positive finite seconds), or none."""
+    if servo_time_constants_s is None:
+        return {}
+    tc = np.asarray(servo_time_constants_s, dtype=float)
+    if tc.shape != (2,) or not np.all(np.isfinite(tc)) or np.any(tc <= 0):
+        raise ValueError(f"servo_time_constants_s: expected two positive seconds (t_d, t_l), "
+                         f"got {servo_time_constants_s!r}")
+    return {"t_d": float(tc[0]), "t_l": float(tc[1])}
+
+
 def ring_down(theta_rad, payload_kg: float, config: PlantConfig, duration_s: float = 8.0,
-              impulse_Ns: float = HAMMER_IMPULSE_NS, params: RobotParams | None = None):
+              impulse_Ns: float = HAMMER_IMPULSE_NS, params: RobotParams | None = None,
+              servo_time_constants_s: tuple | None = None):
     """Free vibration after a hammer impulse at the end effector, the joint cascade holding the pose.
 
     Parameters
@@ -120,6 +132,10 @@ def ring_down(theta_rad, payload_kg: float, config: PlantConfig, duration_s: flo
         Impulse along link 3's bending direction at its tip, N s.
     params : RobotParams, optional
         Robot parameters; default the packaged file.
+    servo_time_constants_s : tuple of 2 floats, optional
+        ``(t_d, t_l)`` of the holding cascade (:func:`~tudorvision.joint.cascade.design_cascade`:
+        velocity filter and position-loop lag, s); ``None``: its defaults (3 / 10 ms). The seed
+        does not give its values; a stiffer hold dissipates less of the link's energy.
 
     Returns
     -------
@@ -128,7 +144,7 @@ def ring_down(theta_rad, payload_kg: float, config: PlantConfig, duration_s: flo
     """
     p = params or load_robot_params()
     arm = ElasticArm(theta_rad, payload=plate_payload(payload_kg, p), params=p, config=config)
-    gains = design_cascade(p, arm.design_inertia_kg_m2())
+    gains = design_cascade(p, arm.design_inertia_kg_m2(), **_servo_kw(servo_time_constants_s))
     ctrl = JointCascade(gains, config.dt, arm.measured_theta())
     k2, k3 = arm.link2, arm.link3
     c3 = math.cos(arm.theta[2])
@@ -213,7 +229,8 @@ def decay_rate_per_s(signal, dt: float, f_hz: float, skip_s: float = 0.5) -> flo
 
 
 def plant_modes(theta_rad, payload_kg: float, config: PlantConfig | None = None,
-                duration_s: float = 8.0, params: RobotParams | None = None) -> dict:
+                duration_s: float = 8.0, params: RobotParams | None = None,
+                servo_time_constants_s: tuple | None = None) -> dict:
     """Everything ``tudorvision sim modes`` reports for one pose.
 
     Parameters
@@ -228,6 +245,8 @@ def plant_modes(theta_rad, payload_kg: float, config: PlantConfig | None = None,
         Ring-down length, s.
     params : RobotParams, optional
         Robot parameters (``--robot``); default the packaged file.
+    servo_time_constants_s : tuple of 2 floats, optional
+        ``(t_d, t_l)`` of the holding cascade, s (:func:`ring_down`).
 
     Returns
     -------
@@ -236,7 +255,8 @@ def plant_modes(theta_rad, payload_kg: float, config: PlantConfig | None = None,
     """
     cfg = config or PlantConfig()
     out = linear_modes(theta_rad, payload_kg, cfg, params)
-    log = ring_down(theta_rad, payload_kg, cfg, duration_s, params=params)
+    log = ring_down(theta_rad, payload_kg, cfg, duration_s, params=params,
+                    servo_time_constants_s=servo_time_constants_s)
     s = log.strain[:, 0]
     f1 = dominant_frequency_hz(s, cfg.dt, 0.5, 0.5 * (out["link2_hz"][0] + out["link2_hz"][1]))
     out["ringdown_hz"] = f1
@@ -244,7 +264,8 @@ def plant_modes(theta_rad, payload_kg: float, config: PlantConfig | None = None,
     return out
 
 
-def modes_map(step_deg: float, payload_kg: float = 0.3, config=None, duration_s: float = 6.0) -> dict:
+def modes_map(step_deg: float, payload_kg: float = 0.3, config=None, duration_s: float = 6.0,
+              servo_time_constants_s: tuple | None = None) -> dict:
     """Ring-down first frequency and decay of link 2 over a grid of the workspace (the lab's figure 4.8).
 
     Parameters
@@ -257,6 +278,8 @@ def modes_map(step_deg: float, payload_kg: float = 0.3, config=None, duration_s:
         Default ``PlantConfig()`` (the seed-measured plant).
     duration_s : float
         Ring-down length per pose, s.
+    servo_time_constants_s : tuple of 2 floats, optional
+        ``(t_d, t_l)`` of the holding cascade, s (:func:`ring_down`).
 
     Returns
     -------
@@ -272,7 +295,8 @@ def modes_map(step_deg: float, payload_kg: float = 0.3, config=None, duration_s:
         for j, t2 in enumerate(t2s):
             th = np.deg2rad([0.0, t2, t3])
             lin = linear_modes(th, payload_kg, cfg)
-            s = ring_down(th, payload_kg, cfg, duration_s).strain[:, 0]
+            s = ring_down(th, payload_kg, cfg, duration_s,
+                          servo_time_constants_s=servo_time_constants_s).strain[:, 0]
             f1 = dominant_frequency_hz(s, cfg.dt, 0.5, 0.5 * sum(lin["link2_hz"]))
             F[i, j], Z[i, j], FL[i, j] = f1, decay_rate_per_s(s, cfg.dt, f1), lin["link2_hz"][0]
     return {"theta2_deg": t2s.tolist(), "theta3_deg": t3s.tolist(), "ringdown_hz": F.tolist(),
