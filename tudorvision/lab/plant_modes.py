@@ -102,6 +102,13 @@ def linear_modes(theta_rad, payload_kg: float, config: PlantConfig, params: Robo
             "decay_linear_per_s": float(decay[0]), "modes_hz": [float(x) for x in f]}
 
 
+#: ``(t_d, t_l)`` of the holding cascade identified on figure 4.8's decay range (s): the seed gives the
+#: cascade's structure (3.2.1, 3.2.2) but not these; with them the lab's map spans 1.61-2.63 Hz and
+#: 0.031-1.18 1/s (seed 1.56-2.74 Hz, 0.03-1.24 1/s). The joint layer's ``design_cascade`` keeps 3 / 10 ms
+#: (its damping gains were tuned on that loop; docs/simulation.md, "Decay floor").
+SEED_HOLD_TIME_CONSTANTS_S = (0.001, 0.003)
+
+
 def _servo_kw(servo_time_constants_s) -> dict:
     """``design_cascade`` keywords for ``(t_d, t_l)`` (checked: two positive finite seconds), or none."""
     if servo_time_constants_s is None:
