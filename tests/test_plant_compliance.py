@@ -134,6 +134,7 @@ def test_sim_modes_cli_writes_the_json(tmp_path, capsys):
     assert main(["sim", "modes", "--payload-kg", "0.3", "--at", "0,0,0", "--duration", "4", "--out", str(out)]) == 0
     r = json.loads(out.read_text())
     assert len(r["link2_hz"]) == 2 and len(r["link3_hz"]) == 1 and r["decay_per_s"] > 0
+    assert r["servo_time_constants_s"] == [0.003, 0.01]           # the joint layer's holding loop
     assert abs(r["link2_hz"][0] / 2.0 - 1) < 0.1
 
 

@@ -106,8 +106,7 @@ def _cmd_modes(args) -> int:
     cfg = PlantConfig.stiff() if args.stiff else PlantConfig()
     r = plant_modes(th, args.payload_kg, cfg, args.duration, params=params, servo_time_constants_s=servo)
     out = {"theta_deg": [float(x) for x in np.rad2deg(th)], "payload_kg": args.payload_kg,
-           "plant": "stiff" if args.stiff else "seed_measured",
-           "servo_time_constants_s": servo or "design_cascade defaults", **r}
+           "plant": "stiff" if args.stiff else "seed_measured", **r}
     write_text_atomic(args.out, json.dumps(out, indent=2) + "\n")
     print(f"link 2: {r['link2_hz'][0]:.2f} / {r['link2_hz'][1]:.2f} Hz, link 3: {r['link3_hz'][0]:.2f} Hz, "
           f"ring-down {r['ringdown_hz']:.2f} Hz decaying at {r['decay_per_s']:.3f} 1/s; wrote {args.out}")

@@ -110,9 +110,9 @@ SEED_HOLD_TIME_CONSTANTS_S = (0.001, 0.003)
 
 
 def _servo_kw(servo_time_constants_s) -> dict:
-    """``design_cascade`` keywords for ``(t_d, t_l)`` (checked: two positive finite seconds), or none."""
+    """``design_cascade``'s ``t_d``, ``t_l``: ``(t_d, t_l)`` checked (two positive finite seconds), or its defaults."""
     if servo_time_constants_s is None:
-        return {}
+        return dict(design_cascade.__kwdefaults__)
     tc = np.asarray(servo_time_constants_s, dtype=float)
     if tc.shape != (2,) or not np.all(np.isfinite(tc)) or np.any(tc <= 0):
         raise ValueError(f"servo_time_constants_s: expected two positive seconds (t_d, t_l), "
@@ -258,7 +258,8 @@ def plant_modes(theta_rad, payload_kg: float, config: PlantConfig | None = None,
     Returns
     -------
     dict
-        :func:`linear_modes`'s keys plus ``decay_per_s`` and ``ringdown_hz`` (ring-down, link-2 hub strain).
+        :func:`linear_modes`'s keys plus ``decay_per_s`` and ``ringdown_hz`` (ring-down, link-2 hub strain)
+        and ``servo_time_constants_s`` (``[t_d, t_l]`` of the holding cascade, s).
     """
     cfg = config or PlantConfig()
     out = linear_modes(theta_rad, payload_kg, cfg, params)
@@ -268,6 +269,8 @@ def plant_modes(theta_rad, payload_kg: float, config: PlantConfig | None = None,
     f1 = dominant_frequency_hz(s, cfg.dt, 0.5, 0.5 * (out["link2_hz"][0] + out["link2_hz"][1]))
     out["ringdown_hz"] = f1
     out["decay_per_s"] = decay_rate_per_s(s, cfg.dt, f1)
+    kw = _servo_kw(servo_time_constants_s)
+    out["servo_time_constants_s"] = [kw["t_d"], kw["t_l"]]
     return out
 
 

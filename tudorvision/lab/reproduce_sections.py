@@ -76,8 +76,9 @@ def plant_section(out_dir: str, quick: bool, seed: int) -> dict:
     F, Z = np.array(m["ringdown_hz"]), np.array(m["decay_per_s"])
     hold = modes_map(step, 0.3, cfg, servo_time_constants_s=SEED_HOLD_TIME_CONSTANTS_S)
     FH, ZH = np.array(hold["ringdown_hz"]), np.array(hold["decay_per_s"])
-    held = "the holding loop identified on this map (t_d / t_l {:g} / {:g} ms; the lab's experiments run 3 / 10)".format(
-        *(1e3 * x for x in SEED_HOLD_TIME_CONSTANTS_S))
+    t_d_ms, t_l_ms = (1e3 * x for x in SEED_HOLD_TIME_CONSTANTS_S)
+    held = (f"the holding loop identified on this map (t_d / t_l {t_d_ms:g} / {t_l_ms:g} ms; "
+            "the lab's experiments run 3 / 10)")
     fig = Path("figures") / "ch4_modes_map.png"
     _plot_modes_map(Path(out_dir) / fig, m)
     grid = f"{len(m['theta2_deg'])} x {len(m['theta3_deg'])} poses, {step:g} deg grid, 6 s ring-downs"
