@@ -195,3 +195,15 @@ def test_sim_modes_cli_takes_the_holding_servo_and_checks_it(tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         assert rc != 0 and "--servo-time-constants-s" in err and len(err.splitlines()) == 1
     assert not (tmp_path / "x.json").exists()
+
+
+def test_figure_4_8_decay_floor_with_the_identified_holding_loop():
+    """Issue 18: at the map's slowest pose the seed-measured plant held by the identified loop (1 / 3 ms) decays at
+    the seed's floor (0.03 1/s) within 10 %; the joint layer's own loop (3 / 10 ms) takes 3.6 times as long."""
+    from tudorvision.lab.plant_modes import SEED_HOLD_TIME_CONSTANTS_S, plant_modes
+    th = D([0, 190, 10])
+    held = plant_modes(th, 0.3, SEED, duration_s=6.0, servo_time_constants_s=SEED_HOLD_TIME_CONSTANTS_S)
+    assert held["decay_per_s"] == pytest.approx(0.03, rel=0.10)
+    assert held["servo_time_constants_s"] == list(SEED_HOLD_TIME_CONSTANTS_S)
+    own = plant_modes(th, 0.3, SEED, duration_s=6.0)
+    assert own["decay_per_s"] > 3 * held["decay_per_s"]
