@@ -12,20 +12,11 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import TudorVisionError
+from ._args import parse_floats
 from ._viewer import add_viewer_arguments, open_viewer
 from .robot_args import add_robot_option, robot_from_args
 
 __all__ = ["register", "observe_sweep", "check_sweep_fit"]
-
-
-def _parse_floats(text: str, name: str, n: int | None = None) -> list[float]:
-    try:
-        vals = [float(x) for x in text.split(",") if x.strip()]
-    except ValueError:
-        raise TudorVisionError(f"{name}: expected comma-separated numbers, got {text!r}") from None
-    if n is not None and len(vals) != n:
-        raise TudorVisionError(f"{name}: expected {n} comma-separated numbers, got {text!r}")
-    return vals
 
 
 def _save(out, base_cal, camera, **updates):
@@ -66,8 +57,8 @@ def _cmd_depth(args) -> int:
     from ..rgbd.depth_model import calibrate_depth_model, plot_depth_model, write_depth_table_csv
     from ..rgbd.frames import Intrinsics
 
-    distances = None if args.distances is None else _parse_floats(args.distances, "--distances", len(args.seq))
-    roi = None if args.roi is None else tuple(int(v) for v in _parse_floats(args.roi, "--roi", 4))
+    distances = None if args.distances is None else parse_floats(args.distances, "--distances", len(args.seq))
+    roi = None if args.roi is None else tuple(int(v) for v in parse_floats(args.roi, "--roi", 4))
     stacks, nominal, cam, cal0 = [], [], None, None
     for i, path in enumerate(args.seq):
         seq = open_sequence(path)
@@ -351,13 +342,13 @@ def _cmd_base(args) -> int:
     from ..rgbd.disc3d import Disc3DOptions
     from ..rgbd.frames import Intrinsics
 
-    seed = _parse_floats(args.seed, "--seed", 2)
+    seed = parse_floats(args.seed, "--seed", 2)
     seq = open_sequence(args.seq)
     if seq.kind != "rgbd":
         raise TudorVisionError(f"{args.seq}: expected an RGB-D sequence, got kind {seq.kind!r}")
     cam, cal0 = camera_for_sweep(seq, args.calib)
     K = Intrinsics.from_matrix(cam.K, cam.width, cam.height)
-    annulus = tuple(_parse_floats(args.depth_annulus, "--depth-annulus", 2))
+    annulus = tuple(parse_floats(args.depth_annulus, "--depth-annulus", 2))
     if not args.disc_radius > 0:
         raise TudorVisionError(f"--disc-radius: expected a positive radius in metres, got {args.disc_radius}")
     prm = robot_from_args(args)            # the disc moves on a circle of link2 + link3 about joint 2

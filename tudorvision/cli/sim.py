@@ -6,19 +6,14 @@ from pathlib import Path
 import numpy as np
 
 from .._checks import TudorVisionError
+from ._args import parse_floats
 from .robot_args import add_robot_option, robot_from_args
 
 __all__ = ["register"]
 
 
 def _deg3(text: str, name: str) -> np.ndarray:
-    try:
-        vals = [float(x) for x in text.split(",")]
-    except ValueError:
-        raise TudorVisionError(f"{name}: expected three comma-separated degrees like 0,45,-45, got {text!r}") from None
-    if len(vals) != 3:
-        raise TudorVisionError(f"{name}: expected three comma-separated degrees, got {text!r}")
-    return np.deg2rad(vals)
+    return np.deg2rad(parse_floats(text, name, 3, example="0,45,-45"))
 
 
 def _cmd_record(args) -> int:
@@ -96,11 +91,8 @@ def _cmd_modes(args) -> int:
         raise TudorVisionError(f"--duration: expected 2 .. 120 s, got {args.duration}")
     servo = None
     if args.servo_time_constants_s is not None:
-        try:
-            servo = [float(x) for x in args.servo_time_constants_s.split(",")]
-        except ValueError:
-            servo = []
-        if len(servo) != 2 or not all(math.isfinite(x) and 1e-4 <= x <= 1.0 for x in servo):
+        servo = parse_floats(args.servo_time_constants_s, "--servo-time-constants-s", 2, example="0.001,0.003")
+        if not all(math.isfinite(x) and 1e-4 <= x <= 1.0 for x in servo):
             raise TudorVisionError("--servo-time-constants-s: expected T_D,T_L in seconds, each 0.0001 .. 1, "
                                    f"got {args.servo_time_constants_s!r}")
     cfg = PlantConfig.stiff() if args.stiff else PlantConfig()
