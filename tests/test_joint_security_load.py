@@ -1,7 +1,7 @@
 """Issue 14, joint layer under load and loss of its client, on real loopback UDP sockets.
 
 * a stranger floods 10 000 datagrams/s for ~1.5 s while the owner servos at 50 Hz:
-  no spurious watchdog stop, every owner command accepted, tick p99 bounded;
+  no spurious watchdog stop, every owner command accepted, tick p99 inside half the watchdog;
 * the owning client process is killed (SIGKILL) while the arm moves: the
   watchdog starts the controlled stop within 100 ms of its last command.
 
@@ -109,7 +109,9 @@ def test_flood_from_a_stranger_neither_stops_nor_starves_the_owner():
     replies = [owner.reply_for(s) for s in seqs]
     assert all(r is not None and r.code == Reason.OK for r in replies), \
         sum(r is None for r in replies)
-    assert st.tick_p50_s > 0 and st.tick_p99_s < 5.0 / RATE, st.tick_p99_s   # p99 under 5 periods
+    # not starved: the loop keeps ticking well inside its watchdog. The tick's p99 itself is load-dependent
+    # (2.1 ms alone, 11.7 ms once under `pytest -n 2` on two cores), so its figure is reported, not asserted
+    assert st.tick_p50_s > 0 and st.tick_p99_s < 0.5 * WATCHDOG, st.tick_p99_s
     assert core.velocity_calls and all(np.allclose(v[1:], 0.0) for v in core.velocity_calls)
 
 
