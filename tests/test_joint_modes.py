@@ -8,7 +8,7 @@ from tudorvision.joint import (Ack, CollisionMonitor, CollisionStrategy, Damping
                                JointAdapter, JointLayerServer, LockstepClientTransport, Mode, MomentumObserver,
                                StateFlags, StrainDamper, fit_strain_dynamics)
 from tudorvision.joint.collision import thresholds_from_residuals
-from tudorvision.joint.damping import ONE_WAY_GAINS
+from tudorvision.joint.damping import ONE_WAY_GAINS, PD_SCALES
 from tudorvision.joint.strain_dynamics import aprbs, derivatives
 from tudorvision.joint.server import ServerConfig
 from tudorvision.robot import load_robot_params
@@ -66,7 +66,9 @@ def test_integral_law_halves_pd_gain_and_off_restores_it():
     kpd0 = list(core.controlled.controller._kpd)
     adapter.set_mode(Mode.SETPOINT, damping=Damping.INTEGRAL)
     assert core.controlled.damper.config.law == "integral"
-    np.testing.assert_allclose(core.controlled.controller._kpd, 0.5 * np.asarray(kpd0))
+    # the soft plant's hold (1 / 3 ms): the integral law keeps the k_PD it was tuned with, half the 3 / 10 ms loop's
+    np.testing.assert_allclose(core.controlled.controller._kpd, PD_SCALES["soft"]["integral"] * np.asarray(kpd0))
+    np.testing.assert_allclose(core.controlled.controller._kpd, 0.5 * 0.25 / 0.01)
     first = core.controlled.damper
     adapter.set_mode(collision=CollisionStrategy.NONE)          # damping unchanged: the same damper stays
     assert core.controlled.damper is first

@@ -24,7 +24,7 @@ from .._checks import check_mass, check_vector
 from .cascade import JointCascade, design_cascade
 from .collision import STRATEGY_OF_CODE, CollisionMonitor, reaction_config, root_torque_per_strain
 from .damping import LAWS, StrainDamper, default_damping_config
-from .damping_gains import gain_set_of
+from .damping_gains import gain_set_of, hold_loop_of
 from .plant import Plant
 from .planner import REPLAN_MODES, OnlinePlanner, blend_replan, plan_motion
 from .cores import MAX_PAYLOAD_KG, CoreState
@@ -85,7 +85,7 @@ class ControlledArm:
             else check_vector(np.broadcast_to(np.asarray(v_max, float), (3,)), "v_max", 3)
         self.a_max = np.minimum(p.experiment_accel_rad_s2, p.max_accel_rad_s2) if a_max is None \
             else check_vector(np.broadcast_to(np.asarray(a_max, float), (3,)), "a_max", 3)
-        self.controller = JointCascade(gains or design_cascade(p, arm.design_inertia_kg_m2()),
+        self.controller = JointCascade(gains or design_cascade(p, arm.design_inertia_kg_m2(), **hold_loop_of(arm)),
                                        arm.dt, arm.measured_theta(), friction=friction,
                                        max_speed_rad_s=p.max_speed_rad_s if saturate_speed else None)
         self.damping = damping

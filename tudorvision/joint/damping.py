@@ -27,7 +27,7 @@ link-3 root gauge; joint 1 has no gauge in the bending plane: gain 0)
 
 The tuned gains per plant, their payload schedules and the position-loop scale a
 law needs on a plant (``PD_SCALES``: the proportional law on the soft plant runs
-with ``k_PD`` scaled by 0.04, see there) are in
+with ``k_PD`` scaled by 0.01, see there) are in
 :mod:`tudorvision.joint.damping_gains` (re-exported here).
 
 Signs follow the plant's strain convention (top surface, tension positive;
@@ -380,7 +380,7 @@ def default_damping_config(law: str, *, plant: str | None = None, two_way: bool 
     damper with a ``strain_model``); the other laws keep their gains. With ``payload_kg``
     (the known payload mass) the tuned link-3 gain follows the plant's payload schedule
     (:data:`PAYLOAD_SCHEDULES`; not for the assisted gains or given ``k_eps``).
-    The plant's position-loop scale for the law (:data:`PD_SCALES`, e.g. 0.04 for the
+    The plant's position-loop scale for the law (:data:`PD_SCALES`, e.g. 0.01 for the
     proportional law on the soft plant) is set unless ``pd_gain_scale`` is given, also
     with given ``k_eps``.
 
@@ -421,7 +421,7 @@ def default_damping_config(law: str, *, plant: str | None = None, two_way: bool 
     >>> default_damping_config("proportional", plant="one-way", payload_kg=0.05).k_eps
     (0.0, 1600.0, 200.0)
     >>> default_damping_config("proportional").pd_scale, default_damping_config("proportional", two_way=False).pd_scale
-    (0.04, 1.0)
+    (0.01, 1.0)
     """
     if law not in LAWS:
         raise ValueError(f"law: expected one of {LAWS}, got {law!r}")

@@ -14,7 +14,7 @@ import numpy as np
 
 from .._checks import check_mass
 
-__all__ = ["LAWS", "ONE_WAY_GAINS", "TWO_WAY_GAINS", "SOFT_GAINS", "GAIN_SETS", "DEFAULT_GAINS", "ASSISTED_GAINS",
+__all__ = ["HOLD_LOOPS", "hold_loop_of", "LAWS", "ONE_WAY_GAINS", "TWO_WAY_GAINS", "SOFT_GAINS", "GAIN_SETS", "DEFAULT_GAINS", "ASSISTED_GAINS",
            "PAYLOAD_SCHEDULE", "PAYLOAD_SCHEDULES", "PD_SCALES", "payload_gain_factor", "pd_scale_of", "gain_set_of"]
 
 #: The damping laws (``"off"``: the bare cascade).
@@ -67,7 +67,11 @@ ASSISTED_GAINS = {"one-way": (0.0, 1600.0, 100.0), "two-way": (0.0, 800.0, 1600.
 
 #: Factor on the position-loop gain ``k_PD`` while a law acts, per gain set (``DampingConfig.pd_gain_scale``;
 #: a law not listed keeps ``DampingConfig``'s default: 0.5 for the integral law (section 6.5), else 1).
-#: Soft plant, proportional law: 0.04 (``k_PD`` 25 -> 1 1/s). The velocity the law adds at the
+#: Soft plant: its holding loop (:data:`HOLD_LOOPS`, 1 / 3 ms) has ``k_PD`` = 83.3 1/s; the integral and
+#: half-integrator laws keep the 12.5 and 25 1/s they were tuned with on the former 3 / 10 ms loop (0.15, 0.3).
+#: Proportional law: 0.01 (``k_PD`` 0.83 1/s; on the 3 / 10 ms loop it ran at 0.04 x 25 = 1 1/s: with the
+#: stiffer velocity loop 1 1/s left a 15.7 um/m tail at the vertical with 0.85 kg, 0.83 1/s 11 um/m, against the
+#: 15 um/m band; experiment 06 settles in 2.9 s either way). The velocity the law adds at the
 #: velocity-loop input (5.2.1) is pulled back by the position loop: with an ideal velocity loop the
 #: joint answers it as ``s / (s + k_PD)``, so the link sees its root held by a spring ``k_PD / k`` beside
 #: the damper ``1 / k`` the law makes. For one mode of ``omega`` this bounds the decay rate the law can
@@ -83,7 +87,16 @@ ASSISTED_GAINS = {"one-way": (0.0, 1600.0, 100.0), "two-way": (0.0, 800.0, 1600.
 #: camera, against 0.07 deg with the designed ``k_PD``). Integrating the law's velocity into the
 #: position reference with a leak (2 1/s) instead keeps the hold (1 mm) but damps 0.85 kg less
 #: (vertical hold: 221 um/m tail; 600 g drop 7.7 s against 4.0 s).
-PD_SCALES = {"soft": {"proportional": 0.04}, "one-way": {}, "two-way": {}}
+PD_SCALES = {"soft": {"proportional": 0.01, "integral": 0.15, "half_integrator": 0.3}, "one-way": {}, "two-way": {}}
+
+
+#: The joint cascade's holding loop per gain set: ``(t_d, t_l)`` of :func:`~tudorvision.joint.cascade.design_cascade`
+#: (velocity filter and position-loop lag, s). Soft plant (seed-measured): 1 / 3 ms, identified on the ring-downs
+#: of figure 4.8 (the seed gives no values): the held arm's slowest decay is then the seed's 0.03 1/s, where the
+#: softer 3 / 10 ms loop dissipates the links' swing through the joints (0.11 1/s; ``docs/simulation.md``,
+#: "Decay floor"). Its damping laws keep the position-loop gains they were tuned with (:data:`PD_SCALES`). The
+#: stiff plants keep the designed 3 / 10 ms their gains were tuned on.
+HOLD_LOOPS = {"soft": (0.001, 0.003), "one-way": (0.003, 0.01), "two-way": (0.003, 0.01)}
 
 
 #: Payload schedule of the link-3 gain for the one-way plant's tuned gains (``ONE_WAY_GAINS``,
@@ -184,10 +197,35 @@ def pd_scale_of(law: str, plant: str = "soft") -> float | None:
     Examples
     --------
     >>> pd_scale_of("proportional"), pd_scale_of("proportional", "one-way"), pd_scale_of("integral")
-    (0.04, None, None)
+    (0.01, None, 0.15)
     """
     if law not in LAWS:
         raise ValueError(f"law: expected one of {LAWS}, got {law!r}")
     if plant not in GAIN_SETS:
         raise ValueError(f"plant: expected one of {tuple(GAIN_SETS)}, got {plant!r}")
     return PD_SCALES.get(plant, {}).get(law)
+
+
+def hold_loop_of(plant) -> dict:
+    """Keyword arguments ``t_d`` / ``t_l`` of ``design_cascade`` for the plant's holding loop (:data:`HOLD_LOOPS`).
+
+    Parameters
+    ----------
+    plant : Plant or str
+        An arm (its gain set, :func:`gain_set_of`) or a gain set's name.
+
+    Returns
+    -------
+    dict
+        ``{"t_d": seconds, "t_l": seconds}``.
+
+    Examples
+    --------
+    >>> hold_loop_of("soft"), hold_loop_of("one-way")
+    ({'t_d': 0.001, 't_l': 0.003}, {'t_d': 0.003, 't_l': 0.01})
+    """
+    name = plant if isinstance(plant, str) else gain_set_of(plant)
+    if name not in HOLD_LOOPS:
+        raise ValueError(f"plant: expected one of {tuple(HOLD_LOOPS)}, got {name!r}")
+    t_d, t_l = HOLD_LOOPS[name]
+    return {"t_d": t_d, "t_l": t_l}

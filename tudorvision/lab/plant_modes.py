@@ -22,6 +22,7 @@ import numpy as np
 from scipy.signal import butter, hilbert, sosfiltfilt
 
 from ..joint.cascade import JointCascade, design_cascade
+from ..joint.damping_gains import HOLD_LOOPS, hold_loop_of
 from ..joint.planner import plan_motion
 from ..robot.params import RobotParams, load_robot_params
 from ..sim.arm import ElasticArm, Payload, PlantConfig
@@ -104,15 +105,15 @@ def linear_modes(theta_rad, payload_kg: float, config: PlantConfig, params: Robo
 
 #: ``(t_d, t_l)`` of the holding cascade identified on figure 4.8's decay range (s): the seed gives the
 #: cascade's structure (3.2.1, 3.2.2) but not these; with them the lab's map spans 1.61-2.63 Hz and
-#: 0.031-1.18 1/s (seed 1.56-2.74 Hz, 0.03-1.24 1/s). The joint layer's ``design_cascade`` keeps 3 / 10 ms
-#: (its damping gains were tuned on that loop; docs/simulation.md, "Decay floor").
-SEED_HOLD_TIME_CONSTANTS_S = (0.001, 0.003)
+#: 0.031-1.18 1/s (seed 1.56-2.74 Hz, 0.03-1.24 1/s). The joint layer holds the seed-measured plant with it
+#: (``joint.damping_gains.HOLD_LOOPS``; docs/simulation.md, "Decay floor").
+SEED_HOLD_TIME_CONSTANTS_S = HOLD_LOOPS["soft"]
 
 
-def _servo_kw(servo_time_constants_s) -> dict:
-    """``design_cascade``'s ``t_d``, ``t_l``: ``(t_d, t_l)`` checked (two positive finite seconds), or its defaults."""
+def _servo_kw(servo_time_constants_s, arm) -> dict:
+    """``design_cascade``'s ``t_d``, ``t_l``: ``(t_d, t_l)`` checked (two positive finite seconds), or the arm's loop."""
     if servo_time_constants_s is None:
-        return dict(design_cascade.__kwdefaults__)
+        return hold_loop_of(arm)
     tc = np.asarray(servo_time_constants_s, dtype=float)
     if tc.shape != (2,) or not np.all(np.isfinite(tc)) or np.any(tc <= 0):
         raise ValueError(f"servo_time_constants_s: expected two positive seconds (t_d, t_l), "
@@ -141,8 +142,9 @@ def ring_down(theta_rad, payload_kg: float, config: PlantConfig, duration_s: flo
         Robot parameters; default the packaged file.
     servo_time_constants_s : tuple of 2 floats, optional
         ``(t_d, t_l)`` of the holding cascade (:func:`~tudorvision.joint.cascade.design_cascade`:
-        velocity filter and position-loop lag, s); ``None``: its defaults (3 / 10 ms). The seed
-        does not give its values; a stiffer hold dissipates less of the link's energy.
+        velocity filter and position-loop lag, s); ``None``: the joint layer's loop for this plant
+        (``hold_loop_of``: 1 / 3 ms on the seed-measured plant). The seed does not give its values; a
+        stiffer hold dissipates less of the link's energy.
 
     Returns
     -------
@@ -151,7 +153,7 @@ def ring_down(theta_rad, payload_kg: float, config: PlantConfig, duration_s: flo
     """
     p = params or load_robot_params()
     arm = ElasticArm(theta_rad, payload=plate_payload(payload_kg, p), params=p, config=config)
-    gains = design_cascade(p, arm.design_inertia_kg_m2(), **_servo_kw(servo_time_constants_s))
+    gains = design_cascade(p, arm.design_inertia_kg_m2(), **_servo_kw(servo_time_constants_s, arm))
     ctrl = JointCascade(gains, config.dt, arm.measured_theta())
     k2, k3 = arm.link2, arm.link3
     c3 = math.cos(arm.theta[2])
@@ -269,7 +271,9 @@ def plant_modes(theta_rad, payload_kg: float, config: PlantConfig | None = None,
     f1 = dominant_frequency_hz(s, cfg.dt, 0.5, 0.5 * (out["link2_hz"][0] + out["link2_hz"][1]))
     out["ringdown_hz"] = f1
     out["decay_per_s"] = decay_rate_per_s(s, cfg.dt, f1)
-    kw = _servo_kw(servo_time_constants_s)
+    p = params or load_robot_params()
+    kw = _servo_kw(servo_time_constants_s, ElasticArm(theta_rad, payload=plate_payload(payload_kg, p), params=p,
+                                                      config=cfg))
     out["servo_time_constants_s"] = [kw["t_d"], kw["t_l"]]
     return out
 

@@ -15,6 +15,7 @@ import numpy as np
 from .._checks import check_vector
 from ..joint.cascade import JointCascade, design_cascade
 from ..joint.controlled import CascadeCore, ControlledArm
+from ..joint.damping_gains import hold_loop_of
 from ..joint.planner import plan_motion
 from ..robot.params import RobotParams, load_robot_params
 from ..sim.arm import ElasticArm, Payload, PlantConfig, SimLog, zero_config_inertia
@@ -149,7 +150,7 @@ def simulate_ptp(theta_start, theta_goal, duration_s: float, *, payload: Payload
     if np.any(vmax > p.max_speed_rad_s + 1e-9) or np.any(amax > p.max_accel_rad_s2 + 1e-9):
         raise ValueError("v_max, a_max: exceed the joint speed or acceleration limits of the parameter file")
     arm = ElasticArm(start, payload=payload, params=p, config=config, obstacles=obstacles)
-    gains = design_cascade(p, zero_config_inertia(arm))
+    gains = design_cascade(p, zero_config_inertia(arm), **hold_loop_of(arm))
     ctrl = JointCascade(gains, config.dt, arm.measured_theta())
     motion = plan_motion(start, goal, v_max=vmax, a_max=amax, t0=t_move)
     return simulate(arm, ctrl, motion, duration_s)
