@@ -36,7 +36,7 @@ def main(argv=None) -> int:
     ap.add_argument("--png", help="write the two maps as a PNG")
     ap.add_argument("--json", help="write the grid numbers as JSON")
     ap.add_argument("--servo", metavar="T_D,T_L", help="time constants of the holding cascade, s "
-                    "(default the joint layer's design_cascade defaults)")
+                    "(default the joint layer's loop for the plant, joint.damping_gains.HOLD_LOOPS)")
     ap.add_argument("--identify", action="store_true",
                     help="only the linearised grid search of the hub stiffnesses (identify_hub_stiffness)")
     a = ap.parse_args(argv)
@@ -63,7 +63,7 @@ def main(argv=None) -> int:
     def row(name, lab, seed):
         print(f"{name:42s} lab {lab:7.3f}   seed {seed:6.2f}   lab/seed {lab / seed:5.2f}")
 
-    print(f"holding cascade (t_d, t_l): {servo or 'design_cascade defaults'}")
+    print("holding cascade (t_d, t_l):", servo or "the joint layer's loop for the plant (HOLD_LOOPS)")
     print(f"grid {len(t2s)} x {len(t3s)} poses (step {a.step:g} deg), payload {a.payload_kg} kg, "
           f"{a.duration:g} s ring-downs, {wall:.0f} s wall ({wall / F.size:.2f} s per pose)")
     row("fig 4.6 link 2 first (theta=0,0,0), Hz", fig46["link2_hz"][0], SEED["link2_hz"][0])
