@@ -14,7 +14,8 @@ import numpy as np
 
 from .._checks import check_mass
 
-__all__ = ["HOLD_LOOPS", "hold_loop_of", "LAWS", "ONE_WAY_GAINS", "TWO_WAY_GAINS", "SOFT_GAINS", "GAIN_SETS", "DEFAULT_GAINS", "ASSISTED_GAINS",
+__all__ = ["HOLD_LOOPS", "hold_loop_of", "LAWS", "ONE_WAY_GAINS", "TWO_WAY_GAINS", "SOFT_GAINS", "GAIN_SETS",
+           "DEFAULT_GAINS", "ASSISTED_GAINS",
            "PAYLOAD_SCHEDULE", "PAYLOAD_SCHEDULES", "PD_SCALES", "payload_gain_factor", "pd_scale_of", "gain_set_of"]
 
 #: The damping laws (``"off"``: the bare cascade).
@@ -39,7 +40,8 @@ TWO_WAY_GAINS = {
 #: soft plant"), chosen on grids over all 12 experiments (no noise, the seed's filter), not by
 #: Nelder-Mead. Integral: the one-way gains (all 12 settle, mean 3.2 s); half-integrator: k2 halved
 #: from 245 (a tail at experiment 10), all 12 settle. Proportional (issue 18): together with the
-#: position-loop scale of :data:`PD_SCALES` (0.04); grid pd scale in {0.04 ... 1} x k2 in {150 ... 1600} x
+#: position-loop scale of :data:`PD_SCALES` (0.04 on the former 3 / 10 ms holding loop, i.e. k_PD 1 1/s; 0.01 on
+#: today's 1 / 3 ms, 0.83 1/s); grid pd scale in {0.04 ... 1} x k2 in {150 ... 1600} x
 #: k3 in {300 ... 1500} on experiment 06 with 0.05 / 0.35 / 0.65 / 0.85 kg, then all 12 experiments,
 #: holds near the vertical (backlash canyon) with 0.05 / 0.35 / 0.85 kg and the 600 g drop
 #: (``docs/benchmarks.md``, "Proportional damping on the soft plant"): all 12 settle (mean 2.8 s, no
@@ -62,7 +64,8 @@ DEFAULT_GAINS = SOFT_GAINS
 #: Soft plant: the soft plant's former proportional gains (not re-tuned with a strain model; kept for the
 #: chapter-10 identification runs, which damp with them at the designed ``k_PD``). Through
 #: ``default_damping_config`` the position-loop scale of :data:`PD_SCALES` applies to them as well
-#: (0.04: with the plain filter experiment 06 settles with them in 3.4 s at 0.35 kg, 3.9 s at 0.85 kg).
+#: (0.04 on the former 3 / 10 ms loop: with the plain filter experiment 06 settled with them in 3.4 s at 0.35 kg,
+#: 3.9 s at 0.85 kg).
 ASSISTED_GAINS = {"one-way": (0.0, 1600.0, 100.0), "two-way": (0.0, 800.0, 1600.0), "soft": (0.0, 200.0, 300.0)}
 
 #: Factor on the position-loop gain ``k_PD`` while a law acts, per gain set (``DampingConfig.pd_gain_scale``;

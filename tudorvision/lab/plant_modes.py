@@ -111,7 +111,7 @@ SEED_HOLD_TIME_CONSTANTS_S = HOLD_LOOPS["soft"]
 
 
 def _servo_kw(servo_time_constants_s, arm) -> dict:
-    """``design_cascade``'s ``t_d``, ``t_l``: ``(t_d, t_l)`` checked (two positive finite seconds), or the arm's loop."""
+    """``design_cascade``'s ``t_d`` / ``t_l``: ``(t_d, t_l)`` checked (two positive seconds), or the arm's loop."""
     if servo_time_constants_s is None:
         return hold_loop_of(arm)
     tc = np.asarray(servo_time_constants_s, dtype=float)
