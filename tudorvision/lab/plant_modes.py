@@ -151,10 +151,15 @@ def ring_down(theta_rad, payload_kg: float, config: PlantConfig, duration_s: flo
     SimLog
         The run (``strain[:, 0]`` is the link-2 hub gauge).
     """
+    return _ring_down(theta_rad, payload_kg, config, duration_s, impulse_Ns, params, servo_time_constants_s)[0]
+
+
+def _ring_down(theta_rad, payload_kg, config, duration_s, impulse_Ns, params, servo_time_constants_s):
+    """:func:`ring_down`'s run and the ``design_cascade`` time constants it held the pose with (dict)."""
     p = params or load_robot_params()
     arm = ElasticArm(theta_rad, payload=plate_payload(payload_kg, p), params=p, config=config)
-    gains = design_cascade(p, arm.design_inertia_kg_m2(), **_servo_kw(servo_time_constants_s, arm))
-    ctrl = JointCascade(gains, config.dt, arm.measured_theta())
+    kw = _servo_kw(servo_time_constants_s, arm)
+    ctrl = JointCascade(design_cascade(p, arm.design_inertia_kg_m2(), **kw), config.dt, arm.measured_theta())
     k2, k3 = arm.link2, arm.link3
     c3 = math.cos(arm.theta[2])
     Q = np.array([k2.phiL[r] * c3 + k2.dphiL[r] * k3.L for r in range(k2.n)] + list(k3.phiL)) * impulse_Ns
@@ -165,7 +170,7 @@ def ring_down(theta_rad, payload_kg: float, config: PlantConfig, duration_s: flo
     for q in range(k3.n):
         arm.deta3[q] += float(dv[k2.n + q])
     th = np.asarray(arm.theta)
-    return simulate(arm, ctrl, plan_motion(th, th, v_max=1.0, a_max=1.0), duration_s)
+    return simulate(arm, ctrl, plan_motion(th, th, v_max=1.0, a_max=1.0), duration_s), kw
 
 
 def dominant_frequency_hz(signal, dt: float, f_lo: float = 0.5, f_hi: float = 5.0) -> float:
@@ -265,15 +270,11 @@ def plant_modes(theta_rad, payload_kg: float, config: PlantConfig | None = None,
     """
     cfg = config or PlantConfig()
     out = linear_modes(theta_rad, payload_kg, cfg, params)
-    log = ring_down(theta_rad, payload_kg, cfg, duration_s, params=params,
-                    servo_time_constants_s=servo_time_constants_s)
+    log, kw = _ring_down(theta_rad, payload_kg, cfg, duration_s, HAMMER_IMPULSE_NS, params, servo_time_constants_s)
     s = log.strain[:, 0]
     f1 = dominant_frequency_hz(s, cfg.dt, 0.5, 0.5 * (out["link2_hz"][0] + out["link2_hz"][1]))
     out["ringdown_hz"] = f1
     out["decay_per_s"] = decay_rate_per_s(s, cfg.dt, f1)
-    p = params or load_robot_params()
-    kw = _servo_kw(servo_time_constants_s, ElasticArm(theta_rad, payload=plate_payload(payload_kg, p), params=p,
-                                                      config=cfg))
     out["servo_time_constants_s"] = [kw["t_d"], kw["t_l"]]
     return out
 

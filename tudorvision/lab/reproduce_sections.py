@@ -333,7 +333,7 @@ def _extra_sections() -> list:
 
 #: The reproduction's sections in report order.
 SECTIONS = (
-    Section("plant", "4", "link modes and the workspace map (figs. 4.6, 4.8)", plant_section, 1.5, 24.0),
+    Section("plant", "4", "link modes and the workspace map (figs. 4.6, 4.8)", plant_section, 1.0, 15.0),
     *_extra_sections(),
     Section("servo", "9", "hybrid visual servo repeatability (9.1)", servo_section, 1.5, 25.0),
     Section("depth", "9", "depth noise of the RGB-D sensor (2.3, 9.3)", depth_noise_section, 0.5, 3.0),
