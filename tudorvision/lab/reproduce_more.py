@@ -67,7 +67,7 @@ def damping_section(out_dir: str, quick: bool, seed: int) -> dict:
         rows.append(Row("8.6 (6.6)", f"steady-state joint error growth, {_LAW_NAMES[law]}",
                         "grows" if law == "integral" else "none", _num(r["growth_deg_per_cycle"]), "deg/cycle", "info",
                         f"{d['cycles']} out-and-back moves of exp. 06; error first {r['abs_error_deg_first']:.3f}, "
-                        f"last {r['abs_error_deg_last']:.3f} deg"))
+                        f"largest {r['abs_error_deg_max']:.3f}, last {r['abs_error_deg_last']:.3f} deg"))
     s = payload_sweep_8_3(quick, "serial", out=root)
     for grams in sorted(s["settling_cut_pct"]["proportional"], key=int):
         seed_v = s["seed"]["settling_cut_pct"].get(int(grams))
