@@ -113,7 +113,7 @@ def test_reference_mirror_predicts_the_planners_overshoot_on_a_replan():
     assert m.overshoot_rad(goal, t_mid)[1] > np.deg2rad(0.5)
 
 
-def _agent(layer, targets):
+def _agent(layer, targets, **options):
     from tudorvision.lab.catch.agent import CatchAgent
     from tudorvision.robot import load_robot_params
 
@@ -123,7 +123,7 @@ def _agent(layer, targets):
         return np.asarray(p, float)          # the "target" is the joint setpoint itself
 
     ik.theta1_rad = 0.0
-    o = DemoOptions(setpoint_margin_rad=0.0)
+    o = DemoOptions(setpoint_margin_rad=0.0, **options)
     agent = CatchAgent(layer, ik, None, None, None, np.eye(4), options=o, params=load_robot_params(),
                        payload_range_kg=(0.0, 0.4))
     return agent, it_of
@@ -152,6 +152,30 @@ def test_refinements_that_change_nothing_or_would_overshoot_wait(monkeypatch):
     # once the joint has stopped it goes out
     agent._intercept(5.0, SimpleNamespace(p_base=short, t_cross=10.0), layer.state().theta)
     assert len(layer.sent) == 2 and np.allclose(layer.sent[-1], short) and not agent._pending
+
+
+@pytest.mark.parametrize("force_deg, waits", [(np.inf, True), (2.0, True), (0.5, False)])
+def test_a_waiting_refinement_goes_out_once_the_net_is_too_far_off(monkeypatch, force_deg, waits):
+    """``refine_force_m``: a refinement the overshoot rule holds back goes out when the estimate moved farther."""
+    import tudorvision.lab.catch.agent as agent_mod
+
+    monkeypatch.setattr(agent_mod, "net_target", lambda p, *a, **k: np.asarray(p, float))
+    layer = LayerStub()
+    agent, _ = _agent(layer, [], refine_force_m=float(np.deg2rad(force_deg)))   # the stub's "metres" are rad
+    agent.begin_throw(0)
+    first = np.deg2rad([0.0, 80.0, 30.0])
+    agent._intercept(0.0, SimpleNamespace(p_base=first, t_cross=10.0), layer.state().theta)
+    st = agent.mirror.motion
+    t_brake = st.t_acc[2] + st.t_cruise[2] + 0.4 * st.t_dec[2]
+    short = first + np.deg2rad([0.0, 0.0, 1.0])           # 1 deg from the estimate the net went to
+    assert np.max(agent.mirror.overshoot_rad(short, t_brake)) > agent.options.overshoot_tol_rad
+    agent._intercept(t_brake, SimpleNamespace(p_base=short, t_cross=10.0), layer.state().theta)
+    assert agent._pending == waits and len(layer.sent) == (1 if waits else 2)
+    if not waits:
+        assert np.allclose(layer.sent[-1], short) and agent.log.deferred == 0
+    # a new throw starts from nothing sent: its first setpoint is never "stale"
+    agent.begin_throw(1)
+    assert not agent._stale(SimpleNamespace(p_base=short + 1.0))
 
 
 def test_catch_success_reports_the_strict_and_centre_rates(tmp_path):

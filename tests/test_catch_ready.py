@@ -154,6 +154,17 @@ def test_the_planner_releases_estimates_just_inside_the_inner_edge():
         assert plain._reachable(q) is plain_ok and inner._reachable(q) is inner_ok, d
     with pytest.raises(ValueError, match="inner_reach_m"):
         InterceptOptions(inner_reach_m=-0.1)
+    # a tolerance of its own inside the inner edge (the net sits on that circle: no reach margin there),
+    # the outer edge's unchanged
+    wide = InterceptPlanner(InterceptOptions(reach_tol_m=0.015, inner_reach_m=d_in, inner_reach_tol_m=0.045),
+                            params=p)
+    for d, ok in [(d_in - 0.02, True), (d_in - 0.044, True), (d_in - 0.05, False)]:
+        assert wide._reachable(shoulder + d * u) is ok, d
+    l23 = p.link2_length_m + p.link3_length_m
+    for d, ok in [(l23 + 0.014, True), (l23 + 0.02, False)]:
+        assert wide._reachable(shoulder + d * u) is ok and inner._reachable(shoulder + d * u) is ok, d
+    with pytest.raises(ValueError, match="inner_reach_tol_m"):
+        InterceptOptions(inner_reach_tol_m=-0.01)
 
 
 def test_the_demos_inner_edge_follows_joint_3s_setpoint_margin():

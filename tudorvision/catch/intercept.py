@@ -364,9 +364,13 @@ class InterceptOptions:
         :func:`net_target`'s margin) still takes a ball passing this far out when the tolerance is
         at most ``net radius - ball radius - reach margin``; metres, >= 0.
     inner_reach_m : float
-        A crossing up to ``reach_tol_m`` nearer the shoulder than this counts as reachable, judged
-        at this distance (where :func:`net_target` with the same ``inner_reach_m`` sends the net);
-        metres, 0: none.
+        A crossing up to ``inner_reach_tol_m`` nearer the shoulder than this counts as reachable,
+        judged at this distance (where :func:`net_target` with the same ``inner_reach_m`` sends the
+        net); metres, 0: none.
+    inner_reach_tol_m : float or None
+        How far inside ``inner_reach_m`` a crossing still counts as reachable, metres (>= 0); None:
+        ``reach_tol_m``. The net sits on that circle itself (no reach margin there), so up to
+        ``net radius - ball radius`` still lets the ball pass the ring.
     min_height_m : float
         Floor height in the base frame (the flight ends below it), metres.
 
@@ -385,9 +389,12 @@ class InterceptOptions:
     margin_rad: float = np.deg2rad(2.0)
     reach_tol_m: float = 0.0
     inner_reach_m: float = 0.0
+    inner_reach_tol_m: float | None = None
     min_height_m: float = -0.3
 
     def __post_init__(self):
+        if self.inner_reach_tol_m is not None and not self.inner_reach_tol_m >= 0:
+            raise ValueError(f"inner_reach_tol_m: expected None or >= 0, got {self.inner_reach_tol_m}")
         if (not self.release_sigma_m > 0 or not self.refine_tol_m >= 0 or not self.reach_tol_m >= 0
                 or not self.inner_reach_m >= 0 or not 0.0 <= self.refine_sharper < 1.0):
             raise ValueError(f"release_sigma_m, refine_tol_m, reach_tol_m, inner_reach_m, refine_sharper: expected "
@@ -454,6 +461,10 @@ class InterceptPlanner:
         self._lims = None
         self.reset()
 
+    def _inner_tol(self) -> float:
+        o = self.options
+        return o.reach_tol_m if o.inner_reach_tol_m is None else o.inner_reach_tol_m
+
     def _reachable(self, p_base) -> bool:
         # reachable_solutions(p_base, theta1, params, margin_rad) is not empty, on floats (per frame)
         if self._lims is None:
@@ -470,7 +481,7 @@ class InterceptPlanner:
         d = math.hypot(r, zz)
         if l2 + l3 < d <= l2 + l3 + self.options.reach_tol_m:
             r, zz = r * (l2 + l3) / d, zz * (l2 + l3) / d          # judged at full stretch
-        elif 0.0 < self.options.inner_reach_m - self.options.reach_tol_m <= d < self.options.inner_reach_m:
+        elif 0.0 < self.options.inner_reach_m - self._inner_tol() <= d < self.options.inner_reach_m:
             r, zz = r * self.options.inner_reach_m / d, zz * self.options.inner_reach_m / d   # at the inner edge
         c3 = (r * r + zz * zz - l2 * l2 - l3 * l3) / (2 * l2 * l3)
         if c3 > 1.0 + 1e-12 or c3 < -1.0 - 1e-12:

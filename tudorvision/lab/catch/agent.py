@@ -413,7 +413,7 @@ class CatchAgent:
             if np.max(np.abs(th - self.log.setpoint)) < o.refine_min_joint_rad:
                 self._pending = False         # nothing worth a new profile
                 return
-            if np.max(self.mirror.overshoot_rad(th, t)) > o.overshoot_tol_rad:
+            if np.max(self.mirror.overshoot_rad(th, t)) > o.overshoot_tol_rad and not self._stale(it):
                 self._pending = True          # a joint brakes: wait for a frame where the new plan stops in time
                 self.log.deferred += 1
                 return
@@ -424,6 +424,13 @@ class CatchAgent:
         self.setpoints.append([self._throw, t, *th, *it.p_base])
         if self.log.t_first_setpoint_s is None:
             self.log.t_first_setpoint_s = t
+
+    def _stale(self, it) -> bool:
+        """Whether the net went to an estimate over ``refine_force_m`` from ``it`` (a refinement waits no more)."""
+        if not self.setpoints or self.setpoints[-1][0] != self._throw:
+            return False
+        sent_p = np.asarray(self.setpoints[-1][5:8], float)
+        return bool(np.linalg.norm(np.asarray(it.p_base, float) - sent_p) > self.options.refine_force_m)
 
     # ------------------------------------------------------------------ between throws
     def return_to_ready(self, t: float) -> None:

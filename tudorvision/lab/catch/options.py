@@ -76,6 +76,10 @@ class DemoOptions:
         restarts the acceleration from zero: sent while a joint brakes, it brakes too late;
         :class:`~tudorvision.lab.catch.agent.ReferenceMirror`) waits for a later frame, rad;
         ``inf``: refinements go out at once (the behaviour before).
+    refine_force_m : float
+        A refinement waiting for ``overshoot_tol_rad`` goes out anyway once the estimate is more than this
+        from the one the net was sent to (a joint passing its goal costs less than a net several
+        centimetres off), m; ``inf``: it always waits.
     replan : {"restart", "blend"}
         How the joint layer re-plans a motion when a refinement arrives in flight (the simulated layer's
         ``SimCore(replan=...)`` and the agent's mirror of it): the acceleration restarts from zero (the
@@ -130,6 +134,9 @@ class DemoOptions:
         released (:func:`~tudorvision.catch.intercept.inner_reach_m`); False: the compensated IK then
         finds only the other elbow branch there, a swing of joint 3 through most of its range (the
         behaviour before 2026-11-26, seventh session).
+    inner_reach_tol_m : float or None
+        How far nearer the shoulder than that circle an estimate is still released and refined, m; None:
+        the outer edge's tolerance (net radius - ball radius - ``reach_margin_m``, 1.5 cm).
     setpoint_margin_rad : float or tuple of 3 floats
         Setpoints are clipped this far inside the joint ranges, one value or one per joint, rad
         (joint 2 overshot by up to 8 deg on fast moves, and the layer faults 1 deg outside a
@@ -235,6 +242,7 @@ class DemoOptions:
     refine_sharper: float = 0.0
     refine_min_joint_rad: float = float(np.deg2rad(0.5))
     overshoot_tol_rad: float = float(np.deg2rad(0.5))
+    refine_force_m: float = float("inf")
     mode_f0_hz: float = 2.6
     mode_mass_kg: float = 0.26
     mode_elbow_map: bool = False
@@ -250,6 +258,7 @@ class DemoOptions:
     layer_rate_hz: float = 500.0
     reach_margin_m: float = 0.03
     inner_pull: bool = True
+    inner_reach_tol_m: float | None = None
     setpoint_margin_rad: float | tuple = tuple(float(x) for x in np.deg2rad([10.0, 10.0, 3.0]))
     empty_pause_s: float = 1.0
     net_capacity_balls: int = 8

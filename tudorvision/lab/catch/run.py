@@ -74,7 +74,8 @@ def demo_intercept_options(options: DemoOptions, params) -> InterceptOptions:
     return InterceptOptions(release_sigma_m=o.release_sigma_m, refine_sigma_factor=o.refine_sigma_factor,
                             refine_tol_m=o.refine_tol_m, min_interval_s=o.refine_interval_s,
                             refine_sharper=o.refine_sharper,
-                            reach_tol_m=reach_tol, inner_reach_m=demo_inner_reach_m(o, params))
+                            reach_tol_m=reach_tol, inner_reach_m=demo_inner_reach_m(o, params),
+                            inner_reach_tol_m=o.inner_reach_tol_m)
 
 
 def demo_kinematics(options: DemoOptions, params):
