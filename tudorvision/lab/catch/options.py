@@ -79,7 +79,8 @@ class DemoOptions:
     refine_force_m : float
         A refinement waiting for ``overshoot_tol_rad`` goes out anyway once the estimate is more than this
         from the one the net was sent to (a joint passing its goal costs less than a net several
-        centimetres off), m; ``inf``: it always waits.
+        centimetres off), m; ``inf``: it always waits (the behaviour before the twenty-sixth session,
+        when such waits lasted until the crossing).
     replan : {"restart", "blend"}
         How the joint layer re-plans a motion when a refinement arrives in flight (the simulated layer's
         ``SimCore(replan=...)`` and the agent's mirror of it): the acceleration restarts from zero (the
@@ -136,7 +137,9 @@ class DemoOptions:
         behaviour before 2026-11-26, seventh session).
     inner_reach_tol_m : float or None
         How far nearer the shoulder than that circle an estimate is still released and refined, m; None:
-        the outer edge's tolerance (net radius - ball radius - ``reach_margin_m``, 1.5 cm).
+        net radius - ball radius (4.5 cm; the net sits on the circle itself, no reach margin there), which
+        replaced the outer edge's 1.5 cm in the twenty-sixth session (estimates inside it got no
+        refinement and the net stayed at the first one, up to 6 cm off).
     setpoint_margin_rad : float or tuple of 3 floats
         Setpoints are clipped this far inside the joint ranges, one value or one per joint, rad
         (joint 2 overshot by up to 8 deg on fast moves, and the layer faults 1 deg outside a
@@ -242,7 +245,7 @@ class DemoOptions:
     refine_sharper: float = 0.0
     refine_min_joint_rad: float = float(np.deg2rad(0.5))
     overshoot_tol_rad: float = float(np.deg2rad(0.5))
-    refine_force_m: float = float("inf")
+    refine_force_m: float = 0.04
     mode_f0_hz: float = 2.6
     mode_mass_kg: float = 0.26
     mode_elbow_map: bool = False

@@ -75,7 +75,8 @@ def demo_intercept_options(options: DemoOptions, params) -> InterceptOptions:
                             refine_tol_m=o.refine_tol_m, min_interval_s=o.refine_interval_s,
                             refine_sharper=o.refine_sharper,
                             reach_tol_m=reach_tol, inner_reach_m=demo_inner_reach_m(o, params),
-                            inner_reach_tol_m=o.inner_reach_tol_m)
+                            inner_reach_tol_m=(o.net_radius_m - o.ball_radius_m if o.inner_reach_tol_m is None
+                                               else o.inner_reach_tol_m))
 
 
 def demo_kinematics(options: DemoOptions, params):
