@@ -168,6 +168,8 @@ class ThrowLog:
         When the first intercept setpoint was sent, s.
     setpoint : ndarray, shape (3,), or None
         The last intercept setpoint, rad.
+    setpoint_p_base : ndarray, shape (3,), or None
+        The intercept estimate that setpoint went to, m, base frame.
     t_arrived_s : float or None
         When the joints came within 1 deg of it, s.
     payload_est_kg : float
@@ -181,6 +183,7 @@ class ThrowLog:
     last_ballistic_base: np.ndarray | None = None
     t_first_setpoint_s: float | None = None
     setpoint: np.ndarray | None = None
+    setpoint_p_base: np.ndarray | None = None
     t_arrived_s: float | None = None
     payload_est_kg: float = 0.0
     deferred: int = 0
@@ -420,17 +423,17 @@ class CatchAgent:
         self._pending = False
         self._ready_goal = None                # the intercept supersedes a ready move still waiting
         self.send(th, t, self._profile_speed(th, t, deadline, self._mode_hz(th)))
-        self.log.setpoint, self.log.t_arrived_s = th, None
+        self.log.setpoint, self.log.setpoint_p_base, self.log.t_arrived_s = th, np.asarray(it.p_base, float), None
         self.setpoints.append([self._throw, t, *th, *it.p_base])
         if self.log.t_first_setpoint_s is None:
             self.log.t_first_setpoint_s = t
 
     def _stale(self, it) -> bool:
         """Whether the net went to an estimate over ``refine_force_m`` from ``it`` (a refinement waits no more)."""
-        if not self.setpoints or self.setpoints[-1][0] != self._throw:
+        sent = self.log.setpoint_p_base
+        if sent is None:
             return False
-        sent_p = np.asarray(self.setpoints[-1][5:8], float)
-        return bool(np.linalg.norm(np.asarray(it.p_base, float) - sent_p) > self.options.refine_force_m)
+        return bool(np.linalg.norm(np.asarray(it.p_base, float) - sent) > self.options.refine_force_m)
 
     # ------------------------------------------------------------------ between throws
     def return_to_ready(self, t: float) -> None:
