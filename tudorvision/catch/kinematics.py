@@ -236,6 +236,79 @@ class InverseKinematics:
             out[elbow] = th
         return out
 
+    def nearest_on_branch(self, p_base, theta1: float, payload_kg: float, *, elbow: str, lower_rad,
+                          upper_rad) -> tuple[np.ndarray, float]:
+        """Joint angles on one elbow branch, within bounds, whose deflected end effector comes nearest ``p_base``.
+
+        Where the branch reaches the target inside the bounds this is its solution; where it does not
+        (a crossing low on the right needs joint 2 below its range on the elbow-up branch), it is the
+        bounded least-squares point of the learnt forward model: the arm as near as it can get
+        without swinging joint 3 through the other branch.
+
+        Parameters
+        ----------
+        p_base : array_like, shape (3,)
+            Target, metres, base frame.
+        theta1 : float
+            Azimuth of the working plane, rad.
+        payload_kg : float
+            Payload on top of the mount, kg.
+        elbow : {"up", "down"}
+            The branch (``"up"``: theta3 > 0).
+        lower_rad, upper_rad : array_like, shape (3,)
+            Joint bounds, rad (e.g. the ranges less the setpoint margins); theta1's are ignored.
+
+        Returns
+        -------
+        theta : ndarray, shape (3,)
+            ``[theta1, theta2, theta3]``, rad.
+        distance_m : float
+            Distance of the predicted end effector from the target in the working plane, m.
+
+        Raises
+        ------
+        ValueError
+            On an unknown ``elbow`` or empty bounds on the branch.
+
+        Examples
+        --------
+        >>> from tudorvision.robot import fk_ee
+        >>> ikm = InverseKinematics(DeflectionModel(D=np.zeros((30, 2))))
+        >>> lo, hi = np.deg2rad([-170, -4, -99]), np.deg2rad([180, 182, 99])
+        >>> th, d = ikm.nearest_on_branch(fk_ee([0.0, 0.9, 0.5]), 0.0, 0.0, elbow="up", lower_rad=lo, upper_rad=hi)
+        >>> np.round(th, 6).tolist(), round(d, 9)
+        ([0.0, 0.9, 0.5], 0.0)
+        """
+        from scipy.optimize import least_squares
+
+        from ..robot import ik_all
+        from .intercept import planar_coordinates
+
+        if elbow not in ("up", "down"):
+            raise ValueError(f"elbow: expected 'up' or 'down', got {elbow!r}")
+        lo = np.asarray(lower_rad, float)[1:].copy()
+        hi = np.asarray(upper_rad, float)[1:].copy()
+        eps = 1e-3                     # the branch's own side of the stretched arm
+        if elbow == "up":
+            lo[1] = max(lo[1], eps)
+        else:
+            hi[1] = min(hi[1], -eps)
+        if not np.all(lo < hi):
+            raise ValueError(f"lower_rad, upper_rad: no room on the {elbow} branch between "
+                             f"{np.round(lo, 4).tolist()} and {np.round(hi, 4).tolist()}")
+        r, z = planar_coordinates(p_base, theta1)
+        target = np.array([r, z])
+        # rigid seeds of the branch in the plane theta1 = 0 (the planar model does not depend on theta1)
+        seeds = [s[1:] for s in ik_all(np.array([r, 0.0, z]), self.params, respect_limits=False)
+                 if abs((s[0] + np.pi) % (2 * np.pi) - np.pi) < 1e-6 and (s[2] > 0) == (elbow == "up")]
+        x0 = np.clip(seeds[0] if seeds else (lo + hi) / 2, lo, hi)
+
+        def residual(th23):
+            return self.model(th23[None], payload_kg)[0] - target
+
+        sol = least_squares(residual, x0, bounds=(lo, hi), xtol=1e-10, ftol=1e-12, gtol=1e-12)
+        return np.array([theta1, *sol.x]), float(np.linalg.norm(residual(sol.x)))
+
     def __call__(self, p_base, theta1: float, payload_kg: float, *, near=None, elbow: str | None = None):
         """One solution: valid branches, then the one nearest ``near`` (rad, (3,)).
 

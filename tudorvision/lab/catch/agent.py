@@ -151,6 +151,19 @@ class CatchIK:
 
         return ik(p_base, self.params, elbow=elbow, near=near)
 
+    def nearest_on_branch(self, p_base, payload_kg: float, *, elbow: str, lower_rad, upper_rad):
+        """Joint angles (3,) on one elbow branch within the bounds (rad) that bring the net nearest ``p_base``.
+
+        Returns ``(theta, distance_m)`` (:meth:`~tudorvision.catch.kinematics.InverseKinematics.nearest_on_branch`;
+        the rigid arm when not ``compensate``).
+        """
+        from ...catch.kinematics import DeflectionModel, InverseKinematics
+
+        inverse = self.inverse if self.compensate else \
+            InverseKinematics(DeflectionModel(D=np.zeros((30, 2)), params=self.params), self.params)
+        return inverse.nearest_on_branch(p_base, self.theta1_rad, payload_kg, elbow=elbow, lower_rad=lower_rad,
+                                         upper_rad=upper_rad)
+
 
 @dataclass
 class ThrowLog:
@@ -176,6 +189,8 @@ class ThrowLog:
         The payload estimate used during the throw, kg.
     deferred : int
         Frames a refinement waited because sending it would have made a joint pass its goal.
+    kept_branch : int
+        Setpoints kept on the arm's elbow branch (the other branch's solution would have arrived too late).
     """
 
     detections: int = 0
@@ -187,6 +202,7 @@ class ThrowLog:
     t_arrived_s: float | None = None
     payload_est_kg: float = 0.0
     deferred: int = 0
+    kept_branch: int = 0
 
 
 class CatchAgent:
@@ -368,16 +384,42 @@ class CatchAgent:
                 self._intercept(t, it, np.asarray(st.theta))
         return p_b, rec
 
-    def _goal(self, p_base, theta_now):
-        """Joint setpoint (rad, (3,)) for the net at ``p_base`` (m) inside the setpoint margins; None: unreachable."""
-        try:
-            th = self.ik(p_base, self.payload_est_kg, near=theta_now)
-        except ValueError:
-            return None
+    def _bounds(self):
+        """Joint bounds of the setpoints (rad, two (3,) arrays): the ranges less ``setpoint_margin_rad``."""
         # the joints overshoot (joint 2 by up to 8 deg) on fast moves: a setpoint near the edge of a range
         # tripped the layer's range fault (1 deg tolerance); margins per joint
         margin = np.asarray(self.options.setpoint_margin_rad, float)
-        return np.clip(th, self.lims[:, 0] + margin, self.lims[:, 1] - margin)
+        return self.lims[:, 0] + margin, self.lims[:, 1] - margin
+
+    def _goal(self, p_base, theta_now, t: float | None = None, deadline: float | None = None):
+        """Joint setpoint (rad, (3,)) for the net at ``p_base`` (m) inside the setpoint margins; None: unreachable.
+
+        With ``t`` and ``deadline`` (s) and ``keep_elbow_branch``: a solution on the other elbow branch than
+        the arm's (joint 3 swung through the stretched arm) is taken only if its move ends by the deadline;
+        else the nearest point the arm's own branch reaches within the margins.
+        """
+        lo, hi = self._bounds()
+        try:
+            th = np.clip(self.ik(p_base, self.payload_est_kg, near=theta_now), lo, hi)
+        except ValueError:
+            return None
+        up_now = bool(theta_now[2] > 0)
+        if t is None or not self.options.keep_elbow_branch or bool(th[2] > 0) == up_now:
+            return th
+        if t + self._plan(th, t, theta_now).duration_s <= deadline:
+            return th
+        self.log.kept_branch += 1
+        return self.ik.nearest_on_branch(p_base, self.payload_est_kg, elbow="up" if up_now else "down",
+                                         lower_rad=lo, upper_rad=hi)[0]
+
+    def _plan(self, th, t: float, theta_now):
+        """The layer's motion to ``th`` (rad, (3,)) sent at ``t`` (s) at the fastest profile speed the agent uses."""
+        from ...joint.planner import plan_motion
+
+        speed = max(self.max_speed, self.late_speed)
+        if self.mirror.motion is None:
+            return plan_motion(theta_now, th, v_max=speed, a_max=self.max_accel, t0=t)
+        return self.mirror.plan(th, t, speed)
 
     def _mode_hz(self, goal) -> float:
         """The first mode's frequency for the profile to goal ``goal`` (rad, (3,)), Hz; 0: no mode (full speed)."""
@@ -399,17 +441,17 @@ class CatchAgent:
         o = self.options
         target = net_target(it.p_base, self.ik.theta1_rad, self.params, reach_margin_m=o.reach_margin_m,
                             inner_reach_m=self.inner_reach_m)
-        th = self._goal(target, theta_now)
+        deadline = it.t_cross - o.arrive_before_s
+        th = self._goal(target, theta_now, t, deadline)
         if th is None:
             return
-        deadline = it.t_cross - o.arrive_before_s
         if o.overshoot_lead_m > 0 and self.mirror.motion is not None:
             # when the planned profile would end, hence how far the net will still be carried past its goal
             speed = self._profile_speed(th, t, deadline, self._mode_hz(th))
             t_end = self.mirror.plan(th, t, speed).duration_s + t
             th = self._goal(overshoot_lead_target(target, self.ready_point_base, o.overshoot_lead_m,
                                                   it.t_cross - t_end, fade_s=o.overshoot_fade_s,
-                                                  full_move_m=o.overshoot_full_move_m), theta_now)
+                                                  full_move_m=o.overshoot_full_move_m), theta_now, t, deadline)
             if th is None:
                 return
         if self.log.setpoint is not None:

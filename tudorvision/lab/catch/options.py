@@ -81,6 +81,13 @@ class DemoOptions:
         from the one the net was sent to (a joint passing its goal costs less than a net several
         centimetres off), m; ``inf``: it always waits (the behaviour before the twenty-sixth session,
         when such waits lasted until the crossing).
+    keep_elbow_branch : bool
+        An intercept setpoint whose IK solution lies on the other elbow branch than the arm's (the arm's
+        branch cannot reach it within the setpoint margins: a crossing low on the right with the elbow up)
+        goes there only if that move (joint 3 swung through the stretched arm) ends by the deadline; else the
+        net goes to the nearest point its own branch reaches (:meth:`~tudorvision.lab.catch.agent.CatchIK.nearest_on_branch`).
+        False: the swing is always made (the behaviour before the twenty-seventh session: 0.9-1.5 s of
+        motion, late for this throw and often the next).
     replan : {"restart", "blend"}
         How the joint layer re-plans a motion when a refinement arrives in flight (the simulated layer's
         ``SimCore(replan=...)`` and the agent's mirror of it): the acceleration restarts from zero (the
@@ -246,6 +253,7 @@ class DemoOptions:
     refine_min_joint_rad: float = float(np.deg2rad(0.5))
     overshoot_tol_rad: float = float(np.deg2rad(0.5))
     refine_force_m: float = 0.04
+    keep_elbow_branch: bool = True
     mode_f0_hz: float = 2.6
     mode_mass_kg: float = 0.26
     mode_elbow_map: bool = False
