@@ -327,6 +327,12 @@ def main() -> None:
         if fields[name].type in (str, "str"):        # a named choice, checked by DemoOptions
             extra[name] = value
             continue
+        if fields[name].type in (tuple, "tuple"):    # numbers separated by commas
+            try:
+                extra[name] = tuple(float(x) for x in value.split(","))
+            except ValueError:
+                ap.error(f"--set {item!r}: VALUE must be numbers separated by commas")
+            continue
         try:
             extra[name] = float(value)
         except ValueError:
@@ -339,7 +345,11 @@ def main() -> None:
         DemoOptions(**extra)                          # checked here, not after the first variant's run
     except (TypeError, ValueError) as e:
         ap.error(f"--set: {e}")
-    tag = "".join(f"_{k}{v if isinstance(v, str) else format(v, 'g')}" for k, v in sorted(extra.items()))
+    def _fmt(v):
+        return v if isinstance(v, str) else "-".join(format(x, "g") for x in v) if isinstance(v, tuple) \
+            else format(v, "g")
+
+    tag = "".join(f"_{k}{_fmt(v)}" for k, v in sorted(extra.items()))
     if args.workers < 1:
         ap.error(f"--workers {args.workers}: expected at least 1")
     if args.workers == 1:

@@ -11,6 +11,7 @@ class LayerStub:
 
     def __init__(self, theta_deg=(0.0, 60.0, 60.0)):
         self.sent = []
+        self.profiles = []                     # (max_speed, max_accel) of each setpoint
         self.theta = np.deg2rad(np.asarray(theta_deg, float))
         outer = self
 
@@ -18,6 +19,7 @@ class LayerStub:
             def send_setpoint(self, theta, **kw):
                 from tudorvision.joint import Ack
                 outer.sent.append(np.asarray(theta, float))
+                outer.profiles.append((kw.get("max_speed"), kw.get("max_accel")))
                 return Ack(command_seq=len(outer.sent))
 
             def __getattr__(self, name):

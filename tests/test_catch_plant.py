@@ -4,7 +4,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from _catch_stubs import LayerStub
+from _catch_stubs import LayerStub, identity_ik_agent
 from tudorvision.lab.catch.options import DemoOptions
 
 
@@ -278,3 +278,55 @@ def test_elbow_frequency_factor_is_the_lab_plants_linearised_mode(payload_kg, re
         f = linear_modes(np.deg2rad([0.0, th2, th3]), payload_kg, cfg)["modes_hz"][0]
         assert elbow_frequency_factor(math.radians(th3)) == pytest.approx(f / ref, rel=rel)
     assert elbow_frequency_factor(math.radians(100.0)) > 1.15 > 1.0 > elbow_frequency_factor(0.0)
+
+
+def _mirror_in_flight():
+    from tudorvision.lab.catch.agent import ReferenceMirror
+
+    m = ReferenceMirror(1.6, 6.9)
+    m.sent(np.deg2rad([0.0, 30.0, 60.0]), 0.0, theta_now=np.deg2rad([0.0, 60.0, 60.0]))
+    return m
+
+
+@pytest.mark.parametrize("goal_deg, lead_s", [((0.0, 33.0, 62.0), 0.6), ((0.0, 36.0, 58.0), 0.35),
+                                              ((0.0, 10.0, 80.0), 0.8)])
+def test_choose_profile_takes_the_least_swing_that_arrives_in_time(goal_deg, lead_s):
+    """Brute force over every speed and acceleration pair: none that ends by the deadline swings less than the
+    choice by more than the 2 % tie margin; with the full acceleration only it is the speed choice."""
+    from tudorvision.lab.catch.profile import SPEED_CANDIDATES
+
+    m, t, f = _mirror_in_flight(), 0.3, 2.6
+    goal, deadline, accels = np.deg2rad(goal_deg), 0.3 + lead_s, (1.0, 0.7, 0.5, 0.35, 0.25)
+    v, a = m.choose_profile(goal, t, deadline, f, accels=accels)
+    r, t_end = m.residual_rad(goal, t, f, v_max=v, a_max=a)
+    pairs = [(c * m.v_max, ca * m.a_max) for ca in accels for c in SPEED_CANDIDATES]
+    ends = [m.residual_rad(goal, t, f, v_max=pv, a_max=pa) for pv, pa in pairs]
+    in_time = [rr for rr, te in ends if te <= deadline]
+    if in_time:
+        assert t_end <= deadline and min(in_time) >= 0.98 * r - 1e-15
+    else:
+        assert t_end == pytest.approx(min(te for _, te in ends))
+    assert m.choose_profile(goal, t, deadline, f) == (m.choose_speed(goal, t, deadline, f), m.a_max)
+
+
+def test_a_small_refinement_goes_out_with_the_gentler_acceleration_the_choice_found(monkeypatch):
+    """The agent sends the chosen acceleration to the layer and its mirror plans with it."""
+    layer = LayerStub(theta_deg=(0.0, 57.0, 57.0))
+    agent = identity_ik_agent(layer, monkeypatch, (0.0, 57.0, 57.0), overshoot_lead_m=0.0,
+                              accel_candidates=(1.0, 0.5, 0.25), overshoot_tol_rad=float("inf"))
+    agent.begin_throw(0)
+    agent._intercept(0.0, SimpleNamespace(p_base=np.deg2rad([0.0, 40.0, 70.0]), t_cross=0.9), layer.theta)
+    fix = np.deg2rad([0.0, 44.0, 66.0])                      # a correction of a few degrees, the arm at rest
+    v, a = agent.mirror.choose_profile(fix, 1.0, 1.8, agent._mode_hz(fix), accels=(1.0, 0.5, 0.25))
+    expected = agent.mirror.plan(fix, 1.0, v, a).duration_s
+    assert a < agent.max_accel                               # the choice stretches the correction
+    agent._intercept(1.0, SimpleNamespace(p_base=fix, t_cross=1.9), layer.theta)
+    assert len(layer.sent) == 2 and np.allclose(layer.sent[-1], fix)
+    assert layer.profiles[-1] == (pytest.approx(v), pytest.approx(a)) and agent._accel == pytest.approx(a)
+    assert agent.mirror.motion.duration_s == pytest.approx(expected)
+
+
+@pytest.mark.parametrize("bad", [(), (0.0,), (1.0, 1.5), ((0.5, 0.5),)])
+def test_accel_candidates_are_checked(bad):
+    with pytest.raises(ValueError, match="accel_candidates"):
+        DemoOptions(accel_candidates=bad)

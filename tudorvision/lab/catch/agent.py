@@ -274,13 +274,13 @@ class CatchAgent:
         self._throw = -1
         self._pending = False
         self.mirror = ReferenceMirror(self.max_speed, self.max_accel, replan=options.replan)
-        self._speed = self.max_speed
+        self._speed, self._accel = self.max_speed, self.max_accel
         self._ready_goal = None
         self.log = ThrowLog()
 
     # ------------------------------------------------------------------ commands
     def _setpoint(self, theta):
-        return self.adapter.send_setpoint(theta, max_speed=self._speed, max_accel=self.max_accel, timeout=5.0)
+        return self.adapter.send_setpoint(theta, max_speed=self._speed, max_accel=self._accel, timeout=5.0)
 
     def _clear_fault_and_resend(self, theta, t: float):
         # the layer stopped the arm (speed or range fault): log it, clear it (a FaultReset: since protocol v2 a
@@ -290,14 +290,15 @@ class CatchAgent:
         self.adapter.set_mode(self._mode, damping=self.damping)
         self.mirror.reset(self.layer.state().theta, t)      # the stop left the reference where the arm is
         reply = self._setpoint(theta)
-        self.mirror.sent(theta, t, v_max=self._speed)
+        self.mirror.sent(theta, t, v_max=self._speed, a_max=self._accel)
         return reply
 
-    def send(self, theta, t: float, speed: float | None = None) -> bool:
+    def send(self, theta, t: float, speed: float | None = None, accel: float | None = None) -> bool:
         """Send a joint setpoint (rad, (3,)) at time ``t`` (s); a fault stop is cleared and the setpoint resent.
 
         ``speed``: the profile speed, rad/s (default the demo's, :func:`profile_limits`), at most the
-        faster of the demo's and the late-move speed (``DemoOptions.late_speed_fraction``).
+        faster of the demo's and the late-move speed (``DemoOptions.late_speed_fraction``); ``accel``: the
+        profile acceleration, rad/s^2 (default and at most the demo's).
 
         Returns
         -------
@@ -308,8 +309,9 @@ class CatchAgent:
 
         self._last_sent = np.asarray(theta, float)
         self._speed = self.max_speed if speed is None else float(min(speed, max(self.max_speed, self.late_speed)))
+        self._accel = self.max_accel if accel is None else float(min(accel, self.max_accel))
         reply = self._setpoint(theta)
-        self.mirror.sent(theta, t, theta_now=self.layer.state().theta, v_max=self._speed)
+        self.mirror.sent(theta, t, theta_now=self.layer.state().theta, v_max=self._speed, a_max=self._accel)
         if isinstance(reply, Refusal) and reply.code == Reason.FAULT:
             reply = self._clear_fault_and_resend(theta, t)
         ok = isinstance(reply, Ack)
@@ -430,12 +432,19 @@ class CatchAgent:
         # with the elbow map, the mode at the goal, where the residual swing rings
         return f * elbow_frequency_factor(goal[2]) if o.mode_elbow_map else f
 
-    def _profile_speed(self, th, t: float, deadline: float, f: float):
-        """The profile speed for setpoint ``th`` sent at ``t`` (rad/s; None: the layer's default)."""
+    def _profile(self, th, t: float, deadline: float, f: float):
+        """Profile speed and acceleration for setpoint ``th`` sent at ``t`` (rad/s, rad/s^2; None: the defaults).
+
+        The least residual swing of the mode at ``f`` (Hz) by the deadline over the speeds and the accelerations
+        ``DemoOptions.accel_candidates``; a move that cannot end in time at any of them takes the late speed
+        at the full acceleration.
+        """
         if self.mirror.motion is None:
-            return None
-        return self.mirror.late_speed(th, t, deadline, f, self.mirror.choose_speed(th, t, deadline, f),
-                                      self.late_speed)
+            return None, None
+        v, a = self.mirror.choose_profile(th, t, deadline, f, accels=self.options.accel_candidates)
+        if self.mirror.residual_rad(th, t, f if f > 0 else 1.0, v_max=v, a_max=a)[1] <= deadline:
+            return v, a
+        return self.mirror.late_speed(th, t, deadline, f, self.max_speed, self.late_speed), self.max_accel
 
     def _intercept(self, t: float, it, theta_now) -> None:
         o = self.options
@@ -447,8 +456,8 @@ class CatchAgent:
             return
         if o.overshoot_lead_m > 0 and self.mirror.motion is not None:
             # when the planned profile would end, hence how far the net will still be carried past its goal
-            speed = self._profile_speed(th, t, deadline, self._mode_hz(th))
-            t_end = self.mirror.plan(th, t, speed).duration_s + t
+            speed, accel = self._profile(th, t, deadline, self._mode_hz(th))
+            t_end = self.mirror.plan(th, t, speed, accel).duration_s + t
             th = self._goal(overshoot_lead_target(target, self.ready_point_base, o.overshoot_lead_m,
                                                   it.t_cross - t_end, fade_s=o.overshoot_fade_s,
                                                   full_move_m=o.overshoot_full_move_m), theta_now, t, deadline)
@@ -464,7 +473,7 @@ class CatchAgent:
                 return
         self._pending = False
         self._ready_goal = None                # the intercept supersedes a ready move still waiting
-        self.send(th, t, self._profile_speed(th, t, deadline, self._mode_hz(th)))
+        self.send(th, t, *self._profile(th, t, deadline, self._mode_hz(th)))
         self.log.setpoint, self.log.setpoint_p_base, self.log.t_arrived_s = th, np.asarray(it.p_base, float), None
         self.setpoints.append([self._throw, t, *th, *it.p_base])
         if self.log.t_first_setpoint_s is None:

@@ -116,6 +116,12 @@ class DemoOptions:
         (:class:`~tudorvision.sim.net_balls.SwingingBalls`: at 1.55 Hz for 0.1 m, the fabric damping the swing
         at 0.1 of critical), as the seed's do; 0: point masses fixed at the end effector (the lab before
         2026-11-27, twenty-third session).
+    accel_candidates : tuple of float
+        Profile accelerations the speed choice may also take for an intercept setpoint, fractions of
+        ``accel_fraction``'s (:meth:`~tudorvision.lab.catch.profile.ReferenceMirror.choose_profile`): a
+        refinement of a few centimetres never reaches the profile speed, so at the full acceleration it is a
+        pulse of 0.1-0.2 s, near half a period of the arm's first mode; a lower acceleration stretches it.
+        ``(1.0,)``: the full acceleration only (the behaviour before the twenty-seventh session).
     arrive_before_s : float
         The profile must end this long before the crossing the agent predicts, s (0.1 since
         2026-11-26: the net has a little longer to settle; 0.05 caught 9 fewer of 211 development throws).
@@ -261,6 +267,7 @@ class DemoOptions:
     overshoot_fade_s: float = 0.25
     overshoot_full_move_m: float = 0.2
     ball_swing_length_m: float = 0.1
+    accel_candidates: tuple = (1.0,)
     arrive_before_s: float = 0.1
     replan: str = "restart"
     speed_fraction: float = 0.75
@@ -326,6 +333,9 @@ class DemoOptions:
             raise ValueError(f"overshoot_lead_m, overshoot_fade_s, overshoot_full_move_m: expected 0-0.05 m, > 0 s and "
                              f"> 0 m, got {self.overshoot_lead_m}, {self.overshoot_fade_s}, "
                              f"{self.overshoot_full_move_m}")
+        acc = np.asarray(self.accel_candidates, float)
+        if acc.ndim != 1 or not len(acc) or not np.all((acc > 0) & (acc <= 1)):
+            raise ValueError(f"accel_candidates: expected fractions in (0, 1], got {self.accel_candidates!r}")
         if not 0.0 <= self.refine_sharper < 1.0:
             raise ValueError(f"refine_sharper: expected [0, 1), got {self.refine_sharper}")
         if int(self.calibration_frames_per_pose) != self.calibration_frames_per_pose \

@@ -184,27 +184,30 @@ class ReferenceMirror:
         th, dth, _ = self.motion.sample(float(t))
         return np.asarray(th, float), np.asarray(dth, float)
 
-    def plan(self, goal, t: float, v_max: float | None = None):
-        """The motion the layer would plan for ``goal`` (rad, (3,)) sent at ``t`` (s) with speed ``v_max`` (rad/s)."""
+    def plan(self, goal, t: float, v_max: float | None = None, a_max: float | None = None):
+        """The motion the layer would plan for ``goal`` (rad, (3,)) sent at ``t`` (s) with speed ``v_max`` (rad/s).
+
+        ``a_max``: the setpoint's profile acceleration, rad/s^2 (default the mirror's).
+        """
         from ...joint.planner import blend_replan, plan_motion
 
+        v = self.v_max if v_max is None else float(v_max)
+        a = self.a_max if a_max is None else float(a_max)
         if self.replan == "blend":
             th, dth, ddth = self.motion.sample(float(t))
-            return blend_replan(th, dth, ddth, np.asarray(goal, float),
-                                v_max=self.v_max if v_max is None else float(v_max), a_max=self.a_max, t0=float(t))
+            return blend_replan(th, dth, ddth, np.asarray(goal, float), v_max=v, a_max=a, t0=float(t))
         th, dth = self.state(t)
-        return plan_motion(th, np.asarray(goal, float), v_max=self.v_max if v_max is None else float(v_max),
-                           a_max=self.a_max, dtheta_start=dth, t0=float(t))
+        return plan_motion(th, np.asarray(goal, float), v_max=v, a_max=a, dtheta_start=dth, t0=float(t))
 
-    def sent(self, goal, t: float, *, theta_now=None, v_max: float | None = None) -> None:
+    def sent(self, goal, t: float, *, theta_now=None, v_max: float | None = None, a_max: float | None = None) -> None:
         """A setpoint ``goal`` (rad, (3,)) went out at ``t`` (s) with speed ``v_max`` (rad/s; default the mirror's).
 
-        ``theta_now``: the rest pose before any setpoint (rad, (3,)).
+        ``theta_now``: the rest pose before any setpoint (rad, (3,)); ``a_max``: its acceleration, rad/s^2.
         """
         if self.motion is None:
             self.reset(theta_now if theta_now is not None else goal, t)
         at_rest = t >= self.motion.t0 + self.motion.duration_s
-        new = self.plan(goal, t, v_max)
+        new = self.plan(goal, t, v_max, a_max)
         if at_rest:
             self.segments = []
         elif self.segments:
@@ -243,8 +246,9 @@ class ReferenceMirror:
         path = np.asarray(m.sample(m.t0 + np.linspace(0.0, m.duration_s, max(int(samples), 2)))[0], float)
         return path.min(axis=0), path.max(axis=0)
 
-    def residual_rad(self, goal, t: float, f_hz: float, *, v_max: float | None = None, samples: int = 160):
-        """Residual excitation of a mode at ``f_hz`` (Hz) if ``goal`` were sent at ``t`` (s) with ``v_max``.
+    def residual_rad(self, goal, t: float, f_hz: float, *, v_max: float | None = None, a_max: float | None = None,
+                     samples: int = 160):
+        """Residual excitation of a mode at ``f_hz`` (Hz) if ``goal`` were sent at ``t`` (s) with ``v_max``, ``a_max``.
 
         ``sum_j |integral a_j(s) exp(-i w s) ds| / w`` over joints 2 and 3, ``a_j`` the reference's
         acceleration (rad/s^2) since the arm last rested up to the end of the new motion, ``w = 2 pi f``.
@@ -256,7 +260,7 @@ class ReferenceMirror:
             new motion ends (s).
         """
         w = 2.0 * math.pi * float(f_hz)
-        new = self.plan(goal, t, v_max)
+        new = self.plan(goal, t, v_max, a_max)
         segs = [s for s in self.segments if s[2] > s[1]]
         if segs and segs[-1][2] > t:
             segs[-1] = (segs[-1][0], segs[-1][1], float(t))
@@ -276,19 +280,43 @@ class ReferenceMirror:
 
         Among ``candidates`` (fractions of the mirror's speed) that end by ``deadline_s`` the one with the
         least :meth:`residual_rad` at ``f_hz`` (the faster on a tie within 2 %); if none ends in time, the
-        fastest. ``f_hz <= 0``: the mirror's speed.
+        fastest. ``f_hz <= 0``: the mirror's speed. :meth:`choose_profile` at the mirror's acceleration.
+        """
+        return self.choose_profile(goal, t, deadline_s, f_hz, speeds=candidates)[0]
+
+    def choose_profile(self, goal, t: float, deadline_s: float, f_hz: float, *, speeds=SPEED_CANDIDATES,
+                       accels=(1.0,)) -> tuple[float, float]:
+        """Profile speed and acceleration (rad/s, rad/s^2) for ``goal`` sent at ``t`` (s), least swing by ``deadline_s``.
+
+        Every pair of ``speeds`` and ``accels`` (fractions of the mirror's speed and acceleration): among those
+        that end by ``deadline_s`` the one with the least :meth:`residual_rad` at ``f_hz`` (on a tie within 2 %
+        the pair tried first: the full acceleration, then the faster speed); if none ends in time, the one that
+        ends first. A small correction never reaches the profile speed, so only a lower acceleration can
+        stretch it towards a whole period of the mode.
+        ``f_hz <= 0``: the mirror's speed and acceleration.
+
+        Examples
+        --------
+        >>> m = ReferenceMirror(1.0, 4.0)
+        >>> m.reset([0.0, 0.0, 0.0], 0.0)
+        >>> v, a = m.choose_profile([0.0, 0.05, 0.0], 0.0, 5.0, 2.5, accels=(1.0, 0.5, 0.25))
+        >>> slow = m.residual_rad([0.0, 0.05, 0.0], 0.0, 2.5, v_max=v, a_max=a)[0]
+        >>> bool(a < 4.0 and slow < m.residual_rad([0.0, 0.05, 0.0], 0.0, 2.5)[0])
+        True
         """
         if not f_hz > 0 or self.motion is None:
-            return self.v_max
-        best, fastest = None, None
-        for c in candidates:
-            v = c * self.v_max
-            r, t_end = self.residual_rad(goal, t, f_hz, v_max=v)
-            if fastest is None or t_end < fastest[1] - 1e-9:
-                fastest = (v, t_end)
-            if t_end <= deadline_s and (best is None or r < 0.98 * best[1]):
-                best = (v, r)
-        return best[0] if best is not None else fastest[0]
+            return self.v_max, self.a_max
+        best, first = None, None
+        for ca in accels:
+            a = ca * self.a_max
+            for c in speeds:
+                v = c * self.v_max
+                r, t_end = self.residual_rad(goal, t, f_hz, v_max=v, a_max=a)
+                if first is None or t_end < first[2] - 1e-9:
+                    first = (v, a, t_end)
+                if t_end <= deadline_s and (best is None or r < 0.98 * best[2]):
+                    best = (v, a, r)
+        return (best[0], best[1]) if best is not None else (first[0], first[1])
 
     def late_speed(self, goal, t: float, deadline_s: float, f_hz: float, speed: float, late_speed: float) -> float:
         """``speed`` (rad/s) if ``goal`` sent at ``t`` with it ends by ``deadline_s`` (s), else ``late_speed``.
