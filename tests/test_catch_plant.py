@@ -330,3 +330,27 @@ def test_a_small_refinement_goes_out_with_the_gentler_acceleration_the_choice_fo
 def test_accel_candidates_are_checked(bad):
     with pytest.raises(ValueError, match="accel_candidates"):
         DemoOptions(accel_candidates=bad)
+
+
+def test_the_settling_weight_prefers_the_profile_that_leaves_least_at_the_crossing():
+    """With a decay the choice is the brute-force least of residual x exp(-decay (crossing - end)); a strong decay
+    favours an earlier end than the plain choice."""
+    import math
+
+    from tudorvision.lab.catch.profile import SPEED_CANDIDATES
+
+    m, t, f = _mirror_in_flight(), 0.3, 2.6
+    goal, t_cross = np.deg2rad([0.0, 10.0, 80.0]), 1.4
+    deadline = t_cross - 0.1
+    plain = m.choose_profile(goal, t, deadline, f)
+    v, a = m.choose_profile(goal, t, deadline, f, decay_per_s=20.0, t_cross_s=t_cross)
+    score = {}
+    for c in SPEED_CANDIDATES:
+        r, t_end = m.residual_rad(goal, t, f, v_max=c * m.v_max)
+        if t_end <= deadline:
+            score[c * m.v_max] = (r * math.exp(-20.0 * (t_cross - t_end)), t_end)
+    best = min(s for s, _ in score.values())
+    assert score[v][0] <= best / 0.98 + 1e-15
+    assert score[v][1] <= m.residual_rad(goal, t, f, v_max=plain[0])[1]
+    with pytest.raises(ValueError, match="settle_decay_per_s"):
+        DemoOptions(settle_decay_per_s=-1.0)

@@ -432,7 +432,7 @@ class CatchAgent:
         # with the elbow map, the mode at the goal, where the residual swing rings
         return f * elbow_frequency_factor(goal[2]) if o.mode_elbow_map else f
 
-    def _profile(self, th, t: float, deadline: float, f: float):
+    def _profile(self, th, t: float, deadline: float, f: float, t_cross: float | None = None):
         """Profile speed and acceleration for setpoint ``th`` sent at ``t`` (rad/s, rad/s^2; None: the defaults).
 
         The least residual swing of the mode at ``f`` (Hz) by the deadline over the speeds and the accelerations
@@ -441,7 +441,8 @@ class CatchAgent:
         """
         if self.mirror.motion is None:
             return None, None
-        v, a = self.mirror.choose_profile(th, t, deadline, f, accels=self.options.accel_candidates)
+        v, a = self.mirror.choose_profile(th, t, deadline, f, accels=self.options.accel_candidates,
+                                          decay_per_s=self.options.settle_decay_per_s, t_cross_s=t_cross)
         if self.mirror.residual_rad(th, t, f if f > 0 else 1.0, v_max=v, a_max=a)[1] <= deadline:
             return v, a
         return self.mirror.late_speed(th, t, deadline, f, self.max_speed, self.late_speed), self.max_accel
@@ -456,7 +457,7 @@ class CatchAgent:
             return
         if o.overshoot_lead_m > 0 and self.mirror.motion is not None:
             # when the planned profile would end, hence how far the net will still be carried past its goal
-            speed, accel = self._profile(th, t, deadline, self._mode_hz(th))
+            speed, accel = self._profile(th, t, deadline, self._mode_hz(th), it.t_cross)
             t_end = self.mirror.plan(th, t, speed, accel).duration_s + t
             th = self._goal(overshoot_lead_target(target, self.ready_point_base, o.overshoot_lead_m,
                                                   it.t_cross - t_end, fade_s=o.overshoot_fade_s,
@@ -473,7 +474,7 @@ class CatchAgent:
                 return
         self._pending = False
         self._ready_goal = None                # the intercept supersedes a ready move still waiting
-        self.send(th, t, *self._profile(th, t, deadline, self._mode_hz(th)))
+        self.send(th, t, *self._profile(th, t, deadline, self._mode_hz(th), it.t_cross))
         self.log.setpoint, self.log.setpoint_p_base, self.log.t_arrived_s = th, np.asarray(it.p_base, float), None
         self.setpoints.append([self._throw, t, *th, *it.p_base])
         if self.log.t_first_setpoint_s is None:

@@ -122,6 +122,11 @@ class DemoOptions:
         refinement of a few centimetres never reaches the profile speed, so at the full acceleration it is a
         pulse of 0.1-0.2 s, near half a period of the arm's first mode; a lower acceleration stretches it.
         ``(1.0,)``: the full acceleration only (the behaviour before the twenty-seventh session).
+    settle_decay_per_s : float
+        The speed choice weighs each profile's residual swing by ``exp(-settle_decay_per_s x (crossing - end))``,
+        what the arm's damping leaves of it at the predicted crossing, 1/s: an earlier arrival has longer to
+        settle (the net's error falls from 2.5 cm RMS when the arm arrives less than 0.1 s before the crossing
+        to 1.0 cm after 0.3 s); 0: the swing at the end of the motion (the behaviour before).
     arrive_before_s : float
         The profile must end this long before the crossing the agent predicts, s (0.1 since
         2026-11-26: the net has a little longer to settle; 0.05 caught 9 fewer of 211 development throws).
@@ -268,6 +273,7 @@ class DemoOptions:
     overshoot_full_move_m: float = 0.2
     ball_swing_length_m: float = 0.1
     accel_candidates: tuple = (1.0,)
+    settle_decay_per_s: float = 0.0
     arrive_before_s: float = 0.1
     replan: str = "restart"
     speed_fraction: float = 0.75
@@ -333,6 +339,8 @@ class DemoOptions:
             raise ValueError(f"overshoot_lead_m, overshoot_fade_s, overshoot_full_move_m: expected 0-0.05 m, > 0 s and "
                              f"> 0 m, got {self.overshoot_lead_m}, {self.overshoot_fade_s}, "
                              f"{self.overshoot_full_move_m}")
+        if not (np.isfinite(self.settle_decay_per_s) and self.settle_decay_per_s >= 0):
+            raise ValueError(f"settle_decay_per_s: expected >= 0 (1/s), got {self.settle_decay_per_s}")
         acc = np.asarray(self.accel_candidates, float)
         if acc.ndim != 1 or not len(acc) or not np.all((acc > 0) & (acc <= 1)):
             raise ValueError(f"accel_candidates: expected fractions in (0, 1], got {self.accel_candidates!r}")

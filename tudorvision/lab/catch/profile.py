@@ -285,7 +285,7 @@ class ReferenceMirror:
         return self.choose_profile(goal, t, deadline_s, f_hz, speeds=candidates)[0]
 
     def choose_profile(self, goal, t: float, deadline_s: float, f_hz: float, *, speeds=SPEED_CANDIDATES,
-                       accels=(1.0,)) -> tuple[float, float]:
+                       accels=(1.0,), decay_per_s: float = 0.0, t_cross_s: float | None = None) -> tuple[float, float]:
         """Profile speed and acceleration (rad/s, rad/s^2) for ``goal`` sent at ``t`` (s), least swing by ``deadline_s``.
 
         Every pair of ``speeds`` and ``accels`` (fractions of the mirror's speed and acceleration): among those
@@ -293,7 +293,9 @@ class ReferenceMirror:
         the pair tried first: the full acceleration, then the faster speed); if none ends in time, the one that
         ends first. A small correction never reaches the profile speed, so only a lower acceleration can
         stretch it towards a whole period of the mode.
-        ``f_hz <= 0``: the mirror's speed and acceleration.
+        ``f_hz <= 0``: the mirror's speed and acceleration. With ``decay_per_s`` > 0 and ``t_cross_s`` (s) the
+        swing is weighed by ``exp(-decay_per_s (t_cross_s - t_end))``: what is left of it at the crossing when
+        the arm's damping takes it down at that rate after the motion ends.
 
         Examples
         --------
@@ -312,6 +314,8 @@ class ReferenceMirror:
             for c in speeds:
                 v = c * self.v_max
                 r, t_end = self.residual_rad(goal, t, f_hz, v_max=v, a_max=a)
+                if decay_per_s > 0 and t_cross_s is not None:
+                    r *= math.exp(-float(decay_per_s) * max(float(t_cross_s) - t_end, 0.0))
                 if first is None or t_end < first[2] - 1e-9:
                     first = (v, a, t_end)
                 if t_end <= deadline_s and (best is None or r < 0.98 * best[2]):
