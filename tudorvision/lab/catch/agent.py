@@ -190,7 +190,8 @@ class ThrowLog:
     deferred : int
         Frames a refinement waited because sending it would have made a joint pass its goal.
     kept_branch : int
-        Setpoints kept on the arm's elbow branch (the other branch's solution would have arrived too late).
+        IK solutions replaced by the nearest point of the arm's own elbow branch (the other branch's would have
+        arrived too late); up to two per setpoint: its target and the target moved back by the overshoot lead.
     """
 
     detections: int = 0
