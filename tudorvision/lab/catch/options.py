@@ -85,7 +85,8 @@ class DemoOptions:
         An intercept setpoint whose IK solution lies on the other elbow branch than the arm's (the arm's
         branch cannot reach it within the setpoint margins: a crossing low on the right with the elbow up)
         goes there only if that move (joint 3 swung through the stretched arm) ends by the deadline; else the
-        net goes to the nearest point its own branch reaches (:meth:`~tudorvision.lab.catch.agent.CatchIK.nearest_on_branch`).
+        net goes to the nearest point its own branch reaches
+        (:meth:`~tudorvision.lab.catch.agent.CatchIK.nearest_on_branch`).
         False: the swing is always made (the behaviour before the twenty-seventh session: 0.9-1.5 s of
         motion, late for this throw and often the next).
     replan : {"restart", "blend"}

@@ -286,7 +286,7 @@ class ReferenceMirror:
 
     def choose_profile(self, goal, t: float, deadline_s: float, f_hz: float, *, speeds=SPEED_CANDIDATES,
                        accels=(1.0,), decay_per_s: float = 0.0, t_cross_s: float | None = None) -> tuple[float, float]:
-        """Profile speed and acceleration (rad/s, rad/s^2) for ``goal`` sent at ``t`` (s), least swing by ``deadline_s``.
+        """Profile speed and acceleration (rad/s, rad/s^2) for ``goal`` sent at ``t`` (s): least swing by the deadline.
 
         Every pair of ``speeds`` and ``accels`` (fractions of the mirror's speed and acceleration): among those
         that end by ``deadline_s`` the one with the least :meth:`residual_rad` at ``f_hz`` (on a tie within 2 %
