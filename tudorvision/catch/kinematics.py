@@ -206,6 +206,20 @@ class InverseKinematics:
             th = th + step
         return th, np.linalg.norm(target_rz - self.model(th[None], payload_kg)[0]) < 1e-3
 
+    def _rigid_seeds(self, r: float, z: float, theta1: float) -> dict:
+        """Rigid IK of the planar target ``(r, z)`` (m) in the plane of ``theta1`` per elbow, ranges ignored.
+
+        ``{"up" | "down": (theta2, theta3)}`` (rad): the seeds of the compensated solves.
+        """
+        from ..robot import ik_all
+
+        p_plane = np.array([r * np.cos(theta1), r * np.sin(theta1), z])
+        out = {}
+        for s in ik_all(p_plane, self.params, respect_limits=False):
+            if abs((s[0] - theta1 + np.pi) % (2 * np.pi) - np.pi) <= 1e-6:
+                out["up" if s[2] > 0 else "down"] = s[1:]
+        return out
+
     def solutions(self, p_base, theta1: float, payload_kg: float) -> dict:
         """Per elbow (``"up"``: theta3 > 0, ``"down"``: theta3 <= 0) the valid compensated solution.
 
@@ -214,20 +228,14 @@ class InverseKinematics:
         dict of str to ndarray, shape (3,)
             Only valid branches (converged, same elbow sign, within the ranges).
         """
-        from ..robot import ik_all, within_limits
+        from ..robot import within_limits
         from .intercept import planar_coordinates
 
         r, z = planar_coordinates(p_base, theta1)
         target = np.array([r, z])
         out = {}
-        # rigid seeds for both branches: the rigid IK of the target (in the plane of theta1)
-        p_plane = np.array([r * np.cos(theta1), r * np.sin(theta1), z])
-        seeds = ik_all(p_plane, self.params, respect_limits=False)
-        for s in seeds:
-            if abs((s[0] - theta1 + np.pi) % (2 * np.pi) - np.pi) > 1e-6:
-                continue
-            elbow = "up" if s[2] > 0 else "down"
-            th23, ok = self._solve_branch(target, s[1:], payload_kg)
+        for elbow, seed23 in self._rigid_seeds(r, z, theta1).items():
+            th23, ok = self._solve_branch(target, seed23, payload_kg)
             if not ok or (th23[1] > 0) != (elbow == "up"):
                 continue
             th = np.array([theta1, *th23])
@@ -281,7 +289,6 @@ class InverseKinematics:
         """
         from scipy.optimize import least_squares
 
-        from ..robot import ik_all
         from .intercept import planar_coordinates
 
         if elbow not in ("up", "down"):
@@ -298,10 +305,8 @@ class InverseKinematics:
                              f"{np.round(lo, 4).tolist()} and {np.round(hi, 4).tolist()}")
         r, z = planar_coordinates(p_base, theta1)
         target = np.array([r, z])
-        # rigid seeds of the branch in the plane theta1 = 0 (the planar model does not depend on theta1)
-        seeds = [s[1:] for s in ik_all(np.array([r, 0.0, z]), self.params, respect_limits=False)
-                 if abs((s[0] + np.pi) % (2 * np.pi) - np.pi) < 1e-6 and (s[2] > 0) == (elbow == "up")]
-        x0 = np.clip(seeds[0] if seeds else (lo + hi) / 2, lo, hi)
+        seed23 = self._rigid_seeds(r, z, theta1).get(elbow)
+        x0 = np.clip(seed23 if seed23 is not None else (lo + hi) / 2, lo, hi)
 
         def residual(th23):
             return self.model(th23[None], payload_kg)[0] - target

@@ -444,7 +444,7 @@ class CatchAgent:
             return None, None
         v, a = self.mirror.choose_profile(th, t, deadline, f, accels=self.options.accel_candidates,
                                           decay_per_s=self.options.settle_decay_per_s, t_cross_s=t_cross)
-        if self.mirror.residual_rad(th, t, f if f > 0 else 1.0, v_max=v, a_max=a)[1] <= deadline:
+        if t + self.mirror.plan(th, t, v, a).duration_s <= deadline:
             return v, a
         return self.mirror.late_speed(th, t, deadline, f, self.max_speed, self.late_speed), self.max_accel
 
