@@ -96,7 +96,8 @@ def overshoot_lead_target(target_base, from_base, lead_m: float, margin_s: float
     default demo, arriving less than 0.2 s before the crossing after a move of 0.2 m or more left the net
     9-15 mm beyond its target along the move (sd 8-21 mm), arriving 0.3 s or more before it 1-3 mm. The
     target is moved back towards ``from_base`` by
-    ``lead_m * min(|move| / full_move_m, 1) * clip(1 - margin_s / fade_s, 0, 1)`` (at most half the move).
+    ``lead_m * min(|move| / full_move_m, 1) * clip(1 - margin_s / fade_s, 0, 1)`` (at most half the move; a
+    move of 1 nm or less, or a margin that is not finite, leaves the target unchanged).
 
     Parameters
     ----------
