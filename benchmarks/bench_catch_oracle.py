@@ -327,7 +327,7 @@ def main() -> None:
         if fields[name].type in (str, "str"):        # a named choice, checked by DemoOptions
             extra[name] = value
             continue
-        if fields[name].type in (tuple, "tuple"):    # numbers separated by commas
+        if "," in value or fields[name].type in (tuple, "tuple"):    # numbers separated by commas
             try:
                 extra[name] = tuple(float(x) for x in value.split(","))
             except ValueError:
