@@ -195,7 +195,7 @@ def _patch(variant: str) -> tuple:
     return saved
 
 
-def run_variant(variant: str, throws: int, seed: int, **kw) -> tuple[list, dict, float]:
+def run_variant(variant: str, throws: int, seed: int, calibrations: int = 1, **kw) -> tuple[list, dict, float]:
     """Run one variant through the demo's session path; returns (records, summary, wall s)."""
     saved = _patch(variant)
     del RECORDS[:]
@@ -203,7 +203,7 @@ def run_variant(variant: str, throws: int, seed: int, **kw) -> tuple[list, dict,
     try:
         with tempfile.TemporaryDirectory(prefix="oracle-") as d:
             s = run_sessions(d, DemoOptions(render=False, throws=throws, seed=seed, rerun=False, plots=False, **kw),
-                             scheduler="serial")
+                             scheduler="serial", calibrations=calibrations)
     finally:
         demo_run.CatchScenario, demo_run.CatchAgent, demo_run.CatchPerception, demo_run.score_throw = saved
     s = {k: v for k, v in s.items() if k != "per_throw"}
@@ -217,7 +217,7 @@ def _session_job(options: DemoOptions) -> tuple:
     return int(options.seed), list(RECORDS), res
 
 
-def run_variant_pool(variant: str, throws: int, seeds, workers: int, **kw) -> dict:
+def run_variant_pool(variant: str, throws: int, seeds, workers: int, calibrations: int = 1, **kw) -> dict:
     """:func:`run_variant` for several seeds at once, the sessions spread over ``workers`` processes.
 
     Every session runs as in the serial path (its own seed ``seed * 1000 + b``, a fresh arm), so the records
@@ -230,7 +230,7 @@ def run_variant_pool(variant: str, throws: int, seeds, workers: int, **kw) -> di
     jobs = []
     for seed in seeds:
         o = DemoOptions(render=False, throws=throws, seed=seed, rerun=False, plots=False, **kw)
-        jobs += [task.args[0] for task in plan_sessions(o)]
+        jobs += [task.args[0] for task in plan_sessions(o, calibrations=calibrations)]
     with multiprocessing.get_context("fork").Pool(workers, initializer=_patch, initargs=(variant,)) as pool:
         done = pool.map(_session_job, jobs, chunksize=1)
     wall = time.perf_counter() - t0
@@ -314,6 +314,9 @@ def main() -> None:
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="a DemoOptions field for every variant: a number, a switch (0 or 1) or a choice by name, "
                          "e.g. release_sigma_m=0.1 or damping=integral (repeatable)")
+    ap.add_argument("--calibrations", type=int, default=1, metavar="K",
+                    help="wall-camera calibrations the sessions take in turn (session b: calibration_seed + b %% K); "
+                         "1: one calibration for every session")
     ap.add_argument("--out", default="out/bench_catch_oracle")
     args = ap.parse_args()
     out = Path(args.out)
@@ -350,14 +353,20 @@ def main() -> None:
             else format(v, "g")
 
     tag = "".join(f"_{k}{_fmt(v)}" for k, v in sorted(extra.items()))
+    if args.calibrations < 1:
+        ap.error(f"--calibrations {args.calibrations}: expected at least 1")
+    if args.calibrations > 1:
+        tag += f"_cal{args.calibrations}"
     if args.workers < 1:
         ap.error(f"--workers {args.workers}: expected at least 1")
     if args.workers == 1:
         for seed in args.seed:
-            report(args, out, tag, seed, {v: run_variant(v, args.throws, seed, replan=args.replan, **extra)
+            report(args, out, tag, seed, {v: run_variant(v, args.throws, seed, args.calibrations,
+                                                      replan=args.replan, **extra)
                                           for v in args.variants})
     else:
-        runs = {v: run_variant_pool(v, args.throws, args.seed, args.workers, replan=args.replan, **extra)
+        runs = {v: run_variant_pool(v, args.throws, args.seed, args.workers, args.calibrations,
+                                    replan=args.replan, **extra)
                 for v in args.variants}
         for seed in args.seed:
             report(args, out, tag, seed, {v: runs[v][seed] for v in args.variants})

@@ -7,6 +7,7 @@
 """
 from __future__ import annotations
 
+import copy
 from types import SimpleNamespace
 
 import numpy as np
@@ -85,6 +86,45 @@ def test_an_intercept_supersedes_a_waiting_ready_move(monkeypatch):
     assert agent._ready_goal is None and np.allclose(layer.sent[-1], other)
     agent._send_ready(m.t0 + m.duration_s + 0.1)
     assert np.allclose(layer.sent[-1], other)             # nothing else went out
+
+
+@pytest.mark.parametrize("catch_deg", [(0.0, 48.0, 63.0), (0.0, 30.0, 75.0)])
+def test_a_shaped_return_takes_the_least_swing_that_ends_before_the_weighing(monkeypatch, catch_deg):
+    """``ready_shaping``: the return's profile is the choice over speeds x READY_ACCELS, brute-forced here.
+
+    From the nearer catching pose some profiles end before the pause's weighing window; from the farther
+    one none does, and the return takes the one that ends first (the demo's).
+    """
+    from tudorvision.lab.catch.agent import READY_ACCELS, WEIGH_WINDOW_S
+    from tudorvision.lab.catch.profile import SPEED_CANDIDATES
+
+    for shaping in (False, True):
+        layer = LayerStub(theta_deg=(0.0, 57.0, 57.0))
+        agent = identity_ik_agent(layer, monkeypatch, (0.0, 57.0, 57.0), overshoot_lead_m=0.0,
+                                  ready_shaping=shaping)
+        agent.begin_throw(0)
+        catch = np.deg2rad(catch_deg)
+        agent._intercept(0.0, SimpleNamespace(p_base=catch, t_cross=0.9), layer.theta)
+        t = 1.0                                                  # after the crossing, the intercept move over
+        m = copy.deepcopy(agent.mirror)                          # the mirror as it is before the return
+        agent.return_to_ready(t)
+        assert len(layer.sent) == 2 and np.allclose(layer.sent[-1], agent.ready_point_base)
+        v, a = layer.profiles[-1]
+        if not shaping:
+            assert (v, a) == (pytest.approx(agent.max_speed), pytest.approx(agent.max_accel))
+            continue
+        deadline = t + agent.options.gap_s - WEIGH_WINDOW_S - 0.1
+        f = agent._mode_hz(agent.ready_point_base)
+        r, t_end = m.residual_rad(agent.ready_point_base, t, f, v_max=v, a_max=a)
+        tried = [m.residual_rad(agent.ready_point_base, t, f, v_max=c * agent.max_speed, a_max=ca * agent.max_accel)
+                 for ca in READY_ACCELS for c in SPEED_CANDIDATES]
+        in_time = [r2 for r2, t2 in tried if t2 <= deadline]
+        if catch_deg[1] > 40.0:
+            assert in_time and t_end <= deadline and min(in_time) >= 0.98 * r - 1e-12
+            assert r < m.residual_rad(agent.ready_point_base, t, f)[0]     # less swing than the demo's profile
+        else:
+            assert not in_time and t_end == pytest.approx(min(t2 for _, t2 in tried))
+            assert (v, a) == (pytest.approx(agent.max_speed), pytest.approx(agent.max_accel))
 
 
 def test_a_crossing_just_beyond_full_stretch_is_reachable_within_the_tolerance():

@@ -218,6 +218,39 @@ def test_catch_sessions_serial_local_cli_and_ctrl_c_agree(tmp_path, capsys, monk
     _same_files(tmp_path / "serial", tmp_path / "cli", ["throws.csv", "summary.json"])
 
 
+def test_catch_sessions_take_the_calibrations_in_turn(tmp_path, capsys, monkeypatch):
+    """``calibrations=K``: session b calibrates with calibration_seed + b % K; K = 1 keeps the old tasks."""
+    from tudorvision.lab.catch import DemoOptions, run_sessions, sessions
+    opts = DemoOptions(throws=7, seed=3, render=False, calibration_seed=5)
+    one, three = sessions.plan_sessions(opts, 2), sessions.plan_sessions(opts, 2, calibrations=3)
+    assert [t.args[0].calibration_seed for t in one] == [5, 5, 5, 5]
+    assert [t.args[0].calibration_seed for t in three] == [5, 6, 7, 5]
+    assert [t.args[0].seed for t in three] == [t.args[0].seed for t in one] == [3000, 3001, 3002, 3003]
+    assert all("calibrations" not in t.params for t in one) and all(t.params["calibrations"] == 3 for t in three)
+    assert not {t.key for t in one} & {t.key for t in three}        # a K-calibration run never reuses K = 1 records
+    for bad in (0, 1.5):
+        with pytest.raises(ValueError, match="--calibrations"):
+            sessions.plan_sessions(opts, 2, calibrations=bad)
+
+    def fake_session(options):          # the calibration each session was given, its error a function of it
+        return {"per_throw": [], "balls_in_net": 0, "net_emptied": 0, "setpoints_not_acknowledged": 0,
+                "layer_faults_cleared": 0,
+                "calibration": {"calibration_seed": options.calibration_seed,
+                                "error_at_arm_m": 0.001 * options.calibration_seed}}
+
+    monkeypatch.setattr(sessions, "catch_session_task", fake_session)
+    s = run_sessions(tmp_path / "k3", opts, session_throws=2, calibrations=3, scheduler="serial")
+    assert s["complete"] and s["calibration_error_at_arm_m"] == {"5": 0.005, "6": 0.006, "7": 0.007}
+    assert "calibration_error_at_arm_m" not in run_sessions(tmp_path / "k1", opts, session_throws=2,
+                                                            scheduler="serial")
+    assert main(["catch", "demo", "--no-render", "--throws", "2", "--calibrations", "0",
+                 "--out", str(tmp_path / "cli")]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--calibrations: expected >= 1, got 0" in err[0]
+    assert main(["catch", str(tmp_path), "--calibrations", "2"]) != 0
+    assert "only with 'catch demo'" in capsys.readouterr().err
+
+
 # ----------------------------------------------------------------------------- track batch
 def _ball_image(u):
     img = np.full((60, 80, 3), 90, np.uint8)

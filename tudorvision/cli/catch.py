@@ -161,8 +161,10 @@ def _write(path, cols, rows):
 
 
 def _cmd_catch(args) -> int:
-    if args.target != "demo" and (args.scheduler or args.workers or args.session_throws or args.rerun_stale):
-        raise TudorVisionError("--scheduler, --workers, --session-throws, --rerun-stale: only with 'catch demo'")
+    if args.target != "demo" and (args.scheduler or args.workers or args.session_throws or args.rerun_stale
+                                  or args.calibrations is not None):
+        raise TudorVisionError("--scheduler, --workers, --session-throws, --calibrations, --rerun-stale: only with "
+                               "'catch demo'")
     if args.target != "demo" and (args.plant is not None or args.camera_distance_m is not None
                                   or args.ball_swing_length_m is not None):
         raise TudorVisionError("--plant, --camera-distance-m, --ball-swing-length-m: only with 'catch demo'")
@@ -187,10 +189,11 @@ def _cmd_catch(args) -> int:
                            compensate=not args.rigid, rerun=not args.no_rerun,
                            params=robot_from_args(args) if args.robot else None, **more)
         out = Path(args.out or "out/catch/demo")
-        if args.rerun_stale and not (args.scheduler or args.workers or args.session_throws):
-            raise TudorVisionError("--rerun-stale: only on the runner (with --scheduler, --workers or "
-                                   "--session-throws)")
-        if args.scheduler or args.workers or args.session_throws:
+        on_runner = args.scheduler or args.workers or args.session_throws or args.calibrations is not None
+        if args.rerun_stale and not on_runner:
+            raise TudorVisionError("--rerun-stale: only on the runner (with --scheduler, --workers, "
+                                   "--session-throws or --calibrations)")
+        if on_runner:
             if viewer_requested(args):
                 raise TudorVisionError("--rerun, --rerun-live, --rerun-web: not with --scheduler, --workers or "
                                        "--session-throws (sessions write no recording)")
@@ -242,10 +245,12 @@ def _demo_sessions(args, opts, out) -> int:
     from ..lab.runner import parse_scheduler
     if args.workers is not None and args.workers < 1:
         raise TudorVisionError(f"--workers: expected >= 1, got {args.workers}")
+    if args.calibrations is not None and args.calibrations < 1:
+        raise TudorVisionError(f"--calibrations: expected >= 1, got {args.calibrations}")
     scheduler = parse_scheduler(args.scheduler or "local")
     apply_rerun_stale(args, out)
-    s = run_sessions(out, opts, session_throws=args.session_throws or 30, scheduler=scheduler,
-                     workers=args.workers, show_progress=None)
+    s = run_sessions(out, opts, session_throws=args.session_throws or 30, calibrations=args.calibrations or 1,
+                     scheduler=scheduler, workers=args.workers, show_progress=None)
     rate = "n/a" if s["success_rate"] is None else f"{100 * s['success_rate']:.0f} %"
     print(f"{s['throws_done']} of {s['throws']} throws in {s['sessions']} sessions, {s['crossing_workspace']} cross "
           f"the reachable workspace, {s['caught_in_workspace']} of them caught (success rate {rate}); "
@@ -300,6 +305,9 @@ def register(subparsers) -> None:
     add_rerun_stale_argument(p)
     p.add_argument("--session-throws", type=int, default=None, metavar="K",
                    help="demo on the runner: throws per session (default 30)")
+    p.add_argument("--calibrations", type=int, default=None, metavar="K",
+                   help="demo on the runner: wall-camera calibrations the sessions take in turn (each its own "
+                        "simulated disc sweep; default 1, one for all)")
     p.add_argument("--calib", help="SEQ: calibration with intrinsics and T_base_cam")
     p.add_argument("--background", type=int, default=10, help="SEQ: frames for the background (default 10)")
     add_robot_option(p, "the arm, its kinematics and joint limits (demo: also the simulated arm)")

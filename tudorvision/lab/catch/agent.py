@@ -31,7 +31,10 @@ __all__ = ["CatchAgent", "CatchIK", "ThrowLog", "WEIGH_REST_SPEED_RAD_S", "pause
            "profile_limits", "demo_inner_reach_m", "PREDICTION_COLUMNS", "SETPOINT_COLUMNS"]
 
 WEIGH_REST_SPEED_RAD_S = 0.02   # joints slower than this throughout the weighing window: the arm rests
+WEIGH_WINDOW_S = 0.6            # the payload is weighed from the strains of the pause's last 0.6 s
 ARRIVED_TOL_RAD = float(np.deg2rad(1.0))
+#: Profile accelerations (fractions of the demo's) a shaped return to the ready pose may take (``ready_shaping``).
+READY_ACCELS = (1.0, 0.7, 0.5, 0.35)
 
 #: Columns of the agent's prediction rows (``predictions.csv``): one per intercept estimate.
 PREDICTION_COLUMNS = ["throw", "t_s", "status", "x_m", "y_m", "z_m", "vx_m_s", "vy_m_s", "vz_m_s", "t_cross_s",
@@ -85,7 +88,8 @@ def demo_inner_reach_m(options, params) -> float:
     return inner_reach_m(params, float(margin[2]))
 
 
-def pause_and_weigh(layer, t_now: float, duration: float, rate: float, weigh_s: float = 0.6, on_frame=None):
+def pause_and_weigh(layer, t_now: float, duration: float, rate: float, weigh_s: float = WEIGH_WINDOW_S,
+                    on_frame=None):
     """Advance the layer by ``duration`` s; strains sampled at ``rate`` over the last ``weigh_s`` s.
 
     Parameters
@@ -276,7 +280,7 @@ class CatchAgent:
         self._pending = False
         self.mirror = ReferenceMirror(self.max_speed, self.max_accel, replan=options.replan)
         self._speed, self._accel = self.max_speed, self.max_accel
-        self._ready_goal = None
+        self._ready_goal, self._ready_deadline = None, 0.0
         self.log = ThrowLog()
 
     # ------------------------------------------------------------------ commands
@@ -498,9 +502,15 @@ class CatchAgent:
         the next release. The ready setpoint waits (checked every frame, :meth:`wait` and
         :meth:`step`) until its re-plan stays ``setpoint_margin_rad`` inside the ranges or the
         current motion has ended.
+
+        With ``DemoOptions.ready_shaping`` the move takes the profile (speed and acceleration) that leaves
+        the least swing of the arm's first mode from everything it did since it last rested (the intercept
+        move and this one) among those that end before the pause's weighing window
+        (:meth:`~tudorvision.lab.catch.profile.ReferenceMirror.choose_profile`); else the demo's profile.
         """
         self._ready_goal = self.ik(self.ready_point_base, self.payload_est_kg,
                                    near=np.asarray(self.layer.state().theta))
+        self._ready_deadline = t + self.options.gap_s - WEIGH_WINDOW_S - 0.1
         self._send_ready(t)
 
     def _send_ready(self, t: float) -> None:
@@ -514,6 +524,11 @@ class CatchAgent:
             if np.any(lo < self.lims[:, 0] + margin - 1e-9) or np.any(hi > self.lims[:, 1] - margin + 1e-9):
                 return
         self._ready_goal = None
+        if self.options.ready_shaping and self.mirror.motion is not None:
+            v, a = self.mirror.choose_profile(goal, t, self._ready_deadline, self._mode_hz(goal),
+                                              accels=READY_ACCELS)
+            self.send(goal, t, v, a)
+            return
         self.send(goal, t)
 
     def wait(self, t_now: float, duration: float, rate: float):

@@ -67,15 +67,20 @@ def _options_digest(options: DemoOptions) -> str:
                                  cache_dir=""))
 
 
-def plan_sessions(options: DemoOptions, session_throws: int = 30) -> list:
+def plan_sessions(options: DemoOptions, session_throws: int = 30, calibrations: int = 1) -> list:
     """Split ``options.throws`` into sessions of ``session_throws`` as runner tasks.
 
     Parameters
     ----------
     options : DemoOptions
-        The demo (``throws`` in all, ``seed``).
+        The demo (``throws`` in all, ``seed``, ``calibration_seed``).
     session_throws : int
         Throws per session (the last one may have fewer).
+    calibrations : int
+        Wall-camera calibrations the sessions take in turn: session ``b`` calibrates with
+        ``calibration_seed + b % calibrations`` (its own rendered disc sweep and depth noise), so the
+        catch is measured over a family of calibrations, not one draw; 1: every session shares
+        ``calibration_seed``'s (the behaviour before).
 
     Returns
     -------
@@ -85,11 +90,13 @@ def plan_sessions(options: DemoOptions, session_throws: int = 30) -> list:
     Raises
     ------
     ValueError
-        On ``session_throws < 1`` or more than :data:`MAX_SESSIONS` sessions.
+        On ``session_throws < 1``, ``calibrations < 1`` or more than :data:`MAX_SESSIONS` sessions.
     """
     from ..runner import Task
     if session_throws < 1:
         raise ValueError(f"--session-throws: expected >= 1, got {session_throws}")
+    if int(calibrations) != calibrations or calibrations < 1:
+        raise ValueError(f"--calibrations: expected a positive integer, got {calibrations}")
     n = math.ceil(options.throws / session_throws)
     if n > MAX_SESSIONS:
         raise ValueError(f"--session-throws: {options.throws} throws make {n} sessions, more than {MAX_SESSIONS}")
@@ -98,8 +105,12 @@ def plan_sessions(options: DemoOptions, session_throws: int = 30) -> list:
     for b in range(n):
         k = min(session_throws, options.throws - b * session_throws)
         seed = int(options.seed) * MAX_SESSIONS + b
-        tasks.append(Task("catch-demo", {"session": b, "throws": k, "options": digest}, seed, catch_session_task,
-                          (replace(options, seed=seed, throws=k),)))
+        params = {"session": b, "throws": k, "options": digest}
+        if calibrations > 1:          # (keys of single-calibration runs unchanged: their records are reused)
+            params["calibrations"] = int(calibrations)
+        session = replace(options, seed=seed, throws=k,
+                          calibration_seed=int(options.calibration_seed) + b % int(calibrations))
+        tasks.append(Task("catch-demo", params, seed, catch_session_task, (session,)))
     return tasks
 
 
@@ -142,12 +153,20 @@ def write_sessions(out, options: DemoOptions, report, *, session_throws: int, wa
         for row in rows:
             w.writerow([format_cell(row[c]) for c in SESSION_COLUMNS])
     score = summarize_throws(results)
+    calibs = {}
+    for rec in report.done:
+        c = rec["result"].get("calibration") or {}
+        if "calibration_seed" in c:
+            calibs.setdefault(int(c["calibration_seed"]), c)
     summary = {"throws": int(options.throws), "throws_done": len(results), "sessions": len(report.records),
                "session_throws": int(session_throws), "seed": int(options.seed),
                "session_seeds": f"seed * {MAX_SESSIONS} + session",
                **score, "render": options.render, "damping": options.damping, "compensate": options.compensate,
                "net_radius_m": options.net_radius_m, **counts,
                "calibration": next((rec["result"].get("calibration") for rec in report.done), None),
+               # several calibrations (plan_sessions' ``calibrations``): each one's error at the arm, m
+               **({"calibration_error_at_arm_m": {str(k): c.get("error_at_arm_m") for k, c in sorted(calibs.items())}}
+                  if len(calibs) > 1 else {}),
                "complete": report.complete, "interrupted": report.interrupted,
                "sessions_failed": len(report.failed),
                "failures": [{k: r[k] for k in ("key", "seed", "params", "error")} for r in report.failed]}
@@ -157,7 +176,7 @@ def write_sessions(out, options: DemoOptions, report, *, session_throws: int, wa
     return {**summary, "per_throw": rows, "runner": info}
 
 
-def run_sessions(out, options: DemoOptions = DemoOptions(), *, session_throws: int = 30,
+def run_sessions(out, options: DemoOptions = DemoOptions(), *, session_throws: int = 30, calibrations: int = 1,
                  scheduler: str | None = "serial", workers: int | None = None, processes: bool = True,
                  show_progress: bool | None = False, dashboard_address: str | None = ":8787") -> dict:
     """Run the demo's throws as independent sessions on the runner and write the combined results.
@@ -170,6 +189,8 @@ def run_sessions(out, options: DemoOptions = DemoOptions(), *, session_throws: i
         The demo: ``throws`` in all and ``seed``; the recording and plots are not written.
     session_throws : int
         Throws per session.
+    calibrations : int
+        Wall-camera calibrations the sessions take in turn (:func:`plan_sessions`).
     scheduler : str or None
         ``"serial"``, ``"local"`` or a Dask scheduler address.
     workers : int, optional
@@ -188,7 +209,7 @@ def run_sessions(out, options: DemoOptions = DemoOptions(), *, session_throws: i
     """
     from ..runner import run_tasks
     t0 = time.perf_counter()
-    tasks = plan_sessions(options, session_throws)
+    tasks = plan_sessions(options, session_throws, calibrations)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     report = run_tasks(tasks, out, scheduler=scheduler, workers=workers, processes=processes,
