@@ -95,7 +95,8 @@ def main(argv=None) -> int:
     _, inverse = demo_kinematics(o, params)
     theta_ready = inverse(np.asarray(o.ready_point_base, float), 0.0, 0.0, elbow="up")
     t0 = time.perf_counter()
-    rows = ["| balls | law | " + " | ".join(f"{lo:.1f}-{hi:.1f} s" for lo, hi in WINDOWS_S) + " | worst pose (0.1-0.2 s) |",
+    head = " | ".join(f"{lo:.1f}-{hi:.1f} s" for lo, hi in WINDOWS_S)
+    rows = [f"| balls | law | {head} | worst pose (0.1-0.2 s) |",
             "|---|---|" + "---|" * len(WINDOWS_S) + "---|"]
     ratios = []
     for balls in args.balls:

@@ -446,9 +446,10 @@ def test_wall_camera_reaches_the_arm_from_behind_the_thrower(tmp_path):
     assert world.depth_sensor == sensor
     T, rep = wall_camera_transform(o, p, world.T_base_cam, verbose=False)
     assert rep["cached"]            # the default placement's calibration is shipped (package data), not rendered
-    # theta2 10-170 deg 8 frames each, the vertical posture 48, the theta1 sweep 416 (+-45 deg at theta2 = 45 deg)
-    assert rep["skipped_frames"] == 0 and rep["frames"] == 17 * 8 + 48 + 416
-    assert rep["yaw_frames"] == 416 and rep["yaw_skipped_frames"] <= 4 and rep["yaw_points_used"] >= 400
+    # theta2 10-170 deg 32 frames each, the vertical posture 192, the theta1 sweep 1664 (+-45 deg at theta2 = 45 deg)
+    k = o.calibration_frames_per_pose
+    assert k == 32 and rep["skipped_frames"] == 0 and rep["frames"] == 17 * k + 6 * k + 52 * k
+    assert rep["yaw_frames"] == 52 * k and rep["yaw_skipped_frames"] <= k // 2 and rep["yaw_points_used"] >= 50 * k
     assert rep["yaw_depth_from"] == "kinematics" and 1.0 < rep["yaw_radius_scale"] < 1.1     # the links bend out
     # the depth noise correlated as a real Kinect's: 0.15 deg (0.12 cm at the base, 0.13 cm at the arm), what is left
     # is the heading (about z, harmless to the catch); the theta2 sweep alone (method seed) 0.61 deg
@@ -515,18 +516,26 @@ def test_a_cached_calibration_from_other_code_is_computed_again(tmp_path):
         assert not rep["cached"]
         np.testing.assert_allclose(T, shipped, atol=1e-9)     # the shipped file is not stale
         (path,) = tmp_path.glob("wall_calibration_*.json")
+        assert json.loads(path.read_text())["code"] == cal.calibration_code_hash()
+        # the cache's code check on a short sweep (one frame per pose, its own key): same logic, a 75-frame render
+        from dataclasses import replace
+        small = replace(o, calibration_frames_per_pose=1, cache_dir=str(tmp_path / "small"))
+        cal._MEMORY.clear()
+        T1, rep1 = cal.calibrate_wall_camera(small, p, world.T_base_cam, deflection=deflection)
+        assert not rep1["cached"] and rep1["frames"] == 75
+        (path,) = (tmp_path / "small").glob("wall_calibration_*.json")
         entry = json.loads(path.read_text())
         assert entry["code"] == cal.calibration_code_hash()
         forged = dict(entry, T_base_cam=np.eye(4).tolist())
         path.write_text(json.dumps(forged))
         cal._MEMORY.clear()
-        T2, rep2 = cal.calibrate_wall_camera(o, p, world.T_base_cam, deflection=deflection)
+        T2, rep2 = cal.calibrate_wall_camera(small, p, world.T_base_cam, deflection=deflection)
         assert rep2["cached"] and np.allclose(T2, np.eye(4))  # same code: the cache is read as it is
         path.write_text(json.dumps(dict(forged, code="0123456789abcdef")))
         cal._MEMORY.clear()
-        T3, rep3 = cal.calibrate_wall_camera(o, p, world.T_base_cam, deflection=deflection)
+        T3, rep3 = cal.calibrate_wall_camera(small, p, world.T_base_cam, deflection=deflection)
         assert not rep3["cached"]
-        np.testing.assert_allclose(T3, shipped, atol=1e-9)
+        np.testing.assert_allclose(T3, T1, atol=1e-9)
         assert json.loads(path.read_text())["code"] == cal.calibration_code_hash()   # replaced
     finally:
         cal._packaged = packaged

@@ -41,8 +41,9 @@ __all__ = ["wall_camera_position_world", "calibrate_wall_camera", "wall_depth_se
 #: (:func:`tudorvision.rgbd.yaw_sweep.refine_tilt_from_yaw`): the tilt towards the camera from heights, not depths.
 CALIBRATION_METHODS = ("seed", "seed+mirror", "seed+deflection", "seed+deflection+mirror", "seed+mirror+yaw")
 #: theta1 range of the yaw sweep, degrees (the disc seen up to 45 deg off its face): joint 1 turned slowly through
-#: it, one frame per pose, :data:`YAW_POSES` times ``calibration_frames_per_pose`` frames (416 by default: 14 s
-#: at 30 Hz; 104 left the tilt 0.01-0.16 deg off over calibration seeds 0-5, 416 0.00-0.08 deg); their theta2, degrees.
+#: it, one frame per pose, :data:`YAW_POSES` times ``calibration_frames_per_pose`` frames (1664 by default: 55 s
+#: at 30 Hz; 104 left the tilt 0.01-0.16 deg off over calibration seeds 0-5, 416 0.00-0.08 deg, and over seeds 0-7
+#: the rotation about base x 0.128 deg RMS with 416, 0.094 with 832, 0.056 with 1664); their theta2, degrees.
 YAW_THETA1_RANGE_DEG = (-45.0, 45.0)
 YAW_THETA2_DEG = 45.0
 YAW_POSES = 52
@@ -185,7 +186,7 @@ def ship_calibration(cache_file) -> Path:
     """Copy a cached calibration (``wall_calibration_<key>.json`` in a ``cache_dir``) into the package data.
 
     For maintainers: the default placement's calibration is shipped, so that ``make demo`` and a fresh
-    checkout read it instead of rendering and tracking the 184-frame sweep (the key names the sweep, its
+    checkout read it instead of rendering and tracking the sweep (the key names the sweep, its
     seed, the sensor's range and noise, the method and the kinematics; any change gives a new key).
 
     Parameters
