@@ -95,7 +95,7 @@ def test_a_shaped_return_takes_the_least_swing_that_ends_before_the_weighing(mon
     From the nearer catching pose some profiles end before the pause's weighing window; from the farther
     one none does, and the return takes the one that ends first (the demo's).
     """
-    from tudorvision.lab.catch.agent import READY_ACCELS, WEIGH_WINDOW_S
+    from tudorvision.lab.catch.agent import READY_ACCELS, READY_SETTLE_S, WEIGH_WINDOW_S
     from tudorvision.lab.catch.profile import SPEED_CANDIDATES
 
     for shaping in (False, True):
@@ -113,7 +113,7 @@ def test_a_shaped_return_takes_the_least_swing_that_ends_before_the_weighing(mon
         if not shaping:
             assert (v, a) == (pytest.approx(agent.max_speed), pytest.approx(agent.max_accel))
             continue
-        deadline = t + agent.options.gap_s - WEIGH_WINDOW_S - 0.1
+        deadline = t + agent.options.gap_s - WEIGH_WINDOW_S - READY_SETTLE_S
         f = agent._mode_hz(agent.ready_point_base)
         r, t_end = m.residual_rad(agent.ready_point_base, t, f, v_max=v, a_max=a)
         tried = [m.residual_rad(agent.ready_point_base, t, f, v_max=c * agent.max_speed, a_max=ca * agent.max_accel)

@@ -195,8 +195,8 @@ def _cmd_catch(args) -> int:
                                    "--session-throws or --calibrations)")
         if on_runner:
             if viewer_requested(args):
-                raise TudorVisionError("--rerun, --rerun-live, --rerun-web: not with --scheduler, --workers or "
-                                       "--session-throws (sessions write no recording)")
+                raise TudorVisionError("--rerun, --rerun-live, --rerun-web: not with --scheduler, --workers, "
+                                       "--session-throws or --calibrations (sessions write no recording)")
             return _demo_sessions(args, opts, out)
         viewer = open_viewer(args, "tudorvision_catch", default_file=None if args.no_rerun else out / "catch.rrd")
         opts = replace(opts, rerun=viewer is not None)

@@ -32,6 +32,7 @@ __all__ = ["CatchAgent", "CatchIK", "ThrowLog", "WEIGH_REST_SPEED_RAD_S", "pause
 
 WEIGH_REST_SPEED_RAD_S = 0.02   # joints slower than this throughout the weighing window: the arm rests
 WEIGH_WINDOW_S = 0.6            # the payload is weighed from the strains of the pause's last 0.6 s
+READY_SETTLE_S = 0.1            # a shaped return to the ready pose ends this long before the weighing window
 ARRIVED_TOL_RAD = float(np.deg2rad(1.0))
 #: Profile accelerations (fractions of the demo's) a shaped return to the ready pose may take (``ready_shaping``).
 READY_ACCELS = (1.0, 0.7, 0.5, 0.35)
@@ -510,7 +511,7 @@ class CatchAgent:
         """
         self._ready_goal = self.ik(self.ready_point_base, self.payload_est_kg,
                                    near=np.asarray(self.layer.state().theta))
-        self._ready_deadline = t + self.options.gap_s - WEIGH_WINDOW_S - 0.1
+        self._ready_deadline = t + self.options.gap_s - WEIGH_WINDOW_S - READY_SETTLE_S
         self._send_ready(t)
 
     def _send_ready(self, t: float) -> None:

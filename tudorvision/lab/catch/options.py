@@ -224,7 +224,7 @@ class DemoOptions:
         calibrations caught 757 -> 757 -> 776 of 840.
     calibration_method : str
         ``"seed+mirror+yaw"`` (default): ``"seed+mirror"``, then the tilt towards the camera from a theta1
-        sweep at theta2 = 45 deg (13 frames per ``calibration_frames_per_pose``, joint 1 turned through
+        sweep at theta2 = 45 deg (52 frames per ``calibration_frames_per_pose``, joint 1 turned through
         +-45 deg; :func:`~tudorvision.rgbd.yaw_sweep.refine_tilt_from_yaw`: at 6.8 m the theta2 sweep alone
         leaves 0.3-0.6 deg of it under the Kinect's correlated depth noise). ``"seed+mirror"``: the seed's
         sweep construction, then its in-plane angle and lateral
