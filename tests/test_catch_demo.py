@@ -540,3 +540,33 @@ def test_a_cached_calibration_from_other_code_is_computed_again(tmp_path):
     finally:
         cal._packaged = packaged
         cal._MEMORY.clear()
+
+
+def test_frames_reach_the_agent_late_filtered_at_exposure_and_acted_on_at_arrival(tmp_path, capsys):
+    """``camera_latency_s``: every setpoint goes out when a frame arrives, ``latency`` after the exposure its
+    estimate was filtered at (setpoints.csv against predictions.csv); with no latency they coincide. The CLI's
+    ``--camera-latency-ms`` reaches summary.json; a bad value is a one-line error."""
+    import csv
+
+    def times(out):
+        pred = {(int(r["throw"]), round(float(r["t_s"]), 9)) for r in csv.DictReader(open(out / "predictions.csv"))}
+        sent = [(int(r["throw"]), float(r["t_s"])) for r in csv.DictReader(open(out / "setpoints.csv"))]
+        return pred, sent
+
+    for latency_ms in (0.0, 67.0):
+        out = tmp_path / f"lat{latency_ms:g}"
+        assert main(["catch", "demo", "--throws", "3", "--seed", "3", "--no-render", "--no-rerun",
+                     "--camera-latency-ms", f"{latency_ms:g}", "--out", str(out)]) == 0
+        assert json.loads((out / "summary.json").read_text())["camera_latency_s"] == pytest.approx(latency_ms / 1e3)
+        pred, sent = times(out)
+        assert sent
+        for throw, t in sent:          # each setpoint answers an estimate exposed exactly one latency earlier
+            assert (throw, round(t - latency_ms / 1e3, 9)) in pred
+            if latency_ms:
+                assert (throw, round(t, 9)) not in pred
+    capsys.readouterr()
+    assert main(["catch", "demo", "--camera-latency-ms", "-5", "--out", str(tmp_path / "bad")]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--camera-latency-ms" in err[0] and not (tmp_path / "bad").exists()
+    with pytest.raises(ValueError, match="camera_latency_s"):
+        DemoOptions(camera_latency_s=float("nan"))

@@ -203,9 +203,9 @@ def test_late_speed_only_for_a_move_that_would_arrive_late():
     m.sent(np.zeros(3), 0.0, theta_now=np.zeros(3))
     goal = np.array([0.0, -1.1, 0.5])                       # a 63 deg joint-2 move
     t_end = plan_motion(np.zeros(3), goal, v_max=v, a_max=a).duration_s + 1.0
-    assert m.late_speed(goal, 1.0, t_end + 0.01, 2.6, v, fast) == v       # arrives in time: unchanged
-    assert m.late_speed(goal, 1.0, t_end - 0.01, 2.6, v, fast) == fast    # late: the faster profile
-    assert m.late_speed(goal, 1.0, t_end - 0.01, 2.6, v, 0.0) == v        # no late speed configured
+    assert m.late_speed(goal, 1.0, t_end + 0.01, v, fast) == v       # arrives in time: unchanged
+    assert m.late_speed(goal, 1.0, t_end - 0.01, v, fast) == fast    # late: the faster profile
+    assert m.late_speed(goal, 1.0, t_end - 0.01, v, 0.0) == v        # no late speed configured
     assert plan_motion(np.zeros(3), goal, v_max=fast, a_max=a).duration_s + 1.0 < t_end
 
 
@@ -317,7 +317,7 @@ def test_a_small_refinement_goes_out_with_the_gentler_acceleration_the_choice_fo
     agent.begin_throw(0)
     agent._intercept(0.0, SimpleNamespace(p_base=np.deg2rad([0.0, 40.0, 70.0]), t_cross=0.9), layer.theta)
     fix = np.deg2rad([0.0, 44.0, 66.0])                      # a correction of a few degrees, the arm at rest
-    v, a = agent.mirror.choose_profile(fix, 1.0, 1.8, agent._mode_hz(fix), accels=(1.0, 0.5, 0.25))
+    v, a = agent.mirror.choose_profile(fix, 1.0, 1.8, agent._modes(fix), accels=(1.0, 0.5, 0.25))
     expected = agent.mirror.plan(fix, 1.0, v, a).duration_s
     assert a < agent.max_accel                               # the choice stretches the correction
     agent._intercept(1.0, SimpleNamespace(p_base=fix, t_cross=1.9), layer.theta)

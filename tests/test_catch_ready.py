@@ -114,7 +114,7 @@ def test_a_shaped_return_takes_the_least_swing_that_ends_before_the_weighing(mon
             assert (v, a) == (pytest.approx(agent.max_speed), pytest.approx(agent.max_accel))
             continue
         deadline = t + agent.options.gap_s - WEIGH_WINDOW_S - READY_SETTLE_S
-        f = agent._mode_hz(agent.ready_point_base)
+        f = agent._modes(agent.ready_point_base)
         r, t_end = m.residual_rad(agent.ready_point_base, t, f, v_max=v, a_max=a)
         tried = [m.residual_rad(agent.ready_point_base, t, f, v_max=c * agent.max_speed, a_max=ca * agent.max_accel)
                  for ca in READY_ACCELS for c in SPEED_CANDIDATES]

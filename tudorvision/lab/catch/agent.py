@@ -25,7 +25,7 @@ import numpy as np
 
 from ...catch.intercept import inner_reach_m, net_target
 from ...catch.perception import detection_to_base
-from .profile import ReferenceMirror, elbow_frequency_factor, mode_frequency_hz, overshoot_lead_target
+from .profile import ReferenceMirror, elbow_frequency_factor, net_modes, overshoot_lead_target
 
 __all__ = ["CatchAgent", "CatchIK", "ThrowLog", "WEIGH_REST_SPEED_RAD_S", "pause_and_weigh",
            "profile_limits", "demo_inner_reach_m", "PREDICTION_COLUMNS", "SETPOINT_COLUMNS"]
@@ -343,14 +343,17 @@ class CatchAgent:
         self.log = ThrowLog(payload_est_kg=self.payload_est_kg)
 
     def step(self, t: float, frame):
-        """One camera frame at ``t`` (s): check the layer, perceive, and send an intercept setpoint when released.
+        """A camera frame delivered at ``t`` (s): check the layer, perceive, send an intercept setpoint when released.
+
+        The ball filter runs at the frame's exposure time (``frame.t``); the layer is checked and commanded at
+        ``t``, when the frame arrives (``DemoOptions.camera_latency_s`` later).
 
         Parameters
         ----------
         t : float
-            Frame time, s.
+            Time now, when the frame is delivered, s.
         frame : CameraFrame or None
-            The wall camera's frame (None: nothing delivered).
+            The wall camera's frame, stamped with its exposure time (None: nothing delivered).
 
         Returns
         -------
@@ -377,14 +380,14 @@ class CatchAgent:
             p_cam, cov_cam = frame.detection_cam
         log.detections += 1
         p_b, C_b = detection_to_base(p_cam, cov_cam, self.T_base_cam)
-        rec = self.perception.step(t, p_b, C_b)
+        rec = self.perception.step(frame.t, p_b, C_b)
         self.latencies_s.append(time.perf_counter() - t0 - rec["peer_s"])
         it = rec["intercept"]
         if it is not None:
             log.last_intercept = it
             bal = rec["ballistic"][1]
             log.last_ballistic_base = bal
-            self.predictions.append([self._throw, t, rec["status"], *rec["x"], it.t_cross, *it.p_base, it.sigma_m,
+            self.predictions.append([self._throw, frame.t, rec["status"], *rec["x"], it.t_cross, *it.p_base, it.sigma_m,
                                      int(it.reachable), int(it.send), *(bal if bal is not None else [np.nan] * 3)])
             if (it.send or self._pending) and it.t_cross > t:
                 # the planner releases only for a crossing still ahead (its own estimate); a refinement that
@@ -429,21 +432,25 @@ class CatchAgent:
             return plan_motion(theta_now, th, v_max=speed, a_max=self.max_accel, t0=t)
         return self.mirror.plan(th, t, speed)
 
-    def _mode_hz(self, goal) -> float:
-        """The first mode's frequency for the profile to goal ``goal`` (rad, (3,)), Hz; 0: no mode (full speed)."""
+    def _modes(self, goal):
+        """The net's modes for the profile to goal ``goal`` (rad, (3,)): ``((f_hz, weight), ...)``; 0.0: none.
+
+        :func:`~tudorvision.lab.catch.profile.net_modes` of the estimated payload (swinging in the bag when
+        ``DemoOptions.mode_swing_hz`` > 0); 0.0 without a mode (``mode_f0_hz`` = 0: the full speed).
+        """
         o = self.options
         if not o.mode_f0_hz > 0:
             return 0.0
-        f = mode_frequency_hz(self.payload_est_kg, o.mode_f0_hz, o.mode_mass_kg)
-        # with the elbow map, the mode at the goal, where the residual swing rings
-        return f * elbow_frequency_factor(goal[2]) if o.mode_elbow_map else f
+        # with the elbow map, the arm's mode at the goal, where the residual swing rings
+        f0 = o.mode_f0_hz * (elbow_frequency_factor(goal[2]) if o.mode_elbow_map else 1.0)
+        return net_modes(self.payload_est_kg, f0, o.mode_mass_kg, o.mode_swing_hz)
 
-    def _profile(self, th, t: float, deadline: float, f: float, t_cross: float | None = None):
+    def _profile(self, th, t: float, deadline: float, f, t_cross: float | None = None):
         """Profile speed and acceleration for setpoint ``th`` sent at ``t`` (rad/s, rad/s^2; None: the defaults).
 
-        The least residual swing of the mode at ``f`` (Hz) by the deadline over the speeds and the accelerations
-        ``DemoOptions.accel_candidates``; a move that cannot end in time at any of them takes the late speed
-        at the full acceleration.
+        The least residual swing of the modes ``f`` (:meth:`_modes`) by the deadline over the speeds and the
+        accelerations ``DemoOptions.accel_candidates``; a move that cannot end in time at any of them takes the late
+        speed at the full acceleration.
         """
         if self.mirror.motion is None:
             return None, None
@@ -451,7 +458,7 @@ class CatchAgent:
                                           decay_per_s=self.options.settle_decay_per_s, t_cross_s=t_cross)
         if t + self.mirror.plan(th, t, v, a).duration_s <= deadline:
             return v, a
-        return self.mirror.late_speed(th, t, deadline, f, self.max_speed, self.late_speed), self.max_accel
+        return self.mirror.late_speed(th, t, deadline, self.max_speed, self.late_speed), self.max_accel
 
     def _intercept(self, t: float, it, theta_now) -> None:
         o = self.options
@@ -463,7 +470,7 @@ class CatchAgent:
             return
         if o.overshoot_lead_m > 0 and self.mirror.motion is not None:
             # when the planned profile would end, hence how far the net will still be carried past its goal
-            speed, accel = self._profile(th, t, deadline, self._mode_hz(th), it.t_cross)
+            speed, accel = self._profile(th, t, deadline, self._modes(th), it.t_cross)
             t_end = self.mirror.plan(th, t, speed, accel).duration_s + t
             th = self._goal(overshoot_lead_target(target, self.ready_point_base, o.overshoot_lead_m,
                                                   it.t_cross - t_end, fade_s=o.overshoot_fade_s,
@@ -480,7 +487,7 @@ class CatchAgent:
                 return
         self._pending = False
         self._ready_goal = None                # the intercept supersedes a ready move still waiting
-        self.send(th, t, *self._profile(th, t, deadline, self._mode_hz(th), it.t_cross))
+        self.send(th, t, *self._profile(th, t, deadline, self._modes(th), it.t_cross))
         self.log.setpoint, self.log.setpoint_p_base, self.log.t_arrived_s = th, np.asarray(it.p_base, float), None
         self.setpoints.append([self._throw, t, *th, *it.p_base])
         if self.log.t_first_setpoint_s is None:
@@ -526,7 +533,7 @@ class CatchAgent:
                 return
         self._ready_goal = None
         if self.options.ready_shaping and self.mirror.motion is not None:
-            v, a = self.mirror.choose_profile(goal, t, self._ready_deadline, self._mode_hz(goal),
+            v, a = self.mirror.choose_profile(goal, t, self._ready_deadline, self._modes(goal),
                                               accels=READY_ACCELS)
             self.send(goal, t, v, a)
             return

@@ -101,6 +101,11 @@ class DemoOptions:
         arrive ``arrive_before_s`` before the predicted crossing
         (:meth:`~tudorvision.lab.catch.profile.ReferenceMirror.choose_speed`); ``mode_f0_hz=0``: always the
         full profile speed (the behaviour before).
+    mode_swing_hz : float
+        The agent's model of the caught balls: they hang in the net's bag as a pendulum of this frequency, Hz
+        (what a user measures by swinging the loaded net with the arm held still), coupled to the arm's mode
+        (:func:`~tudorvision.lab.catch.profile.net_modes`: two modes, the profile choice weighs both); 0: the
+        payload as a rigid mass at the end effector, one mode (the behaviour before).
     mode_elbow_map : bool
         Scale that frequency by the goal's elbow angle (:func:`~tudorvision.lab.catch.profile.elbow_frequency_factor`:
         a folded elbow rings up to 18 % faster than the ready pose, a stretched arm 10 % slower); False: one
@@ -207,6 +212,13 @@ class DemoOptions:
         for its calibration sweep alike. Default 6.8 m: on the wall behind the thrower, as in the seed
         (the thrower releases 5.7-6.3 m in front of the base); nearer than about 6 m the thrower
         releases behind the camera and the first part of the flight is not seen.
+    camera_latency_s : float
+        Time from a depth frame's exposure to its delivery to the agent, s: the sensor's on-board depth
+        computation, the USB transfer and the image-processing PC's soft real-time loop (the seed, section
+        2.2: "services running besides the image processing program contribute to the variance of the
+        delay"). The agent gets each frame with its exposure time stamp, filters at that time and acts
+        when the frame arrives (:meth:`~tudorvision.lab.catch.agent.CatchAgent.step`). 0: the frame is seen
+        the instant it is exposed (the lab before the twenty-ninth session).
     camera_height_m : float
         Height of the wall camera above the floor, m (it looks at the point 1 m above the base).
     camera_max_depth_m : float
@@ -282,6 +294,7 @@ class DemoOptions:
     keep_elbow_branch: bool = True
     mode_f0_hz: float = 2.6
     mode_mass_kg: float = 0.26
+    mode_swing_hz: float = 0.0
     mode_elbow_map: bool = False
     overshoot_lead_m: float = 0.012
     overshoot_fade_s: float = 0.25
@@ -312,6 +325,7 @@ class DemoOptions:
     params: RobotParams | None = None
     camera_distance_m: float = 6.8
     camera_height_m: float = 2.0
+    camera_latency_s: float = 0.0
     camera_max_depth_m: float = 8.0
     calibration_frames_per_pose: int = 32
     calibration_method: str = "seed+mirror+yaw"
@@ -336,6 +350,8 @@ class DemoOptions:
         if not 1.0 <= self.camera_distance_m <= 8.0 or not 0.5 <= self.camera_height_m <= 3.0:
             raise ValueError(f"camera_distance_m, camera_height_m: expected 1-8 m and 0.5-3 m, got "
                              f"{self.camera_distance_m}, {self.camera_height_m}")
+        if not (np.isfinite(self.camera_latency_s) and 0.0 <= self.camera_latency_s <= 0.5):
+            raise ValueError(f"camera_latency_s: expected 0-0.5 s, got {self.camera_latency_s}")
         if self.calibration_method not in CALIBRATION_METHODS:
             raise ValueError(f"calibration_method: expected one of {CALIBRATION_METHODS}, "
                              f"got {self.calibration_method!r}")
@@ -355,6 +371,8 @@ class DemoOptions:
             raise ValueError(f"overshoot_lead_m, overshoot_fade_s, overshoot_full_move_m: expected 0-0.05 m, > 0 s and "
                              f"> 0 m, got {self.overshoot_lead_m}, {self.overshoot_fade_s}, "
                              f"{self.overshoot_full_move_m}")
+        if not (np.isfinite(self.mode_swing_hz) and self.mode_swing_hz >= 0):
+            raise ValueError(f"mode_swing_hz: expected >= 0 (Hz), got {self.mode_swing_hz}")
         if not (np.isfinite(self.settle_decay_per_s) and self.settle_decay_per_s >= 0):
             raise ValueError(f"settle_decay_per_s: expected >= 0 (1/s), got {self.settle_decay_per_s}")
         acc = np.asarray(self.accel_candidates, float)

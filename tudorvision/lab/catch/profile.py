@@ -33,7 +33,7 @@ import math
 
 import numpy as np
 
-__all__ = ["ReferenceMirror", "mode_frequency_hz", "elbow_frequency_factor", "overshoot_lead_target",
+__all__ = ["ReferenceMirror", "mode_frequency_hz", "net_modes", "elbow_frequency_factor", "overshoot_lead_target",
            "SPEED_CANDIDATES"]
 
 #: Profile speeds tried by :meth:`ReferenceMirror.choose_speed`, fractions of the demo's profile speed.
@@ -85,6 +85,56 @@ def mode_frequency_hz(payload_kg: float, f0_hz: float = 2.6, mass_kg: float = 0.
     (2.6, 1.87)
     """
     return float(f0_hz) / math.sqrt(1.0 + max(float(payload_kg), 0.0) / float(mass_kg))
+
+
+def net_modes(payload_kg: float, f0_hz: float = 2.6, mass_kg: float = 0.26,
+              swing_hz: float = 0.0) -> tuple[tuple[float, float], ...]:
+    """The loaded net's modes: ``((f_hz, weight), ...)``, the payload rigid or swinging in the net's bag.
+
+    With ``swing_hz <= 0`` (or no payload) the payload is a rigid mass at the end effector: one mode,
+    :func:`mode_frequency_hz`, weight 1. Else the payload hangs in the bag as a pendulum of ``swing_hz``
+    on the arm's first mode (``f0_hz`` with the modal mass ``mass_kg``): two coupled modes, the balls
+    swinging with the net (below both frequencies) and against it (above both). Their weights are what
+    each puts into the net's own deflection when the arm's base accelerates (modal participation times
+    the net's share of the mode shape); they sum to 1, the static deflection. The seed: "the previously
+    caught balls behave as pendulums" (section 9.3); in the lab with seven balls the net rings at 1.3-1.5
+    and 2.8-3.2 Hz after a move, not at the 1.9-2 Hz of the rigid payload.
+
+    Parameters
+    ----------
+    payload_kg : float
+        Payload on top of the end-effector mount, kg (the agent's estimate; all of it in the bag).
+    f0_hz, mass_kg : float
+        The arm's first mode with the bare mount, Hz, and its modal mass at the end effector, kg.
+    swing_hz : float
+        The bag's pendulum frequency with the arm held still, Hz (0: a rigid payload).
+
+    Returns
+    -------
+    tuple of (float, float)
+        ``(f_hz, weight)`` per mode, lowest first.
+
+    Examples
+    --------
+    >>> net_modes(0.0, 3.0)
+    ((3.0, 1.0),)
+    >>> [(round(f, 2), round(w, 2)) for f, w in net_modes(0.21, 3.0, 0.26, 1.55)]
+    [(1.37, 0.26), (3.38, 0.74)]
+    """
+    m2 = max(float(payload_kg), 0.0)
+    if not (swing_hz > 0 and m2 > 0):
+        return ((mode_frequency_hz(m2, f0_hz, mass_kg), 1.0),)
+    m1 = float(mass_kg)
+    k1, k2 = m1 * (2 * math.pi * float(f0_hz)) ** 2, m2 * (2 * math.pi * float(swing_hz)) ** 2
+    M = np.diag([m1, m2])
+    K = np.array([[k1 + k2, -k2], [-k2, k2]])
+    w2, phi = np.linalg.eig(np.linalg.solve(M, K))
+    out = []
+    for k in np.argsort(w2.real):
+        v = phi[:, k].real
+        gamma = float(v @ M @ np.ones(2)) / float(v @ M @ v)        # participation in a base acceleration
+        out.append((math.sqrt(float(w2[k].real)) / (2 * math.pi), abs(float(v[0]) * gamma)))
+    return tuple(out)
 
 
 def overshoot_lead_target(target_base, from_base, lead_m: float, margin_s: float, *, fade_s: float = 0.25,
@@ -247,12 +297,13 @@ class ReferenceMirror:
         path = np.asarray(m.sample(m.t0 + np.linspace(0.0, m.duration_s, max(int(samples), 2)))[0], float)
         return path.min(axis=0), path.max(axis=0)
 
-    def residual_rad(self, goal, t: float, f_hz: float, *, v_max: float | None = None, a_max: float | None = None,
+    def residual_rad(self, goal, t: float, f_hz, *, v_max: float | None = None, a_max: float | None = None,
                      samples: int = 160):
         """Residual excitation of a mode at ``f_hz`` (Hz) if ``goal`` were sent at ``t`` (s) with ``v_max``, ``a_max``.
 
         ``sum_j |integral a_j(s) exp(-i w s) ds| / w`` over joints 2 and 3, ``a_j`` the reference's
         acceleration (rad/s^2) since the arm last rested up to the end of the new motion, ``w = 2 pi f``.
+        ``f_hz`` may also be several modes, ``((f_hz, weight), ...)`` (:func:`net_modes`): the weighted sum.
 
         Returns
         -------
@@ -260,20 +311,22 @@ class ReferenceMirror:
             ``(residual_rad, t_end_s)``: the excitation (an equivalent joint angle, rad) and when the
             new motion ends (s).
         """
-        w = 2.0 * math.pi * float(f_hz)
+        modes = ((float(f_hz), 1.0),) if np.ndim(f_hz) == 0 else tuple((float(f), float(w)) for f, w in f_hz)
+        w = 2.0 * math.pi * np.array([f for f, _ in modes])
         new = self.plan(goal, t, v_max, a_max)
         segs = [s for s in self.segments if s[2] > s[1]]
         if segs and segs[-1][2] > t:
             segs[-1] = (segs[-1][0], segs[-1][1], float(t))
         segs.append((new, float(t), float(t) + new.duration_s))
-        A = np.zeros(3, complex)
+        A = np.zeros((len(modes), 3), complex)
         for m, a, b in segs:
             if b <= a:
                 continue
             tt = np.linspace(a, b, max(int(samples), 2))
             acc = np.asarray(m.sample(tt)[2], float)
-            A += np.trapezoid(acc * np.exp(-1j * w * tt)[:, None], tt, axis=0)
-        return float(np.sum(np.abs(A[1:])) / w), float(t) + new.duration_s
+            A += np.trapezoid(acc[None] * np.exp(-1j * w[:, None] * tt[None])[:, :, None], tt, axis=1)
+        r = np.sum(np.abs(A[:, 1:]), axis=1) / w
+        return float(np.dot([wt for _, wt in modes], r)), float(t) + new.duration_s
 
     def choose_speed(self, goal, t: float, deadline_s: float, f_hz: float,
                      candidates=SPEED_CANDIDATES) -> float:
@@ -285,7 +338,7 @@ class ReferenceMirror:
         """
         return self.choose_profile(goal, t, deadline_s, f_hz, speeds=candidates)[0]
 
-    def choose_profile(self, goal, t: float, deadline_s: float, f_hz: float, *, speeds=SPEED_CANDIDATES,
+    def choose_profile(self, goal, t: float, deadline_s: float, f_hz, *, speeds=SPEED_CANDIDATES,
                        accels=(1.0,), decay_per_s: float = 0.0, t_cross_s: float | None = None) -> tuple[float, float]:
         """Profile speed and acceleration (rad/s, rad/s^2) for ``goal`` sent at ``t`` (s): least swing by the deadline.
 
@@ -294,7 +347,8 @@ class ReferenceMirror:
         the pair tried first: the full acceleration, then the faster speed); if none ends in time, the one that
         ends first. A small correction never reaches the profile speed, so only a lower acceleration can
         stretch it towards a whole period of the mode.
-        ``f_hz <= 0``: the mirror's speed and acceleration. With ``decay_per_s`` > 0 and ``t_cross_s`` (s) the
+        ``f_hz <= 0``: the mirror's speed and acceleration; ``f_hz`` may also be several weighted modes
+        (:meth:`residual_rad`). With ``decay_per_s`` > 0 and ``t_cross_s`` (s) the
         swing is weighed by ``exp(-decay_per_s (t_cross_s - t_end))``: what is left of it at the crossing when
         the arm's damping takes it down at that rate after the motion ends.
 
@@ -307,7 +361,8 @@ class ReferenceMirror:
         >>> bool(a < 4.0 and slow < m.residual_rad([0.0, 0.05, 0.0], 0.0, 2.5)[0])
         True
         """
-        if not f_hz > 0 or self.motion is None:
+        lowest = f_hz if np.ndim(f_hz) == 0 else min(f for f, _ in f_hz)
+        if not lowest > 0 or self.motion is None:
             return self.v_max, self.a_max
         best, first = None, None
         for ca in accels:
@@ -323,15 +378,15 @@ class ReferenceMirror:
                     best = (v, a, r)
         return (best[0], best[1]) if best is not None else (first[0], first[1])
 
-    def late_speed(self, goal, t: float, deadline_s: float, f_hz: float, speed: float, late_speed: float) -> float:
+    def late_speed(self, goal, t: float, deadline_s: float, speed: float, late_speed: float) -> float:
         """``speed`` (rad/s) if ``goal`` sent at ``t`` with it ends by ``deadline_s`` (s), else ``late_speed``.
 
         For a setpoint that would arrive late at the demo's profile speed: the faster profile
         (``DemoOptions.late_speed_fraction``) is taken only then, as the links' swing at speeds near a
         joint's limit risks the layer's over-speed fault. ``late_speed`` at or below ``speed`` changes
-        nothing; ``f_hz`` is the mode frequency :meth:`residual_rad` needs (any positive value for timing).
+        nothing.
         """
         if not late_speed > speed:
             return float(speed)
-        _, t_end = self.residual_rad(goal, t, f_hz if f_hz > 0 else 1.0, v_max=speed)
+        t_end = t + self.plan(goal, t, speed).duration_s
         return float(speed) if t_end <= deadline_s else float(late_speed)

@@ -217,14 +217,15 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
         agent.begin_throw(i)
         net, net_vel = None, None
         k = int(np.ceil(t_now * rate - 1e-9))
-        while (t := k / rate) <= throw.t_cross_s + AFTER_CROSSING_S:
+        while (t_exposed := k / rate) <= throw.t_cross_s + AFTER_CROSSING_S:
+            t = t_exposed + o.camera_latency_s            # the frame reaches the agent
             if t > t_now:
-                # plant to this frame, evaluating the net at the true crossing on the way
+                # plant to this frame's delivery, evaluating the net at the true crossing on the way
                 if throw.crosses and net is None and t_now < throw.t_cross_s <= t:
                     net, net_vel = _net_at_cross(layer, world, throw.t_cross_s)
                 layer.advance_to(t)
                 t_now = t
-            seen = agent.step(t, world.observe(t))
+            seen = agent.step(t, world.observe(t_exposed))
             if seen is not None and rr_log is not None:
                 rr_log.frame(t, seen[0], seen[1], world.net_position())
             k += 1
@@ -233,7 +234,8 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
         result = score_throw(throw, agent.log, net_at_cross=net, net_velocity_at_cross=net_vel,
                              theta_at_release=theta_release,
                              payload_true_kg=payload_true, options=o, params=params, theta1_rad=iopts.theta1_rad,
-                             max_speed=max_speed, max_accel=max_accel, frame_rate_hz=rate)
+                             max_speed=max_speed, max_accel=max_accel, frame_rate_hz=rate,
+                             latency_s=o.camera_latency_s)
         results.append(result)
         if result.caught:
             world.catch_ball()
@@ -262,7 +264,8 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
         "caught_centre_in_workspace": score["caught_centre_in_workspace"],
         "rim_contacts_in_workspace": score["rim_contacts_in_workspace"],
         "calibration": calib, "camera_position_world_m": [float(x) for x in wall_camera_position_world(o)],
-        "camera_max_depth_m": o.camera_max_depth_m, "plant": o.plant, "ball_swing_length_m": o.ball_swing_length_m,
+        "camera_max_depth_m": o.camera_max_depth_m, "camera_latency_s": o.camera_latency_s, "plant": o.plant,
+        "ball_swing_length_m": o.ball_swing_length_m,
         "seed": o.seed, "render": o.render, "damping": o.damping, "compensate": o.compensate,
         "net_radius_m": o.net_radius_m, "balls_in_net": world.balls, "net_emptied": world.emptied,
         "median_pred_error_m": score["median_pred_error_m"],

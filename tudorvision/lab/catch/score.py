@@ -337,7 +337,7 @@ def miss_reason(*, caught: bool, crosses: bool, in_workspace: bool, detections: 
 
 def score_throw(throw, log, *, net_at_cross, theta_at_release, payload_true_kg: float, options, params,
                 theta1_rad: float, max_speed: float, max_accel: float, frame_rate_hz: float,
-                net_velocity_at_cross=None) -> ThrowResult:
+                net_velocity_at_cross=None, latency_s: float = 0.0) -> ThrowResult:
     """Score one throw from its ground truth and what the agent did.
 
     Parameters
@@ -367,6 +367,8 @@ def score_throw(throw, log, *, net_at_cross, theta_at_release, payload_true_kg: 
     net_velocity_at_cross : array_like, shape (3,), optional
         True net velocity at the crossing, m/s, base frame: the ring moves with it during the
         passage (a few hundredths of a second). Default: the ring stands still at ``net_at_cross``.
+    latency_s : float
+        The camera's latency, s (``DemoOptions.camera_latency_s``): the in-time count leaves it too.
 
     Returns
     -------
@@ -385,7 +387,7 @@ def score_throw(throw, log, *, net_at_cross, theta_at_release, payload_true_kg: 
     sols = reachable_solutions(p_cross, theta1_rad, params) if crosses else np.zeros((0, 3))
     in_ws = len(sols) > 0
     t_move = min_move_time(sols, np.asarray(theta_at_release), max_speed, max_accel)
-    in_time = bool(in_ws and t_move <= throw.t_cross_rel_s - 3.0 / frame_rate_hz)
+    in_time = bool(in_ws and t_move <= throw.t_cross_rel_s - 3.0 / frame_rate_hz - float(latency_s))
     it, bal, first = log.last_intercept, log.last_ballistic_base, log.t_first_setpoint_s
     miss = float(np.linalg.norm(net_at_cross - p_cross)) if crosses else nan
     caught_centre = bool(crosses and miss <= options.net_radius_m)
