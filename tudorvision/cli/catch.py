@@ -298,7 +298,7 @@ def register(subparsers) -> None:
                         "disc-sweep calibration (default 6.8: behind the thrower, as in the seed; 1-7.8)")
     p.add_argument("--camera-latency-ms", type=float, default=None, metavar="MS",
                    help="demo: the wall camera's frames reach the catching agent MS milliseconds after their "
-                        "exposure (stamped with it; default 0; 0-500)")
+                        "exposure (stamped with it; default 33.3, one frame at 30 Hz; 0-500)")
     p.add_argument("--ball-swing-length-m", type=float, default=None, metavar="M",
                    help="demo: caught balls hang M metres below the ring in the net's bag and swing (default 0.1); "
                         "0: point masses at the end effector (the lab before the twenty-third session)")
