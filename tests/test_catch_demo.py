@@ -570,3 +570,39 @@ def test_frames_reach_the_agent_late_filtered_at_exposure_and_acted_on_at_arriva
     assert len(err) == 1 and "--camera-latency-ms" in err[0] and not (tmp_path / "bad").exists()
     with pytest.raises(ValueError, match="camera_latency_s"):
         DemoOptions(camera_latency_s=float("nan"))
+
+
+def test_frames_late_by_a_jittered_delay_arrive_in_order_within_the_bounds(tmp_path, capsys):
+    """``camera_latency_jitter_s``: each setpoint goes out between ``latency`` and ``latency + jitter`` after the
+    exposure of the estimate it answers, the delays vary, the run repeats itself on the same seed, and a jitter
+    that takes the latency past 0.5 s is a one-line CLI error naming the option."""
+    lat_ms, jit_ms = 40.0, 25.0
+
+    def delays(out):
+        pred = sorted({(int(r["throw"]), float(r["t_s"])) for r in csv.DictReader(open(out / "predictions.csv"))})
+        sent = [(int(r["throw"]), float(r["t_s"])) for r in csv.DictReader(open(out / "setpoints.csv"))]
+        found = []
+        for throw, t in sent:      # the newest exposure that can have arrived by t
+            exposed = [e for th, e in pred if th == throw and e <= t - lat_ms / 1e3 + 1e-9]
+            found.append(t - max(exposed))
+        return np.array(found)
+
+    runs = []
+    for name in ("a", "b"):
+        out = tmp_path / name
+        assert main(["catch", "demo", "--throws", "6", "--seed", "3", "--no-render", "--no-rerun",
+                     "--camera-latency-ms", f"{lat_ms:g}", "--camera-latency-jitter-ms", f"{jit_ms:g}",
+                     "--out", str(out)]) == 0
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["camera_latency_jitter_s"] == pytest.approx(jit_ms / 1e3)
+        runs.append(delays(out))
+    d = runs[0]
+    assert len(d) >= 3
+    assert np.all(d >= lat_ms / 1e3 - 1e-9) and np.all(d <= (lat_ms + jit_ms) / 1e3 + 1e-9)
+    assert np.ptp(d) > 1e-3                                    # the delays vary
+    np.testing.assert_array_equal(runs[0], runs[1])           # seeded
+    capsys.readouterr()
+    assert main(["catch", "demo", "--camera-latency-ms", "300", "--camera-latency-jitter-ms", "300",
+                 "--out", str(tmp_path / "bad")]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "camera_latency_jitter_s" in err[0] and not (tmp_path / "bad").exists()

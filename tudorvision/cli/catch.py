@@ -166,9 +166,10 @@ def _cmd_catch(args) -> int:
         raise TudorVisionError("--scheduler, --workers, --session-throws, --calibrations, --rerun-stale: only with "
                                "'catch demo'")
     if args.target != "demo" and (args.plant is not None or args.camera_distance_m is not None
-                                  or args.ball_swing_length_m is not None or args.camera_latency_ms is not None):
-        raise TudorVisionError("--plant, --camera-distance-m, --camera-latency-ms, --ball-swing-length-m: only with "
-                               "'catch demo'")
+                                  or args.ball_swing_length_m is not None or args.camera_latency_ms is not None
+                                  or args.camera_latency_jitter_ms is not None):
+        raise TudorVisionError("--plant, --camera-distance-m, --camera-latency-ms, --camera-latency-jitter-ms, "
+                               "--ball-swing-length-m: only with 'catch demo'")
     if args.target == "demo":
         from ..lab.catch_demo import DemoOptions, run_demo
 
@@ -186,11 +187,15 @@ def _cmd_catch(args) -> int:
                 flag = "--" + name.replace("_", "-")
                 raise TudorVisionError(f"{flag}: expected {lo:g}-{hi:g} m {why}, got {value:g}")
             more[name] = float(value)
-        if args.camera_latency_ms is not None:
-            if not (np.isfinite(args.camera_latency_ms) and 0.0 <= args.camera_latency_ms <= 500.0):
-                raise TudorVisionError(f"--camera-latency-ms: expected 0-500 ms from a frame's exposure to its "
-                                       f"delivery, got {args.camera_latency_ms:g}")
-            more["camera_latency_s"] = float(args.camera_latency_ms) / 1000.0
+        for flag, name, what in (("--camera-latency-ms", "camera_latency_s", "from a frame's exposure to its "
+                                  "delivery"),
+                                 ("--camera-latency-jitter-ms", "camera_latency_jitter_s", "of extra delay at most")):
+            value = getattr(args, flag[2:].replace("-", "_"))
+            if value is None:
+                continue
+            if not (np.isfinite(value) and 0.0 <= value <= 500.0):
+                raise TudorVisionError(f"{flag}: expected 0-500 ms {what}, got {value:g}")
+            more[name] = float(value) / 1000.0
         opts = DemoOptions(throws=args.throws, seed=args.seed, render=not args.no_render, damping=args.damping,
                            compensate=not args.rigid, rerun=not args.no_rerun,
                            params=robot_from_args(args) if args.robot else None, **more)
@@ -299,6 +304,9 @@ def register(subparsers) -> None:
     p.add_argument("--camera-latency-ms", type=float, default=None, metavar="MS",
                    help="demo: the wall camera's frames reach the catching agent MS milliseconds after their "
                         "exposure (stamped with it; default 33.3, one frame at 30 Hz; 0-500)")
+    p.add_argument("--camera-latency-jitter-ms", type=float, default=None, metavar="MS",
+                   help="demo: each frame is late by a further delay drawn uniformly from 0-MS milliseconds, "
+                        "frames kept in order (default 0)")
     p.add_argument("--ball-swing-length-m", type=float, default=None, metavar="M",
                    help="demo: caught balls hang M metres below the ring in the net's bag and swing (default 0.1); "
                         "0: point masses at the end effector (the lab before the twenty-third session)")

@@ -222,6 +222,11 @@ class DemoOptions:
         Kinect's pipeline adds more (set the latency you measure). 0: the frame is seen the instant it is
         exposed (the lab before the thirtieth session: 375 against 368 of 410 crossing throws on seeds 0 / 1;
         two frames, 67 ms, 350).
+    camera_latency_jitter_s : float
+        On top of ``camera_latency_s``, each frame is late by a further delay drawn uniformly from
+        ``[0, camera_latency_jitter_s]`` s (the seed's "variance of the delay" of a soft real-time
+        image-processing loop), frames still delivered in order (a frame never overtakes the one before);
+        its own random stream of ``seed``. 0 (default): every frame equally late.
     camera_height_m : float
         Height of the wall camera above the floor, m (it looks at the point 1 m above the base).
     camera_max_depth_m : float
@@ -329,6 +334,7 @@ class DemoOptions:
     camera_distance_m: float = 6.8
     camera_height_m: float = 2.0
     camera_latency_s: float = 1.0 / 30.0
+    camera_latency_jitter_s: float = 0.0
     camera_max_depth_m: float = 8.0
     calibration_frames_per_pose: int = 32
     calibration_method: str = "seed+mirror+yaw"
@@ -355,6 +361,10 @@ class DemoOptions:
                              f"{self.camera_distance_m}, {self.camera_height_m}")
         if not (np.isfinite(self.camera_latency_s) and 0.0 <= self.camera_latency_s <= 0.5):
             raise ValueError(f"camera_latency_s: expected 0-0.5 s, got {self.camera_latency_s}")
+        if not (np.isfinite(self.camera_latency_jitter_s)
+                and 0.0 <= self.camera_latency_jitter_s <= 0.5 - self.camera_latency_s):
+            raise ValueError(f"camera_latency_jitter_s: expected 0 to 0.5 s less camera_latency_s, "
+                             f"got {self.camera_latency_jitter_s}")
         if self.calibration_method not in CALIBRATION_METHODS:
             raise ValueError(f"calibration_method: expected one of {CALIBRATION_METHODS}, "
                              f"got {self.calibration_method!r}")

@@ -210,6 +210,8 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
     rr_log = (writers.RerunLog(out / "catch.rrd", net_radius_m=o.net_radius_m, recording=recording)
               if o.rerun else None)
     results = []
+    rng_delay = np.random.default_rng([o.seed, 6])         # the frames' extra delays, a stream of their own
+    t_delivered = -np.inf
     for i in progress(range(o.throws), desc="throws", enabled=o.show_progress):
         throw = world.throw(i, t_now)
         theta_release = np.asarray(layer.state().theta)
@@ -218,7 +220,9 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
         net, net_vel = None, None
         k = int(np.ceil(t_now * rate - 1e-9))
         while (t_exposed := k / rate) <= throw.t_cross_s + AFTER_CROSSING_S:
-            t = t_exposed + o.camera_latency_s            # the frame reaches the agent
+            t = t_exposed + o.camera_latency_s            # the frame reaches the agent, in order
+            if o.camera_latency_jitter_s > 0:
+                t = t_delivered = max(t + rng_delay.uniform(0.0, o.camera_latency_jitter_s), t_delivered)
             if t > t_now:
                 # plant to this frame's delivery, evaluating the net at the true crossing on the way
                 if throw.crosses and net is None and t_now < throw.t_cross_s <= t:
@@ -235,7 +239,7 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
                              theta_at_release=theta_release,
                              payload_true_kg=payload_true, options=o, params=params, theta1_rad=iopts.theta1_rad,
                              max_speed=max_speed, max_accel=max_accel, frame_rate_hz=rate,
-                             latency_s=o.camera_latency_s)
+                             latency_s=o.camera_latency_s + 0.5 * o.camera_latency_jitter_s)
         results.append(result)
         if result.caught:
             world.catch_ball()
@@ -264,7 +268,8 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
         "caught_centre_in_workspace": score["caught_centre_in_workspace"],
         "rim_contacts_in_workspace": score["rim_contacts_in_workspace"],
         "calibration": calib, "camera_position_world_m": [float(x) for x in wall_camera_position_world(o)],
-        "camera_max_depth_m": o.camera_max_depth_m, "camera_latency_s": o.camera_latency_s, "plant": o.plant,
+        "camera_max_depth_m": o.camera_max_depth_m, "camera_latency_s": o.camera_latency_s,
+        "camera_latency_jitter_s": o.camera_latency_jitter_s, "plant": o.plant,
         "ball_swing_length_m": o.ball_swing_length_m,
         "seed": o.seed, "render": o.render, "damping": o.damping, "compensate": o.compensate,
         "net_radius_m": o.net_radius_m, "balls_in_net": world.balls, "net_emptied": world.emptied,

@@ -368,7 +368,8 @@ def score_throw(throw, log, *, net_at_cross, theta_at_release, payload_true_kg: 
         True net velocity at the crossing, m/s, base frame: the ring moves with it during the
         passage (a few hundredths of a second). Default: the ring stands still at ``net_at_cross``.
     latency_s : float
-        The camera's latency, s (``DemoOptions.camera_latency_s``): the in-time count leaves it too.
+        The camera's mean latency, s (``DemoOptions.camera_latency_s`` and half its jitter): the in-time count
+        leaves it too.
 
     Returns
     -------
