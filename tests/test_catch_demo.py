@@ -546,8 +546,6 @@ def test_frames_reach_the_agent_late_filtered_at_exposure_and_acted_on_at_arriva
     """``camera_latency_s``: every setpoint goes out when a frame arrives, ``latency`` after the exposure its
     estimate was filtered at (setpoints.csv against predictions.csv); with no latency they coincide. The CLI's
     ``--camera-latency-ms`` reaches summary.json; a bad value is a one-line error."""
-    import csv
-
     def times(out):
         pred = {(int(r["throw"]), round(float(r["t_s"]), 9)) for r in csv.DictReader(open(out / "predictions.csv"))}
         sent = [(int(r["throw"]), float(r["t_s"])) for r in csv.DictReader(open(out / "setpoints.csv"))]

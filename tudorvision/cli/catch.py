@@ -176,26 +176,23 @@ def _cmd_catch(args) -> int:
         more = {}
         if args.plant is not None:
             more["plant"] = args.plant
-        for name, lo, hi, why in (("camera_distance_m", 1.0, 7.8, "in front of the robot (the wall camera's depth "
-                                   "reaches 8 m, the arm must stay in range)"),
-                                  ("ball_swing_length_m", 0.0, 0.5, "(0: the balls as point masses at the end "
-                                   "effector)")):
-            value = getattr(args, name)
+        # (argument, option, range and unit on the command line, to SI, what it is)
+        for arg, name, lo, hi, unit, scale, why in (
+                ("camera_distance_m", "camera_distance_m", 1.0, 7.8, "m", 1.0, "in front of the robot (the wall "
+                 "camera's depth reaches 8 m, the arm must stay in range)"),
+                ("ball_swing_length_m", "ball_swing_length_m", 0.0, 0.5, "m", 1.0, "(0: the balls as point masses "
+                 "at the end effector)"),
+                ("camera_latency_ms", "camera_latency_s", 0.0, 500.0, "ms", 1e-3, "from a frame's exposure to its "
+                 "delivery"),
+                ("camera_latency_jitter_ms", "camera_latency_jitter_s", 0.0, 500.0, "ms", 1e-3, "of extra delay at "
+                 "most")):
+            value = getattr(args, arg)
             if value is None:
                 continue
             if not (np.isfinite(value) and lo <= value <= hi):
-                flag = "--" + name.replace("_", "-")
-                raise TudorVisionError(f"{flag}: expected {lo:g}-{hi:g} m {why}, got {value:g}")
-            more[name] = float(value)
-        for flag, name, what in (("--camera-latency-ms", "camera_latency_s", "from a frame's exposure to its "
-                                  "delivery"),
-                                 ("--camera-latency-jitter-ms", "camera_latency_jitter_s", "of extra delay at most")):
-            value = getattr(args, flag[2:].replace("-", "_"))
-            if value is None:
-                continue
-            if not (np.isfinite(value) and 0.0 <= value <= 500.0):
-                raise TudorVisionError(f"{flag}: expected 0-500 ms {what}, got {value:g}")
-            more[name] = float(value) / 1000.0
+                flag = "--" + arg.replace("_", "-")
+                raise TudorVisionError(f"{flag}: expected {lo:g}-{hi:g} {unit} {why}, got {value:g}")
+            more[name] = float(value) * scale
         opts = DemoOptions(throws=args.throws, seed=args.seed, render=not args.no_render, damping=args.damping,
                            compensate=not args.rigid, rerun=not args.no_rerun,
                            params=robot_from_args(args) if args.robot else None, **more)

@@ -137,6 +137,13 @@ def net_modes(payload_kg: float, f0_hz: float = 2.6, mass_kg: float = 0.26,
     return tuple(out)
 
 
+def _as_modes(f_hz) -> tuple[tuple[float, float], ...]:
+    """``f_hz`` as ``((f_hz, weight), ...)``: one frequency (Hz) is one mode of weight 1; modes pass through."""
+    if np.ndim(f_hz) == 0:
+        return ((float(f_hz), 1.0),)
+    return tuple((float(f), float(w)) for f, w in f_hz)
+
+
 def overshoot_lead_target(target_base, from_base, lead_m: float, margin_s: float, *, fade_s: float = 0.25,
                           full_move_m: float = 0.2) -> np.ndarray:
     """The net target moved back along the move by the overshoot expected at the crossing, metres (3,).
@@ -311,7 +318,7 @@ class ReferenceMirror:
             ``(residual_rad, t_end_s)``: the excitation (an equivalent joint angle, rad) and when the
             new motion ends (s).
         """
-        modes = ((float(f_hz), 1.0),) if np.ndim(f_hz) == 0 else tuple((float(f), float(w)) for f, w in f_hz)
+        modes = _as_modes(f_hz)
         w = 2.0 * math.pi * np.array([f for f, _ in modes])
         new = self.plan(goal, t, v_max, a_max)
         segs = [s for s in self.segments if s[2] > s[1]]
@@ -361,8 +368,7 @@ class ReferenceMirror:
         >>> bool(a < 4.0 and slow < m.residual_rad([0.0, 0.05, 0.0], 0.0, 2.5)[0])
         True
         """
-        lowest = f_hz if np.ndim(f_hz) == 0 else min(f for f, _ in f_hz)
-        if not lowest > 0 or self.motion is None:
+        if not min(f for f, _ in _as_modes(f_hz)) > 0 or self.motion is None:
             return self.v_max, self.a_max
         best, first = None, None
         for ca in accels:
