@@ -30,9 +30,19 @@ prints the bootstrap spread ``calib rgbd-base`` reports for it
 true error, and whether the set-ups beyond the target were warned.
 Target: <= 1 cm and <= 1 deg for every set-up.
 
+The depth sensor of every set-up is a different unit with the measured
+Kinect's fixed depth pattern (``--pattern-px``, default
+:data:`tudorvision.sim.depth_sensor.KINECT_PATTERN_DISPARITY_PX`; unit
+``1000 * seed + k``; ``--pattern-px 0``: the lab before 2026-12-06).
+``--correct-pattern`` lets the user calibrate it first: 30 frames of a flat
+wall at 2.5 / 3.5 / 4.5 m (:func:`tudorvision.lab.depth_wall.render_wall_frames`)
+give :func:`tudorvision.rgbd.depth_pattern.calibrate_depth_pattern`, whose
+correction is applied to every sweep frame before tracking.
+
 Run::
 
-    nice .venv/bin/python benchmarks/bench_rgbd_base.py [--setups 12] [--seed 0] [--step-deg 5]
+    nice .venv/bin/python benchmarks/bench_rgbd_base.py [--setups 12] [--seed 0] [--step-deg 5] \
+        [--pattern-px 0.068] [--correct-pattern]
 """
 from __future__ import annotations
 
@@ -46,13 +56,16 @@ import numpy as np
 
 from tudorvision._checks import TudorVisionError
 from tudorvision.geometry import invert_transform, rotation_angle
+from tudorvision.lab.depth_wall import render_wall_frames
 from tudorvision.lab.disc_sweep import render_disc_sweep, sample_disc_sweep
 from tudorvision.rgbd.base_calib import base_frame_from_theta2_sweep, refine_sweep_mirror
 from tudorvision.rgbd.base_spread import SPREAD_WARN_DEG, SPREAD_WARN_M, sweep_calibration_spread
 from tudorvision.rgbd.disc import DiscOptions, DiscTracker
 from tudorvision.rgbd.disc3d import Disc3DOptions
 from tudorvision.rgbd.disc_track import DiscSweepTracker
+from tudorvision.rgbd.depth_pattern import calibrate_depth_pattern
 from tudorvision.rgbd.frames import Intrinsics
+from tudorvision.sim.depth_sensor import KINECT_PATTERN_DISPARITY_PX, DepthSensorModel
 from tudorvision.sensors import KINECT_DEPTH_NOISE, KINECT_SIGMA_UNIT, KINECT_SIGMA_Z_COEFFS, SIGMA_UNITS_PER_M, \
     DepthNoiseModel
 
@@ -118,6 +131,10 @@ def main() -> None:
     ap.add_argument("--frames-per-pose", type=int, default=2, help="depth frames per sweep pose (default 2)")
     ap.add_argument("--sigma-unit", choices=("mm", "cm"), help="read the seed's sigma_z fit in this unit "
                                                                 "(default: as tudorvision.sensors does)")
+    ap.add_argument("--pattern-px", type=float, default=KINECT_PATTERN_DISPARITY_PX,
+                    help="the depth sensor's fixed pattern, disparity px RMS (default the measured Kinect's; 0 none)")
+    ap.add_argument("--correct-pattern", action="store_true",
+                    help="calibrate the pattern from 30 frames of a flat wall and remove it before tracking")
     args = ap.parse_args()
     noise = KINECT_DEPTH_NOISE
     unit = KINECT_SIGMA_UNIT
@@ -126,14 +143,22 @@ def main() -> None:
         noise = DepthNoiseModel(coeffs=tuple(c / SIGMA_UNITS_PER_M[unit] for c in KINECT_SIGMA_Z_COEFFS))
     print(f"machine: {cpu_model()}; depth noise: seed's fit read in {unit} "
           f"(sigma_z(5 m) = {100 * float(noise.sigma_m(5.0)):.1f} cm); theta2 step {args.step_deg:g} deg, "
-          f"{args.frames_per_pose} frame(s) per pose")
+          f"{args.frames_per_pose} frame(s) per pose; fixed depth pattern {args.pattern_px:g} px"
+          f"{', calibrated and removed' if args.correct_pattern else ''}")
     rows = []
     for k in range(args.setups):
         rng = np.random.default_rng([args.seed, k])
         p = sample_disc_sweep(rng, theta2_deg=tuple(np.arange(0.0, 180.0 + 1e-6, args.step_deg)),
                               frames_per_pose=args.frames_per_pose)
         t0 = time.perf_counter()
-        sw = render_disc_sweep(p, rng, noise=noise)
+        sensor = DepthSensorModel(noise=noise, pattern_disparity_px=args.pattern_px, pattern_seed=1000 * args.seed + k)
+        sw = render_disc_sweep(p, rng, noise=noise, sensor=sensor)
+        if args.correct_pattern:
+            h, w = sw.depth_m.shape[1:]
+            walls = render_wall_frames(sw.K, w, h, sensor, np.random.default_rng([args.seed, k, 7]))
+            corr = calibrate_depth_pattern(walls)
+            for i in range(len(sw.depth_m)):
+                sw.depth_m[i] = corr.apply(sw.depth_m[i])
         t_render = time.perf_counter() - t0
         K = Intrinsics.from_matrix(sw.K, sw.depth_m.shape[2], sw.depth_m.shape[1])
         c = sw.disc_centres_cam[0]

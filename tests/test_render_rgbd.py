@@ -6,6 +6,8 @@ import pytest
 from tudorvision.sensors import KINECT_DEPTH_NOISE, DepthNoiseModel
 from tudorvision.sim.camera import look_at, project_points
 from tudorvision.sim.depth_sensor import DepthSensorModel, depth_mm_from_gbuffer
+
+NO_PATTERN = DepthSensorModel(pattern_disparity_px=0.0)
 from tudorvision.sim.raycast import GBuffer
 from tudorvision.sim.render import Rectangle, render_gbuffer, render_rgbd
 from tudorvision.sim.scenes import ArmGeometry, arm_geometry_from_joints, checkerboard_lab, stereo_lab
@@ -40,7 +42,8 @@ def test_depth_noise_std_matches_sigma_z(distance):
     cam = setup.cameras["rgbd"]
     g = render_gbuffer(cam, setup.scene, 0.0)
     n_frames = 100
-    frames = np.stack([depth_mm_from_gbuffer(g, DepthSensorModel(), rng) for _ in range(n_frames)]).astype(float)
+    # the noise alone: the sensor's fixed pattern is its own test (test_fixed_pattern_*)
+    frames = np.stack([depth_mm_from_gbuffer(g, NO_PATTERN, rng) for _ in range(n_frames)]).astype(float)
     region = (g.object_id == setup.meta["target_id"]) & np.all(frames > 0, axis=0)
     n_px = int(region.sum())
     assert n_px > 30
@@ -58,7 +61,7 @@ def test_depth_noise_std_matches_sigma_z(distance):
 def test_depth_is_z_along_axis_not_ray_length():
     setup = planar_target(2.0, np.random.default_rng(0), width=W, height=H)
     cam = setup.cameras["rgbd"]
-    bgr, depth, g = render_rgbd(cam, setup.scene, 0.0, rng=None)
+    bgr, depth, g = render_rgbd(cam, setup.scene, 0.0, rng=None, depth_model=NO_PATTERN)
     region = (g.object_id == setup.meta["target_id"]) & (depth > 0)
     assert np.all(depth[region] == 2000)
     # the ray length grows towards the image corners, the depth does not
@@ -206,7 +209,7 @@ def test_depth_noise_is_correlated_as_configured_and_scales_with_the_image_width
         g = GBuffer(distance_m=z, depth_m=z, normal_world=np.zeros(z.shape + (3,), np.float32),
                     object_id=np.ones(z.shape, np.int32), albedo_rgb=np.full(z.shape + (3,), 0.5, np.float32))
         model = DepthSensorModel(noise_corr_px=corr, noise=DepthNoiseModel(coeffs=(0.0, 0.0, 0.0, sigma)),
-                                 units_per_m=10000.0, max_depth_m=6.0)
+                                 units_per_m=10000.0, max_depth_m=6.0, pattern_disparity_px=0.0)
         res = depth_mm_from_gbuffer(g, model, rng).astype(float) / 1e4 - 2.0
         assert abs(res.std() / sigma - 1) < 0.06                        # each pixel keeps sigma_z
         np.testing.assert_allclose(lag1(res), expect, atol=0.04)
@@ -216,6 +219,43 @@ def test_depth_noise_is_correlated_as_configured_and_scales_with_the_image_width
         DepthSensorModel(noise_corr_px=(1.0,))
     with pytest.raises(ValueError, match="noise_corr_px"):
         DepthSensorModel(noise_corr_px=(-1.0, 0.5))
+
+
+def test_fixed_pattern_is_the_units_own_and_moves_depth_as_a_disparity_offset():
+    """The sensor's fixed pattern: the same in every frame and with or without noise (the unit's, drawn from
+    its own seed), a disparity offset (``z -> 1 / (1 / z + c)``: four times the depth error at twice the
+    distance), the measured RMS and no affine part over the image; another unit has another pattern."""
+    from tudorvision.sim.depth_sensor import KINECT_FOCAL_BASELINE_PX_M, KINECT_PATTERN_DISPARITY_PX, pattern_field
+
+    H, W_ = 120, 160
+    m = DepthSensorModel(units_per_m=10000.0)
+    assert m.pattern_disparity_px == KINECT_PATTERN_DISPARITY_PX          # the lab's Kinect has it by default
+    c = pattern_field(m, H, W_)
+    assert abs(np.sqrt(np.mean(c ** 2)) * KINECT_FOCAL_BASELINE_PX_M / KINECT_PATTERN_DISPARITY_PX - 1) < 1e-9
+    vv, uu = np.mgrid[0:H, 0:W_]
+    A = np.stack([np.ones(c.size), uu.ravel(), vv.ravel()], 1)
+    assert np.abs(np.linalg.lstsq(A, c.ravel(), rcond=None)[0]).max() < 1e-12
+    errs = {}
+    for z0 in (2.0, 4.0):
+        z = np.full((H, W_), z0)
+        g = GBuffer(distance_m=z, depth_m=z, normal_world=np.zeros(z.shape + (3,), np.float32),
+                    object_id=np.ones(z.shape, np.int32), albedo_rgb=np.full(z.shape + (3,), 0.5, np.float32))
+        clean = depth_mm_from_gbuffer(g, m, None).astype(float) / 1e4
+        np.testing.assert_allclose(clean, 1.0 / (1.0 / z0 + c), atol=0.6e-4)     # the 0.1 mm output step
+        errs[z0] = np.sqrt(np.mean((clean - z0) ** 2))
+        noisy = np.mean([depth_mm_from_gbuffer(g, m, np.random.default_rng(k)).astype(float) / 1e4
+                         for k in range(30)], axis=0)
+        # the noise averages away over frames, the pattern does not
+        assert np.sqrt(np.mean((noisy - clean) ** 2)) < 0.25 * errs[z0]
+    assert 3.6 < errs[4.0] / errs[2.0] < 4.4
+    other = pattern_field(DepthSensorModel(pattern_seed=1), H, W_)
+    assert abs(np.corrcoef(c.ravel(), other.ravel())[0, 1]) < 0.5
+    with pytest.raises(ValueError, match="pattern_disparity_px"):
+        DepthSensorModel(pattern_disparity_px=-0.1)
+    with pytest.raises(ValueError, match="pattern_seed"):
+        DepthSensorModel(pattern_seed=1.5)
+    with pytest.raises(ValueError, match="pattern_corr_px"):
+        DepthSensorModel(pattern_corr_px=(0.0, 20.0))
 
 
 def _step_edge(c0, shape=(480, 640), slope=0.03):

@@ -1,28 +1,47 @@
 """The calibration disc found in 3D on a real-like arm (issue 15): ring and links joined in depth, invalid or
 near background, the whole 0-180 deg sweep. Oracle: the lab's ground truth (the detector never sees it)."""
+import functools
+
 import numpy as np
 import pytest
 
 from tudorvision.geometry import invert_transform, rotation_angle
+from tudorvision.lab.depth_wall import render_wall_frames
 from tudorvision.lab.disc_sweep import DiscSweepParams, render_disc_sweep, sample_disc_sweep
 from tudorvision.rgbd.base_calib import base_frame_from_theta2_sweep
 from tudorvision.rgbd.disc import DiscOptions, observe_disc
 from tudorvision.rgbd.disc3d import Disc3DOptions, measure_disc_3d
+from tudorvision.rgbd.depth_pattern import calibrate_depth_pattern
 from tudorvision.rgbd.disc_track import DiscSweepTracker, track_disc_sweep
 from tudorvision.rgbd.frames import Intrinsics
 from tudorvision.sensors import KINECT_SIGMA_Z_COEFFS, DepthNoiseModel
+from tudorvision.sim.depth_sensor import DepthSensorModel
 
 #: the seed's Kinect fit read in millimetres (BRIEF), whatever the lab's default reading is
 MM_NOISE = DepthNoiseModel(coeffs=tuple(c / 1000.0 for c in KINECT_SIGMA_Z_COEFFS))
 SWEEP = tuple(np.arange(0.0, 180.1, 10.0))
 
 
+@functools.lru_cache(maxsize=1)
+def _pattern(K_rows):
+    """The lab Kinect's fixed depth pattern as a user calibrates it: 30 frames of a flat wall (same unit)."""
+    walls = render_wall_frames(np.array(K_rows), 320, 240, DepthSensorModel(noise=MM_NOISE),
+                               np.random.default_rng(99))
+    return calibrate_depth_pattern(walls)
+
+
 def _sweep(seed, **kw):
+    """A sweep through the lab's Kinect (noise and its fixed pattern), the pattern removed as a user would
+    (tests/test_rgbd_depth_pattern.py tests that step; without it a 3.5 m sweep is off by centimetres)."""
     rng = np.random.default_rng(seed)
     base = dict(theta2_deg=SWEEP, frames_per_pose=1, n_vertical=4)
     base.update(kw)
     p = sample_disc_sweep(rng, **base)
-    return render_disc_sweep(p, rng, width=320, height=240, noise=MM_NOISE)
+    sw = render_disc_sweep(p, rng, width=320, height=240, noise=MM_NOISE)
+    corr = _pattern(tuple(map(tuple, np.asarray(sw.K, float))))
+    for i in range(len(sw.depth_m)):
+        sw.depth_m[i] = corr.apply(sw.depth_m[i])
+    return sw
 
 
 def _seed_uv(sw, K):

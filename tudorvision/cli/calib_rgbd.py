@@ -1,4 +1,4 @@
-"""``tudorvision calib rgbd-depth`` and ``tudorvision calib rgbd-base``.
+"""``tudorvision calib rgbd-depth``, ``tudorvision calib rgbd-pattern`` and ``tudorvision calib rgbd-base``.
 
 Thin shells over :mod:`tudorvision.rgbd.depth_model`,
 :mod:`tudorvision.rgbd.disc` and :mod:`tudorvision.rgbd.base_calib`;
@@ -16,7 +16,7 @@ from ._args import parse_floats
 from ._viewer import add_viewer_arguments, open_viewer
 from .robot_args import add_robot_option, robot_from_args
 
-__all__ = ["register", "observe_sweep", "check_sweep_fit"]
+__all__ = ["register", "observe_sweep", "check_sweep_fit", "depth_pattern_arg"]
 
 
 def _save(out, base_cal, camera, **updates):
@@ -88,6 +88,67 @@ def _cmd_depth(args) -> int:
     return 0
 
 
+def depth_pattern_arg(path, K):
+    """``--depth-pattern FILE``: the correction (:func:`tudorvision.rgbd.depth_pattern.read_depth_pattern`),
+    checked against the camera's image size; None without the option.
+
+    Parameters
+    ----------
+    path : str or None
+        The option's value.
+    K : Intrinsics
+        The camera's intrinsics (its ``width`` and ``height``).
+
+    Returns
+    -------
+    DepthPatternCorrection or None
+
+    Raises
+    ------
+    TudorVisionError
+        An unreadable file, or one made for another image size.
+    """
+    if path is None:
+        return None
+    from ..rgbd.depth_pattern import read_depth_pattern
+
+    corr = read_depth_pattern(path)
+    if tuple(int(v) for v in corr.image_size) != (int(K.width), int(K.height)):
+        raise TudorVisionError(f"--depth-pattern {path}: made for {corr.image_size[0]}x{corr.image_size[1]} px "
+                               f"images, the sequence's are {K.width}x{K.height}")
+    return corr
+
+
+def _cmd_pattern(args) -> int:
+    from .._progress import progress
+    from ..io import open_sequence
+    from ..rgbd.depth_pattern import calibrate_depth_pattern, write_depth_pattern
+
+    frames = []
+    for path in args.seq:
+        seq = open_sequence(path)
+        try:
+            if seq.kind != "rgbd":
+                raise TudorVisionError(f"{path}: expected an RGB-D sequence, got kind {seq.kind!r}")
+            frames += [np.asarray(f.depth_m, np.float32) for f in progress(seq, total=len(seq),
+                                                                            desc=Path(path).name)]
+        finally:
+            seq.close()
+    if not args.step_px >= 1:
+        raise TudorVisionError(f"--step-px: expected a positive integer, got {args.step_px}")
+    corr = calibrate_depth_pattern(frames, step_px=args.step_px, min_plane_fraction=args.min_plane_fraction)
+    c = corr.grid_inv_m
+    print(f"depth pattern from {corr.n_frames} of {len(frames)} frames (a plane over at least "
+          f"{args.min_plane_fraction:.0%} of the image): RMS {np.sqrt(np.mean(c ** 2)) * 1e3:.3f} x 1e-3 1/m "
+          f"(moves a depth z by about z^2 times that: {np.sqrt(np.mean(c ** 2)) * 9e3:.1f} mm RMS at 3 m), "
+          f"largest {np.abs(c).max() * 9e3:.1f} mm at 3 m")
+    print(f"wrote {write_depth_pattern(args.out, corr)}")
+    if args.plot:
+        from ..rgbd.depth_pattern import plot_depth_pattern
+        print(f"wrote {plot_depth_pattern(args.plot, corr)}")
+    return 0
+
+
 def _is_vertical(theta, tol):
     return abs(theta[0]) < tol and abs(theta[1] - np.pi / 2) < tol and abs(theta[2]) < tol
 
@@ -114,7 +175,7 @@ def _predict_uv(samples, thetas, th2, max_gap=np.radians(30.0)):
 
 
 def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None, joint_tol_deg: float = 0.5,
-                  on_frame=None):
+                  on_frame=None, depth_pattern=None):
     """Track the disc through a recorded theta2 sweep and its vertical-posture frames.
 
     Parameters
@@ -138,6 +199,8 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
     on_frame : callable, optional
         ``on_frame(frame, centre_cam)`` for every sweep or vertical frame:
         the RGB-D frame and the disc centre (m, camera frame) or None when lost.
+    depth_pattern : tudorvision.rgbd.depth_pattern.DepthPatternCorrection, optional
+        The camera's fixed depth pattern (``calib rgbd-pattern``), removed from every frame first.
 
     Returns
     -------
@@ -190,13 +253,14 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
     lost = {}
     for f in progress(seq, total=n, desc="disc"):
         i = f.index
-        if yaw[i]:
-            yaw_depth.append(np.asarray(f.depth_m, np.float32))
+        if not (yaw[i] or sweep[i] or vertical[i]):
             continue
-        if not (sweep[i] or vertical[i]):
+        depth = f.depth_m if depth_pattern is None else depth_pattern.apply(f.depth_m)
+        if yaw[i]:
+            yaw_depth.append(np.asarray(depth, np.float32))
             continue
         if isinstance(options, Disc3DOptions):
-            m = tracker3d.update(f.depth_m, None if thetas is None else float(thetas[i, 1]))
+            m = tracker3d.update(depth, None if thetas is None else float(thetas[i, 1]))
             if m.valid:
                 samples[i] = (m.centre_cam, None)
             else:
@@ -204,14 +268,14 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
             if on_frame is not None:
                 on_frame(f, samples[i][0] if i in samples else None)
             continue
-        obs = tracker.update(f.depth_m)
+        obs = tracker.update(depth)
         if not obs.valid and thetas is not None and samples:
             # the arm jumped (e.g. back to the vertical posture): re-seed where the sweep saw
             # the disc at this theta2 (interpolated between the nearest samples) and retry
             guess = _predict_uv(samples, thetas, thetas[i, 1])
             if guess is not None:
                 tracker.reseed(guess[0], guess[1])
-                obs = tracker.update(f.depth_m)
+                obs = tracker.update(depth)
         if obs.valid:
             samples[i] = (obs.centroid_cam, obs.centroid_uv)
         else:
@@ -242,7 +306,8 @@ def _fit_base(args, seq, K, seed, opts, prm, recording):
         rerun_log.log_disc(recording, f.index, f.t, centre)
 
     obs = observe_sweep(seq, K, seed, opts, vertical_frame=args.vertical_frame, joint_tol_deg=args.joint_tol_deg,
-                        on_frame=None if recording is None else on_frame)
+                        on_frame=None if recording is None else on_frame,
+                        depth_pattern=depth_pattern_arg(args.depth_pattern, K))
     T_base_cam, rep = base_frame_from_theta2_sweep(obs["points_cam"], obs["vertical_cam"], theta2_rad=obs["theta2_rad"],
                                                    origin=args.origin, vertical=args.vertical,
                                                    link1_height_m=prm.link1_height_m)
@@ -437,7 +502,7 @@ def check_sweep_fit(radius_m: float, rmse_m: float, *, params=None, radius_tol_m
 
 
 def register(calib_sub) -> None:
-    """Add ``rgbd-depth`` and ``rgbd-base`` to the ``calib`` group."""
+    """Add ``rgbd-depth``, ``rgbd-pattern`` and ``rgbd-base`` to the ``calib`` group."""
     from ..rgbd.base_spread import SPREAD_WARN_DEG, SPREAD_WARN_M
 
     p = calib_sub.add_parser(
@@ -455,6 +520,21 @@ def register(calib_sub) -> None:
     p.add_argument("--plot", help="PNG plot of sigma_z(z)")
     p.set_defaults(func=_cmd_depth)
 
+    q = calib_sub.add_parser(
+        "rgbd-pattern", help="a depth camera's fixed depth pattern from frames of a flat wall",
+        description="Frames of a flat wall (or any plane over most of the view) at one or more distances and "
+                    "angles, distances not needed: every frame's plane fit in inverse depth leaves the camera's "
+                    "fixed pattern (a structured-light camera's disparity offset) plus noise; their mean per "
+                    "block is written as OpenCV YAML for --depth-pattern of 'calib rgbd-base' and "
+                    "'detect ball'. Ten or more frames per distance, two or three distances.")
+    q.add_argument("seq", metavar="SEQ", nargs="+", help="RGB-D sequences of a flat wall")
+    q.add_argument("--out", required=True, help="depth pattern file to write (OpenCV YAML)")
+    q.add_argument("--step-px", type=int, default=8, help="block size of the pattern's grid, pixels (default 8)")
+    q.add_argument("--min-plane-fraction", type=float, default=0.5,
+                   help="frames whose plane covers less of the image are left out (default 0.5)")
+    q.add_argument("--plot", help="PNG image of the pattern (mm at 3 m)")
+    q.set_defaults(func=_cmd_pattern)
+
     b = calib_sub.add_parser(
         "rgbd-base", help="wall camera to robot base from a theta2 sweep with a disc in the net",
         description="Track the disc (by default found in 3D as a planar disc of --disc-radius near its "
@@ -469,6 +549,8 @@ def register(calib_sub) -> None:
     b.add_argument("--seed", required=True, help="pixel U,V on the disc in the first frame")
     b.add_argument("--vertical-frame", type=int, help="frame index of the vertical posture (default: from joints.txt)")
     b.add_argument("--calib", help="intrinsics file when the sequence has none")
+    b.add_argument("--depth-pattern", metavar="FILE",
+                   help="the camera's fixed depth pattern ('calib rgbd-pattern'), removed from every frame")
     b.add_argument("--disc-radius", type=float, default=0.09, help="disc radius in metres (default 0.09: the 18 cm disc)")
     b.add_argument("--detector", choices=("disc3d", "uniform-depth"), default="disc3d",
                    help="'disc3d' (default): a planar disc of --disc-radius found in 3D (plane and circle fit on the "

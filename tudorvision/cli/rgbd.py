@@ -114,6 +114,8 @@ def _ball_rows(seq, args, rows: list) -> None:
         opts = BallDetectorOptions(ball_radius_m=args.ball_diameter / 2.0, max_range_m=args.max_range,
                                    depth_model=noise_model_from_calibration(cal))
         det = BallDetector(K, opts, n_background=args.background)
+        from .calib_rgbd import depth_pattern_arg
+        pattern = depth_pattern_arg(args.depth_pattern, K)
     elif seq.kind == "mono":
         det = ColorBallDetector(ColorBallOptions(n_background=args.background))
     else:
@@ -125,7 +127,10 @@ def _ball_rows(seq, args, rows: list) -> None:
                                                             f"the intrinsics {K.width}x{K.height}", f.index))
                 continue
             d = det.update(f.depth_m)
-            p = (np.nan,) * 3 if d is None else tuple(d.p_cam)
+            if d is None:
+                p = (np.nan,) * 3
+            else:
+                p = tuple(d.p_cam if pattern is None else pattern.correct_points(d.p_cam, K))
         else:
             d = det.update(f.image)
             p = (np.nan,) * 3
@@ -197,6 +202,8 @@ def register(subparsers) -> None:
     b.add_argument("seq", metavar="SEQ", help="RGB-D sequence or video file")
     b.add_argument("--out", required=True, help="output CSV")
     b.add_argument("--calib", help="intrinsics file when the sequence has none")
+    b.add_argument("--depth-pattern", metavar="FILE",
+                   help="the camera's fixed depth pattern ('calib rgbd-pattern'), removed from every ball position")
     b.add_argument("--background", type=int, default=10, help="initial frames for the background (default 10)")
     b.add_argument("--max-range", type=float, default=4.5, help="search range from the sensor, metres "
                                                                 "(default 4.5)")

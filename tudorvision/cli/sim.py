@@ -112,7 +112,7 @@ def register(sub) -> None:
     r = s.add_parser("record", help="write a recording (sequence directory with ground truth)",
                      description="Regenerate a recording deterministically. KIND is one of: stereo-step, "
                                  "stereo-static, stereo-sweep, stereo-checkerboard, rgbd-plane, rgbd-disc, "
-                                 "rgbd-throws, servo-views.")
+                                 "rgbd-throws, rgbd-wall, servo-views.")
     r.add_argument("kind", metavar="KIND")
     r.add_argument("--out", required=True, help="output directory (must be empty or absent unless --force)")
     r.add_argument("--force", action="store_true",

@@ -18,6 +18,7 @@ stereo-checkerboard  checkerboard pairs for stereo calibration
 rgbd-plane           planar target at stepped distances (one sequence per distance)
 rgbd-disc            wall camera, disc in the net, theta2 sweep, the vertical posture, a theta1 sweep
 rgbd-throws          9 cm balls thrown towards the robot, wall camera 5 m away (as for rgbd-disc)
+rgbd-wall            a flat wall at 2.5 / 3.5 / 4.5 m: the depth camera's fixed pattern (calib rgbd-pattern)
 servo-views          eye-in-hand views of a black square on white ground
 """
 from __future__ import annotations
@@ -33,6 +34,7 @@ from .._progress import progress
 from ..robot import load_robot_params
 from ..robot.params import RobotParams
 from ..sim.arm import Payload, fk_elastic, spheres_from_T, ElasticArm
+from .depth_wall import record_rgbd_wall
 from .simulation import simulate_ptp
 from ..sim.camera import PinholeCamera, look_at
 from ..sim.render import render_bgr, render_rgbd
@@ -604,8 +606,10 @@ KINDS: dict[str, Callable] = {
     "rgbd-plane": record_rgbd_plane,
     "rgbd-disc": record_rgbd_disc,
     "rgbd-throws": record_rgbd_throws,
+    "rgbd-wall": record_rgbd_wall,
     "servo-views": record_servo_views,
 }
+
 
 
 def record(kind: str, out, opts: RecordOptions = RecordOptions()) -> Path:

@@ -13,9 +13,22 @@ unit variance, so that each pixel keeps ``sigma_z(z)`` while the mean over a
 region averages far less noise away than independent pixels would
 (:data:`KINECT_NOISE_CORR_PX`, measured on a real frame;
 ``benchmarks/bench_depth_noise_real.py``).
+
+A real Kinect also has a fixed depth error that does not average away over
+frames: block matching of the speckle pattern measures disparity with an
+offset that changes slowly over the image and belongs to the unit (Smisek et
+al. 2011; Herrera et al. 2012). ``pattern_disparity_px`` models it as a fixed,
+smooth disparity offset field (its own seed, the same in every frame), which
+moves a depth ``z`` by about ``z^2 * offset / (f b)``: its RMS, correlation and
+size were measured on the floor of the real Kinect frames in
+``../shared/realdata/rgbd_kinect_room/`` (``benchmarks/bench_depth_pattern_real.py``,
+:data:`KINECT_PATTERN_DISPARITY_PX`). Only the part a plane fit cannot absorb
+is modelled (the field's best affine fit is removed): an offset or a tilt of
+inverse depth maps planes to planes and is what a depth bias calibration sees.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -25,8 +38,9 @@ import numpy as np
 from ..sensors import KINECT_DEPTH_NOISE, KINECT_RANGE_M, DepthNoiseModel
 from .raycast import GBuffer
 
-__all__ = ["DepthSensorModel", "depth_mm_from_gbuffer", "noise_field", "KINECT_NOISE_CORR_PX",
-           "KINECT_EDGE_JITTER_PX"]
+__all__ = ["DepthSensorModel", "depth_mm_from_gbuffer", "noise_field", "pattern_field", "with_pattern",
+           "KINECT_NOISE_CORR_PX", "KINECT_EDGE_JITTER_PX", "KINECT_PATTERN_DISPARITY_PX", "KINECT_PATTERN_CORR_PX",
+           "KINECT_FOCAL_BASELINE_PX_M"]
 
 #: Standard deviations (u, v) of the Gaussian that correlates the depth noise, pixels. From the flat desk
 #: top of the real TUM frame ``../shared/realdata/rgbd_tum_desk/1_depth.png`` (rows 330-380, columns
@@ -42,6 +56,22 @@ KINECT_NOISE_CORR_PX = (1.5, 0.9)
 #: 0.38 / 0.23 at 1, 2 and 4 rows (``benchmarks/bench_depth_noise_real.py``, edge section); a 0.9 px shift
 #: smoothed over 2 px, rounded to whole pixels, gives 0.86 px there (``tests/test_depth_sensor.py``).
 KINECT_EDGE_JITTER_PX = (0.9, 2.0)
+#: RMS (pixels of a 640 px wide image) of the Kinect's fixed disparity offset pattern, after its best affine fit
+#: is removed. From the floor of the real frames ``../shared/realdata/rgbd_kinect_room/depth/2..5.pgm`` (2-4 m):
+#: per frame, inverse depth minus its affine (plane) fit, in 16 px blocks, converted to disparity with
+#: :data:`KINECT_FOCAL_BASELINE_PX_M`; the frames' residuals agree in image coordinates although the camera moved
+#: 1 m between them (correlation 0.58-0.78), which the floor's own shape cannot do; the part they share is
+#: 0.052 px RMS (0.31 % of the depth at 2.6 m, 8 mm). The lab's field measured the same way on the same
+#: planes and pixels shows 0.96 times that with 0.065 px over eight units, hence 0.068
+#: (``benchmarks/bench_depth_pattern_real.py``); at 5 m it moves depths by 4 cm RMS.
+KINECT_PATTERN_DISPARITY_PX = 0.068
+#: Standard deviations (u, v) of the Gaussian that smooths the pattern, pixels of a 640 px wide image: the
+#: shared residual's correlation at 32 px lag is 0.44 along u and 0.54 along v; the lab's field, measured the
+#: same way over eight units, 0.99 and 0.92 times that.
+KINECT_PATTERN_CORR_PX = (24.0, 26.0)
+#: Focal length times baseline of a Kinect v1's infrared camera and projector, pixels x metres (580 px, 7.5 cm):
+#: a disparity offset ``d`` moves a depth ``z`` to ``1 / (1 / z + d / (f b))``.
+KINECT_FOCAL_BASELINE_PX_M = 43.5
 NATIVE_WIDTH_PX = 640          # the width ``noise_corr_px`` is given for
 
 
@@ -91,6 +121,16 @@ class DepthSensorModel:
         smooth surface keeps its own sample), as a real Kinect's block matching places depth edges
         (:data:`KINECT_EDGE_JITTER_PX`);
         ``(0, 0)``: edges where the scene has them (the lab before 2026-11-28).
+    pattern_disparity_px : float
+        RMS of the fixed disparity offset pattern, pixels of a 640 px wide image (:func:`pattern_field`;
+        default :data:`KINECT_PATTERN_DISPARITY_PX`, the measured Kinect); 0: none (the lab before 2026-12-06).
+        It is applied with or without noise: it is the unit's, not the frame's.
+    pattern_corr_px : tuple of float
+        Standard deviations (u, v) of the pattern's smoothing Gaussian, pixels of a 640 px wide image.
+    pattern_seed : int
+        Which unit: the pattern's own random seed (every frame of a sensor shares its pattern).
+    focal_baseline_px_m : float
+        ``f * b`` of the depth camera, pixels x metres, converting the disparity offset to depth.
 
     Raises
     ------
@@ -115,6 +155,10 @@ class DepthSensorModel:
     units_per_m: float = 1000.0
     noise_corr_px: tuple = KINECT_NOISE_CORR_PX
     edge_jitter_px: tuple = KINECT_EDGE_JITTER_PX
+    pattern_disparity_px: float = KINECT_PATTERN_DISPARITY_PX
+    pattern_corr_px: tuple = KINECT_PATTERN_CORR_PX
+    pattern_seed: int = 0
+    focal_baseline_px_m: float = KINECT_FOCAL_BASELINE_PX_M
 
     def __post_init__(self):
         if not 0 <= self.min_depth_m < self.max_depth_m:
@@ -137,6 +181,16 @@ class DepthSensorModel:
         if not (0 <= js <= 5 and 0 <= jc <= 20):
             raise ValueError(f"edge_jitter_px: expected sigma in [0, 5] px and corr in [0, 20] px, "
                              f"got {self.edge_jitter_px!r}")
+        if not 0 <= float(self.pattern_disparity_px) <= 2:
+            raise ValueError(f"pattern_disparity_px: expected an RMS in [0, 2] px, got {self.pattern_disparity_px!r}")
+        pu, pv = _two_numbers("pattern_corr_px", self.pattern_corr_px, "(u, v)")
+        if not (1 <= pu <= 200 and 1 <= pv <= 200):
+            raise ValueError(f"pattern_corr_px: expected two standard deviations in [1, 200] px, "
+                             f"got {self.pattern_corr_px!r}")
+        if int(self.pattern_seed) != self.pattern_seed or self.pattern_seed < 0:
+            raise ValueError(f"pattern_seed: expected a non-negative integer, got {self.pattern_seed!r}")
+        if not self.focal_baseline_px_m > 0:
+            raise ValueError(f"focal_baseline_px_m: expected > 0, got {self.focal_baseline_px_m!r}")
 
     def corr_px_for_width(self, width_px: int) -> tuple:
         """``noise_corr_px`` for an image ``width_px`` wide (it is given for 640 px).
@@ -250,6 +304,92 @@ def noise_field(shape, rng: np.random.Generator, corr_px=(0.0, 0.0), dtype=np.fl
     return cv2.sepFilter2D(wide, -1, kx, ky)[ry:ry + h, rx:rx + w]
 
 
+@functools.lru_cache(maxsize=16)
+def _pattern_cached(rms_px: float, corr_px: tuple, seed: int, fb: float, height: int, width: int) -> np.ndarray:
+    rng = np.random.default_rng([int(seed), 0x9A77E])
+    k = _width_scale(width)
+    f = noise_field((height, width), rng, (k * corr_px[0], k * corr_px[1]))
+    vv, uu = np.mgrid[0:height, 0:width].astype(np.float64)
+    A = np.stack([np.ones(f.size), uu.ravel(), vv.ravel()], 1)
+    f = f - (A @ np.linalg.lstsq(A, f.ravel(), rcond=None)[0]).reshape(f.shape)
+    f *= (rms_px / fb) / float(np.sqrt(np.mean(f * f)))
+    f.setflags(write=False)
+    return f
+
+
+def pattern_field(model: DepthSensorModel, height: int, width: int) -> np.ndarray:
+    """The sensor unit's fixed inverse-depth offset over a ``height x width`` image, 1/m.
+
+    A smooth Gaussian field (:func:`noise_field` of ``model.pattern_corr_px``, scaled to the width, drawn
+    from ``model.pattern_seed`` alone), its best affine fit in (u, v) removed, scaled to an RMS of
+    ``model.pattern_disparity_px / model.focal_baseline_px_m``: the sensor reports ``1 / (1 / z + c)``
+    for a true depth ``z`` where the field is ``c``. Computed once per model and size (read-only).
+
+    Parameters
+    ----------
+    model : DepthSensorModel
+        ``pattern_disparity_px``, ``pattern_corr_px``, ``pattern_seed``, ``focal_baseline_px_m``.
+    height, width : int
+        The whole image, pixels.
+
+    Returns
+    -------
+    ndarray, shape (height, width), float64
+        ``c``, 1/m; zeros when ``pattern_disparity_px`` is 0.
+
+    Examples
+    --------
+    >>> m = DepthSensorModel(pattern_disparity_px=0.05)
+    >>> c = pattern_field(m, 480, 640)
+    >>> round(float(np.sqrt(np.mean(c ** 2)) * m.focal_baseline_px_m), 3)       # the RMS, disparity pixels
+    0.05
+    >>> z = 5.0; round(float(np.abs(1 / (1 / z + c) - z).max()) * 1000) > 10       # centimetres at 5 m
+    True
+    >>> float(np.abs(pattern_field(DepthSensorModel(pattern_disparity_px=0), 4, 6)).max())
+    0.0
+    """
+    if float(model.pattern_disparity_px) == 0.0:
+        return np.zeros((int(height), int(width)))
+    corr = tuple(float(c) for c in model.pattern_corr_px)
+    return _pattern_cached(float(model.pattern_disparity_px), corr, int(model.pattern_seed),
+                           float(model.focal_baseline_px_m), int(height), int(width))
+
+
+def with_pattern(z: np.ndarray, model: DepthSensorModel, shape: tuple, origin=(0, 0)) -> np.ndarray:
+    """True depths as the sensor's fixed pattern reports them (:func:`pattern_field`).
+
+    Parameters
+    ----------
+    z : ndarray, shape (h, w)
+        True depths, metres; 0 (invalid) stays 0.
+    model : DepthSensorModel
+        Its pattern; ``z`` itself is returned when it has none.
+    shape : tuple of int
+        ``(H, W)`` of the whole image.
+    origin : tuple of int
+        ``(v0, u0)``: where ``z[0, 0]`` lies in the whole image (a crop).
+
+    Returns
+    -------
+    ndarray, shape (h, w)
+        ``1 / (1 / z + c)`` where ``z > 0``, ``z``'s dtype.
+
+    Examples
+    --------
+    >>> m = DepthSensorModel(pattern_disparity_px=0.05)
+    >>> z = np.full((480, 640), 3.0)
+    >>> np.allclose(with_pattern(z, m, (480, 640))[100:110, 200:220],
+    ...             with_pattern(z[100:110, 200:220], m, (480, 640), origin=(100, 200)))
+    True
+    """
+    if float(model.pattern_disparity_px) == 0.0:
+        return z
+    v0, u0 = (int(o) for o in origin)
+    c = pattern_field(model, *shape)[v0:v0 + z.shape[0], u0:u0 + z.shape[1]]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(z > 0, 1.0 / (1.0 / z + c), z).astype(z.dtype, copy=False)
+
+
 def _jittered(z: np.ndarray, albedo: np.ndarray, model: DepthSensorModel, rng, width_px: int):
     """Depth and albedo resampled at positions shifted by the edge jitter (nearest pixel, clipped), where the
     shifted sample lies across a depth edge (a jump of more than ``edge_jump_rel``); elsewhere unchanged.
@@ -294,8 +434,9 @@ def _edge_mask(z: np.ndarray, rel: float, width: int) -> np.ndarray:
     return edge if width > 0 else np.zeros_like(edge)
 
 
-def depth_mm_from_gbuffer(gbuffer: GBuffer, model: DepthSensorModel,
-                          rng: np.random.Generator | None, *, image_width_px: int | None = None) -> np.ndarray:
+def depth_mm_from_gbuffer(gbuffer: GBuffer, model: DepthSensorModel, rng: np.random.Generator | None, *,
+                          image_width_px: int | None = None, image_height_px: int | None = None,
+                          image_origin_px=(0, 0)) -> np.ndarray:
     """Registered 16-bit depth image from a ray-cast G-buffer.
 
     Depth is z along the optical axis plus Gaussian noise of std
@@ -306,7 +447,9 @@ def depth_mm_from_gbuffer(gbuffer: GBuffer, model: DepthSensorModel,
     (``model.edge_jitter_px``, whole pixels, clipped to the buffer) lies
     across a depth edge first takes the G-buffer's sample there, so that
     depth edges wander as a real sensor's do; the depth noise is drawn
-    first, then the two jitter fields.
+    first, then the two jitter fields. The sensor's fixed pattern
+    (``model.pattern_disparity_px``, :func:`pattern_field`) moves every valid
+    depth before the noise, with or without ``rng``.
 
     Parameters
     ----------
@@ -320,6 +463,10 @@ def depth_mm_from_gbuffer(gbuffer: GBuffer, model: DepthSensorModel,
     image_width_px : int, optional
         Width of the whole image when ``gbuffer`` is a crop of it (the noise's correlation scales with
         it, :meth:`DepthSensorModel.corr_px_for_width`); default the G-buffer's own width.
+    image_height_px : int, optional
+        Height of the whole image (the fixed pattern is the whole image's); default the G-buffer's.
+    image_origin_px : tuple of int
+        ``(v0, u0)``: where the G-buffer's first pixel lies in the whole image (a crop), default (0, 0).
 
     Returns
     -------
@@ -336,6 +483,7 @@ def depth_mm_from_gbuffer(gbuffer: GBuffer, model: DepthSensorModel,
     valid &= ~_edge_mask(z, model.edge_jump_rel, int(model.edge_width_px))
     valid &= albedo.mean(axis=2) >= model.min_albedo
     zv = np.where(valid, z, 0.0)
+    zv = with_pattern(zv, model, (image_height_px or z.shape[0], width), image_origin_px)
     if noise is not None:
         zv = zv + model.noise.sigma_m(zv) * noise
     out = np.clip(np.rint(zv * model.units_per_m), 1, 65535)

@@ -198,7 +198,8 @@ class RoiRenderer:
             crop = self._crop(camera, a0, a1, b0, b1)
             box = np.s_[v0 - a0:v1 - a0, u0 - b0:u1 - b0]
             gb = render_gbuffer(crop, self.scene, t)
-            depth[v0:v1, u0:u1] = depth_mm_from_gbuffer(gb, self.depth_model, rng, image_width_px=W)[box]
+            depth[v0:v1, u0:u1] = depth_mm_from_gbuffer(gb, self.depth_model, rng, image_width_px=W,
+                                                           image_height_px=H, image_origin_px=(a0, b0))[box]
             if self.supersample == 1:
                 rad = render_radiance(crop, self.scene, t)[box]
             else:
@@ -261,7 +262,7 @@ class RoiRenderer:
         None when the plane itself would show depth edges (grazing view),
         so that the caller falls back to the full render.
         """
-        from .depth_sensor import noise_field
+        from .depth_sensor import noise_field, with_pattern
         from .render import depth_sigma_m
         m = self.depth_model
         z = self._ground_depth(camera)
@@ -277,6 +278,7 @@ class RoiRenderer:
         all_valid = m.min_depth_m <= float(z.min()) and float(z.max()) <= m.max_depth_m
         valid = True if all_valid else (z >= m.min_depth_m) & (z <= m.max_depth_m)
         zv = z if all_valid else np.where(valid, z, 0.0)
+        zv = with_pattern(zv, m, z.shape)
         if rng is not None:
             # float32 is ample before the millimetre rounding and halves the cost of the noise
             z32 = zv.astype(np.float32)

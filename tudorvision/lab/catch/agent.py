@@ -234,6 +234,11 @@ class CatchAgent:
         The robot's parameters (limits, mount mass).
     payload_range_kg : tuple of float
         Range the payload estimate is clipped to (the kinematics' trained range), kg.
+    depth_correction : tudorvision.rgbd.depth_pattern.DepthPatternCorrection, optional
+        The wall camera's calibrated depth pattern, removed from every detection
+        (:meth:`~tudorvision.rgbd.depth_pattern.DepthPatternCorrection.correct_points`); None: left in.
+    intrinsics : tudorvision.rgbd.frames.Intrinsics, optional
+        The wall camera's intrinsics (needed with ``depth_correction``).
 
     Attributes
     ----------
@@ -252,12 +257,15 @@ class CatchAgent:
     """
 
     def __init__(self, layer, ik: CatchIK, strain_model, perception, detector, T_base_cam, *, options, params,
-                 payload_range_kg: tuple[float, float]):
+                 payload_range_kg: tuple[float, float], depth_correction=None, intrinsics=None):
         from ...joint import Damping, Mode
 
         self.layer, self.adapter = layer, layer.adapter
         self.ik, self.strain_model, self.perception, self.detector = ik, strain_model, perception, detector
         self.T_base_cam = np.asarray(T_base_cam, float)
+        if depth_correction is not None and intrinsics is None:
+            raise ValueError("CatchAgent: depth_correction needs the camera's intrinsics")
+        self.depth_correction, self.intrinsics = depth_correction, intrinsics
         self.options, self.params = options, params
         self.inner_reach_m = demo_inner_reach_m(options, params)
         self.payload_range_kg = payload_range_kg
@@ -378,6 +386,8 @@ class CatchAgent:
             p_cam, cov_cam = d.p_cam, d.cov_cam
         else:
             p_cam, cov_cam = frame.detection_cam
+        if self.depth_correction is not None:
+            p_cam = self.depth_correction.correct_points(p_cam, self.intrinsics)
         log.detections += 1
         p_b, C_b = detection_to_base(p_cam, cov_cam, self.T_base_cam)
         rec = self.perception.step(frame.t, p_b, C_b)

@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["wall_camera_position_world", "calibrate_wall_camera", "wall_depth_sensor",
+__all__ = ["wall_camera_position_world", "calibrate_wall_camera", "wall_depth_sensor", "wall_depth_pattern",
            "WALL_CAMERA_AIM_HEIGHT_M", "CALIBRATION_METHODS", "SWEEP_THETA2_DEG", "YAW_THETA1_RANGE_DEG", "YAW_POSES",
            "YAW_THETA2_DEG", "ship_calibration",
            "calibration_code_hash", "CODE_FILES"]
@@ -56,7 +56,8 @@ _MEMORY: dict = {}
 #: The sources (relative to the package) whose code decides a calibration: a cache entry written by other
 #: code is not read (:func:`calibration_code_hash`).
 CODE_FILES = ("rgbd/disc_track.py", "rgbd/disc3d.py", "rgbd/base_calib.py", "rgbd/frames.py", "lab/disc_sweep.py",
-              "lab/catch/calibration.py", "sim/depth_sensor.py", "rgbd/yaw_sweep.py", "rgbd/disc_search.py")
+              "lab/catch/calibration.py", "sim/depth_sensor.py", "rgbd/yaw_sweep.py", "rgbd/disc_search.py",
+              "rgbd/depth_pattern.py", "lab/depth_wall.py")
 
 
 @functools.lru_cache(maxsize=1)
@@ -116,6 +117,8 @@ def wall_depth_sensor(options):
     options : DemoOptions
         ``camera_max_depth_m``, metres.
 
+    The fixed depth pattern is ``options.depth_pattern_px``'s, unit ``options.calibration_seed``.
+
     Returns
     -------
     tudorvision.sim.depth_sensor.DepthSensorModel
@@ -130,7 +133,52 @@ def wall_depth_sensor(options):
     """
     from ...sim.depth_sensor import DepthSensorModel
 
-    return DepthSensorModel(max_depth_m=float(options.camera_max_depth_m))
+    return DepthSensorModel(max_depth_m=float(options.camera_max_depth_m),
+                            pattern_disparity_px=float(options.depth_pattern_px),
+                            pattern_seed=int(options.calibration_seed))
+
+
+def wall_depth_pattern(options, K, width: int, height: int):
+    """The agent's calibration of the wall camera's depth pattern, or None when the options leave it out.
+
+    The lab renders 30 frames of a flat wall (2.5, 3.5 and 4.5 m, a random tilt each) through the wall
+    camera's sensor (:func:`tudorvision.lab.depth_wall.render_wall_frames`); perception fits the pattern
+    to them (:func:`tudorvision.rgbd.depth_pattern.calibrate_depth_pattern`). Cached in memory per sensor
+    and camera, and written to ``options.cache_dir`` as OpenCV YAML (``depth_pattern_<key>.yaml``).
+
+    Parameters
+    ----------
+    options : DemoOptions
+        ``depth_pattern_correction``, the sensor (:func:`wall_depth_sensor`), ``calibration_seed``,
+        ``cache_dir``.
+    K : array_like, shape (3, 3)
+        The wall camera's intrinsics, pixels.
+    width, height : int
+        Its image size, pixels.
+
+    Returns
+    -------
+    tudorvision.rgbd.depth_pattern.DepthPatternCorrection or None
+    """
+    from ...rgbd.depth_pattern import calibrate_depth_pattern, write_depth_pattern
+    from ..depth_wall import render_wall_frames
+
+    if not options.depth_pattern_correction:
+        return None
+    sensor = wall_depth_sensor(options)
+    key_src = json.dumps({"sensor": repr(sensor), "K": np.asarray(K, float).round(9).tolist(), "size": [width, height],
+                          "seed": int(options.calibration_seed), "code": calibration_code_hash()}, sort_keys=True)
+    key = "pattern_" + hashlib.sha1(key_src.encode()).hexdigest()[:16]
+    if key in _MEMORY:
+        return _MEMORY[key]
+    walls = render_wall_frames(K, width, height, sensor, np.random.default_rng([int(options.calibration_seed), 16]))
+    corr = calibrate_depth_pattern(walls)
+    _MEMORY[key] = corr
+    try:
+        write_depth_pattern(Path(options.cache_dir) / f"depth_{key}.yaml", corr)
+    except (OSError, ValueError):
+        pass                                # the file is for the user to look at; the memory cache serves
+    return corr
 
 
 def _sweep_params(options, params):
@@ -264,6 +312,9 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
     key_src = json.dumps({"sweep": repr(sp), "seed": int(options.calibration_seed), "v": 3,
                           "max_depth_m": sensor.max_depth_m, "method": method,
                           "depth_noise": [list(sensor.noise.coeffs), list(sensor.noise_corr_px)],
+                          **({"depth_pattern": [sensor.pattern_disparity_px, list(sensor.pattern_corr_px),
+                                                bool(options.depth_pattern_correction)]}
+                             if sensor.pattern_disparity_px > 0 else {}),
                           **({"kinematics": [repr(options.collection), options.plant]}
                              if uses_model else {}),
                           **({"robot": robot_key(params)} if robot_key(params) else {})}, sort_keys=True)
@@ -298,6 +349,10 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
                                f"(pose differs by {offset:.3g})")
     n, h, w = sweep.depth_m.shape
     K = Intrinsics.from_matrix(sweep.K, w, h)
+    pattern = wall_depth_pattern(options, sweep.K, w, h)
+    if pattern is not None:                 # the user's pattern calibration, removed before tracking
+        for i in range(n):
+            sweep.depth_m[i] = pattern.apply(sweep.depth_m[i])
     c0 = sweep.disc_centres_cam[0]          # the operator's click on the disc in the first frame
     seed_uv = (K.fx * c0[0] / c0[2] + K.cx, K.fy * c0[1] / c0[2] + K.cy)
     opts = Disc3DOptions(disc_radius_m=sp.disc_radius_m,

@@ -7,6 +7,7 @@ import numpy as np
 
 from ...catch.ekf import EKFOptions
 from ...robot import RobotParams
+from ...sim.depth_sensor import KINECT_PATTERN_DISPARITY_PX
 from ..data_collection import DEMO_COLLECTION, PLANTS, CollectionOptions, plant_config
 from .calibration import CALIBRATION_METHODS
 
@@ -260,7 +261,18 @@ class DemoOptions:
         comparison only.
     calibration_seed : int
         Seed of the calibration sweep's rendering and depth noise (one calibration per camera
-        placement, shared by all throws and sessions; cached).
+        placement, shared by all throws and sessions; cached); also which depth camera unit the wall camera
+        is (its fixed depth pattern, ``depth_pattern_px``): another calibration seed, another lab.
+    depth_pattern_px : float
+        The wall camera's fixed depth pattern, disparity pixels RMS
+        (:class:`~tudorvision.sim.depth_sensor.DepthSensorModel` ``pattern_disparity_px``; default the measured
+        Kinect's :data:`~tudorvision.sim.depth_sensor.KINECT_PATTERN_DISPARITY_PX`, 0.068 px: about 6 cm RMS
+        at the arm, 6.9 m away). 0: none (the lab before 2026-12-06).
+    depth_pattern_correction : bool
+        The agent calibrates the wall camera's depth pattern from 30 frames of a flat wall first
+        (:func:`~tudorvision.lab.catch.calibration.wall_depth_pattern`,
+        :func:`~tudorvision.rgbd.depth_pattern.calibrate_depth_pattern`) and removes it from the calibration
+        sweep's frames and from every ball detection (default True). False: the pattern is left in.
     params : RobotParams or None
         The robot (``--robot``: arm, kinematics, limits); None: the packaged ``tudor.yaml``.
     plant : str
@@ -340,6 +352,8 @@ class DemoOptions:
     calibration_method: str = "seed+mirror+yaw"
     true_calibration: bool = False
     calibration_seed: int = 0
+    depth_pattern_px: float = KINECT_PATTERN_DISPARITY_PX
+    depth_pattern_correction: bool = True
     plant: str = "seed_measured"
 
     def __post_init__(self):
@@ -368,6 +382,8 @@ class DemoOptions:
         if self.calibration_method not in CALIBRATION_METHODS:
             raise ValueError(f"calibration_method: expected one of {CALIBRATION_METHODS}, "
                              f"got {self.calibration_method!r}")
+        if not (np.isfinite(self.depth_pattern_px) and 0.0 <= self.depth_pattern_px <= 2.0):
+            raise ValueError(f"depth_pattern_px: expected 0-2 disparity px, got {self.depth_pattern_px}")
         if not 0.6 < self.camera_max_depth_m <= 10.0:
             raise ValueError(f"camera_max_depth_m: expected 0.6-10 m, got {self.camera_max_depth_m}")
         if not (0.0 < self.speed_fraction <= 1.0 and 0.0 <= self.late_speed_fraction <= 1.0):

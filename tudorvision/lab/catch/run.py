@@ -41,7 +41,7 @@ from ...catch.ekf import BallModel, EKFOptions
 from ...catch.intercept import InterceptOptions
 from ...catch.perception import CatchPerception
 from .agent import CatchAgent, CatchIK, demo_inner_reach_m, profile_limits
-from .calibration import calibrate_wall_camera, wall_camera_position_world
+from .calibration import calibrate_wall_camera, wall_camera_position_world, wall_depth_pattern
 from .options import DemoOptions, trained_payload_range_kg
 from .scenario import FRAME_RATE_HZ, CatchScenario
 from .score import score_throw, summarize_throws
@@ -196,8 +196,11 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
     T_base_cam, calib = wall_camera_transform(o, params, world.T_base_cam, verbose=o.show_progress is not False,
                                               deflection=km.deflection)
     detector = BallDetector(world.intrinsics, world.detector_options, n_background=N_BACKGROUND_FRAMES)
+    K = world.intrinsics
+    pattern = wall_depth_pattern(o, world.camera.K, K.width, K.height)
     agent = CatchAgent(layer, ik, km.strain, CatchPerception(ekf_opts, iopts, params), detector, T_base_cam,
-                       options=o, params=params, payload_range_kg=trained_payload_range_kg(o.collection))
+                       options=o, params=params, payload_range_kg=trained_payload_range_kg(o.collection),
+                       depth_correction=pattern, intrinsics=K)
     max_speed, max_accel = profile_limits(o, params)
     rate = FRAME_RATE_HZ
     t_now = 0.0

@@ -330,8 +330,26 @@ class CatchScenario:
             return CameraFrame(t=t, depth_mm=self.render_depth(t))
         if p_world[2] <= -1.0:
             return None
-        d = simulated_detection(p_cam, self.intrinsics, self._rng_noise, options=det, scale=o.noise_scale)
+        d = simulated_detection(self._with_pattern(p_cam), self.intrinsics, self._rng_noise, options=det,
+                                scale=o.noise_scale)
         return None if d is None else CameraFrame(t=t, detection_cam=d)
+
+    def _with_pattern(self, p_cam: np.ndarray) -> np.ndarray:
+        """Where the sensor's fixed depth pattern puts a point (moved along its ray; modelled mode).
+
+        The detector averages the depth over the ball's few pixels; the pattern, smooth over tens of
+        pixels, is the one at its centre (:func:`~tudorvision.sim.depth_sensor.pattern_field`).
+        """
+        m = self.depth_sensor
+        if m.pattern_disparity_px == 0 or p_cam[2] <= 0:
+            return p_cam
+        from ...sim.depth_sensor import pattern_field
+
+        K = self.intrinsics
+        u = int(np.clip(np.rint(K.fx * p_cam[0] / p_cam[2] + K.cx), 0, K.width - 1))
+        v = int(np.clip(np.rint(K.fy * p_cam[1] / p_cam[2] + K.cy), 0, K.height - 1))
+        c = pattern_field(m, K.height, K.width)[v, u]
+        return p_cam / (1.0 + p_cam[2] * c)
 
     # ---------------------------------------------------------------- the net and the operator
     def catch_ball(self) -> None:
