@@ -37,7 +37,7 @@ clean:
 	rm -rf $(VENV) out
 
 # Regenerate the committed sample recordings (deterministic, seed 0).
-SAMPLE_KINDS := stereo-step stereo-sweep stereo-checkerboard stereo-static rgbd-plane rgbd-disc rgbd-throws servo-views
+SAMPLE_KINDS := stereo-step stereo-sweep stereo-checkerboard stereo-static rgbd-plane rgbd-disc rgbd-throws rgbd-wall servo-views
 sample-data: $(STAMP)
 	rm -rf sample_data/*/
 	for k in $(SAMPLE_KINDS); do $(BIN)/tudorvision sim record $$k --small --seed 0 --out sample_data/$$k || exit 1; done

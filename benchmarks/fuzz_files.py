@@ -7,6 +7,7 @@ A *crash* is any exception other than the project's one-line errors
 * ``calibration`` - :func:`tudorvision.io.load_calibration` (the project's YAML);
 * ``ros``         - :func:`tudorvision.io.load_ros_camera_info`;
 * ``opencv``      - :func:`tudorvision.io.load_opencv_stereo` (``intrinsics.yml``, OpenCV FileStorage);
+* ``pattern``     - :func:`tudorvision.rgbd.depth_pattern.read_depth_pattern` (a depth pattern, OpenCV YAML);
 * ``header``      - :func:`tudorvision.io._imageheader.image_size_from_header` and the pixel
   limit check (the part of :func:`~tudorvision.io._index.read_image` before
   OpenCV decodes; decoding itself is not fuzzed here: mutated PNG/JPEG
@@ -34,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from tudorvision._checks import TudorVisionError
+from tudorvision.rgbd.depth_pattern import DepthPatternCorrection, read_depth_pattern, write_depth_pattern
 from tudorvision.io import (Calibration, CameraModel, StereoExtrinsics, load_calibration, load_opencv_stereo,
                             load_ros_camera_info, save_calibration, save_opencv_stereo, save_ros_camera_info)
 from tudorvision.io._imageheader import check_pixel_limit, image_size_from_header
@@ -54,7 +56,8 @@ def _seeds() -> dict[str, str]:
         save_calibration(cal, d / "cal.yaml")
         save_ros_camera_info(d / "ros.yaml", cam, name="left")
         save_opencv_stereo(cal, d / "intrinsics.yml", d / "extrinsics.yml")
-        return {"calibration": (d / "cal.yaml").read_text(), "ros": (d / "ros.yaml").read_text(),
+        write_depth_pattern(d / "pattern.yaml", DepthPatternCorrection(np.full((3, 4), 1e-3), 8, (32, 24), 3))
+        return {"pattern": (d / "pattern.yaml").read_text(),"calibration": (d / "cal.yaml").read_text(), "ros": (d / "ros.yaml").read_text(),
                 "opencv": (d / "intrinsics.yml").read_text(),
                 "index": "# timestamp filename\n0.000000 image/000000.png\n0.100000 image/000001.png\n"
                          "0.2 ../x.png\n0.3 /abs/y.png\n",
@@ -81,6 +84,7 @@ TARGETS = {
     "calibration": ("calibration.yaml", load_calibration),
     "ros": ("camera_info.yaml", load_ros_camera_info),
     "opencv": ("intrinsics.yml", lambda p: load_opencv_stereo(p, size=(640, 480))),
+    "pattern": ("pattern.yaml", read_depth_pattern),
     "header": ("frame.png", _header),
 }
 

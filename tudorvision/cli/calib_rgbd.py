@@ -16,7 +16,7 @@ from ._args import parse_floats
 from ._viewer import add_viewer_arguments, open_viewer
 from .robot_args import add_robot_option, robot_from_args
 
-__all__ = ["register", "observe_sweep", "check_sweep_fit", "depth_pattern_arg"]
+__all__ = ["register", "observe_sweep", "check_sweep_fit"]
 
 
 def _save(out, base_cal, camera, **updates):
@@ -86,37 +86,6 @@ def _cmd_depth(args) -> int:
     if args.plot:
         print(f"wrote {plot_depth_model(args.plot, table, model)}")
     return 0
-
-
-def depth_pattern_arg(path, K):
-    """``--depth-pattern FILE``: the correction (:func:`tudorvision.rgbd.depth_pattern.read_depth_pattern`),
-    checked against the camera's image size; None without the option.
-
-    Parameters
-    ----------
-    path : str or None
-        The option's value.
-    K : Intrinsics
-        The camera's intrinsics (its ``width`` and ``height``).
-
-    Returns
-    -------
-    DepthPatternCorrection or None
-
-    Raises
-    ------
-    TudorVisionError
-        An unreadable file, or one made for another image size.
-    """
-    if path is None:
-        return None
-    from ..rgbd.depth_pattern import read_depth_pattern
-
-    corr = read_depth_pattern(path)
-    if tuple(int(v) for v in corr.image_size) != (int(K.width), int(K.height)):
-        raise TudorVisionError(f"--depth-pattern {path}: made for {corr.image_size[0]}x{corr.image_size[1]} px "
-                               f"images, the sequence's are {K.width}x{K.height}")
-    return corr
 
 
 def _cmd_pattern(args) -> int:
@@ -297,6 +266,7 @@ def observe_sweep(seq, K, seed_uv, options, *, vertical_frame: int | None = None
 
 def _fit_base(args, seq, K, seed, opts, prm, recording):
     """observe_sweep + base_frame_from_theta2_sweep, logging depth (every 5th frame), disc and base frame."""
+    from .rgbd import depth_pattern_arg
     from ..rgbd.base_calib import base_frame_from_theta2_sweep
     from ..rgbd import rerun_log
 

@@ -167,9 +167,11 @@ def _cmd_catch(args) -> int:
                                "'catch demo'")
     if args.target != "demo" and (args.plant is not None or args.camera_distance_m is not None
                                   or args.ball_swing_length_m is not None or args.camera_latency_ms is not None
-                                  or args.camera_latency_jitter_ms is not None):
+                                  or args.camera_latency_jitter_ms is not None
+                                  or args.depth_pattern_px is not None or args.no_depth_pattern_correction):
         raise TudorVisionError("--plant, --camera-distance-m, --camera-latency-ms, --camera-latency-jitter-ms, "
-                               "--ball-swing-length-m: only with 'catch demo'")
+                               "--ball-swing-length-m, --depth-pattern-px, --no-depth-pattern-correction: only "
+                               "with 'catch demo'")
     if args.target == "demo":
         from ..lab.catch_demo import DemoOptions, run_demo
 
@@ -185,7 +187,8 @@ def _cmd_catch(args) -> int:
                 ("camera_latency_ms", "camera_latency_s", 0.0, 500.0, "ms", 1e-3, "from a frame's exposure to its "
                  "delivery"),
                 ("camera_latency_jitter_ms", "camera_latency_jitter_s", 0.0, 500.0, "ms", 1e-3, "of extra delay at "
-                 "most")):
+                 "most"),
+                ("depth_pattern_px", "depth_pattern_px", 0.0, 2.0, "px", 1.0, "of disparity, RMS (0: none)")):
             value = getattr(args, arg)
             if value is None:
                 continue
@@ -193,6 +196,8 @@ def _cmd_catch(args) -> int:
                 flag = "--" + arg.replace("_", "-")
                 raise TudorVisionError(f"{flag}: expected {lo:g}-{hi:g} {unit} {why}, got {value:g}")
             more[name] = float(value) * scale
+        if args.no_depth_pattern_correction:
+            more["depth_pattern_correction"] = False
         opts = DemoOptions(throws=args.throws, seed=args.seed, render=not args.no_render, damping=args.damping,
                            compensate=not args.rigid, rerun=not args.no_rerun,
                            params=robot_from_args(args) if args.robot else None, **more)
@@ -304,6 +309,13 @@ def register(subparsers) -> None:
     p.add_argument("--camera-latency-jitter-ms", type=float, default=None, metavar="MS",
                    help="demo: each frame is late by a further delay drawn uniformly from 0-MS milliseconds, "
                         "frames kept in order (default 0)")
+    p.add_argument("--depth-pattern-px", type=float, default=None, metavar="PX",
+                   help="demo: the wall camera's fixed depth pattern, disparity pixels RMS (default 0.068, the "
+                        "real Kinect measured in benchmarks/bench_depth_pattern_real.py: about 6 cm RMS at the "
+                        "arm; 0: none)")
+    p.add_argument("--no-depth-pattern-correction", action="store_true",
+                   help="demo: the agent does not calibrate the depth pattern from a flat wall first (it stays "
+                        "in the calibration and in every detection)")
     p.add_argument("--ball-swing-length-m", type=float, default=None, metavar="M",
                    help="demo: caught balls hang M metres below the ring in the net's bag and swing (default 0.1); "
                         "0: point masses at the end effector (the lab before the twenty-third session)")

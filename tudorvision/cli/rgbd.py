@@ -18,7 +18,7 @@ from .seq import add_sequence_options, partial_flags, problem_lines, sequence_op
 if TYPE_CHECKING:
     from ..rgbd.frames import Intrinsics
 
-__all__ = ["register", "intrinsics_for", "noise_model_from_calibration", "BALL_CSV_COLUMNS"]
+__all__ = ["register", "intrinsics_for", "noise_model_from_calibration", "BALL_CSV_COLUMNS", "depth_pattern_arg"]
 
 BALL_CSV_COLUMNS = ("frame", "t", "u", "v", "x", "y", "z", "valid")
 
@@ -103,6 +103,37 @@ def _cmd_cloud(args) -> int:
     return 0
 
 
+def depth_pattern_arg(path, K):
+    """``--depth-pattern FILE``: the correction (:func:`tudorvision.rgbd.depth_pattern.read_depth_pattern`),
+    checked against the camera's image size; None without the option.
+
+    Parameters
+    ----------
+    path : str or None
+        The option's value.
+    K : Intrinsics
+        The camera's intrinsics (its ``width`` and ``height``).
+
+    Returns
+    -------
+    DepthPatternCorrection or None
+
+    Raises
+    ------
+    TudorVisionError
+        An unreadable file, or one made for another image size.
+    """
+    if path is None:
+        return None
+    from ..rgbd.depth_pattern import read_depth_pattern
+
+    corr = read_depth_pattern(path)
+    if tuple(int(v) for v in corr.image_size) != (int(K.width), int(K.height)):
+        raise TudorVisionError(f"--depth-pattern {path}: made for {corr.image_size[0]}x{corr.image_size[1]} px "
+                               f"images, the sequence's are {K.width}x{K.height}")
+    return corr
+
+
 def _ball_rows(seq, args, rows: list) -> None:
     """Detect the ball frame by frame, appending one row per readable frame to ``rows``."""
     from .._progress import progress
@@ -114,7 +145,6 @@ def _ball_rows(seq, args, rows: list) -> None:
         opts = BallDetectorOptions(ball_radius_m=args.ball_diameter / 2.0, max_range_m=args.max_range,
                                    depth_model=noise_model_from_calibration(cal))
         det = BallDetector(K, opts, n_background=args.background)
-        from .calib_rgbd import depth_pattern_arg
         pattern = depth_pattern_arg(args.depth_pattern, K)
     elif seq.kind == "mono":
         det = ColorBallDetector(ColorBallOptions(n_background=args.background))

@@ -131,13 +131,16 @@ def record_rgbd_wall(out, opts):
     sensor = DepthSensorModel()
     n = int(opts.frames or (4 if opts.small else 10))
     rng = np.random.default_rng([int(opts.seed), 17])
-    from .record import calibration_from_cameras
+    from ..io import Calibration, CameraModel
+    calibration = Calibration(cameras={"rgbd": CameraModel(K=cam.K, dist=cam.dist, width=cam.width,
+                                                           height=cam.height)},
+                              metadata={"source": "tudorvision virtual lab (nominal camera models)"})
     grey = np.full((cam.height, cam.width, 3), 128, np.uint8)
     for d in WALL_DISTANCES_M:
         frames = render_wall_frames(cam.K, cam.width, cam.height, sensor, rng, distances_m=(d,),
                                     frames_per_distance=n)
         with SequenceWriter(out / f"wall_{d:.2f}m", kind="rgbd", rate_hz=KINECT_RATE_HZ, depth_scale=1000.0,
-                            calibration=calibration_from_cameras({"rgbd": cam}),
+                            calibration=calibration,
                             image_ext=opts.image_ext, jpeg_quality=opts.jpeg_quality,
                             description=f"flat wall about {d:.2f} m away, tilted up to 15 deg",
                             meta={"generator": "tudorvision sim record", "seed": int(opts.seed)},

@@ -378,23 +378,34 @@ def read_depth_pattern(path) -> DepthPatternCorrection:
     TudorVisionError
         A missing file, or one that is not a depth pattern (the message names the file and the field).
     """
+    from ..io.formats import cv_matrix_node_ok
+
     path = Path(path)
     if not path.is_file():
         raise TudorVisionError(f"{path}: no such depth pattern file")
     try:
-        fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
-    except cv2.error as exc:
-        raise TudorVisionError(f"{path}: not an OpenCV YAML file ({str(exc).strip().splitlines()[-1]})") from None
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise TudorVisionError(f"{path}: cannot read as a depth pattern file ({exc})") from None
     try:
-        if not fs.isOpened() or fs.getNode("kind").string() != _TAG:
+        fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
+    except (cv2.error, SystemError) as exc:
+        msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+        raise TudorVisionError(f"{path}: not an OpenCV YAML file ({msg})") from None
+    try:
+        if not fs.isOpened() or not fs.root().isMap() or fs.getNode("kind").string() != _TAG:
             raise TudorVisionError(f"{path}: not a depth pattern file (kind is not {_TAG!r})")
         vals = {}
         for key in ("image_width", "image_height", "step_px", "n_frames"):
             node = fs.getNode(key)
-            if node.empty() or not node.isReal() and not node.isInt():
-                raise TudorVisionError(f"{path}: {key}: missing or not a number")
+            if node.empty() or not node.isInt():
+                raise TudorVisionError(f"{path}: {key}: missing or not an integer")
             vals[key] = int(node.real())
-        grid = fs.getNode("grid_inv_m").mat()
+        node = fs.getNode("grid_inv_m")
+        grid = node.mat() if node.isMap() and cv_matrix_node_ok(node) else None
+    except (cv2.error, SystemError) as exc:       # a structure OpenCV refuses: one line, not a traceback
+        msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+        raise TudorVisionError(f"{path}: not a depth pattern file ({msg})") from None
     finally:
         fs.release()
     if grid is None:

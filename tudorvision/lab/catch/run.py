@@ -115,6 +115,19 @@ def _net_at_cross(layer, world, t_cross_s):
     return p1, ((p1 - p0) / (t1 - t0) if t1 > t0 else None)
 
 
+def _pattern_at_arm(world, pattern) -> list:
+    """Lab side: the wall camera's fixed depth pattern at the arm's distance, RMS over the image, as the sensor
+    has it and as the agent's correction leaves it, metres (``[before, after]``; after is before without one)."""
+    from ...sim.depth_sensor import pattern_field
+
+    K = world.intrinsics
+    c = pattern_field(world.depth_sensor, K.height, K.width)
+    z = float(np.linalg.norm(world.T_base_cam[:3, 3]))
+    seen = 1.0 / (1.0 / z + c)
+    after = seen if pattern is None else pattern.apply(seen)
+    return [float(np.sqrt(np.mean((seen - z) ** 2))), float(np.sqrt(np.mean((after - z) ** 2)))]
+
+
 def wall_camera_transform(options: DemoOptions, params, T_base_cam_true, *, verbose: bool = True,
                           deflection=None):
     """The ``T_base_cam`` the agent gets: calibrated from the disc sweep, or the truth if asked for.
@@ -273,6 +286,8 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
         "calibration": calib, "camera_position_world_m": [float(x) for x in wall_camera_position_world(o)],
         "camera_max_depth_m": o.camera_max_depth_m, "camera_latency_s": o.camera_latency_s,
         "camera_latency_jitter_s": o.camera_latency_jitter_s, "plant": o.plant,
+        "depth_pattern_px": o.depth_pattern_px, "depth_pattern_correction": o.depth_pattern_correction,
+        "depth_pattern_rms_at_arm_m": _pattern_at_arm(world, pattern),
         "ball_swing_length_m": o.ball_swing_length_m,
         "seed": o.seed, "render": o.render, "damping": o.damping, "compensate": o.compensate,
         "net_radius_m": o.net_radius_m, "balls_in_net": world.balls, "net_emptied": world.emptied,

@@ -330,15 +330,25 @@ class CatchScenario:
             return CameraFrame(t=t, depth_mm=self.render_depth(t))
         if p_world[2] <= -1.0:
             return None
-        d = simulated_detection(self._with_pattern(p_cam), self.intrinsics, self._rng_noise, options=det,
+        d = simulated_detection(self.pattern_moved(p_cam), self.intrinsics, self._rng_noise, options=det,
                                 scale=o.noise_scale)
         return None if d is None else CameraFrame(t=t, detection_cam=d)
 
-    def _with_pattern(self, p_cam: np.ndarray) -> np.ndarray:
+    def pattern_moved(self, p_cam: np.ndarray) -> np.ndarray:
         """Where the sensor's fixed depth pattern puts a point (moved along its ray; modelled mode).
 
         The detector averages the depth over the ball's few pixels; the pattern, smooth over tens of
         pixels, is the one at its centre (:func:`~tudorvision.sim.depth_sensor.pattern_field`).
+
+        Parameters
+        ----------
+        p_cam : ndarray, shape (3,)
+            True point, metres, camera optical frame.
+
+        Returns
+        -------
+        ndarray, shape (3,)
+            The point at the depth ``1 / (1 / z + c)`` on the same ray (``p_cam`` itself without a pattern).
         """
         m = self.depth_sensor
         if m.pattern_disparity_px == 0 or p_cam[2] <= 0:
