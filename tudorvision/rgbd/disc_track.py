@@ -80,6 +80,7 @@ class DiscSweepTracker:
         self._rng = np.random.default_rng(options.random_seed)
         self._circle = None
         self._circle_n = 0
+        self._clicked = None            # (point, theta2) where the first frame's click put the disc
 
     def _seed_prediction(self, d):
         u, v = int(round(self.seed_uv[0])), int(round(self.seed_uv[1]))
@@ -248,12 +249,22 @@ class DiscSweepTracker:
         self.n_frames += 1
         pred = self._predict(theta2_rad)
         prior = self._normal_prior(theta2_rad)
-        if pred is None:
+        if pred is None and self._clicked is not None and self._clicked[1] is not None and theta2_rad is not None:
+            # the first frames were lost (the disc against the floor or a wall in depth): it turned by theta2 on a
+            # circle of the arm's radius from where the click put it, one chord away in some direction
+            p_click, th_click = self._clicked
+            chord = 2.0 * o.arm_radius_m * np.sin(abs(theta2_rad - th_click) / 2.0)
+            m = self._acquire(d, p_click, chord + R + 0.1,
+                              lambda m: abs(float(np.linalg.norm(m.centre_cam - p_click)) - chord),
+                              0.08 + 0.3 * chord + 0.5 * R, prior)
+        elif pred is None:
             p0 = self._seed_prediction(d)
             if p0 is None:
                 m = skip_measurement("no valid depth around the seed pixel")
                 self.skipped[frame] = m.reason
                 return m
+            if frame == 0:
+                self._clicked = (p0, theta2_rad)
             ray = unit_vector(p0)
             # the disc-shaped surface nearest the seed pixel's ray (front-most on ties); a wall behind it runs
             # on beyond the disc and is no candidate
