@@ -454,7 +454,9 @@ def test_wall_camera_reaches_the_arm_from_behind_the_thrower(tmp_path):
     # the depth noise correlated as a real Kinect's: 0.15 deg (0.12 cm at the base, 0.13 cm at the arm), what is left
     # is the heading (about z, harmless to the catch); the theta2 sweep alone (method seed) 0.61 deg
     assert rep["position_error_m"] < 0.01 and rep["rotation_error_deg"] < 0.25 and rep["error_at_arm_m"] < 0.01
-    assert 0.2 < abs(rep["yaw_tilt_correction_deg"]) < 1.0 and 0.02 < rep["yaw_tilt_std_deg"] < 0.1
+    # (with the Kinect's fixed depth pattern calibrated and removed, this draw's theta2 sweep left 0.04 deg of tilt
+    # for the theta1 sweep to take out; 0.2-1.0 deg before the pattern)
+    assert abs(rep["yaw_tilt_correction_deg"]) < 1.0 and 0.02 < rep["yaw_tilt_std_deg"] < 0.1
     assert rep["rotation_error_deg"] < rep["seed_method"]["rotation_error_deg"] - 0.1     # the lean removed
     assert 0.003 < rep["circle_rmse_m"] < 0.025                 # the 10 cm depth noise at 6.9 m shows
     # the Kinect's fit range alone (6 m) loses the disc at the arm: the sweep cannot be measured there

@@ -28,7 +28,7 @@ def _base_transform(cal, path_hint) -> np.ndarray:
 
 
 def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 1.07), background: int = 10,
-                  show_progress=None, recording=None, depth_every: int = 5, params=None) -> dict:
+                  show_progress=None, recording=None, depth_every: int = 5, params=None, depth_pattern=None) -> dict:
     """Detection -> EKF -> intercept -> compensated IK on a recorded RGB-D sequence (no arm).
 
     Writes ``predictions.csv`` (per detection: filter status, state, intercept,
@@ -56,6 +56,8 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
         Depth frames logged to ``recording``: every n-th (0: none).
     params : RobotParams, optional
         The robot (``--robot``); default the packaged ``tudor.yaml``.
+    depth_pattern : str or Path, optional
+        The camera's fixed depth pattern (``calib rgbd-pattern``), removed from every detection.
 
     Returns
     -------
@@ -66,7 +68,7 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
     from .._progress import progress
     from ..io import open_sequence
     from ..rgbd.ball import BallDetector, BallDetectorOptions
-    from .rgbd import intrinsics_for, noise_model_from_calibration
+    from .rgbd import depth_pattern_arg, intrinsics_for, noise_model_from_calibration
     from ..robot import load_robot_params
     from ..catch.perception import CatchPerception, detection_to_base
     from ..lab.catch_demo import DemoOptions, demo_kinematics
@@ -75,6 +77,7 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
     if seq.kind != "rgbd":
         raise TudorVisionError(f"{seq_path}: expected an RGB-D sequence, got kind {seq.kind!r}")
     K, cal = intrinsics_for(seq, calib)
+    pattern = depth_pattern_arg(depth_pattern, K)
     cal_T = cal if calib is not None else seq.calibration   # --calib read once, any format (intrinsics_for)
     T_base_cam = _base_transform(cal_T, calib or seq_path)
     params = params or load_robot_params()
@@ -99,7 +102,8 @@ def run_open_loop(seq_path, out_dir, *, calib=None, ready_point_base=(0.0, 0.0, 
         if d is None:
             continue
         n_det += 1
-        p_b, C_b = detection_to_base(d.p_cam, d.cov_cam, T_base_cam)
+        p_cam = d.p_cam if pattern is None else pattern.correct_points(d.p_cam, K)
+        p_b, C_b = detection_to_base(p_cam, d.cov_cam, T_base_cam)
         rec = perception.step(f.t, p_b, C_b)
         if rr_log is not None:
             rr_log.frame(f.t, p_b, rec)
@@ -172,6 +176,9 @@ def _cmd_catch(args) -> int:
         raise TudorVisionError("--plant, --camera-distance-m, --camera-latency-ms, --camera-latency-jitter-ms, "
                                "--ball-swing-length-m, --depth-pattern-px, --no-depth-pattern-correction: only "
                                "with 'catch demo'")
+    if args.target == "demo" and args.depth_pattern:
+        raise TudorVisionError("--depth-pattern: only with a recorded SEQ (the demo's agent calibrates its own "
+                               "camera's pattern; --no-depth-pattern-correction turns that off)")
     if args.target == "demo":
         from ..lab.catch_demo import DemoOptions, run_demo
 
@@ -239,7 +246,7 @@ def _cmd_catch(args) -> int:
     viewer = open_viewer(args, "tudorvision_catch_open_loop")
     try:
         res = run_open_loop(seq, out, calib=args.calib, background=args.background, params=robot_from_args(args),
-                            recording=None if viewer is None else viewer.rec)
+                            recording=None if viewer is None else viewer.rec, depth_pattern=args.depth_pattern)
     except BaseException:
         if viewer is not None:
             viewer.close(hold=False)
@@ -335,6 +342,8 @@ def register(subparsers) -> None:
                    help="demo on the runner: wall-camera calibrations the sessions take in turn (each its own "
                         "simulated disc sweep; default 1, one for all)")
     p.add_argument("--calib", help="SEQ: calibration with intrinsics and T_base_cam")
+    p.add_argument("--depth-pattern", metavar="FILE",
+                   help="SEQ: the camera's fixed depth pattern ('calib rgbd-pattern'), removed from every detection")
     p.add_argument("--background", type=int, default=10, help="SEQ: frames for the background (default 10)")
     add_robot_option(p, "the arm, its kinematics and joint limits (demo: also the simulated arm)")
     p.set_defaults(func=_cmd_catch)
