@@ -120,6 +120,8 @@ def test_calib_rgbd_base_on_virtual_lab(lab_recordings, tmp_path, capsys):
     spread = report["spread"]
     assert spread["n_boot"] >= 80 and 0.002 < spread["translation_p95_m"] < 0.5
     assert ("warning" in spread) == (spread["translation_p95_m"] > 0.005 or spread["rotation_p95_deg"] > 0.5)
+    # without --depth-pattern the warning names the Kinect's fixed pattern as a cause to remove first
+    assert "warning" in spread and "calib rgbd-pattern" in spread["warning"]
     runs = {}
     for name, extra in (("mirror", ["--yaw", "off", "--spread-refits", "0"]),
                         ("none", ["--mirror", "off", "--yaw", "off", "--spread-refits", "0"])):

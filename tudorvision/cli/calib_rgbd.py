@@ -310,7 +310,9 @@ def _spread(args, T_base_cam, obs, rep, prm):
     if s["translation_p95_m"] > args.max_spread_m or s["rotation_p95_deg"] > args.max_spread_deg:
         s["warning"] = (f"the sweep's own scatter lets the base frame be {100 * s['translation_p95_m']:.2f} cm / "
                         f"{s['rotation_p95_deg']:.2f} deg off (95 %): record more depth frames per pose, more poses "
-                        f"or from closer")
+                        f"or from closer" + ("" if args.depth_pattern else
+                                             "; a structured-light camera (a Kinect): remove its fixed depth pattern "
+                                             "first (calib rgbd-pattern, --depth-pattern)"))
         print(f"warning: {s['warning']}", file=sys.stderr)
     return s
 
