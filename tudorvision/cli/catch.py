@@ -318,7 +318,7 @@ def register(subparsers) -> None:
                         "frames kept in order (default 0)")
     p.add_argument("--depth-pattern-px", type=float, default=None, metavar="PX",
                    help="demo: the wall camera's fixed depth pattern, disparity pixels RMS (default 0.068, the "
-                        "real Kinect measured in benchmarks/bench_depth_pattern_real.py: about 7 cm RMS at the "
+                        "real Kinect measured in benchmarks/bench_depth_pattern_real.py: about 8 cm RMS at the "
                         "arm; 0: none)")
     p.add_argument("--no-depth-pattern-correction", action="store_true",
                    help="demo: the agent does not calibrate the depth pattern from a flat wall first (it stays "

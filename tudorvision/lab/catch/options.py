@@ -266,8 +266,8 @@ class DemoOptions:
     depth_pattern_px : float
         The wall camera's fixed depth pattern, disparity pixels RMS
         (:class:`~tudorvision.sim.depth_sensor.DepthSensorModel` ``pattern_disparity_px``; default the measured
-        Kinect's :data:`~tudorvision.sim.depth_sensor.KINECT_PATTERN_DISPARITY_PX`, 0.068 px: about 7 cm RMS
-        at the arm, 6.9 m away). 0: none (the lab before 2026-12-06).
+        Kinect's :data:`~tudorvision.sim.depth_sensor.KINECT_PATTERN_DISPARITY_PX`, 0.068 px: about 8 cm RMS
+        at the arm, 7.1 m away). 0: none (the lab before 2026-12-06).
     depth_pattern_correction : bool
         The agent calibrates the wall camera's depth pattern from 30 frames of a flat wall first
         (:func:`~tudorvision.lab.catch.calibration.wall_depth_pattern`,
