@@ -3,6 +3,8 @@
 Oracles: a known inverse-depth pattern on exact planes (recovered up to its affine part, which planes
 cannot show); the lab's sensor unit, whose pattern the lab knows and perception does not; the OpenCV
 YAML file read back; points and images corrected alike."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -126,3 +128,37 @@ def test_frames_without_a_plane_are_refused_in_one_line():
         calibrate_depth_pattern([])
     with pytest.raises(TudorVisionError, match="frame 1: shape"):
         calibrate_depth_pattern([np.full((H, W), 2.0), np.full((H, W + 1), 2.0)])
+
+
+REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata" / "rgbd_kinect_room" / "depth"
+
+
+@pytest.mark.skipif(not REAL.is_dir(), reason="the real Kinect frames (../shared/realdata/rgbd_kinect_room) are absent")
+def test_a_real_kinects_pattern_calibrated_from_three_floors_flattens_the_fourth():
+    """Real data: the floors of three real Kinect frames (the camera moving between them) calibrate the pattern;
+    removed from the fourth frame's floor, its residual from a plane (16 px blocks) drops by a quarter or more
+    (the floor's own unevenness and the noise stay; benchmarks/bench_depth_pattern_real.py: 20-48 %)."""
+    import cv2
+
+    floors = {}
+    for i, r0 in ((2, 300), (3, 300), (4, 330), (5, 330)):
+        d = cv2.imread(str(REAL / f"{i}.pgm"), cv2.IMREAD_UNCHANGED).astype(float) / 1000.0
+        region = np.zeros(d.shape, bool)
+        region[r0:470, 40:560] = True
+        z = np.where(region, d, 0.0)
+        res, _ = plane_residual_inv_depth(z, max_dev_m=0.03)
+        floors[i] = np.where(np.isfinite(res), z, 0.0)
+
+    def block_rms(z):
+        res, _ = plane_residual_inv_depth(z, max_dev_m=0.03)
+        b = res.reshape(30, 16, 40, 16)
+        n = np.isfinite(b).sum(axis=(1, 3))
+        with np.errstate(invalid="ignore"):
+            m = np.nansum(b, axis=(1, 3)) / n
+        return float(np.sqrt(np.mean(m[n >= 128] ** 2)))
+
+    corr = calibrate_depth_pattern([floors[j] for j in (2, 3, 4)], step_px=16, min_plane_fraction=0.05,
+                                   min_samples=64)
+    assert corr.n_frames == 3
+    before, after = block_rms(floors[5]), block_rms(corr.apply(floors[5]))
+    assert after < 0.75 * before

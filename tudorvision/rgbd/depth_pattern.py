@@ -179,10 +179,11 @@ class DepthPatternCorrection:
 def plane_residual_inv_depth(depth_m, *, max_dev_m: float = 0.15, iterations: int = 4):
     """Inverse depth minus its robust affine (plane) fit in the pixel coordinates.
 
-    Least squares of ``1/z = a + b u + c v`` over the valid pixels, then again
-    over the pixels whose depth is within ``max_dev_m`` of the fit (and of 4
-    robust standard deviations), ``iterations`` times; pixels off the plane
-    (things in front of the wall, its edges) drop out.
+    The largest plane first (three-point draws: the plane most valid pixels
+    lie within ``max_dev_m`` of), then least squares of ``1/z = a + b u + c v``
+    over those pixels, again over the pixels within ``max_dev_m`` of the fit
+    (and of 4 robust standard deviations), ``iterations`` times; pixels off the
+    plane (things in front of the wall, its edges) drop out.
 
     Parameters
     ----------
@@ -218,7 +219,9 @@ def plane_residual_inv_depth(depth_m, *, max_dev_m: float = 0.15, iterations: in
         return np.full(z.shape, np.nan), 0.0
     inv = np.where(ok, 1.0 / np.where(ok, z, 1.0), np.nan)
     A = np.stack([np.ones(z.shape), uu, vv], -1)
-    keep = ok.copy()
+    keep = _consensus(A[ok], inv[ok], z[ok], max_dev_m)
+    keep = ok & (np.abs(1.0 / np.where(ok, A @ keep, 1.0) - np.where(ok, z, 0.0)) <= max_dev_m) \
+        if keep is not None else ok.copy()
     fit = None
     for _ in range(max(1, int(iterations))):
         if keep.sum() < 3:
@@ -232,6 +235,27 @@ def plane_residual_inv_depth(depth_m, *, max_dev_m: float = 0.15, iterations: in
             keep = ok & (fit > 0) & (dev <= max_dev_m) & (np.abs(res) <= max(4.0 * 1.4826 * mad, 1e-12))
     out = np.where(keep, inv - fit, np.nan)
     return out, float(keep.mean())
+
+
+def _consensus(A, inv, z, max_dev_m: float, trials: int = 200, sample: int = 5000):
+    """The plane (inverse-depth coefficients) that most valid pixels lie within ``max_dev_m`` of: three-point
+    draws on a subsample (seeded: the same frame gives the same plane); None when no draw is well posed."""
+    rng = np.random.default_rng(0)
+    idx = rng.choice(len(z), size=min(sample, len(z)), replace=False)
+    As, invs, zs = A[idx], inv[idx], z[idx]
+    best, best_n = None, -1
+    for _ in range(trials):
+        pick = rng.choice(len(zs), size=3, replace=False)
+        try:
+            coef = np.linalg.solve(As[pick], invs[pick])
+        except np.linalg.LinAlgError:
+            continue
+        fit = As @ coef
+        with np.errstate(divide="ignore", invalid="ignore"):
+            n = int(np.count_nonzero((fit > 0) & (np.abs(1.0 / fit - zs) <= max_dev_m)))
+        if n > best_n:
+            best, best_n = coef, n
+    return best
 
 
 def calibrate_depth_pattern(frames, *, step_px: int = 8, min_plane_fraction: float = 0.5,
