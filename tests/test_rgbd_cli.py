@@ -171,3 +171,22 @@ def test_detect_ball_on_virtual_lab_throws(lab_recordings, tmp_path, capsys):
     small = write_depth_pattern(tmp_path / "small.yaml", DepthPatternCorrection(np.zeros((2, 2)), 8, (16, 16)))
     assert main(["detect", "ball", str(path), "--out", str(tmp_path / "x.csv"), "--depth-pattern", str(small)]) == 2
     assert "made for 16x16 px images" in capsys.readouterr().err
+
+
+def test_calib_rgbd_pattern_refuses_bad_input_in_one_line(lab_recordings, tmp_path, capsys):
+    from tudorvision.cli import main
+
+    walls = sorted(str(p) for p in Path(lab_recordings["rgbd-wall"]).iterdir() if p.is_dir())
+    capsys.readouterr()
+    for extra, what in ((["--step-px", "0"], "--step-px"), (["--min-plane-fraction", "1.5"], "--min-plane-fraction")):
+        assert main(["calib", "rgbd-pattern", *walls, "--out", str(tmp_path / "p.yaml"), *extra]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and what in err[0]
+    # frames of the throws (no wall filling the view): refused, nothing written
+    assert main(["calib", "rgbd-pattern", str(lab_recordings["rgbd-throws"]), "--out", str(tmp_path / "q.yaml"),
+                 "--min-plane-fraction", "0.9"]) == 2
+    assert "flat wall" in capsys.readouterr().err and not (tmp_path / "q.yaml").exists()
+    # a stereo recording is not an RGB-D one
+    stereo = Path(__file__).resolve().parents[1] / "sample_data" / "stereo-static"
+    assert main(["calib", "rgbd-pattern", str(stereo), "--out", str(tmp_path / "r.yaml")]) == 2
+    assert "expected an RGB-D sequence" in capsys.readouterr().err

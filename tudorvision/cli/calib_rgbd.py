@@ -93,6 +93,10 @@ def _cmd_pattern(args) -> int:
     from ..io import open_sequence
     from ..rgbd.depth_pattern import calibrate_depth_pattern, write_depth_pattern
 
+    if not args.step_px >= 1:
+        raise TudorVisionError(f"--step-px: expected a positive integer, got {args.step_px}")
+    if not 0.0 < args.min_plane_fraction <= 1.0:
+        raise TudorVisionError(f"--min-plane-fraction: expected a fraction in (0, 1], got {args.min_plane_fraction}")
     frames = []
     for path in args.seq:
         seq = open_sequence(path)
@@ -103,8 +107,6 @@ def _cmd_pattern(args) -> int:
                                                                             desc=Path(path).name)]
         finally:
             seq.close()
-    if not args.step_px >= 1:
-        raise TudorVisionError(f"--step-px: expected a positive integer, got {args.step_px}")
     corr = calibrate_depth_pattern(frames, step_px=args.step_px, min_plane_fraction=args.min_plane_fraction)
     c = corr.grid_inv_m
     print(f"depth pattern from {corr.n_frames} of {len(frames)} frames (a plane over at least "
