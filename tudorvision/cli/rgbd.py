@@ -95,7 +95,12 @@ def _cmd_cloud(args) -> int:
         raise TudorVisionError(f"{args.seq}: frame size {frame.depth_raw.shape[::-1]} differs from the "
                                f"intrinsics' {K.width}x{K.height}")
     color = None if args.no_color else cv2.cvtColor(frame.bgr, cv2.COLOR_BGR2RGB)
-    pcd = cloud_from_rgbd(color, frame.depth_raw, K, depth_scale=seq.depth_scale, depth_trunc=args.depth_trunc)
+    raw = frame.depth_raw
+    pattern = depth_pattern_arg(args.depth_pattern, K)
+    if pattern is not None:                 # the camera's fixed pattern removed, back in the file's depth units
+        z = pattern.apply(raw.astype(np.float64) / seq.depth_scale)
+        raw = np.where(raw > 0, np.clip(np.rint(z * seq.depth_scale), 1, 65535), 0).astype(np.uint16)
+    pcd = cloud_from_rgbd(color, raw, K, depth_scale=seq.depth_scale, depth_trunc=args.depth_trunc)
     pts, cols = points_colors_from_cloud(pcd)
     out = write_ply(args.out, pts, cols)
     z = pts[:, 2]
@@ -218,6 +223,8 @@ def register(subparsers) -> None:
     c.add_argument("--depth-trunc", type=float, default=6.0, help="drop points farther than this, metres "
                                                                   "(default 6)")
     c.add_argument("--no-color", action="store_true", help="write points without colours")
+    c.add_argument("--depth-pattern", metavar="FILE",
+                   help="the camera's fixed depth pattern ('calib rgbd-pattern'), removed before the points are made")
     add_sequence_options(c)
     c.set_defaults(func=_cmd_cloud)
     p.set_defaults(func=lambda args: (p.print_help(), 2)[1])
