@@ -6,8 +6,8 @@ fx 518.0, fy 519.0, cx 325.5, cy 253.5; the camera moves about 1.5 m and
 turns over the five). Per frame the floor (a region of rows and columns,
 then the largest plane of it) is fitted as a plane in inverse depth, which
 is exactly affine in the pixel coordinates for a plane: ``1/z = a + b u + c v``
-(a three-point consensus, then least squares on the pixels within 3 cm,
-twice). Its residual in inverse depth, times ``f b``
+(the package's fit, :func:`tudorvision.rgbd.depth_pattern.plane_residual_inv_depth`:
+a three-point consensus, then trimmed least squares on the pixels within 3 cm). Its residual in inverse depth, times ``f b``
 (:data:`tudorvision.sim.depth_sensor.KINECT_FOCAL_BASELINE_PX_M`), is a
 disparity residual in pixels, averaged over 16 x 16 px blocks (the per-pixel
 noise then averages to about 0.01 px).
@@ -38,6 +38,7 @@ Run::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import platform
 import sys
 import warnings
@@ -46,12 +47,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from tudorvision.lab.depth_wall import depth_frames_mm
+from tudorvision.rgbd.depth_pattern import calibrate_depth_pattern, plane_residual_inv_depth
 from tudorvision.sim.depth_sensor import (KINECT_FOCAL_BASELINE_PX_M, KINECT_PATTERN_CORR_PX,
-                                         KINECT_PATTERN_DISPARITY_PX, DepthSensorModel, depth_mm_from_gbuffer)
-from tudorvision.sim.raycast import GBuffer
+                                         KINECT_PATTERN_DISPARITY_PX, DepthSensorModel)
 
 ROOT = Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata" / "rgbd_kinect_room" / "depth"
-FX, FY, CX, CY = 518.0, 519.0, 325.5, 253.5            # SOURCES.md
 H, W, B = 480, 640, 16
 #: the floor's region per frame: rows, columns (the lower part of the image, where the floor is)
 REGIONS = {1: (300, 470, 40, 600), 2: (300, 470, 40, 600), 3: (300, 470, 40, 600),
@@ -60,47 +61,27 @@ SHARED = (2, 3, 4, 5)
 LAGS = (1, 2, 3, 4)
 
 
-def floor_plane(depth_m: np.ndarray, region, rng, thr_m: float = 0.03):
-    """Inverse-depth plane of the largest plane in ``region``: (coefficients (a, b, c), mask of its pixels)."""
+def floor_plane(depth_m: np.ndarray, region) -> tuple:
+    """The largest plane in ``region`` (the package's fit, :func:`plane_residual_inv_depth`, 3 cm):
+    (its inverse-depth residual, 1/m, NaN off it; mask of its pixels)."""
     r0, r1, c0, c1 = region
-    vv, uu = np.mgrid[0:H, 0:W].astype(float)
-    m = depth_m > 0
-    m[:r0], m[r1:], m[:, :c0], m[:, c1:] = False, False, False, False
-    z, u, v = depth_m[m], uu[m], vv[m]
-    P = np.c_[(u - CX) / FX * z, (v - CY) / FY * z, z]
-    best = (-1, None, None)
-    for _ in range(300):
-        s = P[rng.choice(len(P), 3, replace=False)]
-        n = np.cross(s[1] - s[0], s[2] - s[0])
-        if np.linalg.norm(n) < 1e-9:
-            continue
-        n = n / np.linalg.norm(n)
-        k = int((np.abs((P - s[0]) @ n) < thr_m).sum())
-        if k > best[0]:
-            best = (k, n, s[0])
-    inl = np.abs((P - best[2]) @ best[1]) < thr_m
-    A = np.c_[np.ones(len(z)), u, v]
-    for _ in range(2):
-        coef = np.linalg.lstsq(A[inl], 1.0 / z[inl], rcond=None)[0]
-        inl = np.abs(1.0 / (A @ coef) - z) < thr_m
-    coef = np.linalg.lstsq(A[inl], 1.0 / z[inl], rcond=None)[0]
-    mask = np.zeros((H, W), bool)
-    mask[v[inl].astype(int), u[inl].astype(int)] = True
-    return coef, mask
+    z = np.zeros((H, W))
+    z[r0:r1, c0:c1] = depth_m[r0:r1, c0:c1]
+    res, _ = plane_residual_inv_depth(z, max_dev_m=0.03)
+    return res, np.isfinite(res)
 
 
-def block_residual(depth_m: np.ndarray, coef, mask) -> np.ndarray:
-    """Disparity residual (px) of the plane fit, mean per 16 x 16 block; NaN where under half the block is in."""
-    vv, uu = np.mgrid[0:H, 0:W].astype(float)
-    with np.errstate(divide="ignore"):
-        res = np.where(mask, (1.0 / depth_m - (coef[0] + coef[1] * uu + coef[2] * vv)) * KINECT_FOCAL_BASELINE_PX_M,
-                       np.nan)
+def block_residual(res_inv: np.ndarray, mask=None) -> np.ndarray:
+    """A plane fit's inverse-depth residual as disparity (px), mean per 16 x 16 block (only ``mask``'s pixels);
+    NaN where under half the block is in."""
+    res = res_inv * KINECT_FOCAL_BASELINE_PX_M
+    if mask is not None:
+        res = np.where(mask, res, np.nan)
     blocks = res.reshape(H // B, B, W // B, B).transpose(0, 2, 1, 3).reshape(H // B, W // B, -1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         out = np.nanmean(blocks, axis=2)
     out[np.isfinite(blocks).sum(axis=2) < B * B // 2] = np.nan
-    # the fit's own affine part over the blocks (the fit was on pixels; blocks weigh them differently)
     return out
 
 
@@ -132,18 +113,10 @@ def summary(maps: dict) -> dict:
             "shared_n": int(np.isfinite(shared).sum()), "lag_u": lag_u, "lag_v": lag_v, "diff": diff}
 
 
-def lab_frame(coef, mask, model: DepthSensorModel, rng) -> np.ndarray:
+def lab_frame(plane_m: np.ndarray, model: DepthSensorModel, rng) -> np.ndarray:
     """The lab's sensor on the fitted plane (valid where the real floor was), metres (0 invalid)."""
-    vv, uu = np.mgrid[0:H, 0:W].astype(float)
-    z = np.where(mask, 1.0 / (coef[0] + coef[1] * uu + coef[2] * vv), np.inf)
-    gb = GBuffer(distance_m=z, depth_m=z, normal_world=np.zeros((H, W, 3), np.float32),
-                 object_id=np.ones((H, W), np.int32), albedo_rgb=np.full((H, W, 3), 0.5, np.float32))
-    return depth_mm_from_gbuffer(gb, replace_model(model, edge_jump_rel=1.0), rng).astype(float) / 1000.0
-
-
-def replace_model(model, **kw):
-    from dataclasses import replace
-    return replace(model, **kw)
+    raw = depth_frames_mm(plane_m, dataclasses.replace(model, edge_jump_rel=1.0), rng, 1)[0]
+    return raw.astype(float) / model.units_per_m
 
 
 def print_summary(name: str, s: dict) -> None:
@@ -160,8 +133,6 @@ def print_summary(name: str, s: dict) -> None:
 
 def leave_one_out(planes: dict) -> None:
     """Calibrate from three floors, correct the fourth (frames 2-5); print its blocks' RMS before and after."""
-    from tudorvision.rgbd.depth_pattern import calibrate_depth_pattern
-
     floors = {}
     for i in SHARED:
         d = cv2.imread(str(ROOT / f"{i}.pgm"), cv2.IMREAD_UNCHANGED).astype(float) / 1000.0
@@ -176,9 +147,8 @@ def leave_one_out(planes: dict) -> None:
             if j != i:
                 seen |= planes[j][1]
         mask = planes[i][1] & seen
-        before = block_residual(floors[i], *floor_plane(floors[i], REGIONS[i], np.random.default_rng(i))[:1], mask)
-        fixed = corr.apply(floors[i])
-        after = block_residual(fixed, *floor_plane(fixed, REGIONS[i], np.random.default_rng(i))[:1], mask)
+        before = block_residual(floor_plane(floors[i], REGIONS[i])[0], mask)
+        after = block_residual(floor_plane(corr.apply(floors[i]), REGIONS[i])[0], mask)
         both = np.isfinite(before) & np.isfinite(after)
         b, a = float(np.sqrt(np.mean(before[both] ** 2))), float(np.sqrt(np.mean(after[both] ** 2)))
         rms_b.append(b)
@@ -197,15 +167,15 @@ def main(argv=None) -> int:
         print(f"skipped: {ROOT} is not here (the real frames)")
         return 0
     print(f"# {platform.node()} {platform.processor() or platform.machine()}, python {sys.version.split()[0]}")
-    rng = np.random.default_rng(0)
     real, planes = {}, {}
     for i, region in REGIONS.items():
         d = cv2.imread(str(ROOT / f"{i}.pgm"), cv2.IMREAD_UNCHANGED).astype(float) / 1000.0
-        coef, mask = floor_plane(d, region, rng)
-        planes[i] = (coef, mask)
-        real[i] = block_residual(d, coef, mask)
-        zm = 1.0 / np.median(coef[0] + coef[1] * np.nonzero(mask)[1] + coef[2] * np.nonzero(mask)[0])
-        print(f"frame {i}: floor {mask.sum()} px, median depth {zm:.2f} m")
+        res, mask = floor_plane(d, region)
+        with np.errstate(divide="ignore"):
+            plane_m = np.where(mask, 1.0 / (1.0 / d - res), np.inf)       # the fitted plane on the floor's pixels
+        planes[i] = (plane_m, mask)
+        real[i] = block_residual(res)
+        print(f"frame {i}: floor {mask.sum()} px, median depth {np.median(plane_m[mask]):.2f} m")
     s = summary(real)
     print_summary("real Kinect (rgbd_kinect_room)", s)
     leave_one_out(planes)
@@ -216,10 +186,8 @@ def main(argv=None) -> int:
         model = DepthSensorModel(pattern_disparity_px=args.pattern_px, pattern_seed=seed)
         lab = {}
         for i in REGIONS:
-            coef, mask = planes[i]
-            d = lab_frame(coef, mask, model, np.random.default_rng([seed, i]))
-            c2, m2 = floor_plane(d, REGIONS[i], rng)
-            lab[i] = block_residual(d, c2, m2)
+            d = lab_frame(planes[i][0], model, np.random.default_rng([seed, i]))
+            lab[i] = block_residual(floor_plane(d, REGIONS[i])[0])
         ls = summary(lab)
         print_summary(f"lab, pattern {args.pattern_px} px, corr {KINECT_PATTERN_CORR_PX} px, unit {seed}", ls)
         print(f"  ratio lab / real: shared RMS {ls['shared_rms'] / s['shared_rms']:.2f}, "

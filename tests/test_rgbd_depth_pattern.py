@@ -137,7 +137,7 @@ REAL = Path(__file__).resolve().parents[1] / ".." / "shared" / "realdata" / "rgb
 def test_a_real_kinects_pattern_calibrated_from_three_floors_flattens_the_fourth():
     """Real data: the floors of three real Kinect frames (the camera moving between them) calibrate the pattern;
     removed from the fourth frame's floor, its residual from a plane (16 px blocks) drops by a quarter or more
-    (the floor's own unevenness and the noise stay; benchmarks/bench_depth_pattern_real.py: 20-48 %)."""
+    (the floor's own unevenness and the noise stay; benchmarks/bench_depth_pattern_real.py: 23-46 %)."""
     import cv2
 
     floors = {}

@@ -14,7 +14,7 @@ import numpy as np
 from ..sim.depth_sensor import DepthSensorModel, depth_mm_from_gbuffer
 from ..sim.raycast import GBuffer
 
-__all__ = ["wall_depth_m", "render_wall_frames", "record_rgbd_wall", "WALL_DISTANCES_M"]
+__all__ = ["wall_depth_m", "depth_frames_mm", "render_wall_frames", "record_rgbd_wall", "WALL_DISTANCES_M"]
 
 #: Wall distances of the ``rgbd-wall`` recording, metres (one sequence each).
 WALL_DISTANCES_M = (2.5, 3.5, 4.5)
@@ -84,28 +84,53 @@ def render_wall_frames(K, width: int, height: int, sensor: DepthSensorModel, rng
     """
     out = []
     for d in distances_m:
-        tilt = np.radians(float(max_tilt_deg)) * np.sqrt(rng.uniform())
-        axis = rng.uniform(0.0, 2 * np.pi)
-        n = np.array([np.sin(tilt) * np.cos(axis), np.sin(tilt) * np.sin(axis), np.cos(tilt)])
-        z = wall_depth_m(K, width, height, float(d), n)
-        gb = GBuffer(distance_m=z, depth_m=z, normal_world=np.zeros((height, width, 3), np.float32),
-                     object_id=np.ones((height, width), np.int32),
-                     albedo_rgb=np.full((height, width, 3), 0.5, np.float32))
-        for _ in range(int(frames_per_distance)):
-            raw = depth_mm_from_gbuffer(gb, sensor, rng)
+        z = wall_depth_m(K, width, height, float(d), _tilted_normal(rng, max_tilt_deg))
+        for raw in depth_frames_mm(z, sensor, rng, frames_per_distance):
             f = raw.astype(np.float32) / np.float32(sensor.units_per_m)
             f[raw == 0] = np.nan
             out.append(f)
     return np.stack(out)
 
 
-def record_rgbd_wall(out, opts):
+def _tilted_normal(rng: np.random.Generator, max_tilt_deg: float) -> np.ndarray:
+    """A wall's unit normal, tilted from the optical axis by up to ``max_tilt_deg`` about a random axis."""
+    tilt = np.radians(float(max_tilt_deg)) * np.sqrt(rng.uniform())
+    axis = rng.uniform(0.0, 2 * np.pi)
+    return np.array([np.sin(tilt) * np.cos(axis), np.sin(tilt) * np.sin(axis), np.cos(tilt)])
+
+
+def depth_frames_mm(z_m, sensor: DepthSensorModel, rng: np.random.Generator, n: int) -> list:
+    """``n`` raw frames of the sensor seeing a known true depth map (one surface, no edges inside it).
+
+    Parameters
+    ----------
+    z_m : ndarray, shape (H, W)
+        True depth (z), metres; ``inf`` where nothing is seen.
+    sensor : DepthSensorModel
+        Range, noise, fixed pattern, output scale.
+    rng : numpy.random.Generator
+        Noise, drawn per frame.
+    n : int
+        Frames.
+
+    Returns
+    -------
+    list of ndarray, shape (H, W), uint16
+        Depth in ``1 / sensor.units_per_m`` metres, 0 invalid.
+    """
+    h, w = z_m.shape
+    gb = GBuffer(distance_m=z_m, depth_m=z_m, normal_world=np.zeros((h, w, 3), np.float32),
+                 object_id=np.ones((h, w), np.int32), albedo_rgb=np.full((h, w, 3), 0.5, np.float32))
+    return [depth_mm_from_gbuffer(gb, sensor, rng) for _ in range(int(n))]
+
+
+def record_rgbd_wall(out, opts, *, calibration):
     """``tudorvision sim record rgbd-wall``: the lab's Kinect before a flat wall, one sequence per distance.
 
     What ``tudorvision calib rgbd-pattern`` needs: :data:`WALL_DISTANCES_M`, a random tilt (up to 15 deg)
-    each, ``opts.frames`` frames per distance (default 10; 4 with ``opts.small``), 640 x 480, the Kinect
-    intrinsics of the other RGB-D kinds and the lab's depth sensor (its noise and its fixed pattern,
-    unit 0 like every recording of the lab), depth only (the colour image is grey).
+    each, ``opts.frames`` frames per distance (default 10; 4 with ``opts.small``), the camera of
+    ``calibration`` (the Kinect of the other RGB-D kinds) and the lab's depth sensor (its noise and its
+    fixed pattern, unit 0 like every recording of the lab), depth only (the colour image is grey).
 
     Parameters
     ----------
@@ -113,6 +138,8 @@ def record_rgbd_wall(out, opts):
         Folder to write (``wall_2.50m`` ... under it).
     opts : RecordOptions
         ``seed``, ``frames``, ``small``, the image format and ``force``.
+    calibration : tudorvision.io.Calibration
+        What the recordings' ``calibration.yaml`` holds; its ``rgbd`` camera is the one rendered.
 
     Returns
     -------
@@ -123,29 +150,22 @@ def record_rgbd_wall(out, opts):
 
     from ..io import SequenceWriter
     from ..sim.scenes import KINECT_RATE_HZ
-    from ..sim.scenes_rgbd import kinect_camera
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    cam = kinect_camera(np.eye(4))
+    cam = calibration.cameras["rgbd"]
     sensor = DepthSensorModel()
     n = int(opts.frames or (4 if opts.small else 10))
     rng = np.random.default_rng([int(opts.seed), 17])
-    from ..io import Calibration, CameraModel
-    calibration = Calibration(cameras={"rgbd": CameraModel(K=cam.K, dist=cam.dist, width=cam.width,
-                                                           height=cam.height)},
-                              metadata={"source": "tudorvision virtual lab (nominal camera models)"})
     grey = np.full((cam.height, cam.width, 3), 128, np.uint8)
     for d in WALL_DISTANCES_M:
-        frames = render_wall_frames(cam.K, cam.width, cam.height, sensor, rng, distances_m=(d,),
-                                    frames_per_distance=n)
-        with SequenceWriter(out / f"wall_{d:.2f}m", kind="rgbd", rate_hz=KINECT_RATE_HZ, depth_scale=1000.0,
-                            calibration=calibration,
+        z = wall_depth_m(cam.K, cam.width, cam.height, d, _tilted_normal(rng, 15.0))
+        with SequenceWriter(out / f"wall_{d:.2f}m", kind="rgbd", rate_hz=KINECT_RATE_HZ,
+                            depth_scale=sensor.units_per_m, calibration=calibration,
                             image_ext=opts.image_ext, jpeg_quality=opts.jpeg_quality,
                             description=f"flat wall about {d:.2f} m away, tilted up to 15 deg",
                             meta={"generator": "tudorvision sim record", "seed": int(opts.seed)},
                             overwrite=opts.force) as w:
-            for k, f in enumerate(frames):
-                depth = np.where(np.isfinite(f), np.rint(f * 1000.0), 0).astype(np.uint16)
-                w.add_rgbd(k / KINECT_RATE_HZ, grey, depth)
+            for k, raw in enumerate(depth_frames_mm(z, sensor, rng, n)):
+                w.add_rgbd(k / KINECT_RATE_HZ, grey, raw)
     return out

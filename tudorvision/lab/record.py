@@ -40,7 +40,7 @@ from ..sim.camera import PinholeCamera, look_at
 from ..sim.render import render_bgr, render_rgbd
 from ..sim.scenes import (ArmGeometry, StereoRigConfig, checkerboard_lab, sphere_image_truth, stereo_lab,
                           KINECT_RATE_HZ, STEREO_RATE_HZ)
-from ..sim.scenes_rgbd import ball_throw, eye_in_hand, planar_target, wall_disc
+from ..sim.scenes_rgbd import ball_throw, eye_in_hand, kinect_camera, planar_target, wall_disc
 
 __all__ = ["RecordOptions", "KINDS", "record", "elastic_arm_geometry", "T_WORLD_BASE",
            "calibration_from_cameras", "static_arm_state"]
@@ -606,7 +606,7 @@ KINDS: dict[str, Callable] = {
     "rgbd-plane": record_rgbd_plane,
     "rgbd-disc": record_rgbd_disc,
     "rgbd-throws": record_rgbd_throws,
-    "rgbd-wall": record_rgbd_wall,
+    "rgbd-wall": lambda o, p: record_rgbd_wall(o, p, calibration=_kinect_calibration(kinect_camera(np.eye(4)))),
     "servo-views": record_servo_views,
 }
 

@@ -72,7 +72,14 @@ class DepthPatternCorrection:
 
     @functools.cached_property
     def _field(self) -> np.ndarray:
-        f = self._interpolated()
+        w, h = (int(v) for v in self.image_size)
+        s = float(self.step_px)
+        # block centres sit at (j + 0.5) s - 0.5; pixel u maps to grid coordinate (u + 0.5) / s - 0.5
+        gu = np.clip((np.arange(w) + 0.5) / s - 0.5, 0, self.grid_inv_m.shape[1] - 1).astype(np.float32)
+        gv = np.clip((np.arange(h) + 0.5) / s - 0.5, 0, self.grid_inv_m.shape[0] - 1).astype(np.float32)
+        mu, mv = np.meshgrid(gu, gv)
+        f = cv2.remap(self.grid_inv_m.astype(np.float32), mu, mv, cv2.INTER_LINEAR,
+                      borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
         f.setflags(write=False)
         return f
 
@@ -85,16 +92,6 @@ class DepthPatternCorrection:
             Read-only; computed once per correction.
         """
         return self._field
-
-    def _interpolated(self) -> np.ndarray:
-        w, h = (int(v) for v in self.image_size)
-        s = float(self.step_px)
-        # block centres sit at (j + 0.5) s - 0.5; pixel u maps to grid coordinate (u + 0.5) / s - 0.5
-        gu = np.clip((np.arange(w) + 0.5) / s - 0.5, 0, self.grid_inv_m.shape[1] - 1).astype(np.float32)
-        gv = np.clip((np.arange(h) + 0.5) / s - 0.5, 0, self.grid_inv_m.shape[0] - 1).astype(np.float32)
-        mu, mv = np.meshgrid(gu, gv)
-        return cv2.remap(self.grid_inv_m.astype(np.float32), mu, mv, cv2.INTER_LINEAR,
-                         borderMode=cv2.BORDER_REPLICATE).astype(np.float64)
 
     def apply(self, depth_m, *, origin_px=(0, 0)) -> np.ndarray:
         """Depths with the pattern removed: ``1 / (1 / z - c)``; invalid pixels (0, NaN) stay as they are.
@@ -411,12 +408,9 @@ def read_depth_pattern(path) -> DepthPatternCorrection:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise TudorVisionError(f"{path}: cannot read as a depth pattern file ({exc})") from None
+    fs = None
     try:
         fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
-    except (cv2.error, SystemError) as exc:
-        msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
-        raise TudorVisionError(f"{path}: not an OpenCV YAML file ({msg})") from None
-    try:
         if not fs.isOpened() or not fs.root().isMap() or fs.getNode("kind").string() != _TAG:
             raise TudorVisionError(f"{path}: not a depth pattern file (kind is not {_TAG!r})")
         vals = {}
@@ -427,11 +421,12 @@ def read_depth_pattern(path) -> DepthPatternCorrection:
             vals[key] = int(node.real())
         node = fs.getNode("grid_inv_m")
         grid = node.mat() if node.isMap() and cv_matrix_node_ok(node) else None
-    except (cv2.error, SystemError) as exc:       # a structure OpenCV refuses: one line, not a traceback
+    except (cv2.error, SystemError) as exc:       # text OpenCV cannot parse: one line, not a traceback
         msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
         raise TudorVisionError(f"{path}: not a depth pattern file ({msg})") from None
     finally:
-        fs.release()
+        if fs is not None:
+            fs.release()
     if grid is None:
         raise TudorVisionError(f"{path}: grid_inv_m: missing or not a matrix")
     try:

@@ -60,14 +60,14 @@ KINECT_EDGE_JITTER_PX = (0.9, 2.0)
 #: is removed. From the floor of the real frames ``../shared/realdata/rgbd_kinect_room/depth/2..5.pgm`` (2-4 m):
 #: per frame, inverse depth minus its affine (plane) fit, in 16 px blocks, converted to disparity with
 #: :data:`KINECT_FOCAL_BASELINE_PX_M`; the frames' residuals agree in image coordinates although the camera moved
-#: 1 m between them (correlation 0.58-0.78), which the floor's own shape cannot do; the part they share is
-#: 0.052 px RMS (0.31 % of the depth at 2.6 m, 8 mm). The lab's field measured the same way on the same
-#: planes and pixels shows 0.96 times that with 0.065 px over eight units, hence 0.068
+#: 1 m between them (correlation 0.59-0.77), which the floor's own shape cannot do; the part they share is
+#: 0.051 px RMS (0.31 % of the depth at 2.6 m, 8 mm). The lab's field measured the same way on the same
+#: planes and pixels shows 1.03 times that with 0.068 px over eight units (0.86-1.34)
 #: (``benchmarks/bench_depth_pattern_real.py``); at 5 m it moves depths by 4 cm RMS.
 KINECT_PATTERN_DISPARITY_PX = 0.068
 #: Standard deviations (u, v) of the Gaussian that smooths the pattern, pixels of a 640 px wide image: the
-#: shared residual's correlation at 32 px lag is 0.44 along u and 0.54 along v; the lab's field, measured the
-#: same way over eight units, 0.99 and 0.92 times that.
+#: shared residual's correlation at 32 px lag is 0.42 along u and 0.53 along v; the lab's field, measured the
+#: same way over eight units, 1.04 and 0.95 times that (0.51-1.54 and 0.23-1.36).
 KINECT_PATTERN_CORR_PX = (24.0, 26.0)
 #: Focal length times baseline of a Kinect v1's infrared camera and projector, pixels x metres (580 px, 7.5 cm):
 #: a disparity offset ``d`` moves a depth ``z`` to ``1 / (1 / z + d / (f b))``.
