@@ -350,16 +350,15 @@ class CatchScenario:
         ndarray, shape (3,)
             The point at the depth ``1 / (1 / z + c)`` on the same ray (``p_cam`` itself without a pattern).
         """
-        m = self.depth_sensor
-        if m.pattern_disparity_px == 0 or p_cam[2] <= 0:
+        if self.depth_sensor.pattern_disparity_px == 0 or p_cam[2] <= 0:
             return p_cam
-        from ...sim.depth_sensor import pattern_field
+        from ...sim.depth_sensor import with_pattern
 
         K = self.intrinsics
         u = int(np.clip(np.rint(K.fx * p_cam[0] / p_cam[2] + K.cx), 0, K.width - 1))
         v = int(np.clip(np.rint(K.fy * p_cam[1] / p_cam[2] + K.cy), 0, K.height - 1))
-        c = pattern_field(m, K.height, K.width)[v, u]
-        return p_cam / (1.0 + p_cam[2] * c)
+        z = with_pattern(np.array([[p_cam[2]]]), self.depth_sensor, (K.height, K.width), origin=(v, u))[0, 0]
+        return p_cam * (z / p_cam[2])
 
     # ---------------------------------------------------------------- the net and the operator
     def catch_ball(self) -> None:
