@@ -547,3 +547,44 @@ class InterceptPlanner:
             self.released = it
         self.history.append(it)
         return it
+
+    def due(self, t: float) -> Intercept | None:
+        """The latest estimate as a refinement due at ``t`` (s), a time without a new filter state.
+
+        :meth:`update` applies the refinement rule only when a detection brings a new state; when the ball is
+        out of view for a moment (high throws leave the top of the image), a refinement the interval held back
+        would wait for the ball to come back. This applies the rule of :meth:`update` again at ``t`` to the
+        latest estimate: reachable, released-worthy, its crossing still ahead, farther than the tolerance from
+        the released one, and the interval since the release passed.
+
+        Parameters
+        ----------
+        t : float
+            Time now (a frame without a detection), seconds.
+
+        Returns
+        -------
+        Intercept or None
+            The latest estimate marked ``send`` (now the released one), or None when no refinement is due.
+
+        Examples
+        --------
+        >>> pl = InterceptPlanner(InterceptOptions(release_sigma_m=1.0, min_interval_s=0.2))
+        >>> x, P = np.array([0.1, -3.0, 1.3, 0.0, 6.0, 2.0]), np.diag([1e-4] * 3 + [1e-2] * 3)
+        >>> pl.update(0.0, x, P).send, pl.update(0.05, x + [0.05, 0.0, 0.0, 0.0, 0.0, 0.0], P).send  # 5 cm moved
+        (True, False)
+        >>> pl.due(0.1) is None, pl.due(0.2).send, pl.due(0.3) is None       # due once the interval has passed
+        (True, True, True)
+        """
+        o, r = self.options, self.released
+        if r is None or not self.history:
+            return None
+        last = self.history[-1]
+        if last is r or not last.reachable or last.sigma_m > o.release_sigma_m or last.t_cross <= t:
+            return None
+        tol = max(o.refine_tol_m, o.refine_sigma_factor * last.sigma_m)
+        if not (np.linalg.norm(last.p_base - r.p_base) > tol and t - r.t >= o.min_interval_s):
+            return None
+        it = replace(last, send=True)
+        self.released = self.history[-1] = it
+        return it

@@ -127,3 +127,18 @@ class CatchPerception:
                 rec["ballistic"] = self.ballistic.predict()
             rec["peer_s"] = time.perf_counter() - t0
         return rec
+
+    def due(self, t: float):
+        """A refinement due at ``t`` (s) without a detection (:meth:`InterceptPlanner.due`), or None.
+
+        Parameters
+        ----------
+        t : float
+            Time of a frame without a detection, seconds.
+
+        Returns
+        -------
+        Intercept or None
+            The filter's latest intercept, marked ``send``, when the planner's refinement rule releases it now.
+        """
+        return self.planner.due(t) if self.ekf.initialised else None

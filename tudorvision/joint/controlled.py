@@ -262,6 +262,9 @@ class CascadeCore:
         none (the seed's double moving average alone).
     replan : {"restart", "blend"}
         How a setpoint re-plans a motion in flight (:class:`ControlledArm`); default the seed's restart.
+    damping_gains : tuple of 3 floats, optional
+        ``k_eps`` of every law the mode switch installs instead of the tuned gains (rad/s per m/m for the
+        proportional law); default the tuned ones (:func:`~tudorvision.joint.damping.default_damping_config`).
 
     Examples
     --------
@@ -276,8 +279,10 @@ class CascadeCore:
 
     def __init__(self, arm: Plant, *, settle_band: float = 15e-6,
                  collision_model=None, collision_thresholds=None, collision_coupling=None, damping_model=None,
-                 collision_transient_gain: float = 0.0, replan: str = "restart"):
+                 collision_transient_gain: float = 0.0, replan: str = "restart", damping_gains=None):
         self.damping_model = damping_model
+        self.damping_gains = None if damping_gains is None else \
+            tuple(float(k) for k in check_vector(damping_gains, "damping_gains", 3))
         if not collision_transient_gain >= 0:
             raise ValueError(f"collision_transient_gain: expected >= 0, got {collision_transient_gain!r}")
         self.collision_transient_gain = float(collision_transient_gain)
@@ -359,8 +364,9 @@ class CascadeCore:
         self.damping, self.collision = damping, collision
 
     def _damping_config(self, law: str):
+        over = {} if self.damping_gains is None else {"k_eps": self.damping_gains}
         return default_damping_config(law, plant=gain_set_of(self.arm), assisted=self.damping_model is not None,
-                                      payload_kg=self.payload_kg)
+                                      payload_kg=self.payload_kg, **over)
 
     def set_payload(self, payload_kg: float) -> None:
         """Tell the layer the payload mass (kg, end effector total: mount, plates, balls).

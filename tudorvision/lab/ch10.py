@@ -30,7 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["SEED_TABLE_10_1", "Ch10Options", "collect_aprbs_run", "reproduce_table_10_1", "summarize_table_10_1",
-           "with_current_noise", "format_table_10_1", "reference_friction"]
+           "with_current_noise", "format_table_10_1", "reference_friction", "identified_strain_model",
+           "CATCH_IDENTIFICATION"]
 
 _PAYLOADS_G = (0, 100, 200, 300, 400)
 
@@ -249,6 +250,60 @@ def reproduce_table_10_1(config=None, options: Ch10Options = Ch10Options(), *, j
             "strain_model": s_model, "current_model": c_model,
             "friction": {"identified": c_model.friction().tolist(), "plant": reference_friction(p).tolist()},
             "runs": runs}
+
+
+#: The catching demo's identification of its strain model (:func:`identified_strain_model`): 40 s of APRBS per
+#: payload of 0-300 g of plates, which spans the mount with up to eight 30 g balls.
+CATCH_IDENTIFICATION = Ch10Options(seconds=40.0, plates=(0, 1, 2, 3))
+
+
+def identified_strain_model(config=None, options: Ch10Options = CATCH_IDENTIFICATION, *, params=None,
+                            cache_dir=None):
+    """The strain-referred dynamics (10.2.8) of a lab plant, identified on APRBS runs as in section 10.4 (cached).
+
+    What a user does once on a real arm before switching on the model-assisted static strain cancellation
+    (``SimCore(damping_model=...)``): one APRBS run per payload, :func:`collect_aprbs_run`, fitted on alternate
+    5 s blocks (:func:`tudorvision.joint.identification.fit_with_validation`).
+
+    Parameters
+    ----------
+    config : PlantConfig, optional
+        The plant (default :class:`tudorvision.sim.arm.PlantConfig`).
+    options : Ch10Options
+        The runs (default :data:`CATCH_IDENTIFICATION`).
+    params : RobotParams, optional
+        Robot parameters (default the packaged ones).
+    cache_dir : str or Path, optional
+        Where the fitted parameters are kept (``strain_model_<hash>.npy``, the hash over the plant, the runs and
+        the robot); identified again when absent.
+
+    Returns
+    -------
+    StrainDynamicsModel
+        The fitted model.
+    """
+    import hashlib
+    from pathlib import Path
+
+    from ..joint.identification import fit_with_validation
+    from ..joint.strain_dynamics import StrainDynamicsModel
+    from ..sim.arm import PlantConfig
+    from .data_collection import robot_key
+
+    config = config or PlantConfig()
+    key = hashlib.sha256(repr((config, options)).encode()).hexdigest()[:16] + robot_key(params)
+    path = None if cache_dir is None else Path(cache_dir) / f"strain_model_{key}.npy"
+    if path is not None and path.exists():
+        return StrainDynamicsModel(chi=np.load(path))
+    runs = [collect_aprbs_run(pl, options, config, seed=options.seed0 + k, params=params)
+            for k, pl in enumerate(options.plates)]
+    model, _ = fit_with_validation(runs)
+    if path is not None:
+        from ..io.atomic import atomic_path
+        with atomic_path(path) as tmp:
+            with open(tmp, "wb") as f:
+                np.save(f, model.chi)
+    return model
 
 
 def summarize_table_10_1(result: dict) -> dict:

@@ -199,7 +199,7 @@ class SimCore(CascadeCore):
         Contact obstacles in the base frame.
     **options
         ``settle_band``, ``collision_model``, ``collision_thresholds``,
-        ``collision_coupling``, ``damping_model`` of :class:`CascadeCore`.
+        ``collision_coupling``, ``damping_model``, ``damping_gains``, ``replan`` of :class:`CascadeCore`.
 
     Raises
     ------

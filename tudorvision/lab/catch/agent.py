@@ -350,7 +350,7 @@ class CatchAgent:
         self._pending = False
         self.log = ThrowLog(payload_est_kg=self.payload_est_kg)
 
-    def step(self, t: float, frame):
+    def step(self, t: float, frame, *, t_exposure: float | None = None):
         """A camera frame delivered at ``t`` (s): check the layer, perceive, send an intercept setpoint when released.
 
         The ball filter runs at the frame's exposure time (``frame.t``); the layer is checked and commanded at
@@ -362,6 +362,9 @@ class CatchAgent:
             Time now, when the frame is delivered, s.
         frame : CameraFrame or None
             The wall camera's frame, stamped with its exposure time (None: nothing delivered).
+        t_exposure : float, optional
+            Exposure time of the frame slot when ``frame`` is None (default ``t``): a refinement held back by the
+            interval goes out on frames without a detection too (``DemoOptions.refine_between_detections``).
 
         Returns
         -------
@@ -377,11 +380,13 @@ class CatchAgent:
                 np.max(np.abs(st.theta - log.setpoint)) < ARRIVED_TOL_RAD:
             log.t_arrived_s = t
         if frame is None:
+            self._refine_without_detection(t, t if t_exposure is None else t_exposure, st)
             return None
         t0 = time.perf_counter()
         if frame.depth_mm is not None:
             d = self.detector.update(frame.depth_mm.astype(np.float32) / 1000.0)
             if d is None:
+                self._refine_without_detection(t, frame.t, st)
                 return None
             p_cam, cov_cam = d.p_cam, d.cov_cam
         else:
@@ -404,6 +409,22 @@ class CatchAgent:
                 # waited goes out with the latest estimate
                 self._intercept(t, it, np.asarray(st.theta))
         return p_b, rec
+
+    def _refine_without_detection(self, t: float, t_frame: float, st) -> None:
+        """A frame (exposed at ``t_frame``, here at ``t``, s) without a detection: a refinement due goes out.
+
+        The ball leaves the top of the image on high throws for up to 0.4 s; a refinement the minimum interval
+        held back, or one waiting for a joint to brake, went out only when it came back. Now it goes out with
+        the filter's latest estimate once due (:meth:`~tudorvision.catch.perception.CatchPerception.due`).
+        """
+        if not self.options.refine_between_detections or self.log.setpoint is None:
+            return
+        it = self.perception.due(t_frame)
+        if it is None and self._pending:
+            it = self.log.last_intercept
+        if it is not None and it.t_cross > t:
+            self.log.last_intercept = it
+            self._intercept(t, it, np.asarray(st.theta))
 
     def _bounds(self):
         """Joint bounds of the setpoints (rad, two (3,) arrays): the ranges less ``setpoint_margin_rad``."""

@@ -35,6 +35,14 @@ class DemoOptions:
     damping : str
         Damping law of the joint layer (``"off"``, ``"proportional"``, ``"integral"``,
         ``"half_integrator"``).
+    damping_model_assist : bool
+        The joint layer's damper subtracts the strain its identified model expects from the planned motion before
+        the seed's static strain filter (model-assisted static strain cancellation, ``docs/joint_layer.md``; the
+        model identified on the demo's plant by :func:`~tudorvision.lab.ch10.identified_strain_model`, cached in
+        ``cache_dir``); ``False``: the seed's filter alone.
+    damping_gains : tuple of 3 floats, optional
+        The damping law's ``k_eps`` instead of the joint layer's tuned gains (rad/s per m/m for the
+        proportional law).
     compensate : bool
         Data-based deflection compensation in the inverse kinematics (else rigid IK).
     gap_s : float
@@ -69,6 +77,10 @@ class DemoOptions:
     refine_sharper : float
         ... unless the new estimate's standard deviation is at most this fraction of the last sent
         one's (an early, rough release corrected at once; 0: the interval always applies).
+    refine_between_detections : bool
+        A refinement the minimum interval (or a braking joint) held back goes out on the first frame it is due,
+        with or without a detection (:meth:`~tudorvision.catch.intercept.InterceptPlanner.due`); ``False``: only on
+        a frame with a detection (high throws leave the top of the image for up to 0.4 s).
     refine_min_joint_rad : float
         A refinement whose joint setpoint differs from the last one by less than this in every joint is
         not sent (a new setpoint re-plans the layer's profile, which costs more than it corrects), rad.
@@ -297,6 +309,8 @@ class DemoOptions:
     render: bool = True
     noise_scale: float = 1.0
     damping: str = "proportional"
+    damping_model_assist: bool = False
+    damping_gains: tuple | None = None
     compensate: bool = True
     gap_s: float = 1.2
     ready_point_base: tuple = (0.0, 0.0, 1.07)
@@ -308,6 +322,7 @@ class DemoOptions:
     refine_tol_m: float = 0.02
     refine_interval_s: float = 0.2
     refine_sharper: float = 0.0
+    refine_between_detections: bool = False
     refine_min_joint_rad: float = float(np.deg2rad(0.5))
     overshoot_tol_rad: float = float(np.deg2rad(0.5))
     refine_force_m: float = 0.04
@@ -361,6 +376,9 @@ class DemoOptions:
             raise ValueError(f"throws: expected a positive integer, got {self.throws}")
         if self.damping not in DAMPING_LAWS:
             raise ValueError(f"damping: expected off, proportional, integral or half_integrator, got {self.damping!r}")
+        if self.damping_gains is not None and (np.shape(self.damping_gains) != (3,)
+                                               or not np.all(np.isfinite(np.asarray(self.damping_gains, float)))):
+            raise ValueError(f"damping_gains: expected three finite gains, got {self.damping_gains!r}")
         if self.plant not in PLANTS:
             raise ValueError(f"plant: expected one of {', '.join(PLANTS)}, got {self.plant!r}")
         if self.replan not in ("restart", "blend"):

@@ -106,6 +106,20 @@ def demo_kinematics(options: DemoOptions, params):
     return km, InverseKinematics(km.deflection, params, margin_rad=np.deg2rad(1.0))
 
 
+def demo_damping_model(options: DemoOptions):
+    """The joint layer's strain model for the model-assisted cancellation, or None (``damping_model_assist``).
+
+    Identified once on the demo's plant (:func:`~tudorvision.lab.ch10.identified_strain_model`, cached in
+    ``options.cache_dir``), as a user identifies their arm before switching the cancellation on.
+    """
+    if not options.damping_model_assist:
+        return None
+    from ..ch10 import identified_strain_model
+    from ..data_collection import plant_config
+
+    return identified_strain_model(plant_config(options.plant), params=options.params, cache_dir=options.cache_dir)
+
+
 def _net_at_cross(layer, world, t_cross_s):
     """True net centre (m) and its velocity (m/s, finite difference over the last control period) at the crossing."""
     layer.advance_to(t_cross_s - layer.period)
@@ -204,7 +218,8 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
     iopts = demo_intercept_options(o, params)
     ik = CatchIK(inverse, params, compensate=o.compensate, theta1_rad=iopts.theta1_rad)
 
-    world = CatchScenario(o, params, ik(np.asarray(o.ready_point_base, float), 0.0, elbow="up"))
+    world = CatchScenario(o, params, ik(np.asarray(o.ready_point_base, float), 0.0, elbow="up"),
+                          damping_model=demo_damping_model(o))
     layer = world.layer
     T_base_cam, calib = wall_camera_transform(o, params, world.T_base_cam, verbose=o.show_progress is not False,
                                               deflection=km.deflection)
@@ -245,7 +260,7 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
                     net, net_vel = _net_at_cross(layer, world, throw.t_cross_s)
                 layer.advance_to(t)
                 t_now = t
-            seen = agent.step(t, world.observe(t_exposed))
+            seen = agent.step(t, world.observe(t_exposed), t_exposure=t_exposed)
             if seen is not None and rr_log is not None:
                 rr_log.frame(t, seen[0], seen[1], world.net_position())
             k += 1

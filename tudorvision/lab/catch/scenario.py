@@ -196,6 +196,9 @@ class CatchScenario:
         The robot's parameters.
     theta_start : array_like, shape (3,)
         Joint angles the arm starts at rest in, rad.
+    damping_model : StrainDynamicsModel, optional
+        The joint layer's identified strain model for the model-assisted static strain cancellation
+        (``SimCore(damping_model=...)``; :func:`~tudorvision.lab.catch.run.demo_damping_model`).
 
     Attributes
     ----------
@@ -216,7 +219,7 @@ class CatchScenario:
         How often the operator emptied the net.
     """
 
-    def __init__(self, options, params, theta_start):
+    def __init__(self, options, params, theta_start, *, damping_model=None):
         from ...rgbd.ball import BallDetectorOptions
         from ...rgbd.frames import Intrinsics
         from ...sim.scenes_rgbd import ball_throw
@@ -237,7 +240,8 @@ class CatchScenario:
         # bare mount, the balls' weight and swing reach the end effector through the bag
         self.swing = SwingingBalls(config.dt, length_m=o.ball_swing_length_m) if o.ball_swing_length_m > 0 else None
         self.sim = SimCore(theta_start, payload=self._payload, params=params, config=config, replan=o.replan,
-                           obstacles=() if self.swing is None else (self.swing,))
+                           obstacles=() if self.swing is None else (self.swing,), damping_model=damping_model,
+                           damping_gains=o.damping_gains)
         self.layer = LockstepLayer(self.sim, rate_hz=o.layer_rate_hz)
         self._T_world_base = T_WORLD_BASE
         self._flight = None          # (times_s, points_base) of the ball in the air
