@@ -15,7 +15,7 @@ as the peer in the same run, the bare cascade (damping off).
 
 Usage::
 
-    .venv/bin/python benchmarks/bench_catch_swing.py [--balls 0 3 7] [--out docs/catch_swing.md]
+    .venv/bin/python benchmarks/bench_catch_swing.py [--balls 0 3 7] [--no-model-assist] [--out docs/catch_swing.md]
 
 Prints a markdown table (RMS over the catching poses, cm) and the ratio of the
 damped law's error to the bare cascade's.
@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from tudorvision.lab.catch.agent import profile_limits
-from tudorvision.lab.catch.options import DemoOptions
-from tudorvision.lab.catch.run import demo_kinematics
+from tudorvision.lab.catch.options import DemoOptions, layer_damping
+from tudorvision.lab.catch.run import demo_damping_model, demo_kinematics
 from tudorvision.lab.data_collection import plant_config
 from tudorvision.lab.simulation import SimCore
 from tudorvision.robot import load_robot_params
@@ -53,12 +53,17 @@ LAWS = {"proportional": 1, "off": 0}
 
 
 def net_error_after_move(theta_start, theta_goal, balls: int, damping: int, *, options, params, config,
-                         pre_s: float = 2.0) -> np.ndarray:
-    """The net's distance (m) from its rest at ``theta_goal`` in :data:`WINDOWS_S` after one demo move (RMS each)."""
+                         pre_s: float = 2.0, damping_model=None) -> np.ndarray:
+    """The net's distance (m) from its rest at ``theta_goal`` in :data:`WINDOWS_S` after one demo move (RMS each).
+
+    The joint layer as the demo builds it: ``damping_model`` (the demo's identified strain model or None) and the
+    demo's proportional gains (:func:`~tudorvision.lab.catch.options.layer_damping`).
+    """
     v, a = profile_limits(options, params)
     swing = SwingingBalls(config.dt, length_m=options.ball_swing_length_m)
     core = SimCore(theta_start, payload=Payload.from_parts(params, balls=0), params=params, config=config,
-                   obstacles=(swing,))
+                   obstacles=(swing,), damping_model=damping_model,
+                   damping_gains=layer_damping(options)[1] if damping == 1 else None)
     swing.set_mass(balls * float(params.ball_mass_kg))
     core.set_modes(damping=damping, collision=0)
     core.step(pre_s)                                   # the balls come to hang, the arm rests
@@ -86,10 +91,14 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--balls", type=int, nargs="+", default=[0, 3, 7])
     ap.add_argument("--out", type=Path, default=None, help="also write the table to this markdown file")
+    ap.add_argument("--no-model-assist", action="store_true",
+                    help="the demo's law with the seed's static strain filter alone at the layer's tuned gains")
     args = ap.parse_args(argv)
     if any(b < 0 for b in args.balls):
         ap.error(f"--balls {args.balls}: expected counts >= 0")
-    o = DemoOptions(render=False, rerun=False, plots=False, show_progress=False)
+    o = DemoOptions(render=False, rerun=False, plots=False, show_progress=False,
+                    **({"damping_model_assist": False, "damping_gains": None} if args.no_model_assist else {}))
+    model = demo_damping_model(o)
     params = load_robot_params()
     config = plant_config(o.plant)
     _, inverse = demo_kinematics(o, params)
@@ -104,7 +113,8 @@ def main(argv=None) -> int:
         goals = {name: inverse(np.array([x, 0.0, z]), 0.0, payload, elbow="up") for name, (x, z) in TARGETS.items()}
         per_law = {}
         for law, code in LAWS.items():
-            e = {name: net_error_after_move(theta_ready, g, balls, code, options=o, params=params, config=config)
+            e = {name: net_error_after_move(theta_ready, g, balls, code, options=o, params=params, config=config,
+                                            damping_model=model if code == 1 else None)
                  for name, g in goals.items()}
             E = np.array(list(e.values()))
             rms = np.sqrt(np.mean(E ** 2, axis=0)) * 100

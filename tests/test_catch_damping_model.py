@@ -42,12 +42,13 @@ def test_the_identified_model_predicts_the_static_strain_and_is_cached(tmp_path)
     """Oracle: at rest the model's strain is the plant's static strain at poses the runs never held."""
     cfg = PlantConfig()
     model = identified_strain_model(cfg, SHORT, cache_dir=tmp_path)
-    files = list(tmp_path.glob("strain_model_*.npy"))
+    files = list(tmp_path.glob("strain_model_*.npz"))
     assert len(files) == 1
-    again = identified_strain_model(cfg, SHORT, cache_dir=tmp_path)        # read back, not identified again
-    np.testing.assert_array_equal(again.chi, model.chi)
+    np.savez(files[0], chi=2.0 * model.chi)                                # the file is what is read back
+    again = identified_strain_model(cfg, SHORT, cache_dir=tmp_path)
+    np.testing.assert_array_equal(again.chi, 2.0 * model.chi)
     other = identified_strain_model(cfg, Ch10Options(seconds=10.0, plates=(1,)), cache_dir=tmp_path)
-    assert len(list(tmp_path.glob("strain_model_*.npy"))) == 2 and not np.array_equal(other.chi, model.chi)
+    assert len(list(tmp_path.glob("strain_model_*.npz"))) == 2 and not np.array_equal(other.chi, model.chi)
     rng = np.random.default_rng(3)
     errs, spans = [], []
     for _ in range(6):
@@ -76,10 +77,56 @@ def test_the_demo_identifies_only_when_asked(tmp_path, monkeypatch):
         return sentinel
 
     monkeypatch.setattr(ch10, "identified_strain_model", fake)
-    assert demo_damping_model(DemoOptions(render=False, cache_dir=str(tmp_path))) is None and not calls
-    o = DemoOptions(render=False, cache_dir=str(tmp_path), damping_model_assist=True, plant="stiff")
+    off = DemoOptions(render=False, cache_dir=str(tmp_path), damping_model_assist=False)
+    assert demo_damping_model(off) is None and not calls
+    # the cancellation was measured with the proportional law: the other laws keep the seed's filter
+    assert demo_damping_model(DemoOptions(render=False, cache_dir=str(tmp_path), damping="integral")) is None
+    assert not calls and DemoOptions().damping_model_assist and DemoOptions().damping_gains == (0.0, 400.0, 400.0)
+    # measured on the seed-measured plant: the stiff plant keeps the seed's filter
+    assert demo_damping_model(DemoOptions(render=False, cache_dir=str(tmp_path), plant="stiff")) is None
+    o = DemoOptions(render=False, cache_dir=str(tmp_path))
     assert demo_damping_model(o) is sentinel
-    assert calls == [(plant_config("stiff"), ch10.CATCH_IDENTIFICATION, str(tmp_path))]   # the demo's own plant
+    assert calls == [(plant_config("seed_measured"), ch10.CATCH_IDENTIFICATION, str(tmp_path))]   # the demo's plant
     core = SimCore(np.deg2rad([0.0, 60.0, 60.0]), params=P, damping_model=sentinel, damping_gains=(0.0, 400.0, 400.0))
     core.set_modes(damping=Damping.PROPORTIONAL, collision=0)
     assert core.controlled.damper.strain_model is sentinel
+
+
+def test_the_shipped_model_of_the_demos_plant_is_what_identification_gives(tmp_path):
+    """The package ships the default plant's model (the demo identifies nothing); it must be today's result."""
+    from tudorvision.lab.ch10 import CATCH_IDENTIFICATION, strain_model_key
+    from tudorvision.lab.data_collection import PACKAGED_DIR, plant_config
+
+    cfg = plant_config(DemoOptions().plant)
+    shipped = PACKAGED_DIR / f"strain_model_{strain_model_key(cfg, CATCH_IDENTIFICATION)}.npz"
+    assert shipped.exists()
+    model = identified_strain_model(cfg, cache_dir=tmp_path)
+    assert not list(tmp_path.iterdir())                                   # read from the package
+    with np.load(shipped) as z:
+        np.testing.assert_array_equal(model.chi, z["chi"])
+    from tudorvision.joint.identification import fit_with_validation
+    from tudorvision.lab.ch10 import collect_aprbs_run
+
+    o = CATCH_IDENTIFICATION
+    runs = [collect_aprbs_run(pl, o, cfg, seed=o.seed0 + k) for k, pl in enumerate(o.plates)]
+    fresh, _ = fit_with_validation(runs)                                  # identified again: the same parameters
+    np.testing.assert_allclose(fresh.chi, model.chi, rtol=1e-9, atol=1e-12)
+
+
+def test_catch_cli_no_model_assist(tmp_path, capsys, monkeypatch):
+    import tudorvision.lab.catch_demo as catch_demo
+    from tudorvision.cli import main
+
+    assert main(["catch", str(tmp_path), "--no-model-assist"]) != 0
+    assert "only with 'catch demo'" in capsys.readouterr().err
+    seen = []
+
+    def fake(out, options, recording=None):
+        seen.append(options)
+        raise KeyboardInterrupt                      # stop here (the CLI's controlled stop): only the options
+
+    monkeypatch.setattr(catch_demo, "run_demo", fake)
+    for argv in (["--no-model-assist"], []):
+        assert main(["catch", "demo", "--no-render", "--no-rerun", "--out", str(tmp_path / "d"), *argv]) != 0
+    assert (seen[0].damping_model_assist, seen[0].damping_gains) == (False, None)
+    assert (seen[1].damping_model_assist, seen[1].damping_gains) == (True, (0.0, 400.0, 400.0))

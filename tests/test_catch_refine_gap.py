@@ -31,10 +31,10 @@ def _flight(n_frames):
     return np.array(out), model
 
 
-@pytest.mark.parametrize("between", [True, False])
-def test_the_refinement_goes_out_on_the_first_frame_it_is_due(monkeypatch, between):
+@pytest.mark.parametrize("tol_m, between", [(0.02, True), (0.0, False), (0.2, False)])
+def test_the_refinement_goes_out_on_the_first_frame_it_is_due(monkeypatch, tol_m, between):
     layer = LayerStub()
-    agent = identity_ik_agent(layer, monkeypatch, (0.0, 60.0, 60.0), refine_between_detections=between)
+    agent = identity_ik_agent(layer, monkeypatch, (0.0, 60.0, 60.0), refine_without_detection_m=tol_m)
     points, model = _flight(20)
     agent.perception = CatchPerception(EKFOptions(n_init=2, model=model),
                                        InterceptOptions(release_sigma_m=0.5, min_interval_s=0.2), peer=False)
@@ -54,5 +54,7 @@ def test_the_refinement_goes_out_on_the_first_frame_it_is_due(monkeypatch, betwe
     if between:
         assert t_due in GAP and t_second == pytest.approx(t_due / RATE)
         np.testing.assert_allclose(agent.setpoints[1][-3:], estimates[4].p_base)      # the last estimate
-    else:
-        assert t_second == pytest.approx(max(GAP) / RATE + 1.0 / RATE)           # waited for the ball
+    else:        # off, or the estimate moved less than the tolerance without a detection: waited for the ball
+        assert t_second == pytest.approx(max(GAP) / RATE + 1.0 / RATE)
+    with pytest.raises(ValueError, match="refine_without_detection_m"):
+        identity_ik_agent(layer, monkeypatch, (0.0, 60.0, 60.0), refine_without_detection_m=-1.0)

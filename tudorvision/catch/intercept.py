@@ -548,7 +548,7 @@ class InterceptPlanner:
         self.history.append(it)
         return it
 
-    def due(self, t: float) -> Intercept | None:
+    def due(self, t: float, *, tol_m: float = 0.0) -> Intercept | None:
         """The latest estimate as a refinement due at ``t`` (s), a time without a new filter state.
 
         :meth:`update` applies the refinement rule only when a detection brings a new state; when the ball is
@@ -561,6 +561,9 @@ class InterceptPlanner:
         ----------
         t : float
             Time now (a frame without a detection), seconds.
+        tol_m : float
+            A larger tolerance than the rule's for these refinements, metres (the estimate before the ball left
+            the image is the filter's latest, not its best: only a large change is worth a re-plan now).
 
         Returns
         -------
@@ -582,7 +585,7 @@ class InterceptPlanner:
         last = self.history[-1]
         if last is r or not last.reachable or last.sigma_m > o.release_sigma_m or last.t_cross <= t:
             return None
-        tol = max(o.refine_tol_m, o.refine_sigma_factor * last.sigma_m)
+        tol = max(o.refine_tol_m, o.refine_sigma_factor * last.sigma_m, float(tol_m))
         if not (np.linalg.norm(last.p_base - r.p_base) > tol and t - r.t >= o.min_interval_s):
             return None
         it = replace(last, send=True)

@@ -128,17 +128,19 @@ class CatchPerception:
             rec["peer_s"] = time.perf_counter() - t0
         return rec
 
-    def due(self, t: float):
+    def due(self, t: float, *, tol_m: float = 0.0):
         """A refinement due at ``t`` (s) without a detection (:meth:`InterceptPlanner.due`), or None.
 
         Parameters
         ----------
         t : float
             Time of a frame without a detection, seconds.
+        tol_m : float
+            The refinement's least change, metres, if larger than the planner's own tolerance.
 
         Returns
         -------
         Intercept or None
             The filter's latest intercept, marked ``send``, when the planner's refinement rule releases it now.
         """
-        return self.planner.due(t) if self.ekf.initialised else None
+        return self.planner.due(t, tol_m=tol_m) if self.ekf.initialised else None

@@ -172,10 +172,11 @@ def _cmd_catch(args) -> int:
     if args.target != "demo" and (args.plant is not None or args.camera_distance_m is not None
                                   or args.ball_swing_length_m is not None or args.camera_latency_ms is not None
                                   or args.camera_latency_jitter_ms is not None
-                                  or args.depth_pattern_px is not None or args.no_depth_pattern_correction):
+                                  or args.depth_pattern_px is not None or args.no_depth_pattern_correction
+                                  or args.no_model_assist):
         raise TudorVisionError("--plant, --camera-distance-m, --camera-latency-ms, --camera-latency-jitter-ms, "
-                               "--ball-swing-length-m, --depth-pattern-px, --no-depth-pattern-correction: only "
-                               "with 'catch demo'")
+                               "--ball-swing-length-m, --depth-pattern-px, --no-depth-pattern-correction, "
+                               "--no-model-assist: only with 'catch demo'")
     if args.target == "demo" and args.depth_pattern:
         raise TudorVisionError("--depth-pattern: only with a recorded SEQ (the demo's agent calibrates its own "
                                "camera's pattern; --no-depth-pattern-correction turns that off)")
@@ -205,6 +206,9 @@ def _cmd_catch(args) -> int:
             more[name] = float(value) * scale
         if args.no_depth_pattern_correction:
             more["depth_pattern_correction"] = False
+        if args.no_model_assist:
+            more["damping_model_assist"] = False
+            more["damping_gains"] = None
         opts = DemoOptions(throws=args.throws, seed=args.seed, render=not args.no_render, damping=args.damping,
                            compensate=not args.rigid, rerun=not args.no_rerun,
                            params=robot_from_args(args) if args.robot else None, **more)
@@ -303,6 +307,10 @@ def register(subparsers) -> None:
                    choices=["off", "proportional", "integral", "half_integrator"],
                    help="demo: damping law of the joint layer (default proportional)")
     p.add_argument("--rigid", action="store_true", help="demo: rigid inverse kinematics (no deflection compensation)")
+    p.add_argument("--no-model-assist", action="store_true",
+                   help="demo: the joint layer's damper with the seed's static strain filter alone, at its tuned "
+                        "gains (default: the strain the arm's identified model expects from the planned motion "
+                        "removed first, gains 0 / 400 / 400)")
     p.add_argument("--no-rerun", action="store_true", help="demo: do not write OUT/catch.rrd")
     p.add_argument("--plant", default=None, choices=["seed_measured", "stiff"],
                    help="demo: the simulated arm: seed_measured (default; hub springs, dampers, backlash) or "

@@ -25,13 +25,15 @@ comes first, then the analytical model (AN).
 """
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 __all__ = ["SEED_TABLE_10_1", "Ch10Options", "collect_aprbs_run", "reproduce_table_10_1", "summarize_table_10_1",
            "with_current_noise", "format_table_10_1", "reference_friction", "identified_strain_model",
-           "CATCH_IDENTIFICATION"]
+           "strain_model_key", "CATCH_IDENTIFICATION"]
 
 _PAYLOADS_G = (0, 100, 200, 300, 400)
 
@@ -274,36 +276,47 @@ def identified_strain_model(config=None, options: Ch10Options = CATCH_IDENTIFICA
     params : RobotParams, optional
         Robot parameters (default the packaged ones).
     cache_dir : str or Path, optional
-        Where the fitted parameters are kept (``strain_model_<hash>.npy``, the hash over the plant, the runs and
-        the robot); identified again when absent.
+        Where the fitted parameters are kept (``strain_model_<hash>.npz``, the hash over the plant, the runs and
+        the robot); identified again when absent from it and from the package's data (the catching demo's
+        default plant ships its model).
 
     Returns
     -------
     StrainDynamicsModel
         The fitted model.
     """
-    import hashlib
-    from pathlib import Path
-
     from ..joint.identification import fit_with_validation
     from ..joint.strain_dynamics import StrainDynamicsModel
     from ..sim.arm import PlantConfig
-    from .data_collection import robot_key
+    from .data_collection import PACKAGED_DIR, robot_key
 
     config = config or PlantConfig()
-    key = hashlib.sha256(repr((config, options)).encode()).hexdigest()[:16] + robot_key(params)
-    path = None if cache_dir is None else Path(cache_dir) / f"strain_model_{key}.npy"
-    if path is not None and path.exists():
-        return StrainDynamicsModel(chi=np.load(path))
+    name = f"strain_model_{strain_model_key(config, options)}{robot_key(params)}.npz"
+    path = None if cache_dir is None else Path(cache_dir) / name
+    for found in ([] if path is None else [path]) + [PACKAGED_DIR / name]:
+        if found.exists():
+            with np.load(found) as z:
+                return StrainDynamicsModel(chi=z["chi"])
     runs = [collect_aprbs_run(pl, options, config, seed=options.seed0 + k, params=params)
             for k, pl in enumerate(options.plates)]
     model, _ = fit_with_validation(runs)
     if path is not None:
         from ..io.atomic import atomic_path
         with atomic_path(path) as tmp:
-            with open(tmp, "wb") as f:
-                np.save(f, model.chi)
+            np.savez_compressed(tmp, chi=model.chi)
     return model
+
+
+def strain_model_key(config, options: Ch10Options) -> str:
+    """Short hash of a plant and its identification runs (the file name of :func:`identified_strain_model`).
+
+    Examples
+    --------
+    >>> from tudorvision.sim.arm import PlantConfig
+    >>> len(strain_model_key(PlantConfig(), CATCH_IDENTIFICATION))
+    16
+    """
+    return hashlib.sha256(repr((config, options)).encode()).hexdigest()[:16]
 
 
 def summarize_table_10_1(result: dict) -> dict:

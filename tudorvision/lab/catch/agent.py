@@ -364,7 +364,7 @@ class CatchAgent:
             The wall camera's frame, stamped with its exposure time (None: nothing delivered).
         t_exposure : float, optional
             Exposure time of the frame slot when ``frame`` is None (default ``t``): a refinement held back by the
-            interval goes out on frames without a detection too (``DemoOptions.refine_between_detections``).
+            interval goes out on frames without a detection too (``DemoOptions.refine_without_detection_m``).
 
         Returns
         -------
@@ -417,9 +417,10 @@ class CatchAgent:
         held back, or one waiting for a joint to brake, went out only when it came back. Now it goes out with
         the filter's latest estimate once due (:meth:`~tudorvision.catch.perception.CatchPerception.due`).
         """
-        if not self.options.refine_between_detections or self.log.setpoint is None:
+        tol = self.options.refine_without_detection_m
+        if not tol > 0 or self.log.setpoint is None:
             return
-        it = self.perception.due(t_frame)
+        it = self.perception.due(t_frame, tol_m=tol)
         if it is None and self._pending:
             it = self.log.last_intercept
         if it is not None and it.t_cross > t:

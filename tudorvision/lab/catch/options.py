@@ -11,7 +11,7 @@ from ...sim.depth_sensor import KINECT_PATTERN_DISPARITY_PX
 from ..data_collection import DEMO_COLLECTION, PLANTS, CollectionOptions, plant_config
 from .calibration import CALIBRATION_METHODS
 
-__all__ = ["DemoOptions", "DAMPING_LAWS", "PLANTS", "plant_config", "trained_payload_range_kg"]
+__all__ = ["DemoOptions", "DAMPING_LAWS", "PLANTS", "plant_config", "trained_payload_range_kg", "layer_damping"]
 
 DAMPING_LAWS = ("off", "proportional", "integral", "half_integrator")
 
@@ -38,11 +38,15 @@ class DemoOptions:
     damping_model_assist : bool
         The joint layer's damper subtracts the strain its identified model expects from the planned motion before
         the seed's static strain filter (model-assisted static strain cancellation, ``docs/joint_layer.md``; the
-        model identified on the demo's plant by :func:`~tudorvision.lab.ch10.identified_strain_model`, cached in
-        ``cache_dir``); ``False``: the seed's filter alone.
+        model identified on the demo's plant by :func:`~tudorvision.lab.ch10.identified_strain_model`, shipped for
+        the default plant, else cached in ``cache_dir``); default since the thirty-second session (the filter's
+        echo of each move's inertial strain, 0.5-1 s after it, pushed the net about as the ball arrived); with
+        the proportional law on the seed-measured plant only (:func:`layer_damping`); ``False``: the seed's filter
+        alone.
     damping_gains : tuple of 3 floats, optional
-        The damping law's ``k_eps`` instead of the joint layer's tuned gains (rad/s per m/m for the
-        proportional law).
+        The proportional law's ``k_eps`` instead of the joint layer's tuned gains (rad/s per m/m) on the
+        seed-measured plant; default (0, 400, 400), chosen with the model on the net's swing after the demo's
+        moves (``docs/catch.md``); None: the layer's tuned gains (the other laws and plants keep theirs).
     compensate : bool
         Data-based deflection compensation in the inverse kinematics (else rigid IK).
     gap_s : float
@@ -77,10 +81,11 @@ class DemoOptions:
     refine_sharper : float
         ... unless the new estimate's standard deviation is at most this fraction of the last sent
         one's (an early, rough release corrected at once; 0: the interval always applies).
-    refine_between_detections : bool
+    refine_without_detection_m : float
         A refinement the minimum interval (or a braking joint) held back goes out on the first frame it is due,
-        with or without a detection (:meth:`~tudorvision.catch.intercept.InterceptPlanner.due`); ``False``: only on
-        a frame with a detection (high throws leave the top of the image for up to 0.4 s).
+        with or without a detection, when the estimate moved by more than this, m
+        (:meth:`~tudorvision.catch.intercept.InterceptPlanner.due`; high throws leave the top of the image for up
+        to 0.4 s); 0: only on a frame with a detection.
     refine_min_joint_rad : float
         A refinement whose joint setpoint differs from the last one by less than this in every joint is
         not sent (a new setpoint re-plans the layer's profile, which costs more than it corrects), rad.
@@ -309,8 +314,8 @@ class DemoOptions:
     render: bool = True
     noise_scale: float = 1.0
     damping: str = "proportional"
-    damping_model_assist: bool = False
-    damping_gains: tuple | None = None
+    damping_model_assist: bool = True
+    damping_gains: tuple | None = (0.0, 400.0, 400.0)
     compensate: bool = True
     gap_s: float = 1.2
     ready_point_base: tuple = (0.0, 0.0, 1.07)
@@ -322,7 +327,7 @@ class DemoOptions:
     refine_tol_m: float = 0.02
     refine_interval_s: float = 0.2
     refine_sharper: float = 0.0
-    refine_between_detections: bool = False
+    refine_without_detection_m: float = 0.0
     refine_min_joint_rad: float = float(np.deg2rad(0.5))
     overshoot_tol_rad: float = float(np.deg2rad(0.5))
     refine_force_m: float = 0.04
@@ -425,6 +430,8 @@ class DemoOptions:
         acc = np.asarray(self.accel_candidates, float)
         if acc.ndim != 1 or not len(acc) or not np.all((acc > 0) & (acc <= 1)):
             raise ValueError(f"accel_candidates: expected fractions in (0, 1], got {self.accel_candidates!r}")
+        if not (np.isfinite(self.refine_without_detection_m) and self.refine_without_detection_m >= 0):
+            raise ValueError(f"refine_without_detection_m: expected >= 0 (m), got {self.refine_without_detection_m}")
         if not 0.0 <= self.refine_sharper < 1.0:
             raise ValueError(f"refine_sharper: expected [0, 1), got {self.refine_sharper}")
         if int(self.calibration_frames_per_pose) != self.calibration_frames_per_pose \
@@ -457,3 +464,32 @@ def trained_payload_range_kg(collection: CollectionOptions) -> tuple[float, floa
     (0.0, 0.4)
     """
     return 0.0, float(max(max(collection.payloads_kg), 0.0))
+
+
+def layer_damping(options) -> tuple[bool, tuple | None]:
+    """What the demo's joint layer damps with: ``(model_assist, proportional_gains)``.
+
+    ``DemoOptions.damping_model_assist`` and ``damping_gains`` where they were measured: the proportional law on
+    the seed-measured plant. Any other law or plant gets the seed's static strain filter at the layer's tuned
+    gains, ``(False, None)``.
+
+    Parameters
+    ----------
+    options : DemoOptions
+
+    Returns
+    -------
+    tuple
+        Whether the layer removes its identified strain model's expectation first, and the proportional law's
+        ``k_eps`` (None: the tuned ones).
+
+    Examples
+    --------
+    >>> layer_damping(DemoOptions(render=False))
+    (True, (0.0, 400.0, 400.0))
+    >>> layer_damping(DemoOptions(render=False, plant="stiff")), layer_damping(DemoOptions(damping="integral"))
+    ((False, None), (False, None))
+    """
+    if options.damping != "proportional" or options.plant != "seed_measured":
+        return False, None
+    return bool(options.damping_model_assist), options.damping_gains

@@ -42,7 +42,7 @@ from ...catch.intercept import InterceptOptions
 from ...catch.perception import CatchPerception
 from .agent import CatchAgent, CatchIK, demo_inner_reach_m, profile_limits
 from .calibration import calibrate_wall_camera, wall_camera_position_world, wall_depth_pattern
-from .options import DemoOptions, trained_payload_range_kg
+from .options import DemoOptions, layer_damping, trained_payload_range_kg
 from .scenario import FRAME_RATE_HZ, CatchScenario
 from .score import score_throw, summarize_throws
 from . import writers
@@ -107,12 +107,14 @@ def demo_kinematics(options: DemoOptions, params):
 
 
 def demo_damping_model(options: DemoOptions):
-    """The joint layer's strain model for the model-assisted cancellation, or None (``damping_model_assist``).
+    """The joint layer's strain model for the model-assisted cancellation, or None.
 
-    Identified once on the demo's plant (:func:`~tudorvision.lab.ch10.identified_strain_model`, cached in
-    ``options.cache_dir``), as a user identifies their arm before switching the cancellation on.
+    With ``damping_model_assist``, for the proportional law on the seed-measured plant (where the cancellation
+    was measured; :func:`~tudorvision.lab.catch.options.layer_damping`): identified once on the demo's plant (:func:`~tudorvision.lab.ch10.identified_strain_model`; shipped for the
+    default plant, else cached in ``options.cache_dir``), as a user identifies their arm before switching the
+    cancellation on.
     """
-    if not options.damping_model_assist:
+    if not layer_damping(options)[0]:
         return None
     from ..ch10 import identified_strain_model
     from ..data_collection import plant_config

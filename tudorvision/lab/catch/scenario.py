@@ -234,6 +234,7 @@ class CatchScenario:
         self.balls, self.emptied = 0, 0
         self._payload = Payload.from_parts(params, balls=0)
         from ..data_collection import plant_config
+        from .options import layer_damping
 
         config = plant_config(o.plant)
         # the balls hang in the net and swing (``ball_swing_length_m`` > 0): the plant's point payload stays the
@@ -241,7 +242,7 @@ class CatchScenario:
         self.swing = SwingingBalls(config.dt, length_m=o.ball_swing_length_m) if o.ball_swing_length_m > 0 else None
         self.sim = SimCore(theta_start, payload=self._payload, params=params, config=config, replan=o.replan,
                            obstacles=() if self.swing is None else (self.swing,), damping_model=damping_model,
-                           damping_gains=o.damping_gains)
+                           damping_gains=layer_damping(o)[1])
         self.layer = LockstepLayer(self.sim, rate_hz=o.layer_rate_hz)
         self._T_world_base = T_WORLD_BASE
         self._flight = None          # (times_s, points_base) of the ball in the air
