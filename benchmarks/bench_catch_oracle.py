@@ -167,7 +167,13 @@ def scoring_wrapper(score):
         d = res.as_dict()
         d.update(variant=CURRENT["variant"], session_seed=int(o.seed),
                  balls=int(round(kw["payload_true_kg"] / BALL_KG)), setpoints=len(rows),
-                 x_target_m=math.nan, z_target_m=math.nan, clipped=False, t_ekf_release_s=math.nan)
+                 x_target_m=math.nan, z_target_m=math.nan, clipped=False, t_ekf_release_s=math.nan,
+                 first_error_m=math.nan, t_first_s=math.nan, second_error_m=math.nan, t_second_s=math.nan)
+        if throw.p_cross_base is not None:
+            # how far the first and second setpoints' estimates were from the true crossing, and when (after release)
+            for k, name in enumerate(("first", "second")[:len(rows)]):
+                d[f"{name}_error_m"] = float(np.linalg.norm(np.asarray(rows[k][5:8], float) - throw.p_cross_base))
+                d[f"t_{name}_s"] = float(rows[k][1] - throw.t_release_s)
         per = agent.perception
         if isinstance(per, OraclePerception) and throw.index in per.ekf_release:
             d["t_ekf_release_s"] = per.ekf_release[throw.index] - throw.t_release_s
