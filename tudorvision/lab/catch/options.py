@@ -133,9 +133,10 @@ class DemoOptions:
         crossing (:func:`~tudorvision.lab.catch.profile.overshoot_lead_target`): ``overshoot_lead_m`` (m)
         for a move of ``overshoot_full_move_m`` (m) or more whose planned profile ends at the predicted
         crossing, falling to zero for one that ends ``overshoot_fade_s`` (s) before it; 0: no lead. Default
-        6 mm, 0.25 s, 0.2 m: 12 mm from the twenty-second session (2026-11-27; seed 0 caught 755 of 840 crossing
-        throws against 734 without it) halved in the thirty-third (2026-12-07), since the joint layer's
-        model-assisted damping the net stopped 0.6 cm short along its move on average (1.0 cm on moves over 0.4 m).
+        12 mm, 0.25 s, 0.2 m (2026-11-27, twenty-second session): seed 0 caught 755 of 840 crossing throws against
+        734 without it, held-out seeds 100 / 200 / 300 / 400 184 / 196 / 200 / 185 against 183 / 185 / 191 / 174.
+        6 mm (thirty-third session, on the model-assisted layer, where the net stops 0.6 cm short along its move on
+        average): 379 against 373 of seeds 0 / 1's 410, but 399 against 408 of held-out seeds 100 / 200's 429.
     ball_swing_length_m : float
         The caught balls hang in the net's bag this far below the ring and swing
         (:class:`~tudorvision.sim.net_balls.SwingingBalls`: at 1.55 Hz for 0.1 m, the fabric damping the swing
@@ -337,7 +338,7 @@ class DemoOptions:
     mode_mass_kg: float = 0.26
     mode_swing_hz: float = 0.0
     mode_elbow_map: bool = False
-    overshoot_lead_m: float = 0.006
+    overshoot_lead_m: float = 0.012
     overshoot_fade_s: float = 0.25
     overshoot_full_move_m: float = 0.2
     ball_swing_length_m: float = 0.1
