@@ -29,7 +29,10 @@ reasons (ball hit the rim, arm late, other), the net's error against the target 
 the crossing (x / z mean and sd, RMS, p90 of the distance; arrived throws: caught or on the rim,
 crossings inside 0.8 m of the shoulder) and where the misses lie (distance and direction from the
 shoulder, balls in the net), with the ratio of caught against the baseline. Per throw rows go to
-``OUT/<variant>_<replan>_s<seed>_n<throws>.csv``.
+``OUT/<variant>_<replan>_s<seed>_n<throws>.csv``, with how far the first and second intercept setpoints' estimates
+were from the true crossing and when they went out (``first_error_m``, ``t_first_s``, ``second_error_m``,
+``t_second_s``); ``--keep-predictions`` also writes the agent's estimate and setpoint rows of every throw
+(``predictions_<...>.csv``, ``setpoints_<...>.csv``, the demo's columns after ``session_seed``).
 
 Run (2-core container: about 2 min per variant for 240 throws, 15 min for 1980; ``--workers N`` spreads the
 sessions of every seed given over N processes, the same records as the serial run)::
@@ -168,7 +171,8 @@ def scoring_wrapper(score):
         d.update(variant=CURRENT["variant"], session_seed=int(o.seed),
                  balls=int(round(kw["payload_true_kg"] / BALL_KG)), setpoints=len(rows),
                  x_target_m=math.nan, z_target_m=math.nan, clipped=False, t_ekf_release_s=math.nan,
-                 first_error_m=math.nan, t_first_s=math.nan, second_error_m=math.nan, t_second_s=math.nan)
+                 first_error_m=math.nan, t_first_s=math.nan, second_error_m=math.nan, t_second_s=math.nan,
+                 x_ready_m=float(o.ready_point_base[0]), z_ready_m=float(o.ready_point_base[2]))
         if throw.p_cross_base is not None:
             # how far the first and second setpoints' estimates were from the true crossing, and when (after release)
             for k, name in enumerate(("first", "second")[:len(rows)]):
@@ -186,6 +190,9 @@ def scoring_wrapper(score):
             th = np.asarray(last[2:5], float)
             d["clipped"] = bool(np.any(np.abs(th - (lims[:, 0] + m)) < 1e-9)
                                 or np.any(np.abs(th - (lims[:, 1] - m)) < 1e-9))
+        # the agent's own rows for this throw (written with --keep-predictions; not CSV columns of the throw rows)
+        d["_predictions"] = [[int(o.seed), *r] for r in agent.predictions if r[0] == throw.index]
+        d["_setpoints"] = [[int(o.seed), *r] for r in rows]
         RECORDS.append(d)
         return res
 
@@ -261,17 +268,23 @@ def _counts(rows) -> dict:
 def net_error(rows, max_dist_m: float = 0.8) -> dict:
     """The net against its target at the crossing (cm): arrived throws (caught or rim) inside ``max_dist_m``."""
     prm = load_robot_params()
-    e = np.array([[r["x_net_m"] - r["x_target_m"], r["z_net_m"] - r["z_target_m"]] for r in rows
-                  if r["crossing_workspace"] and (r["caught"] or r["reason"] == "ball hit the rim")
-                  and math.hypot(r["x_cross_true_m"], r["z_cross_true_m"] - prm.link1_height_m) < max_dist_m
-                  and not math.isnan(r["x_target_m"])]) * 100
+    sel = [r for r in rows if r["crossing_workspace"] and (r["caught"] or r["reason"] == "ball hit the rim")
+           and math.hypot(r["x_cross_true_m"], r["z_cross_true_m"] - prm.link1_height_m) < max_dist_m
+           and not math.isnan(r["x_target_m"])]
+    e = np.array([[r["x_net_m"] - r["x_target_m"], r["z_net_m"] - r["z_target_m"]] for r in sel]) * 100
     if not len(e):
         return {"n": 0}
     dist = np.hypot(e[:, 0], e[:, 1])
+    # along the move from the ready point to the target (> 0: past the target; moves over 5 cm)
+    move = np.array([[r["x_target_m"] - r["x_ready_m"], r["z_target_m"] - r["z_ready_m"]] for r in sel])
+    length = np.hypot(move[:, 0], move[:, 1])
+    far = length > 0.05
+    along = np.sum(e[far] * move[far], axis=1) / length[far]
     return {"n": len(e), "mean_x_cm": float(e[:, 0].mean()), "mean_z_cm": float(e[:, 1].mean()),
             "sd_x_cm": float(e[:, 0].std()), "sd_z_cm": float(e[:, 1].std()),
             "rms_cm": float(np.sqrt(np.mean(dist ** 2))), "median_cm": float(np.median(dist)),
-            "p90_cm": float(np.percentile(dist, 90))}
+            "p90_cm": float(np.percentile(dist, 90)),
+            "along_move_mean_cm": float(along.mean()) if len(along) else math.nan}
 
 
 def breakdown(rows) -> list[str]:
@@ -301,11 +314,22 @@ def write_rows(path: Path, rows) -> None:
     """Per-throw rows (the demo's columns plus the oracle's) as CSV."""
     if not rows:
         return
-    cols = list(rows[0])
+    cols = [c for c in rows[0] if not c.startswith("_")]
     with open(path, "w", newline="") as fh:
         w = csv.DictWriter(fh, cols, extrasaction="ignore")
         w.writeheader()
         w.writerows(rows)
+
+
+def write_agent_rows(out: Path, stem: str, rows) -> None:
+    """The agent's estimate and setpoint rows of every throw (``predictions_STEM.csv``, ``setpoints_STEM.csv``)."""
+    from tudorvision.lab.catch.agent import PREDICTION_COLUMNS, SETPOINT_COLUMNS
+
+    for key, cols in (("_predictions", PREDICTION_COLUMNS), ("_setpoints", SETPOINT_COLUMNS)):
+        with open(out / f"{key[1:]}_{stem}.csv", "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["session_seed", *cols])
+            w.writerows(r for d in rows for r in d.get(key, []))
 
 
 def main() -> None:
@@ -323,6 +347,9 @@ def main() -> None:
     ap.add_argument("--calibrations", type=int, default=1, metavar="K",
                     help="wall-camera calibrations the sessions take in turn (session b: calibration_seed + b %% K); "
                          "1: one calibration for every session")
+    ap.add_argument("--keep-predictions", action="store_true",
+                    help="also write the agent's intercept estimates and setpoints per throw "
+                         "(predictions_*.csv, setpoints_*.csv; session_seed first, then the demo's columns)")
     ap.add_argument("--out", default="out/bench_catch_oracle")
     args = ap.parse_args()
     out = Path(args.out)
@@ -383,6 +410,8 @@ def report(args, out: Path, tag: str, seed: int, runs) -> None:
     results = {}
     for v, (rows, s, wall) in runs.items():
         write_rows(out / f"{v}_{args.replan}{tag}_s{seed}_n{args.throws}.csv", rows)
+        if args.keep_predictions:
+            write_agent_rows(out, f"{v}_{args.replan}{tag}_s{seed}_n{args.throws}", rows)
         c, err = _counts(rows), net_error(rows)
         assert c["n"] == s["crossing_workspace"] and c["caught"] == s["caught_in_workspace"], (c, s)
         results[v] = {"counts": c, "net_vs_target": err, "wall_s": wall, "misses": s.get("misses"),
