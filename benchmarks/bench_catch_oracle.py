@@ -350,6 +350,9 @@ def main() -> None:
     ap.add_argument("--keep-predictions", action="store_true",
                     help="also write the agent's intercept estimates and setpoints per throw "
                          "(predictions_*.csv, setpoints_*.csv; session_seed first, then the demo's columns)")
+    ap.add_argument("--compare", default=None, metavar="DIR",
+                    help="a folder of an earlier run of this benchmark: per seed, the throws won and lost against "
+                         "its baseline CSV of the same seed and throws, with McNemar's exact p")
     ap.add_argument("--out", default="out/bench_catch_oracle")
     args = ap.parse_args()
     out = Path(args.out)
@@ -405,6 +408,27 @@ def main() -> None:
             report(args, out, tag, seed, {v: runs[v][seed] for v in args.variants})
 
 
+def paired_turnover(rows, reference_csv: Path) -> dict:
+    """Throws crossing the workspace in both runs, caught in one only: won and lost against ``reference_csv``.
+
+    The same throws (``session_seed``, ``throw``) of another run of this benchmark; ``p`` is the exact two-sided
+    McNemar test (binomial on the discordant throws): a run of sessions is chaotic (one different setpoint changes
+    the arm's state, and the balls in the net, for every later throw), so a change of a few throws in 400 is what
+    any rule gives.
+    """
+    from scipy.stats import binomtest
+
+    with open(reference_csv, newline="") as fh:
+        ref = {(r["session_seed"], r["throw"]): r["caught"] == "True" for r in csv.DictReader(fh)
+               if r["crossing_workspace"] == "True"}
+    now = {(str(r["session_seed"]), str(r["throw"])): bool(r["caught"]) for r in rows if r["crossing_workspace"]}
+    both = sorted(set(ref) & set(now))
+    won = sum(now[k] and not ref[k] for k in both)
+    lost = sum(ref[k] and not now[k] for k in both)
+    p = binomtest(won, won + lost, 0.5).pvalue if won + lost else 1.0
+    return {"reference": str(reference_csv), "throws": len(both), "won": won, "lost": lost, "p": float(p)}
+
+
 def report(args, out: Path, tag: str, seed: int, runs) -> None:
     """Print and write one seed's results: ``runs`` maps each variant to ``(records, summary, wall s)``."""
     results = {}
@@ -423,6 +447,15 @@ def report(args, out: Path, tag: str, seed: int, runs) -> None:
                                                 for k, val in err.items()), flush=True)
         for line in breakdown(rows):
             print(line, flush=True)
+        if args.compare is not None:
+            refs = sorted(Path(args.compare).glob(f"baseline_*_s{seed}_n{args.throws}.csv"))
+            if len(refs) != 1:
+                print(f"  compare: expected one baseline_*_s{seed}_n{args.throws}.csv in {args.compare}, "
+                      f"found {len(refs)}", flush=True)
+            else:
+                t = results[v]["turnover"] = paired_turnover(rows, refs[0])
+                print(f"  against {refs[0].name}: won {t['won']}, lost {t['lost']} of {t['throws']} crossing "
+                      f"throws (McNemar p = {t['p']:.2f})", flush=True)
     if "baseline" in results:
         b = results["baseline"]["counts"]["caught"]
         for v, r in results.items():
