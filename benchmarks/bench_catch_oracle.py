@@ -433,9 +433,10 @@ def report(args, out: Path, tag: str, seed: int, runs) -> None:
     """Print and write one seed's results: ``runs`` maps each variant to ``(records, summary, wall s)``."""
     results = {}
     for v, (rows, s, wall) in runs.items():
-        write_rows(out / f"{v}_{args.replan}{tag}_s{seed}_n{args.throws}.csv", rows)
+        stem = f"{v}_{args.replan}{tag}_s{seed}_n{args.throws}"
+        write_rows(out / f"{stem}.csv", rows)
         if args.keep_predictions:
-            write_agent_rows(out, f"{v}_{args.replan}{tag}_s{seed}_n{args.throws}", rows)
+            write_agent_rows(out, stem, rows)
         c, err = _counts(rows), net_error(rows)
         assert c["n"] == s["crossing_workspace"] and c["caught"] == s["caught_in_workspace"], (c, s)
         results[v] = {"counts": c, "net_vs_target": err, "wall_s": wall, "misses": s.get("misses"),

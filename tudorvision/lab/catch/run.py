@@ -110,9 +110,9 @@ def demo_damping_model(options: DemoOptions):
     """The joint layer's strain model for the model-assisted cancellation, or None.
 
     With ``damping_model_assist``, for the proportional law on the seed-measured plant (where the cancellation
-    was measured; :func:`~tudorvision.lab.catch.options.layer_damping`): identified once on the demo's plant (:func:`~tudorvision.lab.ch10.identified_strain_model`; shipped for the
-    default plant, else cached in ``options.cache_dir``), as a user identifies their arm before switching the
-    cancellation on.
+    was measured; :func:`~tudorvision.lab.catch.options.layer_damping`): identified once on the demo's plant
+    (:func:`~tudorvision.lab.ch10.identified_strain_model`; shipped for the default plant, else cached in
+    ``options.cache_dir``), as a user identifies their arm before switching the cancellation on.
     """
     if not layer_damping(options)[0]:
         return None
