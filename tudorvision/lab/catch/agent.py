@@ -197,6 +197,8 @@ class ThrowLog:
     kept_branch : int
         IK solutions replaced by the nearest point of the arm's own elbow branch (the other branch's would have
         arrived too late); up to two per setpoint: its target and the target moved back by the overshoot lead.
+    passed : int
+        Intercept setpoints sent as pass-through goals (``DemoOptions.pass_through``).
     """
 
     detections: int = 0
@@ -209,6 +211,7 @@ class ThrowLog:
     payload_est_kg: float = 0.0
     deferred: int = 0
     kept_branch: int = 0
+    passed: int = 0
 
 
 class CatchAgent:
@@ -500,7 +503,10 @@ class CatchAgent:
         th = self._goal(target, theta_now, t, deadline)
         if th is None:
             return
-        if o.overshoot_lead_m > 0 and self.mirror.motion is not None:
+        passing = self._pass_goal(th, t, it.t_cross)
+        if passing is not None:
+            th = passing
+        elif o.overshoot_lead_m > 0 and self.mirror.motion is not None:
             # when the planned profile would end, hence how far the net will still be carried past its goal
             speed, accel = self._profile(th, t, deadline, self._modes(th), it.t_cross)
             t_end = self.mirror.plan(th, t, speed, accel).duration_s + t
@@ -519,11 +525,31 @@ class CatchAgent:
                 return
         self._pending = False
         self._ready_goal = None                # the intercept supersedes a ready move still waiting
-        self.send(th, t, *self._profile(th, t, deadline, self._modes(th), it.t_cross))
+        if passing is not None:
+            self.log.passed += 1
+            self.send(th, t, max(self.max_speed, self.late_speed), self.max_accel)
+        else:
+            self.send(th, t, *self._profile(th, t, deadline, self._modes(th), it.t_cross))
         self.log.setpoint, self.log.setpoint_p_base, self.log.t_arrived_s = th, np.asarray(it.p_base, float), None
         self.setpoints.append([self._throw, t, *th, *it.p_base])
         if self.log.t_first_setpoint_s is None:
             self.log.t_first_setpoint_s = t
+
+    def _pass_goal(self, th, t: float, t_cross: float):
+        """Goals (rad, (3,)) passing ``th`` at the crossing ``t_cross`` (s) for a move that cannot stop in time.
+
+        None unless ``DemoOptions.pass_through`` and the move to ``th`` sent at ``t`` (s) at the late speed ends
+        after ``t_cross - pass_margin_s`` (:meth:`~tudorvision.lab.catch.profile.ReferenceMirror.pass_through_goal`).
+        """
+        o = self.options
+        if not o.pass_through or self.mirror.motion is None:
+            return None
+        if t + self._plan(th, t, None).duration_s <= t_cross - o.pass_margin_s:
+            return None
+        lo, hi = self._bounds()
+        goals, late = self.mirror.pass_through_goal(th, t, t_cross - o.pass_lead_s, lo, hi,
+                                                    v_max=max(self.max_speed, self.late_speed), a_max=self.max_accel)
+        return goals if np.any(goals != np.asarray(th, float)) else None    # None: no goal beyond gets there sooner
 
     def _stale(self, it) -> bool:
         """Whether the net went to an estimate over ``refine_force_m`` from ``it`` (a refinement waits no more)."""

@@ -163,6 +163,14 @@ class DemoOptions:
     arrive_before_s : float
         The profile must end this long before the crossing the agent predicts, s (0.1 since
         2026-11-26: the net has a little longer to settle; 0.05 caught 9 fewer of 211 development throws).
+    pass_through : bool
+        A setpoint whose motion (at the late speed) would not end ``pass_margin_s`` before the predicted crossing
+        sends each late joint to a goal beyond its intercept angle, chosen so that its reference passes the
+        intercept angle ``pass_lead_s`` before the crossing still moving
+        (:meth:`~tudorvision.lab.catch.profile.ReferenceMirror.pass_through_goal`) instead of braking to a stop
+        after it; the overshoot lead is not applied to it. False: every intercept move stops at its goal.
+    pass_lead_s, pass_margin_s : float
+        See ``pass_through``, s.
     speed_fraction : float
         Setpoint profile speed as a fraction of the slowest joint's limit (at
         the limit, the links' swing trips the layer's over-speed fault).
@@ -347,6 +355,9 @@ class DemoOptions:
     ready_shaping: bool = False
     arrive_before_s: float = 0.1
     replan: str = "restart"
+    pass_through: bool = False
+    pass_lead_s: float = 0.0
+    pass_margin_s: float = 0.0
     speed_fraction: float = 0.75
     late_speed_fraction: float = 0.9
     accel_fraction: float = 1.0

@@ -10,6 +10,9 @@ the layer's internals, and can ask two questions before it sends a setpoint:
   acceleration from zero; sent while a joint brakes, it brakes later than the
   motion it replaces and passes its goal (by up to about 2 deg at the demo's
   profile). The agent lets such a refinement wait.
+* :meth:`ReferenceMirror.pass_through_goal`: a joint that cannot reach its goal before the ball gets a
+  goal beyond it, so that it passes the goal at the crossing still moving instead of braking to a stop
+  after it (``DemoOptions.pass_through``).
 * :meth:`ReferenceMirror.residual_rad`: how strongly the reference's
   acceleration since the arm last rested excites the arm's first bending mode
   (the spectrum of the joint accelerations at the mode's frequency, divided
@@ -383,6 +386,57 @@ class ReferenceMirror:
                 if t_end <= deadline_s and (best is None or r < 0.98 * best[2]):
                     best = (v, a, r)
         return (best[0], best[1]) if best is not None else (first[0], first[1])
+
+    def pass_through_goal(self, goal, t: float, t_pass_s: float, lower_rad, upper_rad, *,
+                          v_max: float | None = None, a_max: float | None = None, grid: int = 48):
+        """Goals (rad, (3,)) whose re-plan sent at ``t`` (s) passes ``goal`` by ``t_pass_s`` (s), joints late for it.
+
+        A joint whose motion to ``goal`` would not reach it by ``t_pass_s`` gets a goal beyond it along its
+        way, within ``[lower_rad, upper_rad]``: the nearest (of ``grid`` steps up to the bound, then halved
+        eight times) whose reference is at ``goal`` at ``t_pass_s``, so it passes there moving instead of
+        braking to a stop after it; the farthest when none is (it gets there as early as the profile
+        allows). The other joints keep ``goal``. Joints are planned independently, as by the layer.
+
+        Returns
+        -------
+        tuple
+            ``(goals, late)``: the goals (rad, (3,)) and which joints were late (bool, (3,)).
+
+        Examples
+        --------
+        >>> m = ReferenceMirror(1.0, 4.0)
+        >>> m.reset([0.0, 0.0, 0.0], 0.0)
+        >>> g, late = m.pass_through_goal([0.0, 1.0, 0.1], 0.0, 1.3, [-3.0] * 3, [3.0] * 3)
+        >>> late.tolist(), round(float(g[2]), 3)                  # joint 2 passes 1 rad at 1.3 s; joint 3 stops
+        ([False, True, False], 0.1)
+        >>> bool(g[1] > 1.0), round(float(m.plan(g, 0.0).sample(1.3)[0][1]), 3)
+        (True, 1.0)
+        """
+        g = np.asarray(goal, float)
+        late = np.zeros(len(g), bool)
+        if self.motion is None:
+            return g.copy(), late
+        th, _ = self.state(t)
+        way = np.sign(g - th)
+
+        def at_pass(goals):
+            return np.asarray(self.plan(goals, t, v_max, a_max).sample(float(t_pass_s))[0], float)
+
+        late = (way != 0.0) & ((g - at_pass(g)) * way > 1e-9)
+        if not late.any():
+            return g.copy(), late
+        room = np.maximum(np.where(way > 0, np.asarray(upper_rad, float) - g, g - np.asarray(lower_rad, float)), 0.0)
+        steps = np.linspace(0.0, 1.0, max(int(grid), 2))
+        progress = np.array([(at_pass(np.where(late, g + way * room * s, g)) - g) * way for s in steps])
+        reached = progress >= 0.0
+        k = np.where(reached.any(axis=0), np.argmax(reached, axis=0), np.argmax(progress, axis=0))
+        hi = steps[k]
+        lo = np.where(reached.any(axis=0), steps[np.maximum(k - 1, 0)], hi)
+        for _ in range(8):                      # between the last step short of goal and the first past it
+            mid = 0.5 * (lo + hi)
+            ok = (at_pass(np.where(late, g + way * room * mid, g)) - g) * way >= 0.0
+            hi, lo = np.where(ok, mid, hi), np.where(ok, lo, mid)
+        return np.where(late, g + way * room * hi, g), late
 
     def late_speed(self, goal, t: float, deadline_s: float, speed: float, late_speed: float) -> float:
         """``speed`` (rad/s) if ``goal`` sent at ``t`` with it ends by ``deadline_s`` (s), else ``late_speed``.
