@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 
 from _catch_stubs import LayerStub, identity_ik_agent
 from tudorvision.joint.planner import plan_motion
+from tudorvision.lab.catch.options import DemoOptions
 from tudorvision.lab.catch.profile import ReferenceMirror
 
 V, A = 1.2, 6.0
@@ -101,3 +102,9 @@ def test_the_agent_passes_through_only_moves_that_cannot_stop_before_the_crossin
                        a_max=agent.max_accel, t0=5.0)
     assert stop.sample(t_cross)[0][1] > goal[1] + np.deg2rad(1.0)      # braking to a stop, it would still be above
     assert tight[2] == pytest.approx(goal[2])            # joint 3's 10 deg fit in time
+
+
+@pytest.mark.parametrize("kw", [{"pass_lead_s": 0.5}, {"pass_margin_s": -1.0}, {"pass_lead_s": float("nan")}])
+def test_demo_options_refuse_an_impossible_pass_timing(kw):
+    with pytest.raises(ValueError, match="pass_lead_s"):
+        DemoOptions(**kw)

@@ -168,7 +168,9 @@ class DemoOptions:
         sends each late joint to a goal beyond its intercept angle, chosen so that its reference passes the
         intercept angle ``pass_lead_s`` before the crossing still moving
         (:meth:`~tudorvision.lab.catch.profile.ReferenceMirror.pass_through_goal`) instead of braking to a stop
-        after it; the overshoot lead is not applied to it. False: every intercept move stops at its goal.
+        after it; the overshoot lead is not applied to it. False (default): every intercept move stops at its goal.
+        Measured (thirty-fourth session, 480 throws, eight calibrations): 375 of 410 crossing throws on seeds 0 / 1
+        against 373, **389 of 429 held out (seeds 100 / 200) against 408**, nearly all the loss on the rim.
     pass_lead_s, pass_margin_s : float
         See ``pass_through``, s.
     speed_fraction : float
@@ -436,6 +438,9 @@ class DemoOptions:
             raise ValueError(f"overshoot_lead_m, overshoot_fade_s, overshoot_full_move_m: expected 0-0.05 m, > 0 s and "
                              f"> 0 m, got {self.overshoot_lead_m}, {self.overshoot_fade_s}, "
                              f"{self.overshoot_full_move_m}")
+        if not (abs(self.pass_lead_s) <= 0.2 and abs(self.pass_margin_s) <= 0.5):
+            raise ValueError(f"pass_lead_s, pass_margin_s: expected within +-0.2 s and +-0.5 s, "
+                             f"got {self.pass_lead_s}, {self.pass_margin_s}")
         if not (np.isfinite(self.mode_swing_hz) and self.mode_swing_hz >= 0):
             raise ValueError(f"mode_swing_hz: expected >= 0 (Hz), got {self.mode_swing_hz}")
         if not (np.isfinite(self.settle_decay_per_s) and self.settle_decay_per_s >= 0):
