@@ -547,8 +547,8 @@ class CatchAgent:
         if t + self._plan(th, t, None).duration_s <= t_cross - o.pass_margin_s:
             return None
         lo, hi = self._bounds()
-        goals, late = self.mirror.pass_through_goal(th, t, t_cross - o.pass_lead_s, lo, hi,
-                                                    v_max=max(self.max_speed, self.late_speed), a_max=self.max_accel)
+        goals, _ = self.mirror.pass_through_goal(th, t, t_cross - o.pass_lead_s, lo, hi,
+                                                 v_max=max(self.max_speed, self.late_speed), a_max=self.max_accel)
         return goals if np.any(goals != np.asarray(th, float)) else None    # None: no goal beyond gets there sooner
 
     def _stale(self, it) -> bool:
