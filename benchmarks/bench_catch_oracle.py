@@ -174,7 +174,7 @@ def scoring_wrapper(score):
                  x_target_m=math.nan, z_target_m=math.nan, clipped=False, t_ekf_release_s=math.nan,
                  first_error_m=math.nan, t_first_s=math.nan, second_error_m=math.nan, t_second_s=math.nan,
                  x_ready_m=float(o.ready_point_base[0]), z_ready_m=float(o.ready_point_base[2]),
-                 passed=int(getattr(log, "passed", 0)))
+                 passed=int(log.passed))
         if throw.p_cross_base is not None:
             # how far the first and second setpoints' estimates were from the true crossing, and when (after release)
             for k, name in enumerate(("first", "second")[:len(rows)]):

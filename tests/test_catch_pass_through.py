@@ -44,10 +44,9 @@ def test_late_joints_pass_their_goal_at_the_pass_time_and_the_others_keep_it(sta
     got, late = m.pass_through_goal(g, t, t_pass, LO, HI)
     assert np.all(got >= LO - 1e-12) and np.all(got <= HI + 1e-12)
     assert np.array_equal(got[~late], g[~late])
-    th_now = m.state(t)[0]
-    way = np.sign(g - th_now)
-    # independently: where the layer's plan (from the mirrored state) to the stop goal is at the pass time
     th, dth = m.state(t)
+    way = np.sign(g - th)
+    # independently: where the layer's plan (from the mirrored state) to the stop goal is at the pass time
     at_stop = plan_motion(th, g, v_max=V, a_max=A, dtheta_start=dth, t0=t).sample(t_pass)[0]
     assert np.array_equal(late, (way != 0) & ((g - at_stop) * way > 1e-9))
     at = plan_motion(th, got, v_max=V, a_max=A, dtheta_start=dth, t0=t).sample(t_pass)[0]
