@@ -140,7 +140,8 @@ def test_sim_modes_cli_writes_the_json(tmp_path, capsys):
 
 @pytest.mark.parametrize("args, msg", [(["--at", "0,45"], "--at"), (["--at", "0,45,300"], "--at"),
                                        (["--at", "0,45,0", "--payload-kg", "-1"], "--payload-kg"),
-                                       (["--at", "a,b,c"], "--at")])
+                                       (["--at", "a,b,c"], "--at"), (["--at", "0,nan,0"], "--at"),
+                                       (["--at", "0,0,inf"], "--at")])
 def test_sim_modes_bad_arguments_give_one_line_errors(tmp_path, capsys, args, msg):
     rc = main(["sim", "modes", *args, "--out", str(tmp_path / "x.json")])
     err = capsys.readouterr().err.strip()

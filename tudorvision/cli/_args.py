@@ -1,6 +1,8 @@
 """Argument parsing shared by the CLI's commands."""
 from __future__ import annotations
 
+import math
+
 from .._checks import TudorVisionError
 
 __all__ = ["parse_floats"]
@@ -27,12 +29,16 @@ def parse_floats(text: str, name: str, n: int | None = None, example: str = "") 
     Raises
     ------
     TudorVisionError
-        If a part is not a number or the count is not ``n``.
+        If a part is not a finite number or the count is not ``n``.
 
     Examples
     --------
     >>> parse_floats("0.001, 0.003", "--servo-time-constants-s", 2)
     [0.001, 0.003]
+    >>> parse_floats("0,45,nan", "--from", 3)
+    Traceback (most recent call last):
+    ...
+    tudorvision._checks.TudorVisionError: --from: expected 3 finite numbers, got '0,45,nan'
     """
     like = f" like {example}" if example else ""
     count = "" if n is None else f"{n} "
@@ -42,4 +48,6 @@ def parse_floats(text: str, name: str, n: int | None = None, example: str = "") 
         raise TudorVisionError(f"{name}: expected {count}comma-separated numbers{like}, got {text!r}") from None
     if n is not None and len(vals) != n:
         raise TudorVisionError(f"{name}: expected {count}comma-separated numbers{like}, got {text!r}")
+    if not all(math.isfinite(v) for v in vals):
+        raise TudorVisionError(f"{name}: expected {count}finite numbers, got {text!r}")
     return vals
