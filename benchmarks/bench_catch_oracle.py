@@ -31,9 +31,9 @@ crossings inside 0.8 m of the shoulder) and where the misses lie (distance and d
 shoulder, balls in the net), with the ratio of caught against the baseline. Per throw rows go to
 ``OUT/<variant>_<replan>_s<seed>_n<throws>.csv``, with how far the first and second intercept setpoints' estimates
 were from the true crossing and when they went out (``first_error_m``, ``t_first_s``, ``second_error_m``,
-``t_second_s``) and how many of its setpoints were pass-through goals (``passed``); ``--keep-predictions``
-also writes the agent's estimate and setpoint rows of every throw
-(``predictions_<...>.csv``, ``setpoints_<...>.csv``, the demo's columns after ``session_seed``).
+``t_second_s``), how many of its setpoints were pass-through goals (``passed``) and how many joints of its first
+setpoint were hedged (``hedged``); ``--keep-predictions`` also writes the agent's estimate and setpoint rows of every
+throw (``predictions_<...>.csv``, ``setpoints_<...>.csv``, the demo's columns after ``session_seed``).
 
 Run (2-core container: about 2 min per variant for 240 throws, 15 min for 1980; ``--workers N`` spreads the
 sessions of every seed given over N processes, the same records as the serial run)::
@@ -174,7 +174,7 @@ def scoring_wrapper(score):
                  x_target_m=math.nan, z_target_m=math.nan, clipped=False, t_ekf_release_s=math.nan,
                  first_error_m=math.nan, t_first_s=math.nan, second_error_m=math.nan, t_second_s=math.nan,
                  x_ready_m=float(o.ready_point_base[0]), z_ready_m=float(o.ready_point_base[2]),
-                 passed=int(log.passed))
+                 passed=int(log.passed), hedged=int(log.hedged))
         if throw.p_cross_base is not None:
             # how far the first and second setpoints' estimates were from the true crossing, and when (after release)
             for k, name in enumerate(("first", "second")[:len(rows)]):

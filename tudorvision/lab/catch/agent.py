@@ -25,7 +25,7 @@ import numpy as np
 
 from ...catch.intercept import inner_reach_m, net_target
 from ...catch.perception import detection_to_base
-from .profile import ReferenceMirror, elbow_frequency_factor, net_modes, overshoot_lead_target
+from .profile import ReferenceMirror, elbow_frequency_factor, hedged_goal, net_modes, overshoot_lead_target
 
 __all__ = ["CatchAgent", "CatchIK", "ThrowLog", "WEIGH_REST_SPEED_RAD_S", "pause_and_weigh",
            "profile_limits", "demo_inner_reach_m", "PREDICTION_COLUMNS", "SETPOINT_COLUMNS"]
@@ -199,6 +199,8 @@ class ThrowLog:
         arrived too late); up to two per setpoint: its target and the target moved back by the overshoot lead.
     passed : int
         Intercept setpoints sent as pass-through goals (``DemoOptions.pass_through``).
+    hedged : int
+        Joints of the first setpoint sent short of the estimate's goal (``DemoOptions.first_hedge_sigma``).
     """
 
     detections: int = 0
@@ -212,6 +214,7 @@ class ThrowLog:
     deferred: int = 0
     kept_branch: int = 0
     passed: int = 0
+    hedged: int = 0
 
 
 class CatchAgent:
@@ -515,6 +518,10 @@ class CatchAgent:
                                                   full_move_m=o.overshoot_full_move_m), theta_now, t, deadline)
             if th is None:
                 return
+        if self.log.setpoint is None and o.first_hedge_sigma > 0:
+            hedged = hedged_goal(th, self._plausible_goals(it, th, theta_now), theta_now, o.first_hedge_min_rad)
+            self.log.hedged += int(np.sum(hedged != th))
+            th = hedged
         if self.log.setpoint is not None:
             if np.max(np.abs(th - self.log.setpoint)) < o.refine_min_joint_rad:
                 self._pending = False         # nothing worth a new profile
@@ -534,6 +541,15 @@ class CatchAgent:
         self.setpoints.append([self._throw, t, *th, *it.p_base])
         if self.log.t_first_setpoint_s is None:
             self.log.t_first_setpoint_s = t
+
+    def _plausible_goals(self, it, th, theta_now):
+        """Goals (rad, (K, 3)) on ``th``'s elbow branch for ``it`` moved by ``first_hedge_sigma`` std along its axes."""
+        o = self.options
+        w, v = np.linalg.eigh(np.asarray(it.cov_base, float))      # in the plane: the two largest
+        goals = [self._goal(net_target(np.asarray(it.p_base, float) + s * o.first_hedge_sigma * np.sqrt(max(w[k], 0.0))
+                                       * v[:, k], self.ik.theta1_rad, self.params, reach_margin_m=o.reach_margin_m,
+                                       inner_reach_m=self.inner_reach_m), theta_now) for k in (1, 2) for s in (-1, 1)]
+        return np.reshape([g for g in goals if g is not None and (g[2] > 0) == (th[2] > 0)], (-1, 3))
 
     def _pass_goal(self, th, t: float, t_cross: float):
         """Goals (rad, (3,)) passing ``th`` at the crossing ``t_cross`` (s) for a move that cannot stop in time.

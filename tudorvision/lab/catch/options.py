@@ -107,6 +107,11 @@ class DemoOptions:
         (:meth:`~tudorvision.lab.catch.agent.CatchIK.nearest_on_branch`).
         False: the swing is always made (the behaviour before the twenty-seventh session: 0.9-1.5 s of
         motion, late for this throw and often the next).
+    first_hedge_sigma, first_hedge_min_rad : float
+        The first intercept setpoint of a throw moves a joint whose goals over the estimate moved by
+        ``first_hedge_sigma`` standard deviations along the crossing covariance's principal directions spread
+        by more than ``2 first_hedge_min_rad`` (rad) only to the near edge of that range
+        (:func:`~tudorvision.lab.catch.profile.hedged_goal`); 0: the first setpoint goes to the estimate.
     replan : {"restart", "blend"}
         How the joint layer re-plans a motion when a refinement arrives in flight (the simulated layer's
         ``SimCore(replan=...)`` and the agent's mirror of it): the acceleration restarts from zero (the
@@ -357,6 +362,8 @@ class DemoOptions:
     ready_shaping: bool = False
     arrive_before_s: float = 0.1
     replan: str = "restart"
+    first_hedge_sigma: float = 0.0
+    first_hedge_min_rad: float = float(np.deg2rad(5.0))
     pass_through: bool = False
     pass_lead_s: float = 0.0
     pass_margin_s: float = 0.0
@@ -441,6 +448,9 @@ class DemoOptions:
         if not (abs(self.pass_lead_s) <= 0.2 and abs(self.pass_margin_s) <= 0.5):
             raise ValueError(f"pass_lead_s, pass_margin_s: expected within +-0.2 s and +-0.5 s, "
                              f"got {self.pass_lead_s}, {self.pass_margin_s}")
+        if not (0.0 <= self.first_hedge_sigma <= 3.0 and 0.0 <= self.first_hedge_min_rad < np.pi):
+            raise ValueError(f"first_hedge_sigma, first_hedge_min_rad: expected 0-3 and [0, pi) rad, "
+                             f"got {self.first_hedge_sigma}, {self.first_hedge_min_rad}")
         if not (np.isfinite(self.mode_swing_hz) and self.mode_swing_hz >= 0):
             raise ValueError(f"mode_swing_hz: expected >= 0 (Hz), got {self.mode_swing_hz}")
         if not (np.isfinite(self.settle_decay_per_s) and self.settle_decay_per_s >= 0):

@@ -37,7 +37,7 @@ import math
 import numpy as np
 
 __all__ = ["ReferenceMirror", "mode_frequency_hz", "net_modes", "elbow_frequency_factor", "overshoot_lead_target",
-           "SPEED_CANDIDATES"]
+           "hedged_goal", "SPEED_CANDIDATES"]
 
 #: Profile speeds tried by :meth:`ReferenceMirror.choose_speed`, fractions of the demo's profile speed.
 SPEED_CANDIDATES = (1.0, 0.85, 0.72, 0.62, 0.54, 0.47, 0.41, 0.36, 0.31, 0.27, 0.23)
@@ -193,6 +193,45 @@ def overshoot_lead_target(target_base, from_base, lead_m: float, margin_s: float
     share_time = min(1.0, max(0.0, 1.0 - float(margin_s) / float(fade_s)))
     s = float(lead_m) * min(length / float(full_move_m), 1.0) * share_time
     return p - min(s, 0.5 * length) * d / length
+
+
+def hedged_goal(goal_rad, plausible_rad, theta_now_rad, min_spread_rad: float) -> np.ndarray:
+    """A first setpoint that moves a steep joint only to the near edge of where the ball may need it.
+
+    Near full stretch a few centimetres of the first, rough intercept estimate are tens of degrees of joint 2
+    or 3: when the estimate is wrong, the first move goes the wrong way and its reversal comes late. A joint
+    whose goals over the estimate's plausible points (``plausible_rad``) spread over more than
+    ``2 min_spread_rad`` goes only to the point of that range nearest to where it is (it stays if it is
+    inside); the others go to ``goal_rad``.
+
+    Parameters
+    ----------
+    goal_rad : array_like, shape (3,)
+        Joint goal for the estimate itself, rad.
+    plausible_rad : array_like, shape (K, 3)
+        Joint goals for the estimate moved by its uncertainty (e.g. one standard deviation along each
+        principal direction), rad; the range per joint spans these and ``goal_rad``.
+    theta_now_rad : array_like, shape (3,)
+        The joints now, rad.
+    min_spread_rad : float
+        Half the range of a joint's plausible goals above which it is hedged, rad.
+
+    Returns
+    -------
+    ndarray, shape (3,)
+        The hedged goal, rad.
+
+    Examples
+    --------
+    >>> g = hedged_goal([0.0, 1.0, 0.5], [[0.0, 0.9, 0.2], [0.0, 1.1, 0.8]], [0.0, 1.0, 0.0], 0.1)
+    >>> g.round(3).tolist()          # joint 3's goals span 0.2-0.8 rad: it goes only to 0.2
+    [0.0, 1.0, 0.2]
+    """
+    goal = np.asarray(goal_rad, float)
+    pts = np.vstack([goal, np.reshape(plausible_rad, (-1, 3))])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    edge = np.clip(np.asarray(theta_now_rad, float), lo, hi)
+    return np.where((hi - lo) / 2 > min_spread_rad, edge, goal)
 
 
 class ReferenceMirror:
