@@ -546,9 +546,10 @@ class CatchAgent:
         """Goals (rad, (K, 3)) on ``th``'s elbow branch for ``it`` moved by ``first_hedge_sigma`` std along its axes."""
         o = self.options
         w, v = np.linalg.eigh(np.asarray(it.cov_base, float))      # in the plane: the two largest
-        goals = [self._goal(net_target(np.asarray(it.p_base, float) + s * o.first_hedge_sigma * np.sqrt(max(w[k], 0.0))
-                                       * v[:, k], self.ik.theta1_rad, self.params, reach_margin_m=o.reach_margin_m,
-                                       inner_reach_m=self.inner_reach_m), theta_now) for k in (1, 2) for s in (-1, 1)]
+        steps = [s * o.first_hedge_sigma * np.sqrt(max(w[k], 0.0)) * v[:, k] for k in (1, 2) for s in (-1, 1)]
+        goals = [self._goal(net_target(np.asarray(it.p_base, float) + d, self.ik.theta1_rad, self.params,
+                                       reach_margin_m=o.reach_margin_m, inner_reach_m=self.inner_reach_m), theta_now)
+                 for d in steps]
         return np.reshape([g for g in goals if g is not None and (g[2] > 0) == (th[2] > 0)], (-1, 3))
 
     def _pass_goal(self, th, t: float, t_cross: float):
