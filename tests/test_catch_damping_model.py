@@ -130,3 +130,19 @@ def test_catch_cli_no_model_assist(tmp_path, capsys, monkeypatch):
         assert main(["catch", "demo", "--no-render", "--no-rerun", "--out", str(tmp_path / "d"), *argv]) != 0
     assert (seen[0].damping_model_assist, seen[0].damping_gains) == (False, None)
     assert (seen[1].damping_model_assist, seen[1].damping_gains) == (True, (0.0, 400.0, 400.0))
+
+
+def test_a_gain_table_follows_the_payload_the_layer_is_told():
+    table = ((0.11, 0.0, 600.0, 400.0), (0.17, 0.0, 400.0, 400.0))
+    core = SimCore(np.deg2rad([0.0, 60.0, 60.0]), params=P, damping_gains=np.ravel(table))   # flattened, as --set
+    core.set_payload(0.05)
+    core.set_modes(damping=Damping.PROPORTIONAL, collision=0)
+    np.testing.assert_allclose(core.controlled.damper.k_eps, [0.0, 600.0, 400.0])     # below the first row
+    core.set_payload(0.14)
+    np.testing.assert_allclose(core.controlled.damper.k_eps, [0.0, 500.0, 400.0])     # halfway
+    core.set_payload(0.26)
+    np.testing.assert_allclose(core.controlled.damper.k_eps, [0.0, 400.0, 400.0])     # beyond the last
+    assert DemoOptions(damping_gains=np.ravel(table).tolist()).damping_gains is not None
+    for bad in (((0.17, 0, 600, 400), (0.11, 0, 400, 400)), (0.1, 0, 1, 2, 3), ((0.1, 0, -1, 2),)):
+        with pytest.raises(ValueError, match="damping_gains"):
+            SimCore(params=P, damping_gains=bad)

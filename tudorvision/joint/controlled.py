@@ -24,7 +24,7 @@ from .._checks import check_mass, check_vector
 from .cascade import JointCascade, design_cascade
 from .collision import STRATEGY_OF_CODE, CollisionMonitor, reaction_config, root_torque_per_strain
 from .damping import LAWS, StrainDamper, default_damping_config
-from .damping_gains import gain_set_of, hold_loop_of
+from .damping_gains import gain_set_of, gain_table, hold_loop_of, scheduled_gains
 from .plant import Plant
 from .planner import REPLAN_MODES, OnlinePlanner, blend_replan, plan_motion
 from .cores import MAX_PAYLOAD_KG, CoreState
@@ -262,9 +262,11 @@ class CascadeCore:
         none (the seed's double moving average alone).
     replan : {"restart", "blend"}
         How a setpoint re-plans a motion in flight (:class:`ControlledArm`); default the seed's restart.
-    damping_gains : tuple of 3 floats, optional
+    damping_gains : tuple of 3 floats or array_like, shape (M, 4), optional
         ``k_eps`` of every law the mode switch installs instead of the tuned gains (rad/s per m/m for the
         proportional law); default the tuned ones (:func:`~tudorvision.joint.damping.default_damping_config`).
+        Or a table of rows ``(payload_kg, k1, k2, k3)``: the gains follow the payload the layer is told
+        (:func:`~tudorvision.joint.damping_gains.scheduled_gains`).
 
     Examples
     --------
@@ -281,7 +283,8 @@ class CascadeCore:
                  collision_model=None, collision_thresholds=None, collision_coupling=None, damping_model=None,
                  collision_transient_gain: float = 0.0, replan: str = "restart", damping_gains=None):
         self.damping_model = damping_model
-        self.damping_gains = None if damping_gains is None else \
+        self._gain_table = None if damping_gains is None else gain_table(damping_gains)
+        self.damping_gains = None if damping_gains is None or self._gain_table is not None else \
             tuple(float(k) for k in check_vector(damping_gains, "damping_gains", 3))
         if not collision_transient_gain >= 0:
             raise ValueError(f"collision_transient_gain: expected >= 0, got {collision_transient_gain!r}")
@@ -364,7 +367,8 @@ class CascadeCore:
         self.damping, self.collision = damping, collision
 
     def _damping_config(self, law: str):
-        over = {} if self.damping_gains is None else {"k_eps": self.damping_gains}
+        gains = self.damping_gains if self._gain_table is None else scheduled_gains(self._gain_table, self.payload_kg)
+        over = {} if gains is None else {"k_eps": gains}
         return default_damping_config(law, plant=gain_set_of(self.arm), assisted=self.damping_model is not None,
                                       payload_kg=self.payload_kg, **over)
 

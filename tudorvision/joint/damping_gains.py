@@ -16,7 +16,8 @@ from .._checks import check_mass
 
 __all__ = ["HOLD_LOOPS", "hold_loop_of", "LAWS", "ONE_WAY_GAINS", "TWO_WAY_GAINS", "SOFT_GAINS", "GAIN_SETS",
            "DEFAULT_GAINS", "ASSISTED_GAINS",
-           "PAYLOAD_SCHEDULE", "PAYLOAD_SCHEDULES", "PD_SCALES", "payload_gain_factor", "pd_scale_of", "gain_set_of"]
+           "PAYLOAD_SCHEDULE", "PAYLOAD_SCHEDULES", "PD_SCALES", "payload_gain_factor", "pd_scale_of", "gain_set_of",
+           "gain_table", "scheduled_gains"]
 
 #: The damping laws (``"off"``: the bare cascade).
 LAWS = ("off", "proportional", "integral", "half_integrator")
@@ -175,6 +176,77 @@ def payload_gain_factor(law: str, payload_kg: float, plant: str = "soft") -> flo
         return 1.0
     masses, factors = schedule[law]
     return float(np.interp(m, masses, factors))
+
+
+def gain_table(gains) -> np.ndarray | None:
+    """Damping gains given as one ``k_eps`` (3,) or as a payload table, checked; the table as ``(M, 4)``, else None.
+
+    A table has rows ``(payload_kg, k1, k2, k3)`` with increasing masses (M >= 1); it may also come flattened
+    (``4 M`` numbers, M >= 2), as a command line gives it.
+
+    Parameters
+    ----------
+    gains : array_like
+        Three gains, or the table.
+
+    Returns
+    -------
+    ndarray, shape (M, 4), or None
+        The table; None for three gains.
+
+    Raises
+    ------
+    ValueError
+        On another shape, a non-finite or negative entry, or masses not increasing.
+
+    Examples
+    --------
+    >>> gain_table((0.0, 400.0, 400.0)) is None
+    True
+    >>> gain_table((0.11, 0, 600, 400, 0.17, 0, 400, 400)).shape
+    (2, 4)
+    """
+    g = np.asarray(gains, float)
+    if g.shape == (3,):
+        table = None
+    elif g.ndim == 2 and g.shape[1] == 4 and len(g) >= 1:
+        table = g
+    elif g.ndim == 1 and len(g) >= 8 and len(g) % 4 == 0:
+        table = g.reshape(-1, 4)
+    else:
+        raise ValueError(f"damping_gains: expected three gains or rows (payload_kg, k1, k2, k3), got shape {g.shape}")
+    if not (np.all(np.isfinite(g)) and np.all(g >= 0)):
+        raise ValueError(f"damping_gains: expected finite values >= 0, got {np.asarray(gains).tolist()!r}")
+    if table is not None and np.any(np.diff(table[:, 0]) <= 0):
+        raise ValueError(f"damping_gains: the table's payloads must increase, got {table[:, 0].tolist()}")
+    return table
+
+
+def scheduled_gains(table, payload_kg: float) -> tuple[float, float, float]:
+    """``k_eps`` at the known payload from a table of rows ``(payload_kg, k1, k2, k3)`` (:func:`gain_table`).
+
+    Per joint, linear in the payload between rows and constant beyond the first and last.
+
+    Parameters
+    ----------
+    table : array_like, shape (M, 4)
+    payload_kg : float
+        The payload the layer was told, kg.
+
+    Returns
+    -------
+    tuple of 3 floats
+
+    Examples
+    --------
+    >>> scheduled_gains([[0.11, 0, 600, 400], [0.17, 0, 400, 400]], 0.14)
+    (0.0, 500.0, 400.0)
+    >>> scheduled_gains([[0.11, 0, 600, 400], [0.17, 0, 400, 400]], 0.05)[1]
+    600.0
+    """
+    t = np.asarray(table, float).reshape(-1, 4)
+    m = check_mass(payload_kg)
+    return tuple(float(np.interp(m, t[:, 0], t[:, j])) for j in (1, 2, 3))
 
 
 def pd_scale_of(law: str, plant: str = "soft") -> float | None:

@@ -46,7 +46,9 @@ class DemoOptions:
     damping_gains : tuple of 3 floats, optional
         The proportional law's ``k_eps`` instead of the joint layer's tuned gains (rad/s per m/m) on the
         seed-measured plant; default (0, 400, 400), chosen with the model on the net's swing after the demo's
-        moves (``docs/catch.md``); None: the layer's tuned gains (the other laws and plants keep theirs).
+        moves (``docs/catch.md``); None: the layer's tuned gains (the other laws and plants keep theirs). Or a
+        table of rows ``(payload_kg, k1, k2, k3)``, flattened or not: the gains follow the payload the agent tells
+        the layer (:func:`~tudorvision.joint.damping_gains.scheduled_gains`).
     compensate : bool
         Data-based deflection compensation in the inverse kinematics (else rigid IK).
     gap_s : float
@@ -403,9 +405,10 @@ class DemoOptions:
             raise ValueError(f"throws: expected a positive integer, got {self.throws}")
         if self.damping not in DAMPING_LAWS:
             raise ValueError(f"damping: expected off, proportional, integral or half_integrator, got {self.damping!r}")
-        if self.damping_gains is not None and (np.shape(self.damping_gains) != (3,)
-                                               or not np.all(np.isfinite(np.asarray(self.damping_gains, float)))):
-            raise ValueError(f"damping_gains: expected three finite gains, got {self.damping_gains!r}")
+        if self.damping_gains is not None:
+            from ...joint.damping_gains import gain_table
+
+            gain_table(self.damping_gains)          # a one-line ValueError naming damping_gains
         if self.plant not in PLANTS:
             raise ValueError(f"plant: expected one of {', '.join(PLANTS)}, got {self.plant!r}")
         if self.replan not in ("restart", "blend"):
