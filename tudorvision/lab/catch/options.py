@@ -43,7 +43,7 @@ class DemoOptions:
         echo of each move's inertial strain, 0.5-1 s after it, pushed the net about as the ball arrived); with
         the proportional law on the seed-measured plant only (:func:`layer_damping`); ``False``: the seed's filter
         alone.
-    damping_gains : tuple of 3 floats, optional
+    damping_gains : tuple of 3 floats, or rows (payload_kg, k1, k2, k3), optional
         The proportional law's ``k_eps`` instead of the joint layer's tuned gains (rad/s per m/m) on the
         seed-measured plant; default (0, 400, 400), chosen with the model on the net's swing after the demo's
         moves (``docs/catch.md``); None: the layer's tuned gains (the other laws and plants keep theirs). Or a
