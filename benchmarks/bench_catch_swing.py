@@ -95,20 +95,18 @@ def main(argv=None) -> int:
     ap.add_argument("--no-model-assist", action="store_true",
                     help="the demo's law with the seed's static strain filter alone at the layer's tuned gains")
     ap.add_argument("--damping-gains", default=None, metavar="K1,K2,K3",
-                    help="the damping law's proportional gains per joint (default the demo's, DemoOptions.damping_gains)")
+                    help="the damping law's proportional gains per joint, or a flattened payload table "
+                         "M,K1,K2,K3,M,... (default the demo's, DemoOptions.damping_gains)")
     args = ap.parse_args(argv)
     if any(b < 0 for b in args.balls):
         ap.error(f"--balls {args.balls}: expected counts >= 0")
     extra = {"damping_model_assist": False, "damping_gains": None} if args.no_model_assist else {}
-    if args.damping_gains is not None:
-        try:
-            gains = tuple(float(x) for x in args.damping_gains.split(","))
-        except ValueError:
-            gains = ()
-        if len(gains) != 3 or not all(np.isfinite(g) and g >= 0 for g in gains):
-            ap.error(f"--damping-gains {args.damping_gains!r}: expected three gains >= 0, e.g. 0,400,400")
-        extra["damping_gains"] = gains
-    o = DemoOptions(render=False, rerun=False, plots=False, show_progress=False, **extra)
+    try:
+        if args.damping_gains is not None:
+            extra["damping_gains"] = tuple(float(x) for x in args.damping_gains.split(","))
+        o = DemoOptions(render=False, rerun=False, plots=False, show_progress=False, **extra)   # checks the gains
+    except ValueError as exc:
+        ap.error(f"--damping-gains {args.damping_gains!r}: {exc}")
     model = demo_damping_model(o)
     params = load_robot_params()
     config = plant_config(o.plant)

@@ -283,9 +283,9 @@ class CascadeCore:
                  collision_model=None, collision_thresholds=None, collision_coupling=None, damping_model=None,
                  collision_transient_gain: float = 0.0, replan: str = "restart", damping_gains=None):
         self.damping_model = damping_model
-        self._gain_table = None if damping_gains is None else gain_table(damping_gains)
+        self._gain_table = None if damping_gains is None else gain_table(damping_gains)    # checks both forms
         self.damping_gains = None if damping_gains is None or self._gain_table is not None else \
-            tuple(float(k) for k in check_vector(damping_gains, "damping_gains", 3))
+            tuple(float(k) for k in np.asarray(damping_gains, float))
         if not collision_transient_gain >= 0:
             raise ValueError(f"collision_transient_gain: expected >= 0, got {collision_transient_gain!r}")
         self.collision_transient_gain = float(collision_transient_gain)
