@@ -154,6 +154,8 @@ HISTORIC_COLUMNS = ["throw", "t_release_s", "crosses_plane", "crossing_workspace
 
 # columns added by issue 18 (the strict catch criterion), after the historic ones
 RING_COLUMNS = ["caught_centre", "ring_offset_m", "rim_clearance_m", "rim_contact"]
+# and the working plane the agent turned to for the throw (DemoOptions.yaw_max_rad)
+YAW_COLUMNS = ["yaw_deg"]
 
 
 def test_throw_result_fields_are_the_csv_columns_in_order():
@@ -161,8 +163,8 @@ def test_throw_result_fields_are_the_csv_columns_in_order():
 
     from tudorvision.lab.catch_demo import PER_THROW_COLUMNS, ThrowResult
 
-    assert PER_THROW_COLUMNS == HISTORIC_COLUMNS + RING_COLUMNS
-    assert [f.name for f in dataclasses.fields(ThrowResult)] == HISTORIC_COLUMNS + RING_COLUMNS
+    assert PER_THROW_COLUMNS == HISTORIC_COLUMNS + RING_COLUMNS + YAW_COLUMNS
+    assert [f.name for f in dataclasses.fields(ThrowResult)] == HISTORIC_COLUMNS + RING_COLUMNS + YAW_COLUMNS
     r = _result(miss_m=0.05)
     with pytest.raises(dataclasses.FrozenInstanceError):
         r.caught = False
@@ -287,10 +289,12 @@ def test_the_agent_never_reaches_the_simulation_or_the_truth():
     import ast
 
     import tudorvision.lab.catch.agent as agent_module
+    import tudorvision.lab.catch.planes as planes_module
     import tudorvision.lab.catch.profile as profile_module
 
-    # the agent and the profile model it uses (the layer's planner mirrored) see no simulation and no truth
-    for module in (agent_module, profile_module):
+    # the agent, the profile model it uses (the layer's planner mirrored) and its IK / plane choice see no
+    # simulation and no truth
+    for module in (agent_module, profile_module, planes_module):
         tree = ast.parse(Path(module.__file__).read_text())
         imported = set()
         for node in ast.walk(tree):
@@ -299,7 +303,7 @@ def test_the_agent_never_reaches_the_simulation_or_the_truth():
             elif isinstance(node, ast.Import):
                 imported |= {a.name for a in node.names}
         allowed = ("...catch.", "...joint", "...robot", "numpy", "time", "math", "dataclasses", "__future__",
-                   ".profile")
+                   ".profile", ".planes")
         assert imported and all(m.startswith(allowed) for m in imported), imported
         names = {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)} | \
             {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)}
@@ -489,6 +493,9 @@ def test_cli_demo_plant_and_camera_distance(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--ball-swing-length-m" in err[0] and "0-0.5 m" in err[0]
     assert not (tmp_path / "g").exists()
+    assert main(["catch", "demo", "--yaw-max-deg", "nan", "--out", str(tmp_path / "h")]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--yaw-max-deg" in err[0] and "0-90 deg" in err[0]
     with pytest.raises(SystemExit):
         main(["catch", "demo", "--plant", "soft"])
     assert "invalid choice: 'soft'" in capsys.readouterr().err

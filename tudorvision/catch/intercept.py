@@ -450,6 +450,11 @@ class InterceptPlanner:
         White acceleration noise spectral density per axis, m^2/s^3.
     params : RobotParams, optional
         Robot parameters for reachability; default the packaged ``tudor.yaml``.
+
+    Attributes
+    ----------
+    theta1_rad : float
+        This throw's working plane (``options.theta1_rad`` unless :meth:`use_plane` chose another), rad.
     """
 
     def __init__(self, options: InterceptOptions = InterceptOptions(), *, model: BallModel = BallModel(),
@@ -475,7 +480,7 @@ class InterceptPlanner:
             self._lims = (prm.link1_height_m, prm.link2_length_m, prm.link3_length_m,
                           [(float(a) + m, float(b) - m) for a, b in prm.joint_limits_rad])
         h1, l2, l3, lims = self._lims
-        t1 = self.options.theta1_rad
+        t1 = self.theta1_rad
         r = float(p_base[0]) * math.cos(t1) + float(p_base[1]) * math.sin(t1)
         zz = float(p_base[2]) - h1
         d = math.hypot(r, zz)
@@ -502,9 +507,55 @@ class InterceptPlanner:
         return False
 
     def reset(self) -> None:
-        """New throw: nothing released."""
+        """New throw: nothing released, the working plane back at ``options.theta1_rad``."""
         self.released: Intercept | None = None
         self.history: list[Intercept] = []
+        self.theta1_rad = float(self.options.theta1_rad)
+
+    def on_plane(self, t: float, x, P, theta1_rad: float) -> Intercept | None:
+        """The estimate for the state ``(x, P)`` at ``t`` (s) on the working plane at azimuth ``theta1_rad``.
+
+        The planner is unchanged (``send`` is False); :meth:`use_plane` takes the plane for the throw.
+
+        Parameters
+        ----------
+        t, x, P
+            The filter's time (s), state and covariance, as for :meth:`update`.
+        theta1_rad : float
+            Azimuth of the plane (joint 1's angle), rad.
+
+        Returns
+        -------
+        Intercept or None
+            The crossing of that plane (``reachable`` judged there), or None when the flight does not cross it.
+
+        Examples
+        --------
+        >>> pl = InterceptPlanner(InterceptOptions(release_sigma_m=1.0))
+        >>> x, P = np.array([0.3, -3.0, 1.3, 0.0, 6.0, 2.0]), np.diag([1e-4] * 3 + [1e-2] * 3)
+        >>> a, b = pl.update(0.0, x, P), pl.on_plane(0.0, x, P, np.radians(-30.0))
+        >>> bool(b.t_cross < a.t_cross), bool(b.p_base[2] > a.p_base[2]), b.send, pl.theta1_rad   # met sooner, higher
+        (True, True, False, 0.0)
+        """
+        o = self.options
+        c = plane_crossing(x, P, working_plane_normal(theta1_rad), model=self.model, q_m2_s3=self.q_m2_s3,
+                           min_height_m=o.min_height_m)
+        if c is None:
+            return None
+        keep, self.theta1_rad = self.theta1_rad, float(theta1_rad)
+        ok, self.theta1_rad = self._reachable(c.p_base), keep
+        return Intercept(t=float(t), t_cross=float(t) + c.dt_s, p_base=c.p_base, cov_base=c.cov_base,
+                         sigma_m=c.sigma_m, reachable=ok, send=False)
+
+    def use_plane(self, theta1_rad: float, released: Intercept) -> None:
+        """Estimate and refine this throw on the plane at ``theta1_rad`` (rad) from now on (:meth:`reset` ends it).
+
+        ``released`` (an estimate of :meth:`on_plane` on that plane) becomes the released setpoint the
+        refinement rule compares later estimates with.
+        """
+        self.theta1_rad = float(theta1_rad)
+        self.released = replace(released, send=True)
+        self.history.append(self.released)
 
     def update(self, t: float, x, P) -> Intercept | None:
         """Intercept for the state ``(x, P)`` at time ``t`` (s).
@@ -530,19 +581,16 @@ class InterceptPlanner:
             If ``x`` or ``P`` has the wrong shape.
         """
         o = self.options
-        c = plane_crossing(x, P, working_plane_normal(o.theta1_rad), model=self.model, q_m2_s3=self.q_m2_s3,
-                           min_height_m=o.min_height_m)
-        if c is None:
+        it = self.on_plane(t, x, P, self.theta1_rad)
+        if it is None:
             return None
-        ok = self._reachable(c.p_base)
         send = False
-        if ok and c.sigma_m <= o.release_sigma_m:
-            tol = max(o.refine_tol_m, o.refine_sigma_factor * c.sigma_m)
+        if it.reachable and it.sigma_m <= o.release_sigma_m:
+            tol = max(o.refine_tol_m, o.refine_sigma_factor * it.sigma_m)
             r = self.released
-            send = r is None or (np.linalg.norm(c.p_base - r.p_base) > tol
-                                 and (t - r.t >= o.min_interval_s or c.sigma_m <= o.refine_sharper * r.sigma_m))
-        it = Intercept(t=float(t), t_cross=float(t) + c.dt_s, p_base=c.p_base, cov_base=c.cov_base,
-                       sigma_m=c.sigma_m, reachable=ok, send=send)
+            send = r is None or (np.linalg.norm(it.p_base - r.p_base) > tol
+                                 and (t - r.t >= o.min_interval_s or it.sigma_m <= o.refine_sharper * r.sigma_m))
+        it = replace(it, send=send)
         if send:
             self.released = it
         self.history.append(it)

@@ -128,6 +128,18 @@ class CatchPerception:
             rec["peer_s"] = time.perf_counter() - t0
         return rec
 
+    def on_plane(self, t: float, theta1_rad: float):
+        """The filter's latest state (at ``t``, s) crossing the plane at azimuth ``theta1_rad`` (rad), or None.
+
+        :meth:`InterceptPlanner.on_plane`: another working plane weighed for this throw, the planner unchanged;
+        :meth:`use_plane` takes it.
+        """
+        return self.planner.on_plane(t, self.ekf.x, self.ekf.P, theta1_rad) if self.ekf.initialised else None
+
+    def use_plane(self, theta1_rad: float, released) -> None:
+        """Estimate this throw on the plane at ``theta1_rad`` (rad), ``released`` sent (:meth:`InterceptPlanner.use_plane`)."""
+        self.planner.use_plane(theta1_rad, released)
+
     def due(self, t: float, *, tol_m: float = 0.0):
         """A refinement due at ``t`` (s) without a detection (:meth:`InterceptPlanner.due`), or None.
 

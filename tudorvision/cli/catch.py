@@ -173,10 +173,10 @@ def _cmd_catch(args) -> int:
                                   or args.ball_swing_length_m is not None or args.camera_latency_ms is not None
                                   or args.camera_latency_jitter_ms is not None
                                   or args.depth_pattern_px is not None or args.no_depth_pattern_correction
-                                  or args.no_model_assist):
+                                  or args.no_model_assist or args.yaw_max_deg is not None):
         raise TudorVisionError("--plant, --camera-distance-m, --camera-latency-ms, --camera-latency-jitter-ms, "
                                "--ball-swing-length-m, --depth-pattern-px, --no-depth-pattern-correction, "
-                               "--no-model-assist: only with 'catch demo'")
+                               "--no-model-assist, --yaw-max-deg: only with 'catch demo'")
     if args.target == "demo" and args.depth_pattern:
         raise TudorVisionError("--depth-pattern: only with a recorded SEQ (the demo's agent calibrates its own "
                                "camera's pattern; --no-depth-pattern-correction turns that off)")
@@ -196,7 +196,9 @@ def _cmd_catch(args) -> int:
                  "delivery"),
                 ("camera_latency_jitter_ms", "camera_latency_jitter_s", 0.0, 500.0, "ms", 1e-3, "of extra delay at "
                  "most"),
-                ("depth_pattern_px", "depth_pattern_px", 0.0, 2.0, "px", 1.0, "of disparity, RMS (0: none)")):
+                ("depth_pattern_px", "depth_pattern_px", 0.0, 2.0, "px", 1.0, "of disparity, RMS (0: none)"),
+                ("yaw_max_deg", "yaw_max_rad", 0.0, 90.0, "deg", np.pi / 180.0, "of joint 1 from the fixed working "
+                 "plane (0: the fixed plane)")):
             value = getattr(args, arg)
             if value is None:
                 continue
@@ -334,6 +336,10 @@ def register(subparsers) -> None:
     p.add_argument("--ball-swing-length-m", type=float, default=None, metavar="M",
                    help="demo: caught balls hang M metres below the ring in the net's bag and swing (default 0.1); "
                         "0: point masses at the end effector (the lab before the twenty-third session)")
+    p.add_argument("--yaw-max-deg", type=float, default=None, metavar="DEG",
+                   help="demo: a throw whose intercept the arm cannot reach in time in the fixed working plane is "
+                        "caught in a plane joint 1 turns by up to DEG degrees, where the arm meets the ball sooner "
+                        "and higher (default 0: the fixed plane, as in the seed; 0-90)")
     add_viewer_arguments(p, file_help="rerun recording (.rrd) of detections, intercepts, net and setpoints "
                                       "(demo default: OUT/catch.rrd; SEQ: none)")
     p.add_argument("--scheduler", default=None, metavar="serial|local|ADDRESS",

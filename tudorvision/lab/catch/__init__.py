@@ -19,7 +19,8 @@
 independent sessions on the experiment runner (``catch demo --scheduler ...``);
 :func:`~.reproduce_rows.catch_success` is the success-rate row of ``tudorvision reproduce``.
 """
-from .agent import WEIGH_REST_SPEED_RAD_S, CatchAgent, CatchIK, ReferenceMirror, pause_and_weigh
+from .agent import WEIGH_REST_SPEED_RAD_S, CatchAgent, ReferenceMirror, pause_and_weigh
+from .planes import CatchIK
 from .options import PLANTS, DemoOptions, plant_config, trained_payload_range_kg
 from .reproduce_rows import catch_success
 from .run import demo_kinematics, run_demo

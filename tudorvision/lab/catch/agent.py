@@ -26,8 +26,9 @@ import numpy as np
 from ...catch.intercept import inner_reach_m, net_target
 from ...catch.perception import detection_to_base
 from .profile import ReferenceMirror, elbow_frequency_factor, hedged_goal, net_modes, overshoot_lead_target
+from .planes import CatchIK, choose_plane, plane_candidates
 
-__all__ = ["CatchAgent", "CatchIK", "ThrowLog", "WEIGH_REST_SPEED_RAD_S", "pause_and_weigh",
+__all__ = ["CatchAgent", "ThrowLog", "WEIGH_REST_SPEED_RAD_S", "pause_and_weigh",
            "profile_limits", "demo_inner_reach_m", "PREDICTION_COLUMNS", "SETPOINT_COLUMNS"]
 
 WEIGH_REST_SPEED_RAD_S = 0.02   # joints slower than this throughout the weighing window: the arm rests
@@ -130,46 +131,6 @@ def pause_and_weigh(layer, t_now: float, duration: float, rate: float, weigh_s: 
     return t_now, ([] if moving else strains)
 
 
-class CatchIK:
-    """Inverse kinematics of the net: compensated (data-based deflection model) or rigid.
-
-    Parameters
-    ----------
-    inverse : InverseKinematics
-        The compensated inverse kinematics (:class:`~tudorvision.catch.kinematics.InverseKinematics`).
-    params : RobotParams
-        The robot's parameters (rigid IK).
-    compensate : bool
-        Use the deflection model (else rigid IK).
-    theta1_rad : float
-        Angle of the working plane, rad.
-    """
-
-    def __init__(self, inverse, params, *, compensate: bool, theta1_rad: float):
-        self.inverse, self.params, self.compensate, self.theta1_rad = inverse, params, compensate, theta1_rad
-
-    def __call__(self, p_base, payload_kg: float, *, near=None, elbow: str | None = None) -> np.ndarray:
-        """Joint angles (3,) that put the net at ``p_base`` (m, base frame) carrying ``payload_kg`` (kg)."""
-        if self.compensate:
-            return self.inverse(p_base, self.theta1_rad, payload_kg, near=near, elbow=elbow)
-        from ...robot import ik
-
-        return ik(p_base, self.params, elbow=elbow, near=near)
-
-    def nearest_on_branch(self, p_base, payload_kg: float, *, elbow: str, lower_rad, upper_rad):
-        """Joint angles (3,) on one elbow branch within the bounds (rad) that bring the net nearest ``p_base``.
-
-        Returns ``(theta, distance_m)`` (:meth:`~tudorvision.catch.kinematics.InverseKinematics.nearest_on_branch`;
-        the rigid arm when not ``compensate``).
-        """
-        from ...catch.kinematics import DeflectionModel, InverseKinematics
-
-        inverse = self.inverse if self.compensate else \
-            InverseKinematics(DeflectionModel(D=np.zeros((30, 2)), params=self.params), self.params)
-        return inverse.nearest_on_branch(p_base, self.theta1_rad, payload_kg, elbow=elbow, lower_rad=lower_rad,
-                                         upper_rad=upper_rad)
-
-
 @dataclass
 class ThrowLog:
     """What the agent saw and did during one throw (its own view, no ground truth).
@@ -201,6 +162,8 @@ class ThrowLog:
         Intercept setpoints sent as pass-through goals (``DemoOptions.pass_through``).
     hedged : int
         Joints of the first setpoint sent short of the estimate's goal (``DemoOptions.first_hedge_sigma``).
+    yaw_rad : float
+        The throw's working plane turned from the fixed one by joint 1, rad (``DemoOptions.yaw_max_rad``).
     """
 
     detections: int = 0
@@ -215,6 +178,7 @@ class ThrowLog:
     kept_branch: int = 0
     passed: int = 0
     hedged: int = 0
+    yaw_rad: float = 0.0
 
 
 class CatchAgent:
@@ -268,6 +232,7 @@ class CatchAgent:
 
         self.layer, self.adapter = layer, layer.adapter
         self.ik, self.strain_model, self.perception, self.detector = ik, strain_model, perception, detector
+        self.theta1_rad = float(getattr(ik, "theta1_rad", 0.0))     # the fixed working plane
         self.T_base_cam = np.asarray(T_base_cam, float)
         if depth_correction is not None and intrinsics is None:
             raise ValueError("CatchAgent: depth_correction needs the camera's intrinsics")
@@ -353,6 +318,7 @@ class CatchAgent:
     def begin_throw(self, index: int) -> None:
         """Start a new throw's log (the filter notices a new throw by itself)."""
         self._throw = index
+        self._fixed_plane()
         self._pending = False
         self.log = ThrowLog(payload_est_kg=self.payload_est_kg)
 
@@ -500,6 +466,8 @@ class CatchAgent:
 
     def _intercept(self, t: float, it, theta_now) -> None:
         o = self.options
+        if self.log.setpoint is None and o.yaw_max_rad > 0:
+            it = self._choose_plane(t, it, theta_now)
         target = net_target(it.p_base, self.ik.theta1_rad, self.params, reach_margin_m=o.reach_margin_m,
                             inner_reach_m=self.inner_reach_m)
         deadline = it.t_cross - o.arrive_before_s
@@ -541,6 +509,36 @@ class CatchAgent:
         self.setpoints.append([self._throw, t, *th, *it.p_base])
         if self.log.t_first_setpoint_s is None:
             self.log.t_first_setpoint_s = t
+
+    def _choose_plane(self, t: float, it, theta_now):
+        """The throw's working plane (``DemoOptions.yaw_max_rad``): ``it`` on the chosen plane, taken for the throw."""
+        o, per = self.options, self.perception
+        found = {self.theta1_rad: it}
+
+        def slack(th1: float):
+            est = it if th1 == self.theta1_rad else per.on_plane(it.t, th1)
+            if est is None or not est.reachable:
+                return None
+            self.ik.theta1_rad = th1
+            th = self._goal(net_target(est.p_base, th1, self.params, reach_margin_m=o.reach_margin_m,
+                                       inner_reach_m=self.inner_reach_m), theta_now)
+            if th is None:
+                return None
+            found[th1] = est
+            return est.t_cross - o.arrive_before_s - t - self._plan(th, t, theta_now).duration_s
+
+        choice = choose_plane(self.theta1_rad + plane_candidates(o.yaw_max_rad, o.yaw_step_rad), slack,
+                              o.yaw_margin_s, o.yaw_min_gain_s)
+        th1 = self.theta1_rad if choice is None else choice[0]
+        self.ik.theta1_rad, self.log.yaw_rad = th1, th1 - self.theta1_rad
+        if th1 != self.theta1_rad:
+            per.use_plane(th1, found[th1])
+        return found[th1]
+
+    def _fixed_plane(self) -> None:
+        """Back to the fixed working plane after a throw that turned it (:meth:`_choose_plane`)."""
+        if self.log.yaw_rad != 0.0:
+            self.ik.theta1_rad = self.theta1_rad
 
     def _plausible_goals(self, it, th, theta_now):
         """Goals (rad, (K, 3)) on ``th``'s elbow branch for ``it`` moved by ``first_hedge_sigma`` std along its axes."""
@@ -591,6 +589,7 @@ class CatchAgent:
         move and this one) among those that end before the pause's weighing window
         (:meth:`~tudorvision.lab.catch.profile.ReferenceMirror.choose_profile`); else the demo's profile.
         """
+        self._fixed_plane()
         self._ready_goal = self.ik(self.ready_point_base, self.payload_est_kg,
                                    near=np.asarray(self.layer.state().theta))
         self._ready_deadline = t + self.options.gap_s - WEIGH_WINDOW_S - READY_SETTLE_S

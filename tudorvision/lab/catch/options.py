@@ -106,7 +106,7 @@ class DemoOptions:
         branch cannot reach it within the setpoint margins: a crossing low on the right with the elbow up)
         goes there only if that move (joint 3 swung through the stretched arm) ends by the deadline; else the
         net goes to the nearest point its own branch reaches
-        (:meth:`~tudorvision.lab.catch.agent.CatchIK.nearest_on_branch`).
+        (:meth:`~tudorvision.lab.catch.planes.CatchIK.nearest_on_branch`).
         False: the swing is always made (the behaviour before the twenty-seventh session: 0.9-1.5 s of
         motion, late for this throw and often the next).
     first_hedge_sigma, first_hedge_min_rad : float
@@ -114,6 +114,15 @@ class DemoOptions:
         ``first_hedge_sigma`` standard deviations along the crossing covariance's principal directions spread
         by more than ``2 first_hedge_min_rad`` (rad) only to the near edge of that range
         (:func:`~tudorvision.lab.catch.profile.hedged_goal`); 0: the first setpoint goes to the estimate.
+    yaw_max_rad, yaw_step_rad, yaw_margin_s, yaw_min_gain_s : float
+        The working plane per throw: when the first intercept setpoint's move (the layer's plan, at the
+        fastest profile speed) would end later than ``yaw_margin_s`` (s) before its deadline (negative: after
+        it; the deadline is ``arrive_before_s`` before the crossing), joint 1 turns the plane (up to
+        ``yaw_max_rad``, in steps of ``yaw_step_rad``) to the smallest angle where the arm meets the ball
+        elsewhere on its flight with that margin, or, failing that, where the move ends soonest against its
+        deadline if that gains ``yaw_min_gain_s`` (:func:`~tudorvision.lab.catch.planes.choose_plane`);
+        the throw is then estimated, refined and caught on that plane, and the arm turns back with the ready
+        move. ``yaw_max_rad`` 0: the fixed plane (``intercept.theta1_rad``), as in the seed.
     replan : {"restart", "blend"}
         How the joint layer re-plans a motion when a refinement arrives in flight (the simulated layer's
         ``SimCore(replan=...)`` and the agent's mirror of it): the acceleration restarts from zero (the
@@ -366,6 +375,10 @@ class DemoOptions:
     replan: str = "restart"
     first_hedge_sigma: float = 0.0
     first_hedge_min_rad: float = float(np.deg2rad(5.0))
+    yaw_max_rad: float = 0.0
+    yaw_step_rad: float = float(np.deg2rad(2.0))
+    yaw_margin_s: float = -0.05
+    yaw_min_gain_s: float = 0.05
     pass_through: bool = False
     pass_lead_s: float = 0.0
     pass_margin_s: float = 0.0
@@ -454,6 +467,11 @@ class DemoOptions:
         if not (0.0 <= self.first_hedge_sigma <= 3.0 and 0.0 <= self.first_hedge_min_rad < np.pi):
             raise ValueError(f"first_hedge_sigma, first_hedge_min_rad: expected 0-3 and [0, pi) rad, "
                              f"got {self.first_hedge_sigma}, {self.first_hedge_min_rad}")
+        if not (0.0 <= self.yaw_max_rad <= np.pi / 2 and 0.0 < self.yaw_step_rad <= np.pi / 2
+                and abs(self.yaw_margin_s) <= 1.0 and 0.0 <= self.yaw_min_gain_s <= 1.0):
+            raise ValueError(f"yaw_max_rad, yaw_step_rad, yaw_margin_s, yaw_min_gain_s: expected [0, pi/2] rad, "
+                             f"(0, pi/2] rad, within +-1 s and 0-1 s, got {self.yaw_max_rad}, {self.yaw_step_rad}, "
+                             f"{self.yaw_margin_s}, {self.yaw_min_gain_s}")
         if not (np.isfinite(self.mode_swing_hz) and self.mode_swing_hz >= 0):
             raise ValueError(f"mode_swing_hz: expected >= 0 (Hz), got {self.mode_swing_hz}")
         if not (np.isfinite(self.settle_decay_per_s) and self.settle_decay_per_s >= 0):

@@ -40,7 +40,8 @@ import numpy as np
 from ...catch.ekf import BallModel, EKFOptions
 from ...catch.intercept import InterceptOptions
 from ...catch.perception import CatchPerception
-from .agent import CatchAgent, CatchIK, demo_inner_reach_m, profile_limits
+from .agent import CatchAgent, demo_inner_reach_m, profile_limits
+from .planes import CatchIK
 from .calibration import calibrate_wall_camera, wall_camera_position_world, wall_depth_pattern
 from .options import DemoOptions, layer_damping, trained_payload_range_kg
 from .scenario import FRAME_RATE_HZ, CatchScenario
@@ -123,12 +124,13 @@ def demo_damping_model(options: DemoOptions):
 
 
 def _net_at_cross(layer, world, t_cross_s):
-    """True net centre (m) and its velocity (m/s, finite difference over the last control period) at the crossing."""
+    """True net centre (m), its velocity (m/s, finite difference over the last control period) and joint 1's
+    angle (rad) at the crossing."""
     layer.advance_to(t_cross_s - layer.period)
     t0, p0 = layer.t, world.net_position()
     layer.advance_to(t_cross_s)
     t1, p1 = layer.t, world.net_position()
-    return p1, ((p1 - p0) / (t1 - t0) if t1 > t0 else None)
+    return p1, ((p1 - p0) / (t1 - t0) if t1 > t0 else None), float(world.sim.arm.theta[0])
 
 
 def _pattern_at_arm(world, pattern) -> list:
@@ -250,7 +252,7 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
         theta_release = np.asarray(layer.state().theta)
         payload_true = world.payload_added_kg
         agent.begin_throw(i)
-        net, net_vel = None, None
+        net, net_vel, theta1_cross = None, None, None
         k = int(np.ceil(t_now * rate - 1e-9))
         while (t_exposed := k / rate) <= throw.t_cross_s + AFTER_CROSSING_S:
             t = t_exposed + o.camera_latency_s            # the frame reaches the agent, in order
@@ -259,7 +261,7 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
             if t > t_now:
                 # plant to this frame's delivery, evaluating the net at the true crossing on the way
                 if throw.crosses and net is None and t_now < throw.t_cross_s <= t:
-                    net, net_vel = _net_at_cross(layer, world, throw.t_cross_s)
+                    net, net_vel, theta1_cross = _net_at_cross(layer, world, throw.t_cross_s)
                 layer.advance_to(t)
                 t_now = t
             seen = agent.step(t, world.observe(t_exposed), t_exposure=t_exposed)
@@ -267,9 +269,9 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
                 rr_log.frame(t, seen[0], seen[1], world.net_position())
             k += 1
         if throw.crosses and net is None:
-            net, net_vel = _net_at_cross(layer, world, throw.t_cross_s)
+            net, net_vel, theta1_cross = _net_at_cross(layer, world, throw.t_cross_s)
         result = score_throw(throw, agent.log, net_at_cross=net, net_velocity_at_cross=net_vel,
-                             theta_at_release=theta_release,
+                             ring_theta1_rad=theta1_cross, theta_at_release=theta_release,
                              payload_true_kg=payload_true, options=o, params=params, theta1_rad=iopts.theta1_rad,
                              max_speed=max_speed, max_accel=max_accel, frame_rate_hz=rate,
                              latency_s=o.camera_latency_s + 0.5 * o.camera_latency_jitter_s)
@@ -306,6 +308,7 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
         "depth_pattern_px": o.depth_pattern_px, "depth_pattern_correction": o.depth_pattern_correction,
         "depth_pattern_rms_at_arm_m": _pattern_at_arm(world, pattern),
         "ball_swing_length_m": o.ball_swing_length_m,
+        "yaw_max_rad": o.yaw_max_rad, "throws_on_a_turned_plane": int(sum(r.yaw_deg != 0.0 for r in results)),
         "seed": o.seed, "render": o.render, "damping": o.damping, "compensate": o.compensate,
         "net_radius_m": o.net_radius_m, "balls_in_net": world.balls, "net_emptied": world.emptied,
         "median_pred_error_m": score["median_pred_error_m"],

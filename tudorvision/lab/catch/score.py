@@ -91,6 +91,9 @@ class ThrowResult:
         Smallest gap between the ball's surface and the rim during the passage, m; negative: contact.
     rim_contact : bool
         The ball touched the rim (and bounced off).
+    yaw_deg : float
+        The agent's working plane for the throw turned from the fixed one, degrees (``DemoOptions.yaw_max_rad``;
+        the ring faces the ball from there; the crossing, workspace and in-time columns keep the fixed plane).
     """
 
     throw: int
@@ -122,6 +125,7 @@ class ThrowResult:
     ring_offset_m: float = math.nan
     rim_clearance_m: float = math.nan
     rim_contact: bool = False
+    yaw_deg: float = 0.0
 
     def as_row(self) -> tuple:
         """The values in :data:`PER_THROW_COLUMNS` order.
@@ -337,7 +341,8 @@ def miss_reason(*, caught: bool, crosses: bool, in_workspace: bool, detections: 
 
 def score_throw(throw, log, *, net_at_cross, theta_at_release, payload_true_kg: float, options, params,
                 theta1_rad: float, max_speed: float, max_accel: float, frame_rate_hz: float,
-                net_velocity_at_cross=None, latency_s: float = 0.0) -> ThrowResult:
+                net_velocity_at_cross=None, latency_s: float = 0.0,
+                ring_theta1_rad: float | None = None) -> ThrowResult:
     """Score one throw from its ground truth and what the agent did.
 
     Parameters
@@ -370,6 +375,9 @@ def score_throw(throw, log, *, net_at_cross, theta_at_release, payload_true_kg: 
     latency_s : float
         The camera's mean latency, s (``DemoOptions.camera_latency_s`` and half its jitter): the in-time count
         leaves it too.
+    ring_theta1_rad : float, optional
+        Joint 1's true angle at the crossing, rad: the ring faces along that plane's normal (default
+        ``theta1_rad``; an agent that turned the plane for the throw has it elsewhere).
 
     Returns
     -------
@@ -393,10 +401,14 @@ def score_throw(throw, log, *, net_at_cross, theta_at_release, payload_true_kg: 
     miss = float(np.linalg.norm(net_at_cross - p_cross)) if crosses else nan
     caught_centre = bool(crosses and miss <= options.net_radius_m)
     ball_r = float(throw.ball_radius_m)
-    ring = _ring_passage_of(throw, net_at_cross, net_velocity_at_cross, theta1_rad, options.net_radius_m, ball_r) \
+    ring_t1 = theta1_rad if ring_theta1_rad is None else float(ring_theta1_rad)
+    ring = _ring_passage_of(throw, net_at_cross, net_velocity_at_cross, ring_t1, options.net_radius_m, ball_r) \
         if crosses else None
     caught = bool(ring is not None and ring.caught)
-    pred_err = float(np.linalg.norm(it.p_base - p_cross)) if (crosses and it is not None) else nan
+    # a throw caught on a turned plane: its estimate is judged against where the ball crossed that plane
+    yaw = float(getattr(log, "yaw_rad", 0.0))
+    p_ref = _flight_crossing(throw, theta1_rad + yaw) if (crosses and yaw != 0.0) else p_cross
+    pred_err = float(np.linalg.norm(it.p_base - p_ref)) if (p_ref is not None and it is not None) else nan
     bal_err = float(np.linalg.norm(bal - p_cross)) if (crosses and bal is not None) else nan
     reason = miss_reason(caught=caught, crosses=crosses, in_workspace=in_ws, detections=log.detections,
                          n_init=options.ekf.n_init, released=first is not None, pred_error_m=pred_err,
@@ -418,7 +430,21 @@ def score_throw(throw, log, *, net_at_cross, theta_at_release, payload_true_kg: 
         t_move_min_s=float(t_move), in_time=in_time, reason=reason, caught_centre=caught_centre,
         ring_offset_m=ring.offset_m if ring is not None else nan,
         rim_clearance_m=ring.clearance_m if ring is not None else nan,
-        rim_contact=bool(ring is not None and ring.rim_contact))
+        rim_contact=bool(ring is not None and ring.rim_contact),
+        yaw_deg=float(np.degrees(getattr(log, "yaw_rad", 0.0))))
+
+
+def _flight_crossing(throw, theta1_rad: float):
+    """Where the throw's sampled flight first crosses the vertical plane at azimuth ``theta1_rad`` (m), or None."""
+    from ...catch.intercept import working_plane_normal
+
+    pts = np.asarray(throw.points_base, float).reshape(-1, 3)
+    h = pts @ working_plane_normal(theta1_rad)
+    after = np.nonzero(h > 0.0)[0]
+    if len(after) == 0 or after[0] == 0:
+        return None
+    i = after[0]
+    return pts[i - 1] + (-h[i - 1] / (h[i] - h[i - 1])) * (pts[i] - pts[i - 1])
 
 
 def _ring_passage_of(throw, net_at_cross, net_velocity, theta1_rad: float, ring_radius_m: float,
