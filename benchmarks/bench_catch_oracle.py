@@ -185,7 +185,7 @@ def scoring_wrapper(score):
             d["t_ekf_release_s"] = per.ekf_release[throw.index] - throw.t_release_s
         if rows:
             last = rows[-1]
-            tgt = net_target(np.array(last[5:8], float), 0.0, params, reach_margin_m=o.reach_margin_m,
+            tgt = net_target(np.array(last[5:8], float), float(log.yaw_rad), params, reach_margin_m=o.reach_margin_m,
                              inner_reach_m=agent.inner_reach_m)
             d["x_target_m"], d["z_target_m"] = float(tgt[0]), float(tgt[2])
             lims, m = np.asarray(params.joint_limits_rad, float), np.asarray(o.setpoint_margin_rad, float)

@@ -125,7 +125,7 @@ GOALS = {0: (0.0, 0.0, 95.0), 10: (10.0, 0.0, 95.0), -10: (-10.0, 30.0, 85.0), -
 
 def test_the_agent_turns_to_the_smallest_plane_it_reaches_in_time_and_back_for_the_ready_move(monkeypatch):
     layer, agent = _agent(monkeypatch, GOALS, yaw_max_rad=float(np.radians(20.0)),
-                          yaw_step_rad=float(np.radians(10.0)))
+                          yaw_step_rad=float(np.radians(10.0)), yaw_margin_s=0.0)
     it = agent.perception.on_plane(1.0, 0.0)
     agent._intercept(1.0, it, layer.theta)
     sent = np.degrees(layer.sent[-1])
@@ -142,7 +142,7 @@ def test_the_agent_turns_to_the_smallest_plane_it_reaches_in_time_and_back_for_t
 
 def test_without_a_plane_in_time_the_agent_takes_the_roomiest(monkeypatch):
     layer, agent = _agent(monkeypatch, GOALS, yaw_max_rad=float(np.radians(10.0)),
-                          yaw_step_rad=float(np.radians(10.0)))
+                          yaw_step_rad=float(np.radians(10.0)), yaw_margin_s=0.0)
     agent._intercept(1.0, agent.perception.on_plane(1.0, 0.0), layer.theta)
     assert np.allclose(np.degrees(layer.sent[-1]), GOALS[-10]) and np.degrees(agent.log.yaw_rad) == pytest.approx(-10)
 

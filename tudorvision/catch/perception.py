@@ -137,7 +137,7 @@ class CatchPerception:
         return self.planner.on_plane(t, self.ekf.x, self.ekf.P, theta1_rad) if self.ekf.initialised else None
 
     def use_plane(self, theta1_rad: float, released) -> None:
-        """Estimate this throw on the plane at ``theta1_rad`` (rad), ``released`` sent (:meth:`InterceptPlanner.use_plane`)."""
+        """This throw on the plane at ``theta1_rad`` (rad), ``released`` sent (:meth:`InterceptPlanner.use_plane`)."""
         self.planner.use_plane(theta1_rad, released)
 
     def due(self, t: float, *, tol_m: float = 0.0):

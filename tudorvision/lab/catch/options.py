@@ -377,7 +377,7 @@ class DemoOptions:
     first_hedge_min_rad: float = float(np.deg2rad(5.0))
     yaw_max_rad: float = 0.0
     yaw_step_rad: float = float(np.deg2rad(2.0))
-    yaw_margin_s: float = -0.05
+    yaw_margin_s: float = -0.15
     yaw_min_gain_s: float = 0.05
     pass_through: bool = False
     pass_lead_s: float = 0.0
