@@ -519,7 +519,7 @@ class InterceptPlanner:
 
         Parameters
         ----------
-        t, x, P
+        t, x, P : float, ndarray (6,), ndarray (6, 6)
             The filter's time (s), state and covariance, as for :meth:`update`.
         theta1_rad : float
             Azimuth of the plane (joint 1's angle), rad.
@@ -548,10 +548,14 @@ class InterceptPlanner:
                          sigma_m=c.sigma_m, reachable=ok, send=False)
 
     def use_plane(self, theta1_rad: float, released: Intercept) -> None:
-        """Estimate and refine this throw on the plane at ``theta1_rad`` (rad) from now on (:meth:`reset` ends it).
+        """Estimate and refine this throw on the plane at ``theta1_rad`` from now on (:meth:`reset` ends it).
 
-        ``released`` (an estimate of :meth:`on_plane` on that plane) becomes the released setpoint the
-        refinement rule compares later estimates with.
+        Parameters
+        ----------
+        theta1_rad : float
+            The plane's azimuth, rad.
+        released : Intercept
+            An estimate of :meth:`on_plane` on that plane: the released setpoint later ones are compared with.
         """
         self.theta1_rad = float(theta1_rad)
         self.released = replace(released, send=True)

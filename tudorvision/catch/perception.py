@@ -129,15 +129,34 @@ class CatchPerception:
         return rec
 
     def on_plane(self, t: float, theta1_rad: float):
-        """The filter's latest state (at ``t``, s) crossing the plane at azimuth ``theta1_rad`` (rad), or None.
+        """The filter's latest state crossing another working plane (:meth:`InterceptPlanner.on_plane`).
 
-        :meth:`InterceptPlanner.on_plane`: another working plane weighed for this throw, the planner unchanged;
-        :meth:`use_plane` takes it.
+        The planner is unchanged; :meth:`use_plane` takes the plane for the throw.
+
+        Parameters
+        ----------
+        t : float
+            Time of the filter's latest state, seconds.
+        theta1_rad : float
+            Azimuth of the plane (joint 1's angle), rad.
+
+        Returns
+        -------
+        Intercept or None
+            That plane's crossing; None before the filter starts or when the flight does not cross it.
         """
         return self.planner.on_plane(t, self.ekf.x, self.ekf.P, theta1_rad) if self.ekf.initialised else None
 
     def use_plane(self, theta1_rad: float, released) -> None:
-        """This throw on the plane at ``theta1_rad`` (rad), ``released`` sent (:meth:`InterceptPlanner.use_plane`)."""
+        """Estimate and refine this throw on another plane (:meth:`InterceptPlanner.use_plane`).
+
+        Parameters
+        ----------
+        theta1_rad : float
+            The plane's azimuth, rad.
+        released : Intercept
+            The estimate on that plane (:meth:`on_plane`) that was sent.
+        """
         self.planner.use_plane(theta1_rad, released)
 
     def due(self, t: float, *, tol_m: float = 0.0):
