@@ -466,7 +466,7 @@ class CatchAgent:
 
     def _intercept(self, t: float, it, theta_now) -> None:
         o = self.options
-        if self.log.setpoint is None and o.yaw_max_rad > 0:
+        if self.log.setpoint is None and o.yaw_max_rad > 0 and self.log.yaw_rad == 0.0:   # chosen once a throw
             it = self._choose_plane(t, it, theta_now)
         target = net_target(it.p_base, self.ik.theta1_rad, self.params, reach_margin_m=o.reach_margin_m,
                             inner_reach_m=self.inner_reach_m)
