@@ -212,5 +212,7 @@ def test_the_demo_turns_joint_1_for_a_throw_low_on_the_right(tmp_path):
     row = next(csv.DictReader((out / "throws.csv").open()))
     assert float(row["x_cross_true_m"]) > 0.35 and float(row["z_cross_true_m"]) < 0.8
     assert -34.0 <= float(row["yaw_deg"]) <= -10.0
+    # the net is judged against where the ball crossed the turned plane (23 cm from the fixed plane's crossing)
+    assert float(row["miss_m"]) < 0.1 and float(row["pred_error_m"]) < 0.05
     s = json.loads((out / "summary.json").read_text())
     assert s["throws_on_a_turned_plane"] == 1 and s["yaw_max_rad"] == pytest.approx(np.radians(34.0))

@@ -67,7 +67,8 @@ class ThrowResult:
     x_net_m, z_net_m : float
         Net centre (deflected end effector) at the true crossing, m.
     miss_m : float
-        Distance from the net centre to the ball centre at the crossing, m.
+        Distance from the net centre to the ball centre at the crossing, m (on a turned plane, ``yaw_deg``: the
+        net at the fixed plane's crossing time against where the ball crossed the turned plane).
     time_margin_s : float
         Time from the arm's arrival (within 1 deg of its last setpoint) to the crossing, s.
     payload_true_kg : float
@@ -398,16 +399,16 @@ def score_throw(throw, log, *, net_at_cross, theta_at_release, payload_true_kg: 
     t_move = min_move_time(sols, np.asarray(theta_at_release), max_speed, max_accel)
     in_time = bool(in_ws and t_move <= throw.t_cross_rel_s - 3.0 / frame_rate_hz - float(latency_s))
     it, bal, first = log.last_intercept, log.last_ballistic_base, log.t_first_setpoint_s
-    miss = float(np.linalg.norm(net_at_cross - p_cross)) if crosses else nan
+    # a throw caught on a turned plane: its estimate and the net are judged where the ball crossed that plane
+    yaw = float(getattr(log, "yaw_rad", 0.0))
+    p_ref = _flight_crossing(throw, theta1_rad + yaw) if (crosses and yaw != 0.0) else p_cross
+    miss = float(np.linalg.norm(net_at_cross - p_ref)) if (crosses and p_ref is not None) else nan
     caught_centre = bool(crosses and miss <= options.net_radius_m)
     ball_r = float(throw.ball_radius_m)
     ring_t1 = theta1_rad if ring_theta1_rad is None else float(ring_theta1_rad)
     ring = _ring_passage_of(throw, net_at_cross, net_velocity_at_cross, ring_t1, options.net_radius_m, ball_r) \
         if crosses else None
     caught = bool(ring is not None and ring.caught)
-    # a throw caught on a turned plane: its estimate is judged against where the ball crossed that plane
-    yaw = float(getattr(log, "yaw_rad", 0.0))
-    p_ref = _flight_crossing(throw, theta1_rad + yaw) if (crosses and yaw != 0.0) else p_cross
     pred_err = float(np.linalg.norm(it.p_base - p_ref)) if (p_ref is not None and it is not None) else nan
     bal_err = float(np.linalg.norm(bal - p_cross)) if (crosses and bal is not None) else nan
     reason = miss_reason(caught=caught, crosses=crosses, in_workspace=in_ws, detections=log.detections,
