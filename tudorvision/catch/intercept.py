@@ -470,8 +470,9 @@ class InterceptPlanner:
         o = self.options
         return o.reach_tol_m if o.inner_reach_tol_m is None else o.inner_reach_tol_m
 
-    def _reachable(self, p_base) -> bool:
-        # reachable_solutions(p_base, theta1, params, margin_rad) is not empty, on floats (per frame)
+    def _reachable(self, p_base, t1: float | None = None) -> bool:
+        # reachable_solutions(p_base, t1, params, margin_rad) is not empty, on floats (per frame); t1: this throw's
+        t1 = self.theta1_rad if t1 is None else t1
         if self._lims is None:
             from ..robot import load_robot_params
 
@@ -480,7 +481,6 @@ class InterceptPlanner:
             self._lims = (prm.link1_height_m, prm.link2_length_m, prm.link3_length_m,
                           [(float(a) + m, float(b) - m) for a, b in prm.joint_limits_rad])
         h1, l2, l3, lims = self._lims
-        t1 = self.theta1_rad
         r = float(p_base[0]) * math.cos(t1) + float(p_base[1]) * math.sin(t1)
         zz = float(p_base[2]) - h1
         d = math.hypot(r, zz)
@@ -542,10 +542,8 @@ class InterceptPlanner:
                            min_height_m=o.min_height_m)
         if c is None:
             return None
-        keep, self.theta1_rad = self.theta1_rad, float(theta1_rad)
-        ok, self.theta1_rad = self._reachable(c.p_base), keep
         return Intercept(t=float(t), t_cross=float(t) + c.dt_s, p_base=c.p_base, cov_base=c.cov_base,
-                         sigma_m=c.sigma_m, reachable=ok, send=False)
+                         sigma_m=c.sigma_m, reachable=self._reachable(c.p_base, float(theta1_rad)), send=False)
 
     def use_plane(self, theta1_rad: float, released: Intercept) -> None:
         """Estimate and refine this throw on the plane at ``theta1_rad`` from now on (:meth:`reset` ends it).

@@ -89,8 +89,8 @@ def simulated_detection(p_cam, intrinsics, rng, *, options=None, scale: float = 
     return rng.multivariate_normal(p, scale ** 2 * C), C
 
 
-def true_crossing(times_s, points_base, *, ball_radius_m: float = 0.0):
-    """Where and when a sampled flight first crosses the working plane ``y = 0`` (linear interpolation).
+def true_crossing(times_s, points_base, *, ball_radius_m: float = 0.0, normal=(0.0, 1.0, 0.0)):
+    """Where and when a sampled flight first crosses the working plane ``normal . p = 0`` (linear interpolation).
 
     Parameters
     ----------
@@ -100,6 +100,9 @@ def true_crossing(times_s, points_base, *, ball_radius_m: float = 0.0):
         Ball centres, metres, base frame (y towards the robot, z up).
     ball_radius_m : float, optional
         Ball radius, m: the ball (a sphere) touches the floor when its centre is this high.
+    normal : array_like, shape (3,), optional
+        Normal of the plane through the base origin, pointing the way the ball goes (default the fixed working
+        plane's, base y; a plane turned by joint 1: :func:`~tudorvision.catch.intercept.working_plane_normal`).
 
     Returns
     -------
@@ -115,13 +118,14 @@ def true_crossing(times_s, points_base, *, ball_radius_m: float = 0.0):
     (0.5, [0.0, 0.0, 1.0])
     """
     tt, pp = np.asarray(times_s, float), np.asarray(points_base, float)
-    above = np.nonzero(pp[:, 1] > 0.0)[0]
+    h = pp @ np.asarray(normal, float)
+    above = np.nonzero(h > 0.0)[0]
     if len(above) == 0 or above[0] == 0:
         return None, None
     i = above[0]
     if np.any(pp[:i + 1, 2] < ball_radius_m):
         return None, None
-    a = -pp[i - 1, 1] / (pp[i, 1] - pp[i - 1, 1])
+    a = -h[i - 1] / (h[i] - h[i - 1])
     return tt[i - 1] + a * (tt[i] - tt[i - 1]), pp[i - 1] + a * (pp[i] - pp[i - 1])
 
 

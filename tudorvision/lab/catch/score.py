@@ -401,7 +401,7 @@ def score_throw(throw, log, *, net_at_cross, theta_at_release, payload_true_kg: 
     it, bal, first = log.last_intercept, log.last_ballistic_base, log.t_first_setpoint_s
     # a throw caught on a turned plane: its estimate and the net are judged where the ball crossed that plane
     yaw = float(getattr(log, "yaw_rad", 0.0))
-    p_ref = _flight_crossing(throw, theta1_rad + yaw) if (crosses and yaw != 0.0) else p_cross
+    p_ref = _turned_crossing(throw, theta1_rad + yaw) if (crosses and yaw != 0.0) else p_cross
     miss = float(np.linalg.norm(net_at_cross - p_ref)) if (crosses and p_ref is not None) else nan
     caught_centre = bool(crosses and miss <= options.net_radius_m)
     ball_r = float(throw.ball_radius_m)
@@ -435,17 +435,12 @@ def score_throw(throw, log, *, net_at_cross, theta_at_release, payload_true_kg: 
         yaw_deg=float(np.degrees(getattr(log, "yaw_rad", 0.0))))
 
 
-def _flight_crossing(throw, theta1_rad: float):
-    """Where the throw's sampled flight first crosses the vertical plane at azimuth ``theta1_rad`` (m), or None."""
+def _turned_crossing(throw, theta1_rad: float):
+    """Where the throw's sampled flight crosses the working plane at azimuth ``theta1_rad`` (m), or None."""
     from ...catch.intercept import working_plane_normal
+    from .scenario import true_crossing
 
-    pts = np.asarray(throw.points_base, float).reshape(-1, 3)
-    h = pts @ working_plane_normal(theta1_rad)
-    after = np.nonzero(h > 0.0)[0]
-    if len(after) == 0 or after[0] == 0:
-        return None
-    i = after[0]
-    return pts[i - 1] + (-h[i - 1] / (h[i] - h[i - 1])) * (pts[i] - pts[i - 1])
+    return true_crossing(throw.times_s, throw.points_base, normal=working_plane_normal(theta1_rad))[1]
 
 
 def _ring_passage_of(throw, net_at_cross, net_velocity, theta1_rad: float, ring_radius_m: float,
