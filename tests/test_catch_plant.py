@@ -193,6 +193,24 @@ def test_catch_success_reports_the_strict_and_centre_rates(tmp_path):
     assert (tmp_path / "cs" / "summary.json").exists()
 
 
+def test_catch_success_seeds_adds_up_each_seeds_own_run(tmp_path):
+    """The held-out row's counts are the sum of each seed's own run, which equals a run of that seed alone."""
+    from tudorvision.lab.catch.reproduce_rows import catch_success, catch_success_seeds
+
+    opts = DemoOptions(render=False, rerun=False, plots=False, cache_dir=str(tmp_path / "c"))
+    both = catch_success_seeds(3, [7, 9], "serial", out=tmp_path / "two", options=opts, session_throws=3)
+    alone = catch_success(3, 9, "serial", out=tmp_path / "one", options=opts, session_throws=3)
+    assert both["seeds"] == [7, 9] and [r["seed"] for r in both["per_seed"]] == [7, 9]
+    assert both["per_seed"][1]["caught"] == alone["caught"] and both["per_seed"][1]["misses"] == alone["misses"]
+    assert both["crossing"] == sum(r["crossing"] for r in both["per_seed"])
+    assert both["caught"] == sum(r["caught"] for r in both["per_seed"])
+    for k in set(both["misses"]):
+        assert both["misses"][k] == sum(r["misses"].get(k, 0) for r in both["per_seed"])
+    assert (tmp_path / "two" / "seed7" / "summary.json").exists() and (tmp_path / "two" / "seed9").is_dir()
+    with pytest.raises(ValueError, match="each seed once"):
+        catch_success_seeds(3, [7, 7], options=opts)
+
+
 def test_late_speed_only_for_a_move_that_would_arrive_late():
     """The faster profile is chosen exactly when the planner's motion at the demo's speed ends after the deadline."""
     from tudorvision.joint.planner import plan_motion

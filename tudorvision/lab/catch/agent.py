@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...catch.intercept import inner_reach_m, net_target
+from ...catch.payload import PayloadBelief, between_throws
 from ...catch.perception import detection_to_base
 from .profile import ReferenceMirror, elbow_frequency_factor, hedged_goal, net_modes, overshoot_lead_target
 from .planes import CatchIK, choose_plane, plane_candidates
@@ -249,7 +250,7 @@ class CatchAgent:
                         "half_integrator": Damping.HALF_INTEGRATOR}[options.damping]
         self._mode = Mode.SETPOINT
         self.adapter.set_mode(self._mode, damping=self.damping)
-        self.payload_est_kg = 0.0
+        self.payload_est_kg, self.payload_belief = 0.0, PayloadBelief()
         self.faults: list[float] = []
         self.refused = 0
         self.latencies_s: list[float] = []
@@ -629,16 +630,21 @@ class CatchAgent:
 
         return pause_and_weigh(self.layer, t_now, duration, rate, on_frame=on_frame)
 
-    def weigh(self, strains) -> None:
-        """Estimate the payload from strains sampled at rest and tell the layer (it schedules its damping on it).
+    def weigh(self, strains, *, emptied: bool = False) -> None:
+        """Weigh the payload from strains at rest (their mean) and tell the layer (it schedules its damping on it).
 
-        The mean over the window averages the residual swing. The estimate (on
-        top of the mount) is clipped to ``payload_range_kg``, the range the
-        kinematics were trained on; nothing happens without samples.
-        """
-        if not len(strains):
-            return
-        st = self.layer.state()
-        m = self.strain_model.payload(np.asarray(st.theta)[None, 1:], np.mean(strains, axis=0)[None])[0]
-        self.payload_est_kg = float(np.clip(m, *self.payload_range_kg))
-        self.adapter.set_payload(self.mount_kg + self.payload_est_kg)
+        Clipped to ``payload_range_kg`` (the kinematics' range); nothing happens without samples, unless
+        ``DemoOptions.payload_catch_prior`` > 0: then it is the mean of a belief the throw raised by a ball (if
+        tried), ``emptied`` reset and the weighing updated (:func:`~tudorvision.catch.payload.between_throws`)."""
+        o, z = self.options, None
+        if len(strains):
+            st = self.layer.state()
+            z = float(self.strain_model.payload(np.asarray(st.theta)[None, 1:], np.mean(strains, axis=0)[None])[0])
+        if o.payload_catch_prior > 0:
+            p = o.payload_catch_prior if self.log.setpoint is not None else 0.0
+            self.payload_belief = between_throws(self.payload_belief, z, ball_kg=self.params.ball_mass_kg,
+                                                 p_catch=p, emptied=emptied, sigma_kg=o.payload_weigh_sigma_kg)
+            z = self.payload_belief.mean_kg
+        if z is not None:
+            self.payload_est_kg = float(np.clip(z, *self.payload_range_kg))
+            self.adapter.set_payload(self.mount_kg + self.payload_est_kg)

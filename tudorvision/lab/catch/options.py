@@ -114,6 +114,13 @@ class DemoOptions:
         ``first_hedge_sigma`` standard deviations along the crossing covariance's principal directions spread
         by more than ``2 first_hedge_min_rad`` (rad) only to the near edge of that range
         (:func:`~tudorvision.lab.catch.profile.hedged_goal`); 0: the first setpoint goes to the estimate.
+    payload_catch_prior, payload_weigh_sigma_kg : float
+        The payload between weighings (:mod:`tudorvision.catch.payload`): 0 (default) keeps the last weighing at
+        rest, as before; > 0 (0-1) a belief that each throw the agent tried to catch adds a ball with this
+        probability, that the operator's emptying resets and that each weighing at rest, of standard deviation
+        ``payload_weigh_sigma_kg`` (kg; 12 g measured in the demo's pauses), updates. In the demo the arm rests
+        for only a third of the pauses between throws (its damper still works on the swing), so the last
+        weighing is often balls behind.
     yaw_max_rad, yaw_step_rad, yaw_margin_s, yaw_min_gain_s : float
         The working plane per throw: when the first intercept setpoint's move (the layer's plan, at the
         fastest profile speed) would end later than ``yaw_margin_s`` (s) before its deadline (negative: after
@@ -379,6 +386,8 @@ class DemoOptions:
     yaw_step_rad: float = float(np.deg2rad(2.0))
     yaw_margin_s: float = -0.15
     yaw_min_gain_s: float = 0.05
+    payload_catch_prior: float = 0.0
+    payload_weigh_sigma_kg: float = 0.012
     pass_through: bool = False
     pass_lead_s: float = 0.0
     pass_margin_s: float = 0.0
@@ -464,6 +473,9 @@ class DemoOptions:
         if not (abs(self.pass_lead_s) <= 0.2 and abs(self.pass_margin_s) <= 0.5):
             raise ValueError(f"pass_lead_s, pass_margin_s: expected within +-0.2 s and +-0.5 s, "
                              f"got {self.pass_lead_s}, {self.pass_margin_s}")
+        if not (0.0 <= self.payload_catch_prior <= 1.0 and 0.0 < self.payload_weigh_sigma_kg <= 1.0):
+            raise ValueError(f"payload_catch_prior, payload_weigh_sigma_kg: expected 0-1 and (0, 1] kg, "
+                             f"got {self.payload_catch_prior}, {self.payload_weigh_sigma_kg}")
         if not (0.0 <= self.first_hedge_sigma <= 3.0 and 0.0 <= self.first_hedge_min_rad < np.pi):
             raise ValueError(f"first_hedge_sigma, first_hedge_min_rad: expected 0-3 and [0, pi) rad, "
                              f"got {self.first_hedge_sigma}, {self.first_hedge_min_rad}")

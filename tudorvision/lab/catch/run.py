@@ -282,12 +282,13 @@ def run_demo(out, options: DemoOptions = DemoOptions(), *, recording=None) -> di
         # back to the ready pose; weigh the payload at the end of the pause (strain model, 9.2)
         agent.return_to_ready(t_now)
         t_now, strains = agent.wait(t_now, o.gap_s, rate)
-        if world.net_full:
-            # the operator empties the net once the arm rests at the ready pose and tells the layer; the
-            # payload is weighed again after a short settling pause
+        emptied = world.net_full
+        if emptied:
+            # the operator empties the net once the arm rests at the ready pose and tells the layer (and the
+            # agent); the payload is weighed again after a short settling pause
             world.empty_net()
             t_now, strains = agent.wait(t_now, o.empty_pause_s, rate)
-        agent.weigh(strains)
+        agent.weigh(strains, emptied=emptied)
     world.close()
 
     lat = np.array(agent.latencies_s) if agent.latencies_s else np.array([np.nan])
