@@ -139,3 +139,24 @@ def test_the_agent_raises_its_payload_for_a_tried_throw_without_a_weighing():
 def test_bad_payload_options_are_refused(bad):
     with pytest.raises(ValueError, match="payload_catch_prior, payload_weigh_sigma_kg"):
         DemoOptions(**bad)
+
+
+def test_the_demo_weighs_with_the_belief_from_the_command_line(tmp_path, capsys):
+    """End to end (``catch demo --payload-catch-prior``): every throw's payload estimate within a ball of the truth;
+    a bad value is a one-line error that writes nothing."""
+    import csv
+
+    from tudorvision.cli import main
+
+    out = tmp_path / "d"
+    assert main(["catch", "demo", "--throws", "3", "--seed", "3", "--no-render", "--no-rerun",
+                 "--payload-catch-prior", "0.9", "--out", str(out)]) == 0
+    rows = list(csv.DictReader((out / "throws.csv").open()))
+    assert len(rows) == 3
+    for r in rows:
+        assert abs(float(r["payload_est_kg"]) - float(r["payload_true_kg"])) <= 0.03 + 1e-9
+    capsys.readouterr()
+    assert main(["catch", "demo", "--payload-catch-prior", "1.5", "--out", str(tmp_path / "bad")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--payload-catch-prior" in err[0] and "0-1" in err[0]
+    assert not (tmp_path / "bad").exists()

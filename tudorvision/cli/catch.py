@@ -173,10 +173,11 @@ def _cmd_catch(args) -> int:
                                   or args.ball_swing_length_m is not None or args.camera_latency_ms is not None
                                   or args.camera_latency_jitter_ms is not None
                                   or args.depth_pattern_px is not None or args.no_depth_pattern_correction
-                                  or args.no_model_assist or args.yaw_max_deg is not None):
+                                  or args.no_model_assist or args.yaw_max_deg is not None
+                                  or args.payload_catch_prior is not None):
         raise TudorVisionError("--plant, --camera-distance-m, --camera-latency-ms, --camera-latency-jitter-ms, "
                                "--ball-swing-length-m, --depth-pattern-px, --no-depth-pattern-correction, "
-                               "--no-model-assist, --yaw-max-deg: only with 'catch demo'")
+                               "--no-model-assist, --yaw-max-deg, --payload-catch-prior: only with 'catch demo'")
     if args.target == "demo" and args.depth_pattern:
         raise TudorVisionError("--depth-pattern: only with a recorded SEQ (the demo's agent calibrates its own "
                                "camera's pattern; --no-depth-pattern-correction turns that off)")
@@ -198,13 +199,16 @@ def _cmd_catch(args) -> int:
                  "most"),
                 ("depth_pattern_px", "depth_pattern_px", 0.0, 2.0, "px", 1.0, "of disparity, RMS (0: none)"),
                 ("yaw_max_deg", "yaw_max_rad", 0.0, 90.0, "deg", np.pi / 180.0, "of joint 1 from the fixed working "
-                 "plane (0: the fixed plane)")):
+                 "plane (0: the fixed plane)"),
+                ("payload_catch_prior", "payload_catch_prior", 0.0, 1.0, "", 1.0, "(the probability that a throw "
+                 "the arm tries adds a ball; 0: the last weighing at rest)")):
             value = getattr(args, arg)
             if value is None:
                 continue
             if not (np.isfinite(value) and lo <= value <= hi):
                 flag = "--" + arg.replace("_", "-")
-                raise TudorVisionError(f"{flag}: expected {lo:g}-{hi:g} {unit} {why}, got {value:g}")
+                raise TudorVisionError(f"{flag}: expected {lo:g}-{hi:g} {unit + ' ' if unit else ''}{why}, "
+                                       f"got {value:g}")
             more[name] = float(value) * scale
         if args.no_depth_pattern_correction:
             more["depth_pattern_correction"] = False
@@ -340,6 +344,10 @@ def register(subparsers) -> None:
                    help="demo: a throw whose intercept the arm cannot reach in time in the fixed working plane is "
                         "caught in a plane joint 1 turns by up to DEG degrees, where the arm meets the ball sooner "
                         "and higher (default 0: the fixed plane, as in the seed; 0-90)")
+    p.add_argument("--payload-catch-prior", type=float, default=None, metavar="P",
+                   help="demo: between weighings at rest the agent believes each throw it tried added a ball with "
+                        "probability P (a Kalman filter over the payload, tudorvision.catch.payload); default 0: the "
+                        "last weighing at rest stays, which in the demo's short pauses is often balls behind (0-1)")
     add_viewer_arguments(p, file_help="rerun recording (.rrd) of detections, intercepts, net and setpoints "
                                       "(demo default: OUT/catch.rrd; SEQ: none)")
     p.add_argument("--scheduler", default=None, metavar="serial|local|ADDRESS",
