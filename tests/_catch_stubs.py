@@ -7,10 +7,11 @@ import numpy as np
 
 
 class LayerStub:
-    """Records the setpoints the agent sends; the arm stands at ``theta`` (rad), at rest."""
+    """Records the setpoints and payloads (kg) the agent sends; the arm stands at ``theta`` (rad), at rest."""
 
     def __init__(self, theta_deg=(0.0, 60.0, 60.0)):
         self.sent = []
+        self.payloads = []                     # every set_payload, kg
         self.profiles = []                     # (max_speed, max_accel) of each setpoint
         self.theta = np.deg2rad(np.asarray(theta_deg, float))
         outer = self
@@ -21,6 +22,9 @@ class LayerStub:
                 outer.sent.append(np.asarray(theta, float))
                 outer.profiles.append((kw.get("max_speed"), kw.get("max_accel")))
                 return Ack(command_seq=len(outer.sent))
+
+            def set_payload(self, kg):
+                outer.payloads.append(kg)
 
             def __getattr__(self, name):
                 return lambda *a, **kw: None

@@ -247,6 +247,7 @@ def test_summary_counts_come_from_the_results():
 def test_payload_estimate_is_clipped_to_the_trained_range():
     from types import SimpleNamespace
 
+    from _catch_stubs import LayerStub
     from tudorvision.lab.catch.agent import CatchAgent
     from tudorvision.lab.catch.options import trained_payload_range_kg
     from tudorvision.lab.data_collection import CollectionOptions
@@ -255,34 +256,18 @@ def test_payload_estimate_is_clipped_to_the_trained_range():
     assert trained_payload_range_kg(CollectionOptions()) == (0.0, 0.4)       # training stops at 400 g
     assert trained_payload_range_kg(CollectionOptions(payloads_kg=(0.0, 0.25))) == (0.0, 0.25)
 
-    class Adapter:
-        def __init__(self):
-            self.payloads = []
-
-        def set_mode(self, *a, **kw):
-            return None
-
-        def set_payload(self, kg):
-            self.payloads.append(kg)
-
-    class Layer:
-        adapter = Adapter()
-
-        def state(self):
-            return SimpleNamespace(theta=np.deg2rad([0.0, 60.0, 60.0]))
-
     p = load_robot_params()
     for m_est, expected in ((0.7, 0.4), (-0.05, 0.0), (0.12, 0.12)):
         strain = SimpleNamespace(payload=lambda theta23, eps, m=m_est: np.array([m]))
-        layer = Layer()
+        layer = LayerStub()
         agent = CatchAgent(layer, None, strain, None, None, np.eye(4), options=DemoOptions(), params=p,
                            payload_range_kg=trained_payload_range_kg(CollectionOptions()))
         agent.weigh([np.zeros(4)])
         assert agent.payload_est_kg == pytest.approx(expected)
-        assert layer.adapter.payloads[-1] == pytest.approx(p.end_effector_mount_mass_kg + expected)
-        n = len(layer.adapter.payloads)
+        assert layer.payloads[-1] == pytest.approx(p.end_effector_mount_mass_kg + expected)
+        n = len(layer.payloads)
         agent.weigh([])                                  # not at rest: nothing weighed, nothing told
-        assert len(layer.adapter.payloads) == n
+        assert len(layer.payloads) == n
 
 
 def test_the_agent_never_reaches_the_simulation_or_the_truth():

@@ -6,6 +6,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from _catch_stubs import LayerStub
+
 from tudorvision.catch.payload import PayloadBelief, after_emptying, after_throw, between_throws, weighed
 from tudorvision.lab.catch.agent import CatchAgent, ThrowLog
 from tudorvision.lab.catch.options import DemoOptions
@@ -84,28 +86,9 @@ def test_the_belief_tracks_a_filling_net_better_than_the_last_weighing(seed):
     assert inside / len(true) > 0.85
 
 
-class _Adapter:
-    def __init__(self):
-        self.payloads = []
-
-    def set_mode(self, *a, **kw):
-        return None
-
-    def set_payload(self, kg):
-        self.payloads.append(kg)
-
-
-class _Layer:
-    def __init__(self):
-        self.adapter = _Adapter()
-
-    def state(self):
-        return SimpleNamespace(theta=np.deg2rad([0.0, 60.0, 60.0]))
-
-
 def _agent(prior, weighing_kg=0.12):
     strain = SimpleNamespace(payload=lambda theta23, eps: np.array([weighing_kg]))
-    return CatchAgent(_Layer(), None, strain, None, None, np.eye(4), params=load_robot_params(),
+    return CatchAgent(LayerStub(), None, strain, None, None, np.eye(4), params=load_robot_params(),
                       options=DemoOptions(payload_catch_prior=prior), payload_range_kg=(0.0, 0.4))
 
 
@@ -121,7 +104,7 @@ def test_the_agent_raises_its_payload_for_a_tried_throw_without_a_weighing():
     agent.log = ThrowLog(setpoint=np.zeros(3))
     agent.weigh([], emptied=True)                         # the operator emptied the net
     assert agent.payload_est_kg == 0.0
-    assert agent.adapter.payloads[-1] == pytest.approx(agent.mount_kg)
+    assert agent.layer.payloads[-1] == pytest.approx(agent.mount_kg)
     agent.log = ThrowLog(setpoint=np.zeros(3))
     agent.weigh([np.zeros(4)])                            # at rest: the weighing (0.12) pulls the belief up
     assert 0.9 * ball < agent.payload_est_kg <= 0.12
@@ -129,7 +112,7 @@ def test_the_agent_raises_its_payload_for_a_tried_throw_without_a_weighing():
     off = _agent(0.0)
     off.log = ThrowLog(setpoint=np.zeros(3))
     off.weigh([])
-    assert off.payload_est_kg == 0.0 and off.adapter.payloads == []
+    assert off.payload_est_kg == 0.0 and off.layer.payloads == []
     off.weigh([np.zeros(4)])
     assert off.payload_est_kg == pytest.approx(0.12)
 

@@ -46,10 +46,11 @@ class PayloadBelief:
         return math.sqrt(max(self.var_kg2, 0.0))
 
 
-def _check(name: str, value: float, lo: float, hi: float = math.inf) -> float:
+def _check(name: str, value: float, lo: float, hi: float = math.inf, *, above: bool = False) -> float:
+    """``value`` as a float, finite and in ``[lo, hi]`` (``(lo, hi]`` with ``above``), else a one-line ValueError."""
     v = float(value)
-    if not (math.isfinite(v) and lo <= v <= hi):
-        raise ValueError(f"{name}: expected a finite value in [{lo:g}, {hi:g}], got {value!r}")
+    if not (math.isfinite(v) and (v > lo if above else v >= lo) and v <= hi):
+        raise ValueError(f"{name}: expected a finite value in {'(' if above else '['}{lo:g}, {hi:g}], got {value!r}")
     return v
 
 
@@ -124,10 +125,8 @@ def weighed(belief: PayloadBelief, z_kg: float, sigma_kg: float, *, gate_sigmas:
     PayloadBelief(mean_kg=0.2, var_kg2=0.0001)
     """
     z = _check("z_kg", z_kg, -math.inf)
-    s = _check("sigma_kg", sigma_kg, 0.0)
-    g = _check("gate_sigmas", gate_sigmas, 0.0)
-    if s <= 0.0 or g <= 0.0:
-        raise ValueError(f"sigma_kg, gate_sigmas: expected > 0, got {sigma_kg!r}, {gate_sigmas!r}")
+    s = _check("sigma_kg", sigma_kg, 0.0, above=True)
+    g = _check("gate_sigmas", gate_sigmas, 0.0, above=True)
     r = s * s
     s_inn = belief.var_kg2 + r
     nu = z - belief.mean_kg
