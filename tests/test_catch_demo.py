@@ -260,7 +260,8 @@ def test_payload_estimate_is_clipped_to_the_trained_range():
     for m_est, expected in ((0.7, 0.4), (-0.05, 0.0), (0.12, 0.12)):
         strain = SimpleNamespace(payload=lambda theta23, eps, m=m_est: np.array([m]))
         layer = LayerStub()
-        agent = CatchAgent(layer, None, strain, None, None, np.eye(4), options=DemoOptions(), params=p,
+        agent = CatchAgent(layer, None, strain, None, None, np.eye(4), params=p,
+                           options=DemoOptions(payload_catch_prior=0.0),      # the last weighing, no belief
                            payload_range_kg=trained_payload_range_kg(CollectionOptions()))
         agent.weigh([np.zeros(4)])
         assert agent.payload_est_kg == pytest.approx(expected)

@@ -346,8 +346,8 @@ def register(subparsers) -> None:
                         "and higher (default 0: the fixed plane, as in the seed; 0-90)")
     p.add_argument("--payload-catch-prior", type=float, default=None, metavar="P",
                    help="demo: between weighings at rest the agent believes each throw it tried added a ball with "
-                        "probability P (a Kalman filter over the payload, tudorvision.catch.payload); default 0: the "
-                        "last weighing at rest stays, which in the demo's short pauses is often balls behind (0-1)")
+                        "probability P (a Kalman filter over the payload, tudorvision.catch.payload; default 0.9); 0: "
+                        "the last weighing at rest stays, which in the demo's short pauses is often balls behind (0-1)")
     add_viewer_arguments(p, file_help="rerun recording (.rrd) of detections, intercepts, net and setpoints "
                                       "(demo default: OUT/catch.rrd; SEQ: none)")
     p.add_argument("--scheduler", default=None, metavar="serial|local|ADDRESS",

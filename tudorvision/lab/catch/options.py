@@ -115,10 +115,11 @@ class DemoOptions:
         by more than ``2 first_hedge_min_rad`` (rad) only to the near edge of that range
         (:func:`~tudorvision.lab.catch.profile.hedged_goal`); 0: the first setpoint goes to the estimate.
     payload_catch_prior, payload_weigh_sigma_kg : float
-        The payload between weighings (:mod:`tudorvision.catch.payload`): 0 (default) keeps the last weighing at
-        rest, as before; > 0 (0-1) a belief that each throw the agent tried to catch adds a ball with this
-        probability, that the operator's emptying resets and that each weighing at rest, of standard deviation
-        ``payload_weigh_sigma_kg`` (kg; 12 g measured in the demo's pauses), updates. In the demo the arm rests
+        The payload between weighings (:mod:`tudorvision.catch.payload`): 0 keeps the last weighing at rest
+        (the default before the thirty-eighth session); > 0 (0-1; default 0.9) a belief that each throw the
+        agent tried to catch adds a ball with this probability, that the operator's emptying resets and that
+        each weighing at rest, of standard deviation ``payload_weigh_sigma_kg`` (kg; 12 g measured in the
+        demo's pauses), updates. In the demo the arm rests
         for only a third of the pauses between throws (its damper still works on the swing), so the last
         weighing is often balls behind.
     yaw_max_rad, yaw_step_rad, yaw_margin_s, yaw_min_gain_s : float
@@ -386,7 +387,7 @@ class DemoOptions:
     yaw_step_rad: float = float(np.deg2rad(2.0))
     yaw_margin_s: float = -0.15
     yaw_min_gain_s: float = 0.05
-    payload_catch_prior: float = 0.0
+    payload_catch_prior: float = 0.9
     payload_weigh_sigma_kg: float = 0.012
     pass_through: bool = False
     pass_lead_s: float = 0.0
