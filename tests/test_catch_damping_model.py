@@ -109,8 +109,15 @@ def test_the_shipped_model_of_the_demos_plant_is_what_identification_gives(tmp_p
 
     o = CATCH_IDENTIFICATION
     runs = [collect_aprbs_run(pl, o, cfg, seed=o.seed0 + k) for k, pl in enumerate(o.plates)]
-    fresh, _ = fit_with_validation(runs)                                  # identified again: the same parameters
-    np.testing.assert_allclose(fresh.chi, model.chi, rtol=1e-9, atol=1e-12)
+    fresh, _ = fit_with_validation(runs)                                  # identified again: the same model
+    # compared by what it predicts: the small coefficients of the least-squares fit move by up to 25 % between
+    # numpy / LAPACK builds (the fit is ill-conditioned there), the strains it predicts by 1e-4 of their RMS; a
+    # change to the plant or the identification moves them by far more
+    for r in runs:
+        a = fresh.predict(r["theta"], r["d"], r["dd"], r["m"])
+        b = model.predict(r["theta"], r["d"], r["dd"], r["m"])
+        rel = np.sqrt(np.mean((a - b) ** 2, axis=0)) / np.sqrt(np.mean(r["eps"] ** 2, axis=0))
+        assert np.all(rel < 1e-3), rel
 
 
 def test_catch_cli_no_model_assist(tmp_path, capsys, monkeypatch):

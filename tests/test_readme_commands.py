@@ -13,7 +13,6 @@ import select
 import shlex
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -22,7 +21,6 @@ from _subproc import stop
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 TIMEOUT_S = 60.0
-TOTAL_BUDGET_S = 120.0
 
 # Rows that fail today for a reason outside this test: {command prefix: reason}. strict: a fix shows up as
 # XPASS and fails the test, so the entry is removed with the fix.
@@ -54,7 +52,6 @@ def readme_commands(text: str) -> list[str]:
 
 
 COMMANDS = readme_commands(README.read_text())
-_T0 = []
 
 
 def test_the_table_is_found_and_covers_every_command_group():
@@ -88,8 +85,6 @@ def _outputs(argv):
                                  for k, c in enumerate(COMMANDS)])
 def test_readme_command_runs_as_written(cmd, workdir):
     d, background = workdir
-    if not _T0:
-        _T0.append(time.monotonic())
     argv = shlex.split(cmd)
     bg = argv[-1] == "&"
     if bg:
@@ -106,4 +101,3 @@ def test_readme_command_runs_as_written(cmd, workdir):
     assert res.returncode == 0, f"{cmd}\nexit {res.returncode}\n{res.stderr[-1500:]}\n{res.stdout[-500:]}"
     for path in _outputs(argv):
         assert (d / path).exists(), f"{cmd}: {path} not written"
-    assert time.monotonic() - _T0[0] < TOTAL_BUDGET_S, "the README commands take too long together"
