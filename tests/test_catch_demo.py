@@ -546,7 +546,7 @@ def test_frames_reach_the_agent_late_filtered_at_exposure_and_acted_on_at_arriva
         sent = [(int(r["throw"]), float(r["t_s"])) for r in csv.DictReader(open(out / "setpoints.csv"))]
         return pred, sent
 
-    def exposed_at(pred, throw, t):     # the CSVs keep 6 significant digits: 0.1336667 s is written 0.133667
+    def exposed_at(pred, throw, t):     # the CSVs keep times to the microsecond
         return any(th == throw and abs(e - t) < 2e-6 for th, e in pred)
 
     for latency_ms in (0.0, 67.0):

@@ -119,9 +119,8 @@ class DemoOptions:
         (the default before the thirty-eighth session); > 0 (0-1; default 0.9) a belief that each throw the
         agent tried to catch adds a ball with this probability, that the operator's emptying resets and that
         each weighing at rest, of standard deviation ``payload_weigh_sigma_kg`` (kg; 12 g measured in the
-        demo's pauses), updates. In the demo the arm rests
-        for only a third of the pauses between throws (its damper still works on the swing), so the last
-        weighing is often balls behind.
+        demo's pauses), updates. In the demo the arm rests for only a third of the pauses between throws (its
+        damper still works on the swing), so the last weighing is often balls behind.
     yaw_max_rad, yaw_step_rad, yaw_margin_s, yaw_min_gain_s : float
         The working plane per throw: when the first intercept setpoint's move (the layer's plan, at the
         fastest profile speed) would end later than ``yaw_margin_s`` (s) before its deadline (negative: after

@@ -23,7 +23,7 @@ from pathlib import Path
 
 from .options import DemoOptions
 from .score import PER_THROW_COLUMNS, ThrowResult, summarize_throws
-from .writers import format_cell
+from .writers import format_row
 
 __all__ = ["catch_session_task", "plan_sessions", "run_sessions", "write_sessions", "SESSION_COLUMNS",
            "MAX_SESSIONS"]
@@ -151,7 +151,7 @@ def write_sessions(out, options: DemoOptions, report, *, session_throws: int, wa
         w = csv.writer(fh)
         w.writerow(SESSION_COLUMNS)
         for row in rows:
-            w.writerow([format_cell(row[c]) for c in SESSION_COLUMNS])
+            w.writerow(format_row(SESSION_COLUMNS, [row[c] for c in SESSION_COLUMNS]))
     score = summarize_throws(results)
     calibs = {}
     for rec in report.done:

@@ -23,18 +23,22 @@ import numpy as np
 from .agent import PREDICTION_COLUMNS, SETPOINT_COLUMNS
 from .score import PER_THROW_COLUMNS
 
-__all__ = ["RerunLog", "format_cell", "plot_catch", "write_csv", "write_summary_json",
+__all__ = ["RerunLog", "format_cell", "format_row", "plot_catch", "write_csv", "write_summary_json",
            "write_throws_csv"]
 
 
 
-def format_cell(v):
+def format_cell(v, *, timestamp: bool = False):
     """One CSV cell: strings as they are, integers (and flags) as integers, floats with 6 digits, nan/inf empty.
 
     Parameters
     ----------
     v : str, int, bool or float
         The value.
+    timestamp : bool
+        A time in seconds (a ``t_..._s`` column): to the microsecond instead of 6 significant digits, so that a
+        frame's exposure and the setpoint that answers it, one latency later, still tell apart and line up late
+        in a session.
 
     Returns
     -------
@@ -45,13 +49,40 @@ def format_cell(v):
     --------
     >>> [format_cell(x) for x in ("arm late", True, 3, 0.1234567, float("nan"))]
     ['arm late', 1, 3, '0.123457', '']
+    >>> format_cell(123.4566667, timestamp=True)
+    '123.456667'
     """
     if isinstance(v, str):
         return v
     if isinstance(v, (int, np.integer)):
         return int(v)
     v = float(v)
-    return "" if not np.isfinite(v) else f"{v:.6g}"
+    if not np.isfinite(v):
+        return ""
+    return f"{v:.6f}" if timestamp else f"{v:.6g}"
+
+
+def format_row(columns, values) -> list:
+    """The cells of one CSV row (:func:`format_cell`; columns named ``t_s`` or ``t_..._s`` as timestamps).
+
+    Parameters
+    ----------
+    columns : sequence of str
+        The header, one name per value.
+    values : sequence
+        The row's values, in ``columns`` order.
+
+    Returns
+    -------
+    list
+        The cells.
+
+    Examples
+    --------
+    >>> format_row(["throw", "t_s", "lead_time_s"], [2, 12.3456789, 0.3456789])
+    [2, '12.345679', '0.345679']
+    """
+    return [format_cell(v, timestamp=c.startswith("t_") and c.endswith("_s")) for c, v in zip(columns, values)]
 
 
 def write_csv(path, columns, rows) -> Path:
@@ -64,7 +95,7 @@ def write_csv(path, columns, rows) -> Path:
     columns : sequence of str
         Header.
     rows : iterable of sequence
-        Values, formatted by :func:`format_cell`.
+        Values, formatted by :func:`format_row`.
 
     Returns
     -------
@@ -76,7 +107,7 @@ def write_csv(path, columns, rows) -> Path:
         w = csv.writer(fh)
         w.writerow(columns)
         for row in rows:
-            w.writerow([format_cell(v) for v in row])
+            w.writerow(format_row(columns, row))
     return path
 
 
