@@ -124,6 +124,18 @@ def test_real_sections_are_registered_with_module_level_functions():
     assert {"4", "9", "10", "11", "B.5"} <= chapters
 
 
+def test_the_report_names_the_numerical_packages_it_ran_with(tmp_path, fake_sections):
+    import numpy
+    import scipy
+    res = run_reproduce(tmp_path, only=["good"], show_progress=False)
+    assert res["packages"]["numpy"] == numpy.__version__ and res["packages"]["scipy"] == scipy.__version__
+    on_disk = json.loads((tmp_path / "reproduction.json").read_text())
+    assert on_disk["packages"] == res["packages"]
+    md = (tmp_path / "reproduction.md").read_text()
+    line = next(x for x in md.splitlines() if x.startswith("Packages: "))
+    assert f"numpy {numpy.__version__}" in line and f"scipy {scipy.__version__}" in line
+
+
 def test_format_report_of_a_quick_run_says_so():
     res = {"quick": ["good"], "seed": 0, "complete": True, "scheduler": "serial", "workers": 1, "wall_s": 1.0,
            "machine": "x86_64", "python": "3.11", "sections": [{"name": "good", "quick": True, "chapter": "4", "title": "t", "status": "done", "error": None, "figures": [], "notes": [], "duration_s": 1.0}],

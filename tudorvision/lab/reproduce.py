@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 from ..io.atomic import write_text_atomic
-from .provenance import code_version
+from .provenance import code_version, package_versions
 from .reproduce_table import Row, Section, format_report, row_chapter, verdict
 
 __all__ = ["Row", "Section", "verdict", "run_reproduce", "format_report", "section_names", "row_chapter"]
@@ -132,7 +132,8 @@ def run_reproduce(out, *, quick=False, only=None, seed: int = 0, scheduler: str 
     result = {"quick": sorted(small), "seed": int(seed), "complete": rep.complete, "interrupted": rep.interrupted,
               "scheduler": rep.scheduler, "workers": rep.workers, "wall_s": round(time.perf_counter() - t0, 1),
               "machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
-              "python": platform.python_version(), "sections": sections, "rows": rows}
+              "python": platform.python_version(), "packages": package_versions(), "sections": sections,
+              "rows": rows}
     md = out / "reproduction.md"
     js = out / "reproduction.json"
     write_text_atomic(js, json.dumps(result, indent=1) + "\n")

@@ -174,6 +174,10 @@ def format_report(result: dict) -> str:
     lines += [f"Mode: {mode}; seed {result['seed']}; scheduler {result['scheduler']} ({result['workers']} worker(s));"
               f" {result['wall_s']:.0f} s wall in this call (sections found done are not re-run; their own times are"
               f" at the end); {result['machine']}, Python {result['python']}.", ""]
+    if result.get("packages"):
+        lines += ["Packages: " + ", ".join(f"{k} {v}" for k, v in result["packages"].items())
+                  + " (the lab's numbers move slightly between their builds: compare throw by throw only on the same).",
+                  ""]
     if not result["complete"]:
         bad = [s["name"] for s in result["sections"] if s["status"] != "done"]
         lines += [f"**Incomplete**: section(s) {', '.join(bad)} did not finish (see the end); the rows below "
