@@ -57,3 +57,41 @@ def test_a_cached_calibration_from_other_code_is_computed_again(tmp_path):
     finally:
         cal._packaged = packaged
         cal._MEMORY.clear()
+
+
+def test_the_depth_pattern_is_read_back_from_the_cache_dir(tmp_path, monkeypatch):
+    """A worker process that has not calibrated the wall camera's depth pattern reads it from ``cache_dir``
+    (the same numbers: the YAML keeps every bit) instead of rendering 30 wall frames again; a damaged file is
+    computed again and replaced, whole."""
+    import tudorvision.lab.catch.calibration as cal
+    import tudorvision.lab.depth_wall as depth_wall
+    from tudorvision.lab.catch.scenario import CatchScenario
+    from tudorvision.robot import load_robot_params
+
+    p = load_robot_params()
+    o = DemoOptions(throws=1, render=False, cache_dir=str(tmp_path), calibration_seed=3)
+    cam = CatchScenario(o, p, np.deg2rad([0.0, 90.0, 0.0])).camera
+    cal._MEMORY.clear()
+    try:
+        first = cal.wall_depth_pattern(o, cam.K, cam.width, cam.height)
+        (path,) = tmp_path.glob("depth_pattern_*.yaml")
+        assert not list(tmp_path.glob(".*tmp*"))                     # no partial file left beside it
+        renders = []
+        real = depth_wall.render_wall_frames
+        monkeypatch.setattr(depth_wall, "render_wall_frames", lambda *a, **k: renders.append(1) or real(*a, **k))
+        cal._MEMORY.clear()                                           # a fresh worker process
+        again = cal.wall_depth_pattern(o, cam.K, cam.width, cam.height)
+        assert not renders and again is not first
+        np.testing.assert_array_equal(again.grid_inv_m, first.grid_inv_m)
+        assert (again.step_px, tuple(again.image_size), again.n_frames) == \
+            (first.step_px, tuple(first.image_size), first.n_frames)
+        path.write_text(path.read_text()[:200])                       # cut short
+        cal._MEMORY.clear()
+        third = cal.wall_depth_pattern(o, cam.K, cam.width, cam.height)
+        assert renders == [1]
+        np.testing.assert_array_equal(third.grid_inv_m, first.grid_inv_m)
+        cal._MEMORY.clear()
+        from tudorvision.rgbd.depth_pattern import read_depth_pattern
+        np.testing.assert_array_equal(read_depth_pattern(path).grid_inv_m, first.grid_inv_m)   # replaced
+    finally:
+        cal._MEMORY.clear()

@@ -24,6 +24,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -144,7 +145,9 @@ def wall_depth_pattern(options, K, width: int, height: int):
     The lab renders 30 frames of a flat wall (2.5, 3.5 and 4.5 m, a random tilt each) through the wall
     camera's sensor (:func:`tudorvision.lab.depth_wall.render_wall_frames`); perception fits the pattern
     to them (:func:`tudorvision.rgbd.depth_pattern.calibrate_depth_pattern`). Cached in memory per sensor
-    and camera, and written to ``options.cache_dir`` as OpenCV YAML (``depth_pattern_<key>.yaml``).
+    and camera, and in ``options.cache_dir`` as OpenCV YAML (``depth_pattern_<key>.yaml``, written whole or not
+    at all; the key names the calibration's code): a worker process of an experiment reads it there instead of
+    rendering and fitting again (about 9 s a session); a file that cannot be read is computed again and replaced.
 
     Parameters
     ----------
@@ -160,7 +163,8 @@ def wall_depth_pattern(options, K, width: int, height: int):
     -------
     tudorvision.rgbd.depth_pattern.DepthPatternCorrection or None
     """
-    from ...rgbd.depth_pattern import calibrate_depth_pattern, write_depth_pattern
+    from ..._checks import TudorVisionError
+    from ...rgbd.depth_pattern import calibrate_depth_pattern, read_depth_pattern, write_depth_pattern
     from ..depth_wall import render_wall_frames
 
     if not options.depth_pattern_correction:
@@ -171,13 +175,27 @@ def wall_depth_pattern(options, K, width: int, height: int):
     key = "pattern_" + hashlib.sha1(key_src.encode()).hexdigest()[:16]
     if key in _MEMORY:
         return _MEMORY[key]
+    path = Path(options.cache_dir) / f"depth_{key}.yaml"
+    if path.is_file():
+        try:
+            corr = read_depth_pattern(path)
+        except TudorVisionError:
+            corr = None                     # damaged: computed again below, and replaced
+        if corr is not None and tuple(corr.image_size) == (int(width), int(height)):
+            _MEMORY[key] = corr
+            return corr
     walls = render_wall_frames(K, width, height, sensor, np.random.default_rng([int(options.calibration_seed), 16]))
     corr = calibrate_depth_pattern(walls)
     _MEMORY[key] = corr
-    try:
-        write_depth_pattern(Path(options.cache_dir) / f"depth_{key}.yaml", corr)
-    except (OSError, ValueError):
-        pass                                # the file is for the user to look at; the memory cache serves
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.yaml")
+    try:                                    # whole or not at all: another worker may be reading it
+        write_depth_pattern(tmp, corr)
+        os.replace(tmp, path)
+    except (OSError, ValueError):           # (TudorVisionError is a ValueError) the cache is an optimisation
+        try:                                # only; the memory cache serves
+            tmp.unlink(missing_ok=True)
+        except OSError:
+            pass
     return corr
 
 
