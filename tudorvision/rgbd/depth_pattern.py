@@ -30,6 +30,7 @@ import cv2
 import numpy as np
 
 from .._checks import TudorVisionError
+from ..io.atomic import atomic_path
 
 __all__ = ["DepthPatternCorrection", "plane_residual_inv_depth", "calibrate_depth_pattern",
            "write_depth_pattern", "read_depth_pattern", "plot_depth_pattern"]
@@ -354,7 +355,10 @@ def _fill(grid: np.ndarray) -> np.ndarray:
 
 
 def write_depth_pattern(path, corr: DepthPatternCorrection) -> Path:
-    """Write the correction as OpenCV YAML (``cv2.FileStorage``).
+    """Write the correction as OpenCV YAML (``cv2.FileStorage``), whole or not at all.
+
+    Written to a temporary file beside ``path`` and moved onto it (:func:`~tudorvision.io.atomic.atomic_path`), so
+    a reader (another worker process of an experiment) never sees half a file.
 
     Parameters
     ----------
@@ -366,20 +370,25 @@ def write_depth_pattern(path, corr: DepthPatternCorrection) -> Path:
     -------
     Path
         The file written.
+
+    Raises
+    ------
+    TudorVisionError
+        The folder cannot be created or written (the message names ``path``); an earlier file stays as it was.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
-    try:
-        fs.write("kind", _TAG)
-        fs.write("image_width", int(corr.image_size[0]))
-        fs.write("image_height", int(corr.image_size[1]))
-        fs.write("step_px", int(corr.step_px))
-        fs.write("n_frames", int(corr.n_frames))
-        fs.writeComment("inverse-depth offset c per block, 1/m: the camera reports 1 / (1 / z + c)")
-        fs.write("grid_inv_m", corr.grid_inv_m.astype(np.float64))
-    finally:
-        fs.release()
+    with atomic_path(path) as tmp:          # whole or not at all: a reader never sees half a file
+        fs = cv2.FileStorage(str(tmp), cv2.FILE_STORAGE_WRITE)
+        try:
+            fs.write("kind", _TAG)
+            fs.write("image_width", int(corr.image_size[0]))
+            fs.write("image_height", int(corr.image_size[1]))
+            fs.write("step_px", int(corr.step_px))
+            fs.write("n_frames", int(corr.n_frames))
+            fs.writeComment("inverse-depth offset c per block, 1/m: the camera reports 1 / (1 / z + c)")
+            fs.write("grid_inv_m", corr.grid_inv_m.astype(np.float64))
+        finally:
+            fs.release()
     return path
 
 

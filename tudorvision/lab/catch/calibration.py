@@ -24,7 +24,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
-import os
 from pathlib import Path
 
 import numpy as np
@@ -187,15 +186,10 @@ def wall_depth_pattern(options, K, width: int, height: int):
     walls = render_wall_frames(K, width, height, sensor, np.random.default_rng([int(options.calibration_seed), 16]))
     corr = calibrate_depth_pattern(walls)
     _MEMORY[key] = corr
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.yaml")
-    try:                                    # whole or not at all: another worker may be reading it
-        write_depth_pattern(tmp, corr)
-        os.replace(tmp, path)
-    except (OSError, ValueError):           # (TudorVisionError is a ValueError) the cache is an optimisation
-        try:                                # only; the memory cache serves
-            tmp.unlink(missing_ok=True)
-        except OSError:
-            pass
+    try:
+        write_depth_pattern(path, corr)     # whole or not at all: another worker may be reading it
+    except (OSError, ValueError):
+        pass                                # the cache is an optimisation only; the memory cache serves
     return corr
 
 
