@@ -1,62 +1,115 @@
-"""The catch demo's wall-camera calibration cache: the shipped calibration is what the code computes, a cache
-entry from other code is computed again.
+"""The catch demo's wall-camera calibration cache: a cache entry from other code is computed again; the shipped
+calibration is this code's, and the code hash covers every file whose code runs in a calibration.
 
-In a file of its own: the full sweep it renders (2400 frames, about 3 min on one core) would otherwise add to
-``tests/test_catch_demo.py`` on one worker (``make test`` distributes whole files).
+The shipped file itself is computed again (the full 2400-frame sweep, about 3 min on one core) by
+``benchmarks/check_shipped_calibration.py``, not here: this file checks what makes that comparison needed.
 """
+import cProfile
 import json
+import pstats
+from pathlib import Path
 
 import numpy as np
 
 from tudorvision.lab.catch_demo import DemoOptions
 
 
-def test_a_cached_calibration_from_other_code_is_computed_again(tmp_path):
-    """The cache_dir entry names the code that wrote it: read when it matches, computed again (and replaced)
-    when it does not; the shipped calibration of the default placement is what the code computes now."""
+def _short_calibration(tmp_path, profile=None, **kw):
+    """A one-frame-per-pose calibration of the default placement (75 frames), its transform and report;
+    ``profile``: a :class:`cProfile.Profile` enabled around the calibration alone."""
     import tudorvision.lab.catch.calibration as cal
     from tudorvision.lab.catch.run import demo_kinematics
     from tudorvision.lab.catch.scenario import CatchScenario
     from tudorvision.robot import load_robot_params
 
     p = load_robot_params()
-    o = DemoOptions(throws=1, render=False, cache_dir=str(tmp_path))
+    o = DemoOptions(throws=1, render=False, cache_dir=str(tmp_path), calibration_frames_per_pose=1, **kw)
     world = CatchScenario(o, p, np.deg2rad([0.0, 90.0, 0.0]))
     deflection = demo_kinematics(o, p)[0].deflection
-    shipped, rep = cal.calibrate_wall_camera(o, p, world.T_base_cam, deflection=deflection)
-    assert rep["cached"]                                  # the default placement is shipped
-    packaged = cal._packaged
+    if profile is None:
+        return cal.calibrate_wall_camera(o, p, world.T_base_cam, deflection=deflection)
+    profile.enable()
     try:
-        cal._packaged = lambda key: None
-        cal._MEMORY.clear()
-        T, rep = cal.calibrate_wall_camera(o, p, world.T_base_cam, deflection=deflection)
-        assert not rep["cached"]
-        np.testing.assert_allclose(T, shipped, atol=1e-9)     # the shipped file is not stale
-        (path,) = tmp_path.glob("wall_calibration_*.json")
-        assert json.loads(path.read_text())["code"] == cal.calibration_code_hash()
-        # the cache's code check on a short sweep (one frame per pose, its own key): same logic, a 75-frame render
-        from dataclasses import replace
-        small = replace(o, calibration_frames_per_pose=1, cache_dir=str(tmp_path / "small"))
-        cal._MEMORY.clear()
-        T1, rep1 = cal.calibrate_wall_camera(small, p, world.T_base_cam, deflection=deflection)
+        return cal.calibrate_wall_camera(o, p, world.T_base_cam, deflection=deflection)
+    finally:
+        profile.disable()
+
+
+def test_a_cached_calibration_from_other_code_is_computed_again(tmp_path):
+    """The cache_dir entry names the code that wrote it: read when it matches, computed again (and replaced)
+    when it does not. The short sweep (one frame per pose) has its own key; the logic is the same."""
+    import tudorvision.lab.catch.calibration as cal
+
+    cal._MEMORY.clear()
+    try:
+        T1, rep1 = _short_calibration(tmp_path)
         assert not rep1["cached"] and rep1["frames"] == 75
-        (path,) = (tmp_path / "small").glob("wall_calibration_*.json")
+        (path,) = tmp_path.glob("wall_calibration_*.json")
         entry = json.loads(path.read_text())
         assert entry["code"] == cal.calibration_code_hash()
         forged = dict(entry, T_base_cam=np.eye(4).tolist())
         path.write_text(json.dumps(forged))
         cal._MEMORY.clear()
-        T2, rep2 = cal.calibrate_wall_camera(small, p, world.T_base_cam, deflection=deflection)
+        T2, rep2 = _short_calibration(tmp_path)
         assert rep2["cached"] and np.allclose(T2, np.eye(4))  # same code: the cache is read as it is
         path.write_text(json.dumps(dict(forged, code="0123456789abcdef")))
         cal._MEMORY.clear()
-        T3, rep3 = cal.calibrate_wall_camera(small, p, world.T_base_cam, deflection=deflection)
+        T3, rep3 = _short_calibration(tmp_path)
         assert not rep3["cached"]
         np.testing.assert_allclose(T3, T1, atol=1e-9)
         assert json.loads(path.read_text())["code"] == cal.calibration_code_hash()   # replaced
     finally:
-        cal._packaged = packaged
         cal._MEMORY.clear()
+
+
+def test_the_shipped_calibration_is_this_codes_and_read_for_the_default_placement(tmp_path):
+    """Every shipped wall calibration names today's code hash (else: ``benchmarks/check_shipped_calibration.py
+    --ship``); the default placement reads it instead of rendering the sweep."""
+    import tudorvision.lab.catch.calibration as cal
+    from tudorvision.lab.catch.run import demo_kinematics
+    from tudorvision.lab.catch.scenario import CatchScenario
+    from tudorvision.robot import load_robot_params
+
+    codes = cal.shipped_calibration_codes()
+    assert codes
+    stale = {name: code for name, code in codes.items() if code != cal.calibration_code_hash()}
+    assert not stale, (f"shipped calibrations computed by other code: {stale} (this code: "
+                       f"{cal.calibration_code_hash()}); run benchmarks/check_shipped_calibration.py --ship")
+    p = load_robot_params()
+    o = DemoOptions(throws=1, render=False, cache_dir=str(tmp_path))
+    world = CatchScenario(o, p, np.deg2rad([0.0, 90.0, 0.0]))
+    cal._MEMORY.clear()
+    try:
+        T, rep = cal.calibrate_wall_camera(o, p, world.T_base_cam, deflection=demo_kinematics(o, p)[0].deflection)
+    finally:
+        cal._MEMORY.clear()
+    assert rep["cached"] and rep["frames"] == 2400 and not list(tmp_path.glob("wall_calibration_*"))
+    assert rep["error_at_arm_m"] < 0.01                    # the shipped calibration is a good one
+
+
+def test_the_code_hash_covers_every_file_that_runs_in_a_calibration(tmp_path):
+    """A short calibration profiled: every package file with code that ran is in ``CODE_FILES`` (or exempt: checks
+    and file writes), so a change to any of them names other code and the shipped file is checked again."""
+    import tudorvision
+    import tudorvision.lab.catch.calibration as cal
+
+    root = Path(tudorvision.__file__).resolve().parent
+    cal._MEMORY.clear()
+    prof = cProfile.Profile()
+    try:
+        _T, rep = _short_calibration(tmp_path, prof, calibration_seed=11)      # its own key: nothing cached
+    finally:
+        cal._MEMORY.clear()
+    assert not rep["cached"]
+    ran = set()
+    for filename, _line, _name in pstats.Stats(prof).stats:
+        path = Path(filename).resolve()
+        if path.is_relative_to(root):
+            ran.add(path.relative_to(root).as_posix())
+    assert "rgbd/disc_track.py" in ran and "sim/raycast.py" in ran          # the profile saw the calibration
+    missing = ran - set(cal.CODE_FILES) - set(cal.CODE_EXEMPT)
+    assert not missing, f"files that run in a calibration but are not in CODE_FILES: {sorted(missing)}"
+    assert all((root / rel).is_file() for rel in cal.CODE_FILES + cal.CODE_EXEMPT)
 
 
 def test_the_depth_pattern_is_read_back_from_the_cache_dir(tmp_path, monkeypatch):

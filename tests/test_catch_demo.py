@@ -459,14 +459,16 @@ def test_wall_camera_reaches_the_arm_from_behind_the_thrower(tmp_path):
 
 def test_cli_demo_plant_and_camera_distance(tmp_path, capsys):
     """``catch demo --plant stiff --camera-distance-m 6.5``: the options reach the demo (summary.json); bad
-    values give a one-line error."""
+    values give a one-line error. The placement no calibration is shipped for is calibrated from one depth frame
+    per sweep pose (``--calibration-frames 1``: 75 frames instead of 2400)."""
     out = tmp_path / "d"
     assert main(["catch", "demo", "--throws", "1", "--no-render", "--no-rerun", "--plant", "stiff",
-                 "--camera-distance-m", "6.5", "--ball-swing-length-m", "0", "--out", str(out)]) == 0
+                 "--camera-distance-m", "6.5", "--ball-swing-length-m", "0", "--calibration-frames", "1",
+                 "--out", str(out)]) == 0
     s = json.loads((out / "summary.json").read_text())
     assert s["plant"] == "stiff" and s["camera_position_world_m"][1] == pytest.approx(-6.5)
     assert s["ball_swing_length_m"] == 0.0
-    assert s["calibration"]["source"] == "disc sweep"
+    assert s["calibration"]["source"] == "disc sweep" and s["calibration"]["frames"] == 75
     assert main(["catch", "demo", "--throws", "1", "--no-render", "--no-rerun", "--out", str(tmp_path / "e")]) == 0
     s = json.loads((tmp_path / "e" / "summary.json").read_text())
     assert s["plant"] == "seed_measured" and s["camera_position_world_m"][1] == pytest.approx(-6.8)  # defaults
@@ -483,6 +485,10 @@ def test_cli_demo_plant_and_camera_distance(tmp_path, capsys):
     assert main(["catch", "demo", "--yaw-max-deg", "nan", "--out", str(tmp_path / "h")]) != 0
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--yaw-max-deg" in err[0] and "0-90 deg" in err[0]
+    assert main(["catch", "demo", "--calibration-frames", "0", "--out", str(tmp_path / "i")]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--calibration-frames" in err[0] and "1-256" in err[0]
+    assert not (tmp_path / "i").exists()
     with pytest.raises(SystemExit):
         main(["catch", "demo", "--plant", "soft"])
     assert "invalid choice: 'soft'" in capsys.readouterr().err

@@ -174,10 +174,12 @@ def _cmd_catch(args) -> int:
                                   or args.camera_latency_jitter_ms is not None
                                   or args.depth_pattern_px is not None or args.no_depth_pattern_correction
                                   or args.no_model_assist or args.yaw_max_deg is not None
-                                  or args.payload_catch_prior is not None):
+                                  or args.payload_catch_prior is not None
+                                  or args.calibration_frames is not None):
         raise TudorVisionError("--plant, --camera-distance-m, --camera-latency-ms, --camera-latency-jitter-ms, "
                                "--ball-swing-length-m, --depth-pattern-px, --no-depth-pattern-correction, "
-                               "--no-model-assist, --yaw-max-deg, --payload-catch-prior: only with 'catch demo'")
+                               "--no-model-assist, --yaw-max-deg, --payload-catch-prior, --calibration-frames: only "
+                               "with 'catch demo'")
     if args.target == "demo" and args.depth_pattern:
         raise TudorVisionError("--depth-pattern: only with a recorded SEQ (the demo's agent calibrates its own "
                                "camera's pattern; --no-depth-pattern-correction turns that off)")
@@ -210,6 +212,11 @@ def _cmd_catch(args) -> int:
                 raise TudorVisionError(f"{flag}: expected {lo:g}-{hi:g} {unit + ' ' if unit else ''}{why}, "
                                        f"got {value:g}")
             more[name] = float(value) * scale
+        if args.calibration_frames is not None:
+            if not 1 <= args.calibration_frames <= 256:
+                raise TudorVisionError(f"--calibration-frames: expected 1-256 depth frames per pose of the disc "
+                                       f"sweep, got {args.calibration_frames}")
+            more["calibration_frames_per_pose"] = int(args.calibration_frames)
         if args.no_depth_pattern_correction:
             more["depth_pattern_correction"] = False
         if args.no_model_assist:
@@ -348,6 +355,10 @@ def register(subparsers) -> None:
                    help="demo: between weighings at rest the agent believes each throw it tried added a ball with "
                         "probability P (a Kalman filter over the payload, tudorvision.catch.payload; default 0.9); 0: "
                         "the last weighing at rest stays, which in the demo's short pauses is often balls behind (0-1)")
+    p.add_argument("--calibration-frames", type=int, default=None, metavar="N",
+                   help="demo: depth frames per pose of the simulated disc sweep that calibrates the wall camera "
+                        "(default 32; a placement no calibration is shipped or cached for renders 75 x N frames: "
+                        "fewer are quicker and less accurate, 8 catch about 2 points fewer; 1-256)")
     add_viewer_arguments(p, file_help="rerun recording (.rrd) of detections, intercepts, net and setpoints "
                                       "(demo default: OUT/catch.rrd; SEQ: none)")
     p.add_argument("--scheduler", default=None, metavar="serial|local|ADDRESS",

@@ -16,8 +16,11 @@ used afterwards, lab side, to report the calibration's error.
 A calibration depends only on the camera placement and the sweep's seed, not
 on the throws: it is cached in memory and as JSON in ``DemoOptions.cache_dir``; the default
 placement's is shipped in ``tudorvision/catch/data`` (:func:`ship_calibration`). A cached JSON
-names the code that computed it (a hash of :data:`CODE_FILES`); one written by other code is
-computed again, not read. The shipped one is checked against a fresh computation by the tests.
+names the code that computed it (a hash of :data:`CODE_FILES`, every file whose code runs in a
+calibration: a test checks that list); one written by other code is computed again, not read. The
+shipped one names its code too: the tests check that it is this code's, and
+:func:`check_shipped_calibration` (``benchmarks/check_shipped_calibration.py``) computes it again,
+compares and ships it anew.
 """
 from __future__ import annotations
 
@@ -30,8 +33,8 @@ import numpy as np
 
 __all__ = ["wall_camera_position_world", "calibrate_wall_camera", "wall_depth_sensor", "wall_depth_pattern",
            "WALL_CAMERA_AIM_HEIGHT_M", "CALIBRATION_METHODS", "SWEEP_THETA2_DEG", "YAW_THETA1_RANGE_DEG", "YAW_POSES",
-           "YAW_THETA2_DEG", "ship_calibration",
-           "calibration_code_hash", "CODE_FILES"]
+           "YAW_THETA2_DEG", "ship_calibration", "check_shipped_calibration", "shipped_calibration_codes",
+           "calibration_code_hash", "CODE_FILES", "CODE_EXEMPT"]
 
 #: ``DemoOptions.calibration_method``: the seed's sweep construction alone, refined in the sweep plane
 #: from the sweep's mirror symmetry (:func:`tudorvision.rgbd.base_calib.refine_sweep_mirror`, model-free),
@@ -53,11 +56,18 @@ YAW_POSES = 52
 SWEEP_THETA2_DEG = tuple(float(a) for a in np.arange(10.0, 170.1, 10.0))
 WALL_CAMERA_AIM_HEIGHT_M = 1.0       # the throw scene's camera looks at the point this high above the base
 _MEMORY: dict = {}
-#: The sources (relative to the package) whose code decides a calibration: a cache entry written by other
-#: code is not read (:func:`calibration_code_hash`).
+#: The sources (relative to the package) whose code decides a calibration: every file whose code runs in one
+#: (``tests/test_catch_calibration_cache.py`` profiles a short calibration against this list), and the robot's
+#: parameter file; a cache entry written by other code is not read (:func:`calibration_code_hash`).
 CODE_FILES = ("rgbd/disc_track.py", "rgbd/disc3d.py", "rgbd/base_calib.py", "rgbd/frames.py", "lab/disc_sweep.py",
               "lab/catch/calibration.py", "sim/depth_sensor.py", "rgbd/yaw_sweep.py", "rgbd/disc_search.py",
-              "rgbd/depth_pattern.py", "lab/depth_wall.py")
+              "rgbd/depth_pattern.py", "lab/depth_wall.py", "geometry.py", "sensors.py", "lab/record.py",
+              "lab/data_collection.py", "robot/actuators.py", "robot/kinematics.py", "robot/params.py",
+              "robot/data/tudor.yaml", "sim/_shape_core.py", "sim/arm.py", "sim/beam.py", "sim/camera.py",
+              "sim/joint_compliance.py", "sim/lighting.py", "sim/link_modes.py", "sim/model.py", "sim/primitives.py",
+              "sim/raycast.py", "sim/scenes.py", "sim/scenes_rgbd.py", "sim/shapes.py", "sim/solids.py")
+#: Files whose code runs in a calibration but decides no number of it: argument checks and file writes.
+CODE_EXEMPT = ("_checks.py", "io/atomic.py")
 
 
 @functools.lru_cache(maxsize=1)
@@ -237,7 +247,7 @@ def _packaged(key: str):
     try:
         with np.load(path, allow_pickle=False) as z:
             return {"T_base_cam": z["T_base_cam"].tolist(), "T_base_cam_seed": z["T_base_cam_seed"].tolist(),
-                    "report": json.loads(str(z["report_json"]))}
+                    "report": json.loads(str(z["report_json"])), "code": str(z["code"]) if "code" in z else None}
     except (OSError, ValueError, KeyError):
         return None
 
@@ -265,11 +275,102 @@ def ship_calibration(cache_file) -> Path:
     path = _packaged_path(key)
     np.savez(path, T_base_cam=np.asarray(entry["T_base_cam"], float),
              T_base_cam_seed=np.asarray(entry["T_base_cam_seed"], float),
-             report_json=np.array(json.dumps(entry["report"])))        # key order as computed (summary.json)
+             report_json=np.array(json.dumps(entry["report"])),        # key order as computed (summary.json)
+             code=np.array(str(entry.get("code", ""))))
     return path
 
 
-def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) -> tuple[np.ndarray, dict]:
+def shipped_calibration_codes() -> dict:
+    """The code hash each shipped calibration names, by file name (None: a file shipped before it was recorded).
+
+    Returns
+    -------
+    dict
+        ``{"wall_calibration_<key>.npz": code or None}``; equal to :func:`calibration_code_hash` when this
+        code computed it.
+    """
+    from ..data_collection import PACKAGED_DIR
+
+    return {path.name: (_packaged(path.stem.removeprefix("wall_calibration_")) or {}).get("code")
+            for path in sorted(PACKAGED_DIR.glob("wall_calibration_*.npz"))}
+
+
+def check_shipped_calibration(options, params, T_base_cam_true, cache_dir, *, deflection=None, ship: bool = False,
+                              atol: float = 1e-9) -> dict:
+    """Compute the calibration of ``options``' placement afresh and compare it with the shipped one.
+
+    For maintainers, after a change to any of :data:`CODE_FILES` (the tests then say that the shipped file
+    is another code's): about 3 min on one core for the default 2400-frame sweep.
+
+    Parameters
+    ----------
+    options : DemoOptions
+        The placement (the default one is shipped); its ``cache_dir`` is replaced by ``cache_dir``.
+    params : RobotParams
+        The robot's parameters.
+    T_base_cam_true : array_like, shape (4, 4)
+        The throw scene's true camera pose (:func:`calibrate_wall_camera`).
+    cache_dir : str or Path
+        An empty folder for the fresh computation's cache file.
+    deflection : callable, optional
+        The agent's deflection model, for a method that names ``deflection`` (:func:`calibrate_wall_camera`).
+    ship : bool
+        Replace the shipped file (or add it) with the fresh computation; where the shipped transform agrees
+        within ``atol``, only its code hash is replaced (the numbers every recorded run used stay, bit for bit).
+    atol : float
+        Largest difference of ``T_base_cam`` that counts as the same calibration.
+
+    Returns
+    -------
+    dict
+        ``shipped`` (bool: a file was shipped for this placement), ``max_abs_difference`` (of ``T_base_cam``
+        against the shipped one; None without one), ``shipped_code``, ``code`` (this code's hash),
+        ``shipped_to`` (the path written, or None).
+    """
+    from dataclasses import replace
+
+    options = replace(options, cache_dir=str(cache_dir))
+    key = _calibration_key(options, params)
+    shipped = _packaged(key)
+    before = dict(_MEMORY)
+    _MEMORY.clear()
+    try:
+        T, _ = calibrate_wall_camera(options, params, T_base_cam_true, deflection=deflection, packaged=False)
+    finally:
+        _MEMORY.clear()
+        _MEMORY.update(before)
+    out = {"shipped": shipped is not None, "code": calibration_code_hash(),
+           "shipped_code": None if shipped is None else shipped.get("code"),
+           "max_abs_difference": None if shipped is None else
+           float(np.max(np.abs(T - np.asarray(shipped["T_base_cam"], float)))), "shipped_to": None}
+    if ship:
+        fresh = Path(cache_dir) / f"wall_calibration_{key}.json"
+        if shipped is not None and out["max_abs_difference"] <= atol:
+            fresh.write_text(json.dumps(dict(shipped, code=out["code"])))
+        out["shipped_to"] = str(ship_calibration(fresh))
+    return out
+
+
+def _calibration_key(options, params) -> str:
+    """16 hex digits naming a calibration: the sweep, its seed, the sensor, the method (and what it uses)."""
+    from ..data_collection import robot_key
+
+    sensor = wall_depth_sensor(options)
+    method = options.calibration_method
+    key_src = json.dumps({"sweep": repr(_sweep_params(options, params)), "seed": int(options.calibration_seed),
+                          "v": 3, "max_depth_m": sensor.max_depth_m, "method": method,
+                          "depth_noise": [list(sensor.noise.coeffs), list(sensor.noise_corr_px)],
+                          **({"depth_pattern": [sensor.pattern_disparity_px, list(sensor.pattern_corr_px),
+                                                bool(options.depth_pattern_correction)]}
+                             if sensor.pattern_disparity_px > 0 else {}),
+                          **({"kinematics": [repr(options.collection), options.plant]}
+                             if "deflection" in method.split("+") else {}),
+                          **({"robot": robot_key(params)} if robot_key(params) else {})}, sort_keys=True)
+    return hashlib.sha1(key_src.encode()).hexdigest()[:16]
+
+
+def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None,
+                          packaged: bool = True) -> tuple[np.ndarray, dict]:
     """``T_base_cam`` of the demo's wall camera from a simulated disc sweep, and its error against the truth.
 
     Parameters
@@ -289,6 +390,9 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
         model of ``options.collection`` on ``options.plant`` (the cache key names those). A method that
         names ``mirror`` (the default ``"seed+mirror"``) then refines the in-plane angle from the sweep's
         mirror symmetry (:func:`~tudorvision.rgbd.base_calib.refine_sweep_mirror`).
+    packaged : bool
+        Read the calibration shipped with the package for this placement (default); False: computed (or read
+        from ``cache_dir`` or memory) only.
 
     Returns
     -------
@@ -315,22 +419,12 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
     from ..disc_sweep import render_disc_sweep
 
     sp = _sweep_params(options, params)
-    from ..data_collection import robot_key
     sensor = wall_depth_sensor(options)
     method = options.calibration_method
     uses_model = "deflection" in method.split("+")
     if uses_model and deflection is None:
         raise ValueError(f"calibrate_wall_camera: calibration_method {method!r} needs the deflection model")
-    key_src = json.dumps({"sweep": repr(sp), "seed": int(options.calibration_seed), "v": 3,
-                          "max_depth_m": sensor.max_depth_m, "method": method,
-                          "depth_noise": [list(sensor.noise.coeffs), list(sensor.noise_corr_px)],
-                          **({"depth_pattern": [sensor.pattern_disparity_px, list(sensor.pattern_corr_px),
-                                                bool(options.depth_pattern_correction)]}
-                             if sensor.pattern_disparity_px > 0 else {}),
-                          **({"kinematics": [repr(options.collection), options.plant]}
-                             if uses_model else {}),
-                          **({"robot": robot_key(params)} if robot_key(params) else {})}, sort_keys=True)
-    key = hashlib.sha1(key_src.encode()).hexdigest()[:16]
+    key = _calibration_key(options, params)
     T_true = np.asarray(T_base_cam_true, float)
     path = Path(options.cache_dir) / f"wall_calibration_{key}.json"
     cached = _MEMORY.get(key)
@@ -342,7 +436,7 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None) 
             cached = None
         if not isinstance(cached, dict) or cached.get("code") != code:
             cached = None                   # written by other code (or damaged): computed again, then replaced
-    if cached is None:
+    if cached is None and packaged:
         cached = _packaged(key)
     if cached is not None:
         T = np.asarray(cached["T_base_cam"], float)
