@@ -81,8 +81,54 @@ TARGET_MM, TARGET_PX, MIN_FOUND = 1.0, 0.25, 0.95   # issue 15 (centre read as t
 RADIUS_CHECK: dict = {}
 
 
-def simulated_picks(scene, rng):
-    """``(camera, sphere, centre, edge)`` picks a user would click on the pick frames."""
+def _on_seen_part(mask, c, e, uv, r):
+    """The clicks ``c`` (centre) and ``e`` (edge) of a user who clicks on what is seen of the sphere (``mask``):
+    a centre on a hidden pixel moves to the nearest seen pixel at least 1 px inside the seen part; an edge on a
+    hidden pixel turns about the true centre ``uv`` (then shrinks towards it) to the nearest seen one; None
+    when nothing of the sphere is seen (no click)."""
+    import cv2
+    h, w = mask.shape
+
+    def seen(q):
+        u, v = int(q[0]), int(q[1])
+        return 0 <= u < w and 0 <= v < h and bool(mask[v, u])
+
+    if not mask.any():
+        return None
+    if not seen(c):
+        inside = cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, 3) >= min(
+            2.0, float(cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, 3).max()))
+        vv, uu = np.nonzero(inside)
+        k = int(np.argmin((uu - c[0]) ** 2 + (vv - c[1]) ** 2))
+        c = np.array([uu[k], vv[k]], float)
+    if not seen(e):
+        d = e - uv
+        a0, rad = np.arctan2(d[1], d[0]), max(float(np.hypot(*d)), 1.0)
+        for scale in (1.0, 0.75, 0.5):
+            for da in np.deg2rad(np.arange(10, 181, 10)):
+                for a in (a0 + da, a0 - da):
+                    q = np.rint(uv + scale * rad * np.array([np.cos(a), np.sin(a)]))
+                    if seen(q):
+                        e = q
+                        break
+                else:
+                    continue
+                break
+            if seen(e):
+                break
+    if not seen(e) or np.all(e == c):
+        e = c + [1.0, 0.0]
+    return c, e
+
+
+def simulated_picks(scene, rng, user="issue"):
+    """``(camera, sphere, centre, edge)`` picks a user would click on the pick frames.
+
+    ``user="issue"``: the issue's user, the centre and an edge pixel at 80 % of the apparent radius wherever they
+    fall (on an occluder or the other sphere in front too); ``"sees"``: the same clicks (same draws), moved
+    onto the part of the sphere that is seen (:func:`_on_seen_part`; the lab's visibility masks), no click on a
+    sphere hidden whole.
+    """
     picks = []
     for cam in ("left", "right"):
         for s in SPHERES:
@@ -93,6 +139,11 @@ def simulated_picks(scene, rng):
             e = np.rint(uv + 0.8 * r * np.array([np.cos(a), np.sin(a)]) + rng.normal(0, PICK_SIGMA_PX, 2))
             if np.all(e == c):
                 e = c + [1.0, 0.0]
+            if user == "sees":
+                ce = _on_seen_part(scene.sphere_masks[cam][s], c, e, uv, r)
+                if ce is None:
+                    continue
+                c, e = ce
             picks.append((cam, s, c, e))
     return picks
 
@@ -188,11 +239,15 @@ def run_peer(scene, cal):
     return uv, {s: np.asarray(tri.spheres[s][0], float) for s in SPHERES}
 
 
-def evaluate(scene):
+def evaluate(scene, user="issue"):
     """Rows ``(kind, method, radius_px, error)``: kind "uv" (px) or "3d" (mm); error NaN when not found."""
     cal = calibration_from_cameras(scene.cameras, stereo=("left", "right"))
     rng = np.random.default_rng(scene.params.seed + 1)
-    models, refused = fit_models(scene, simulated_picks(scene, rng))
+    picks = simulated_picks(scene, rng, user)
+    models, refused = fit_models(scene, picks)
+    clicked = {(cam, sph) for cam, sph, _c, _e in picks}
+    refused += [f"{cam}:{sph}: hidden whole, no click" for cam in ("left", "right") for sph in SPHERES
+                if (cam, sph) not in clicked]
     t0 = time.perf_counter()
     results = {"ours": run_ours(scene, cal, models, "shape")}
     t_ours = time.perf_counter() - t0
@@ -305,13 +360,18 @@ def main(argv=None) -> int:
     ap.add_argument("--static-frames", type=int, default=0, metavar="K",
                     help="also track each static set-up over K more frames with their own sensor noise "
                          "(rows 'ours, static median': the median centre over the 1 + K frames)")
+    ap.add_argument("--user", choices=("issue", "sees"), default="issue",
+                    help="the simulated user: 'issue' clicks the centre and an edge pixel wherever they fall "
+                         "(default, as the issue describes); 'sees' moves a click that would land on an occluder "
+                         "or the other sphere onto the part of the sphere that is seen")
     args = ap.parse_args(argv)
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
                             cwd=os.path.join(HERE, "..")).stdout.strip()
     dirty = subprocess.run(["git", "status", "--porcelain", "--", "tudorvision"], capture_output=True, text=True,
                            cwd=os.path.join(HERE, "..")).stdout.strip()
     print(f"machine: {cpu_model()}, nproc {os.cpu_count()}, Python {platform.python_version()}; commit {commit}"
-          f"{' (tudorvision/ has uncommitted changes)' if dirty else ''}; family seed {args.seed}, n {args.n}")
+          f"{' (tudorvision/ has uncommitted changes)' if dirty else ''}; family seed {args.seed}, n {args.n}, "
+          f"user {args.user}")
     rows, notes, refusals = [], set(), []
     t_render = t_ours = t_peer = 0.0
     for params in sample_family(args.seed, args.n, textures=[] if args.procedural else None):
@@ -320,7 +380,7 @@ def main(argv=None) -> int:
         t_render += time.perf_counter() - t0
         if scene.note:
             notes.add(scene.note)
-        r, refused, to, tp = evaluate(scene)
+        r, refused, to, tp = evaluate(scene, args.user)
         rows += r
         t_ours += to
         t_peer += tp
@@ -341,6 +401,7 @@ def main(argv=None) -> int:
     if args.json:
         with open(args.json, "w") as fh:
             json.dump({"commit": commit, "n": args.n, "seed": args.seed, "static_frames": args.static_frames,
+                       "user": args.user,
                        "summary": summary,
                        "refused": refusals}, fh, indent=1)
     return 0

@@ -165,3 +165,25 @@ def test_specular_peaks_at_the_mirror_direction():
     assert spec[..., 0].max() == pytest.approx(1.0, abs=0.05)
     with pytest.raises(ValueError, match="shininess"):
         specular_radiance(cam, render_gbuffer(cam, scene), scene.lights, [1], strength=1.0, shininess=0)
+
+
+def test_sphere_masks_are_what_is_seen_of_each_sphere():
+    """``sphere_masks``: a sphere's mask lies within its own silhouette (the sphere ray-cast alone) and is most of
+    it; with the occluder in front of one sphere, that sphere's mask loses pixels and the other's does not."""
+    base = sample_scene_params(np.random.default_rng(5), textures=[])
+    base = type(base)(**{**asdict(base), "f_px": 1400.0, "distance_m": 1.6, "sphere_radius_m": 0.04,
+                         "aim_offset_m": (0.0, 0.0, 0.0)})
+    clear = render_family_scene(type(base)(**{**asdict(base), "occluded_sphere": None}))
+    hidden = render_family_scene(type(base)(**{**asdict(base), "occluded_sphere": "red"}))
+    from tudorvision.sim.scenes import arm_geometry_from_joints
+    centres = arm_geometry_from_joints(base.theta_rad).sphere_centers_base
+    for cam in ("left", "right"):
+        for s in ("red", "green"):
+            m = clear.sphere_masks[cam][s]
+            assert m.shape == clear.frames[cam].shape[:2] and m.dtype == bool
+            alone = render_gbuffer(clear.cameras[cam], Scene(static=[Sphere(center=centres[s],
+                                                                            radius=base.sphere_radius_m)],
+                                                             lights=[AmbientLight()])).object_id == 1
+            assert not (m & ~alone).any() and m.sum() > 0.5 * alone.sum()
+        assert hidden.sphere_masks[cam]["red"].sum() < clear.sphere_masks[cam]["red"].sum()
+        assert np.array_equal(hidden.sphere_masks[cam]["green"], clear.sphere_masks[cam]["green"])

@@ -275,6 +275,9 @@ class FamilyScene:
     static_frames : tuple of dict
         More frames of the same static view (``{"left", "right"}`` each), every one with its own sensor noise
         (and JPEG): a static sphere recorded for a while (empty unless asked for).
+    sphere_masks : dict
+        ``sphere_masks[camera][sphere]``: (H, W) bool, the pixels where the sphere is seen (not hidden by the
+        other sphere, a link or the occluder): what a user sees to click on.
     """
 
     params: SceneParams
@@ -286,6 +289,7 @@ class FamilyScene:
     centers_left: dict
     note: str = ""
     static_frames: tuple = ()
+    sphere_masks: dict | None = None
 
 
 def apparent_radius_px(camera: PinholeCamera, center_world, radius_m: float) -> float:
@@ -401,7 +405,7 @@ def render_family_scene(params: SceneParams, *, static_frames: int = 0) -> Famil
     ids = scene.object_ids()
     sphere_ids = [ids["red_sphere"], ids["green_sphere"]]
     sensor = SensorModel(gain=p.exposure_gain, full_well_e=p.full_well_e, read_noise_e=p.read_noise_e)
-    frames, picks, uv_true, radius_px = {}, {}, {}, {}
+    frames, picks, uv_true, radius_px, masks = {}, {}, {}, {}, {}
     more = [{} for _ in range(int(static_frames))]
     rng_more = np.random.default_rng([p.seed, 1])
 
@@ -414,8 +418,10 @@ def render_family_scene(params: SceneParams, *, static_frames: int = 0) -> Famil
 
     for name, cam in cams.items():
         rad = render_radiance(cam, scene, 0.0)
-        rad = rad + specular_radiance(cam, render_gbuffer(cam, scene), lights, sphere_ids,
+        gbuffer = render_gbuffer(cam, scene)
+        rad = rad + specular_radiance(cam, gbuffer, lights, sphere_ids,
                                       strength=p.specular_strength, shininess=p.shininess)
+        masks[name] = {s: gbuffer.object_id == ids[f"{s}_sphere"] for s in SPHERES}
         rad *= np.asarray(p.wb_gains, np.float32)
         for store in (frames, picks):
             store[name] = expose(rad, rng)
@@ -427,4 +433,5 @@ def render_family_scene(params: SceneParams, *, static_frames: int = 0) -> Famil
     T_left_world = np.linalg.inv(cams["left"].T_world_cam)
     centers_left = {s: T_left_world[:3, :3] @ arm.sphere_centers_base[s] + T_left_world[:3, 3] for s in SPHERES}
     return FamilyScene(params=p, frames=frames, pick_frames=picks, cameras=cams, uv_true=uv_true,
-                       radius_px=radius_px, centers_left=centers_left, note=note, static_frames=tuple(more))
+                       radius_px=radius_px, centers_left=centers_left, note=note, static_frames=tuple(more),
+                       sphere_masks=masks)
