@@ -8,7 +8,9 @@ link occlusion) this
 - simulates a user's picks on the pick frames (the same view, independent
   noise): centre pixel and an edge pixel at 80 % of the apparent radius in a
   random direction, each with ~1 px of pick error (Gaussian, sigma 0.7 px
-  per axis, then rounded to an integer pixel as a click is);
+  per axis, then rounded to an integer pixel as a click is); ``--user sees``: a
+  click that would land on an occluder or the other sphere moves onto the
+  seen part of the sphere (the lab's ``FamilyScene.sphere_masks``);
 - fits one colour model per pick (``fit_color_model``); a refused pick leaves
   that sphere untracked in that set-up (counted as not found);
 - runs ``StereoPipeline`` (one frame, tracking mode as the CLI, so the first
