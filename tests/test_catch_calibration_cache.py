@@ -58,6 +58,17 @@ def test_a_cached_calibration_from_other_code_is_computed_again(tmp_path):
         assert not rep3["cached"]
         np.testing.assert_allclose(T3, T1, atol=1e-9)
         assert json.loads(path.read_text())["code"] == cal.calibration_code_hash()   # replaced
+        # this code's entry, damaged (not a rigid 4x4 transform, no report): computed again, not read
+        path.write_text(json.dumps(dict(entry, T_base_cam=[[1.0, 2.0], [3.0, 4.0]])))
+        cal._MEMORY.clear()
+        T4, rep4 = _short_calibration(tmp_path)
+        assert not rep4["cached"]
+        np.testing.assert_allclose(T4, T1, atol=1e-9)
+        assert cal._entry_ok(entry) and cal._entry_ok(json.loads(path.read_text()))
+        for damaged in (dict(entry, T_base_cam_seed="x"), dict(entry, T_base_cam=(2 * np.eye(4)).tolist()),
+                        dict(entry, T_base_cam=np.full((4, 4), np.nan).tolist()),
+                        {k: v for k, v in entry.items() if k != "report"}, [entry], None):
+            assert not cal._entry_ok(damaged)
     finally:
         cal._MEMORY.clear()
 

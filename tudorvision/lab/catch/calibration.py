@@ -351,6 +351,22 @@ def check_shipped_calibration(options, params, T_base_cam_true, cache_dir, *, de
     return out
 
 
+def _entry_ok(entry) -> bool:
+    """Whether a cached or shipped calibration entry holds two rigid 4x4 transforms and a report (a damaged or
+    foreign file is computed again, not read)."""
+    if not isinstance(entry, dict) or not isinstance(entry.get("report"), dict):
+        return False
+    for name in ("T_base_cam", "T_base_cam_seed"):
+        try:
+            T = np.asarray(entry.get(name), float)
+        except (TypeError, ValueError):
+            return False
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)) or not np.allclose(T[3], [0, 0, 0, 1]) \
+                or not np.allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-6):
+            return False
+    return True
+
+
 def _calibration_key(options, params) -> str:
     """16 hex digits naming a calibration: the sweep, its seed, the sensor, the method (and what it uses)."""
     from ..data_collection import robot_key
@@ -434,10 +450,11 @@ def calibrate_wall_camera(options, params, T_base_cam_true, *, deflection=None,
             cached = json.loads(path.read_text())
         except (OSError, ValueError):
             cached = None
-        if not isinstance(cached, dict) or cached.get("code") != code:
+        if not _entry_ok(cached) or cached.get("code") != code:
             cached = None                   # written by other code (or damaged): computed again, then replaced
     if cached is None and packaged:
         cached = _packaged(key)
+        cached = cached if _entry_ok(cached) else None
     if cached is not None:
         T = np.asarray(cached["T_base_cam"], float)
         rep = dict(cached["report"])
