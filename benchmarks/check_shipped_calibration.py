@@ -1,5 +1,8 @@
 """Maintainer check: the catch demo's shipped wall-camera calibration against a fresh computation.
 
+With it, the wall camera's depth-pattern calibration (``depth_pattern_<key>.yaml``, 30 rendered wall frames, about
+9 s), which the calibration and every demo read: compared bit for bit, shipped with ``--ship`` under today's key.
+
 The default placement's calibration ships in ``tudorvision/catch/data/wall_calibration_<key>.npz``
 so that ``make demo`` and every experiment read it instead of rendering and tracking the
 2400-frame disc sweep (about 3 min on one core). The shipped file names the code that computed it
@@ -35,7 +38,7 @@ def main(argv=None) -> int:
 
     import numpy as np
 
-    from tudorvision.lab.catch.calibration import check_shipped_calibration
+    from tudorvision.lab.catch.calibration import check_shipped_calibration, ship_depth_pattern
     from tudorvision.lab.catch.run import demo_kinematics
     from tudorvision.lab.catch.scenario import CatchScenario
     from tudorvision.lab.catch_demo import DemoOptions
@@ -44,14 +47,18 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         options, params = DemoOptions(render=False, cache_dir=tmp), load_robot_params()
-        T_true = CatchScenario(options, params, np.deg2rad([0.0, 90.0, 0.0])).T_base_cam   # the throws' camera
+        world = CatchScenario(options, params, np.deg2rad([0.0, 90.0, 0.0]))
+        T_true, cam = world.T_base_cam, world.camera                                         # the throws' camera
+        pattern = ship_depth_pattern(options, cam.K, cam.width, cam.height, ship=args.ship)
         res = check_shipped_calibration(options, params, T_true, tmp, ship=args.ship, atol=args.atol,
                                         deflection=demo_kinematics(options, params)[0].deflection)
+    res["depth_pattern"] = pattern
     res["seconds"] = round(time.perf_counter() - t0, 1)
     print(json.dumps(res, indent=1))
     if args.ship:
         return 0
-    same = res["shipped"] and res["shipped_code"] == res["code"] and res["max_abs_difference"] <= args.atol
+    same = res["shipped"] and res["shipped_code"] == res["code"] and res["max_abs_difference"] <= args.atol \
+        and pattern["shipped"] and pattern["max_abs_difference"] == 0.0
     if not same:
         print("the shipped calibration is not this code's: run with --ship", file=sys.stderr)
     return 0 if same else 1

@@ -98,6 +98,31 @@ def test_the_shipped_calibration_is_this_codes_and_read_for_the_default_placemen
     assert rep["error_at_arm_m"] < 0.01                    # the shipped calibration is a good one
 
 
+def test_the_default_depth_pattern_is_shipped_for_this_code_and_read_without_rendering(tmp_path, monkeypatch):
+    """The wall camera's depth-pattern calibration of the default placement is shipped under today's key (else:
+    ``benchmarks/check_shipped_calibration.py --ship``): read from the package, nothing rendered or written."""
+    import tudorvision.lab.catch.calibration as cal
+    import tudorvision.lab.depth_wall as depth_wall
+    from tudorvision.lab.catch.scenario import CatchScenario
+    from tudorvision.robot import load_robot_params
+
+    o = DemoOptions(throws=1, render=False, cache_dir=str(tmp_path))
+    cam = CatchScenario(o, load_robot_params(), np.deg2rad([0.0, 90.0, 0.0])).camera
+
+    def no_render(*a, **k):
+        raise AssertionError("the shipped depth pattern was not read: run benchmarks/check_shipped_calibration.py "
+                             "--ship")
+
+    monkeypatch.setattr(depth_wall, "render_wall_frames", no_render)
+    cal._MEMORY.clear()
+    try:
+        corr = cal.wall_depth_pattern(o, cam.K, cam.width, cam.height)
+    finally:
+        cal._MEMORY.clear()
+    assert tuple(corr.image_size) == (cam.width, cam.height) and not list(tmp_path.iterdir())
+    assert len(list(Path(cal.__file__).resolve().parents[2].joinpath("catch", "data").glob("depth_pattern_*"))) == 1
+
+
 def test_the_code_hash_covers_every_file_that_runs_in_a_calibration(tmp_path):
     """A short calibration profiled: every package file with code that ran is in ``CODE_FILES`` (or exempt: checks
     and file writes), so a change to any of them names other code and the shipped file is checked again."""

@@ -34,6 +34,7 @@ import numpy as np
 __all__ = ["wall_camera_position_world", "calibrate_wall_camera", "wall_depth_sensor", "wall_depth_pattern",
            "WALL_CAMERA_AIM_HEIGHT_M", "CALIBRATION_METHODS", "SWEEP_THETA2_DEG", "YAW_THETA1_RANGE_DEG", "YAW_POSES",
            "YAW_THETA2_DEG", "ship_calibration", "check_shipped_calibration", "shipped_calibration_codes",
+           "ship_depth_pattern",
            "calibration_code_hash", "CODE_FILES", "CODE_EXEMPT"]
 
 #: ``DemoOptions.calibration_method``: the seed's sweep construction alone, refined in the sweep plane
@@ -157,6 +158,8 @@ def wall_depth_pattern(options, K, width: int, height: int):
     and camera, and in ``options.cache_dir`` as OpenCV YAML (``depth_pattern_<key>.yaml``, written whole or not
     at all; the key names the calibration's code): a worker process of an experiment reads it there instead of
     rendering and fitting again (about 9 s a session); a file that cannot be read is computed again and replaced.
+    The default placement's is shipped with the package (:func:`ship_depth_pattern`), read when ``cache_dir``
+    has none.
 
     Parameters
     ----------
@@ -172,35 +175,109 @@ def wall_depth_pattern(options, K, width: int, height: int):
     -------
     tudorvision.rgbd.depth_pattern.DepthPatternCorrection or None
     """
-    from ..._checks import TudorVisionError
-    from ...rgbd.depth_pattern import calibrate_depth_pattern, read_depth_pattern, write_depth_pattern
-    from ..depth_wall import render_wall_frames
+    from ...rgbd.depth_pattern import write_depth_pattern
 
     if not options.depth_pattern_correction:
         return None
-    sensor = wall_depth_sensor(options)
-    key_src = json.dumps({"sensor": repr(sensor), "K": np.asarray(K, float).round(9).tolist(), "size": [width, height],
-                          "seed": int(options.calibration_seed), "code": calibration_code_hash()}, sort_keys=True)
-    key = "pattern_" + hashlib.sha1(key_src.encode()).hexdigest()[:16]
+    key = _depth_pattern_key(options, K, width, height)
     if key in _MEMORY:
         return _MEMORY[key]
     path = Path(options.cache_dir) / f"depth_{key}.yaml"
-    if path.is_file():
-        try:
-            corr = read_depth_pattern(path)
-        except TudorVisionError:
-            corr = None                     # damaged: computed again below, and replaced
-        if corr is not None and tuple(corr.image_size) == (int(width), int(height)):
+    for source in (path, _packaged_pattern_path(key)):
+        corr = _read_pattern(source, width, height)
+        if corr is not None:
             _MEMORY[key] = corr
             return corr
-    walls = render_wall_frames(K, width, height, sensor, np.random.default_rng([int(options.calibration_seed), 16]))
-    corr = calibrate_depth_pattern(walls)
+    corr = _compute_depth_pattern(options, K, width, height)
     _MEMORY[key] = corr
     try:
         write_depth_pattern(path, corr)     # whole or not at all: another worker may be reading it
     except (OSError, ValueError):
         pass                                # the cache is an optimisation only; the memory cache serves
     return corr
+
+
+def _depth_pattern_key(options, K, width: int, height: int) -> str:
+    """``pattern_<16 hex digits>``: the sensor, the camera, the seed and the calibration's code."""
+    key_src = json.dumps({"sensor": repr(wall_depth_sensor(options)), "K": np.asarray(K, float).round(9).tolist(),
+                          "size": [width, height], "seed": int(options.calibration_seed),
+                          "code": calibration_code_hash()}, sort_keys=True)
+    return "pattern_" + hashlib.sha1(key_src.encode()).hexdigest()[:16]
+
+
+def _packaged_pattern_path(key: str) -> Path:
+    from ..data_collection import PACKAGED_DIR
+
+    return PACKAGED_DIR / f"depth_{key}.yaml"
+
+
+def _read_pattern(path: Path, width: int, height: int):
+    """The correction in ``path`` for a ``width x height`` image, or None (absent, damaged, another size)."""
+    from ..._checks import TudorVisionError
+    from ...rgbd.depth_pattern import read_depth_pattern
+
+    if not path.is_file():
+        return None
+    try:
+        corr = read_depth_pattern(path)
+    except TudorVisionError:
+        return None                         # damaged: computed again, and replaced in the cache
+    return corr if tuple(corr.image_size) == (int(width), int(height)) else None
+
+
+def _compute_depth_pattern(options, K, width: int, height: int):
+    from ...rgbd.depth_pattern import calibrate_depth_pattern
+    from ..depth_wall import render_wall_frames
+
+    walls = render_wall_frames(K, width, height, wall_depth_sensor(options),
+                               np.random.default_rng([int(options.calibration_seed), 16]))
+    return calibrate_depth_pattern(walls)
+
+
+def ship_depth_pattern(options, K, width: int, height: int, *, ship: bool = False) -> dict:
+    """Compute the depth-pattern calibration of ``options``' wall camera afresh, compare it with the shipped one and,
+    with ``ship``, ship it (for maintainers, with :func:`check_shipped_calibration`).
+
+    Only a file named by today's key (which names the code) is read by :func:`wall_depth_pattern`: after a change
+    to :data:`CODE_FILES` the shipped file is simply not found (computed, about 9 s, and cached) until shipped anew.
+
+    Parameters
+    ----------
+    options : DemoOptions
+        The sensor, ``calibration_seed``, ``depth_pattern_correction`` (must be on).
+    K : array_like, shape (3, 3)
+        The wall camera's intrinsics, pixels.
+    width, height : int
+        Its image size, pixels.
+    ship : bool
+        Write the fresh calibration into the package data, and remove the shipped patterns of other keys.
+
+    Returns
+    -------
+    dict
+        ``shipped`` (bool: a file of today's key is shipped), ``max_abs_difference`` (its grid against the fresh
+        one, 1/m; None without one), ``shipped_to`` (the path written, or None), ``removed`` (file names).
+    """
+    from ...rgbd.depth_pattern import write_depth_pattern
+
+    if not options.depth_pattern_correction:
+        raise ValueError("ship_depth_pattern: the options leave the depth-pattern correction out")
+    key = _depth_pattern_key(options, K, width, height)
+    target = _packaged_pattern_path(key)
+    shipped = _read_pattern(target, width, height)
+    fresh = _compute_depth_pattern(options, K, width, height)
+    out = {"shipped": shipped is not None, "shipped_to": None, "removed": [],
+           "max_abs_difference": None if shipped is None else
+           float(np.max(np.abs(np.asarray(fresh.grid_inv_m) - np.asarray(shipped.grid_inv_m))))}
+    if ship:
+        if shipped is None or out["max_abs_difference"] > 0.0:
+            write_depth_pattern(target, fresh)
+        out["shipped_to"] = str(target)
+        for other in sorted(target.parent.glob("depth_pattern_*.yaml")):
+            if other != target:
+                other.unlink()
+                out["removed"].append(other.name)
+    return out
 
 
 def _sweep_params(options, params):
