@@ -83,7 +83,7 @@ TARGET_MM, TARGET_PX, MIN_FOUND = 1.0, 0.25, 0.95   # issue 15 (centre read as t
 RADIUS_CHECK: dict = {}
 
 
-def _on_seen_part(mask, c, e, uv, r):
+def _on_seen_part(mask, c, e, uv):
     """The clicks ``c`` (centre) and ``e`` (edge) of a user who clicks on what is seen of the sphere (``mask``):
     a centre on a hidden pixel moves to the nearest seen pixel at least 1 px inside the seen part; an edge on a
     hidden pixel turns about the true centre ``uv`` (then shrinks towards it) to the nearest seen one; None
@@ -98,26 +98,17 @@ def _on_seen_part(mask, c, e, uv, r):
     if not mask.any():
         return None
     if not seen(c):
-        inside = cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, 3) >= min(
-            2.0, float(cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, 3).max()))
-        vv, uu = np.nonzero(inside)
+        depth = cv2.distanceTransform(mask.astype(np.uint8), cv2.DIST_L2, 3)
+        vv, uu = np.nonzero(depth >= min(2.0, float(depth.max())))
         k = int(np.argmin((uu - c[0]) ** 2 + (vv - c[1]) ** 2))
         c = np.array([uu[k], vv[k]], float)
     if not seen(e):
         d = e - uv
         a0, rad = np.arctan2(d[1], d[0]), max(float(np.hypot(*d)), 1.0)
-        for scale in (1.0, 0.75, 0.5):
-            for da in np.deg2rad(np.arange(10, 181, 10)):
-                for a in (a0 + da, a0 - da):
-                    q = np.rint(uv + scale * rad * np.array([np.cos(a), np.sin(a)]))
-                    if seen(q):
-                        e = q
-                        break
-                else:
-                    continue
-                break
-            if seen(e):
-                break
+        turned = (np.rint(uv + scale * rad * np.array([np.cos(a), np.sin(a)]))
+                  for scale in (1.0, 0.75, 0.5) for da in np.deg2rad(np.arange(10, 181, 10))
+                  for a in (a0 + da, a0 - da))
+        e = next((q for q in turned if seen(q)), e)
     if not seen(e) or np.all(e == c):
         e = c + [1.0, 0.0]
     return c, e
@@ -142,7 +133,7 @@ def simulated_picks(scene, rng, user="issue"):
             if np.all(e == c):
                 e = c + [1.0, 0.0]
             if user == "sees":
-                ce = _on_seen_part(scene.sphere_masks[cam][s], c, e, uv, r)
+                ce = _on_seen_part(scene.sphere_masks[cam][s], c, e, uv)
                 if ce is None:
                     continue
                 c, e = ce
