@@ -232,3 +232,34 @@ def test_controlled_arm_passes_its_reference_to_the_damper():
     ca.set_velocity([0.0, -0.2, 0.0])
     ca.step()
     assert model.calls[-1][2][0][1] < 0
+
+
+class _PredictOnly:
+    """The identified model seen through ``predict`` alone (a user's own model has no ``predict_one``)."""
+
+    def __init__(self, model):
+        self.model = model
+
+    def predict(self, theta, dtheta, ddtheta, payload_kg):
+        return self.model.predict(theta, dtheta, ddtheta, payload_kg)
+
+
+def test_model_assisted_damper_takes_the_identified_models_fast_path_with_the_same_output():
+    """The identified model's one-sample path and a model with only ``predict`` damp identically, bit for bit."""
+    from tudorvision.joint.strain_dynamics import StrainDynamicsModel
+    dt, n = 1e-3, 1500
+    th2, dth2, ddth2 = _motion(n, dt)
+    rng = np.random.default_rng(3)
+    model = StrainDynamicsModel(chi=rng.normal(0.0, 1e-4, (2, 32)))
+    cfg = DampingConfig(law="proportional", k_eps=(0.0, 100.0, 100.0), n_window=100)
+    strain = rng.normal(0.0, 2e-5, (n, 4))
+    fast = StrainDamper(cfg, strain[0], dt, strain_model=model, payload_kg=0.2)
+    slow = StrainDamper(cfg, strain[0], dt, strain_model=_PredictOnly(model), payload_kg=0.2)
+    assert fast._predict_one is not None and slow._predict_one is None
+    for k in range(n):
+        ref = ([0.0, th2[k], -0.3 * th2[k]], [0.0, dth2[k], -0.3 * dth2[k]], [0.0, ddth2[k], -0.3 * ddth2[k]])
+        assert fast.step(strain[k], ref) == slow.step(strain[k], ref)
+        if k == n // 2:
+            fast.set_payload(0.35)
+            slow.set_payload(0.35)
+    assert fast.eps_tilde == slow.eps_tilde

@@ -1,6 +1,8 @@
 """Block-wise fit and validation of the strain-referred dynamics (shared by the collision core and the damper)."""
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tudorvision.joint.strain_dynamics import StrainDynamicsModel
 from tudorvision.joint.identification import fit_with_validation
@@ -40,3 +42,20 @@ def test_rejects_bad_input():
         fit_with_validation([{"t": [0.0], "theta": [], "d": [], "dd": [], "m": []}])
     with pytest.raises(ValueError, match="block_s"):
         fit_with_validation([{}], block_s=0.0)
+
+
+_angle = st.floats(-4.0, 4.0, allow_nan=False)
+_rate = st.floats(-20.0, 20.0, allow_nan=False)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(_angle, min_size=3, max_size=3), st.lists(_rate, min_size=3, max_size=3),
+       st.lists(_rate, min_size=3, max_size=3), st.floats(0.0, 1.0), st.integers(0, 2**32 - 1))
+def test_the_one_sample_prediction_is_predict_bit_for_bit(theta, dtheta, ddtheta, payload_kg, seed):
+    """The joint layer's 2 kHz path (``predict_one``) gives exactly :meth:`predict`'s numbers for one row."""
+    chi = np.random.default_rng(seed).normal(0.0, 1e-4, (2, 32))
+    model = StrainDynamicsModel(chi=chi)
+    want = model.predict(np.array([theta]), np.array([dtheta]), np.array([ddtheta]), payload_kg)[0]
+    got = model.predict_one(theta, dtheta, ddtheta, payload_kg)
+    assert got.shape == (2,)
+    np.testing.assert_array_equal(got, want)

@@ -175,3 +175,15 @@ def test_bad_arguments_raise():
         modal_basis(P.link2, -0.1, 0.0)
     with pytest.raises(ValueError, match="derivative"):
         modal_basis(P.link2, 0.1, 0.0).shape([0.1], 4)
+
+
+def test_shape_at_one_point_is_shape_and_read_only():
+    """The arm's probes read the mode shapes at fixed points through ``shape_at``: the same numbers, remembered."""
+    p = load_robot_params()
+    b = modal_basis(p.link3, 0.2, 1e-3)
+    for x in (0.0, 0.17, p.link3.length_m):
+        row = b.shape_at(x)
+        np.testing.assert_array_equal(row, b.shape([x])[:, 0])
+        assert b.shape_at(x) is row                       # remembered
+        with pytest.raises(ValueError):
+            row[0] = 1.0                                  # a shared row cannot be changed by a caller

@@ -501,6 +501,8 @@ class StrainDamper:
             raise TypeError("strain_model: expected an object with predict(theta, dtheta, ddtheta, payload_kg), "
                             f"got {type(strain_model).__name__}")
         self.strain_model = strain_model
+        # the identified model's one-sample path (same numbers as predict, a fifth of its cost)
+        self._predict_one = getattr(strain_model, "predict_one", None)
         self.payload_kg = check_mass(payload_kg)
         self._model_ch = list(config.gauge_of_joint[1:3])
         self._model0 = None         # model strains at the first referenced step
@@ -609,8 +611,11 @@ class StrainDamper:
 
     def _model_corrected(self, strain, reference):
         """``strain`` minus the model's expected change of the root strains since the first call."""
-        th, dth, ddth = (np.asarray(x, dtype=np.float64).reshape(1, 3) for x in reference)
-        m = np.asarray(self.strain_model.predict(th, dth, ddth, self.payload_kg), dtype=np.float64).reshape(-1)
+        if self._predict_one is not None:
+            m = self._predict_one(*reference, self.payload_kg)
+        else:
+            th, dth, ddth = (np.asarray(x, dtype=np.float64).reshape(1, 3) for x in reference)
+            m = np.asarray(self.strain_model.predict(th, dth, ddth, self.payload_kg), dtype=np.float64).reshape(-1)
         if self._model0 is None:
             self._model0 = m.copy()
         out = [float(x) for x in strain]

@@ -139,6 +139,33 @@ class StrainDynamicsModel:
         """
         return regressor_payload(theta, dtheta, ddtheta, payload_kg) @ self.chi.T
 
+    def predict_one(self, theta, dtheta, ddtheta, payload_kg: float) -> np.ndarray:
+        """:meth:`predict` for one sample, bit for bit, without its checks (the layer's 2 kHz path).
+
+        Parameters
+        ----------
+        theta, dtheta, ddtheta : sequence of 3 floats
+            Joint angles (rad), velocities (rad/s), accelerations (rad/s^2); the caller checks them.
+        payload_kg : float
+            Payload mass, kg.
+
+        Returns
+        -------
+        eps : ndarray, shape (2,)
+            Predicted link-2 and link-3 root strains, m/m.
+        """
+        t2, t3 = float(theta[1]), float(theta[2])
+        cs = np.cos(np.array([t3, t2, t2 + t3]))
+        sn = np.sin(np.array([t3, t2, t2 + t3]))
+        c3, c2, c23 = cs
+        s3, s2, s23 = sn
+        d2, d3 = np.float64(dtheta[1]), np.float64(dtheta[2])
+        a2, a3 = np.float64(ddtheta[1]), np.float64(ddtheta[2])
+        phi = np.array([a2, a3, c3 * a2, c3 * a3, s3 * d2 * d2, s3 * d2 * d3, s3 * d3 * d3,
+                        c2, s2, c23, s23, 1.0, c2 * s23, c23 * s23, c2 * s2, c23 * s2])
+        row = np.concatenate([phi, np.float64(payload_kg) * phi]).reshape(1, 2 * N_PARAMS)
+        return (row @ self.chi.T).reshape(2)
+
     @staticmethod
     def terms(chi_m: np.ndarray, theta3: float, theta2: float, d2: float, d3: float):
         """``I_eps`` (2x2), ``dI_eps/dtheta3`` (2x2), Coriolis ``C_eps dtheta`` (2,), ``g_eps`` (2,).

@@ -587,7 +587,7 @@ class ElasticArm:
         ws = ws + x * lm.static_hub_angle(*loads)
         eta = self.eta2 if link == 2 else self.eta3
         nu = np.asarray(eta) - lm.basis.static_coordinates(*loads)
-        w = float(ws) + float(nu @ lm.basis.shape([x])[:, 0]) if self.config.elastic else 0.0
+        w = float(ws) + float(nu @ lm.basis.shape_at(x)) if self.config.elastic else 0.0
         a = th[1]
         if link == 2:
             r = x * math.cos(a) - w * math.sin(a)
@@ -630,13 +630,13 @@ class ElasticArm:
             if ob.probe_link == 2:
                 r = x * math.cos(a)
                 J = np.stack([r * e_t, x * ey2, np.zeros(3)], axis=1)
-                q2 += self.link2.basis.shape([x])[:, 0] * float(F @ ey2)
+                q2 += self.link2.basis.shape_at(x) * float(F @ ey2)
             else:
                 r = b.l2 * math.cos(a) + x * math.cos(bb)
                 ey3 = np.array([-math.sin(bb) * c1, -math.sin(bb) * s1, math.cos(bb)])
                 J = np.stack([r * e_t, b.l2 * ey2 + x * ey3, x * ey3], axis=1)
                 fy3 = float(F @ ey3)
-                q3 += self.link3.basis.shape([x])[:, 0] * fy3
+                q3 += self.link3.basis.shape_at(x) * fy3
                 q2 += np.asarray(self.link2.phiL) * float(F @ ey2) + np.asarray(self.link2.dphiL) * x * fy3
             tau += J.T @ F
         self.contact_force = [float(v) for v in total]

@@ -245,6 +245,28 @@ class ModalBasis:
         return _shape(self.beta / self.length_m, self.coef, np.atleast_1d(np.asarray(x, float)),
                       derivative)
 
+    def shape_at(self, x: float) -> np.ndarray:
+        """``shape([x])[:, 0]``, remembered per position (read-only), shape (n_modes,).
+
+        The arm evaluates its probes at a few fixed points at 2 kHz; the values are those of
+        :meth:`shape`, bit for bit.
+
+        Examples
+        --------
+        >>> from tudorvision.robot.params import load_robot_params
+        >>> b = modal_basis(load_robot_params().link3, 0.0, 0.0)
+        >>> bool((b.shape_at(0.3) == b.shape([0.3])[:, 0]).all())
+        True
+        """
+        cache = self.__dict__.setdefault("_shape_at", {})
+        key = float(x)
+        row = cache.get(key)
+        if row is None:
+            row = self.shape([key])[:, 0]
+            row.setflags(write=False)
+            cache[key] = row
+        return row
+
     def static_coordinates(self, q_N_m: float, tip_force_N: float, tip_moment_Nm: float,
                            hub_moment_Nm: float = 0.0) -> np.ndarray:
         """Modal coordinates of the static deflection under the given loads.
