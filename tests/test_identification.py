@@ -59,3 +59,14 @@ def test_the_one_sample_prediction_is_predict_bit_for_bit(theta, dtheta, ddtheta
     got = model.predict_one(theta, dtheta, ddtheta, payload_kg)
     assert got.shape == (2,)
     np.testing.assert_array_equal(got, want)
+
+
+def test_the_one_sample_prediction_refuses_what_predict_refuses():
+    model = StrainDynamicsModel(chi=np.ones((2, 32)))
+    for k in range(6):
+        args = [[0.0, 0.3, -0.2], [0.0, 0.1, 0.0], [0.0, 0.0, 0.5]]
+        args[k // 2][1 + k % 2] = float("nan") if k % 2 else float("inf")
+        with pytest.raises(ValueError, match="NaN or infinite"):
+            model.predict([args[0]], [args[1]], [args[2]], 0.1)
+        with pytest.raises(ValueError, match="NaN or infinite"):
+            model.predict_one(*args, 0.1)

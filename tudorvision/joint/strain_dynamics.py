@@ -145,7 +145,7 @@ class StrainDynamicsModel:
         Parameters
         ----------
         theta, dtheta, ddtheta : sequence of 3 floats
-            Joint angles (rad), velocities (rad/s), accelerations (rad/s^2); the caller checks them.
+            Joint angles (rad), velocities (rad/s), accelerations (rad/s^2); joint 1 is ignored.
         payload_kg : float
             Payload mass, kg.
 
@@ -153,8 +153,15 @@ class StrainDynamicsModel:
         -------
         eps : ndarray, shape (2,)
             Predicted link-2 and link-3 root strains, m/m.
+
+        Raises
+        ------
+        ValueError
+            If an angle, velocity or acceleration of joints 2, 3 is not finite (as :meth:`predict`).
         """
         t2, t3 = float(theta[1]), float(theta[2])
+        if not math.isfinite(t2 + t3 + float(dtheta[1]) + float(dtheta[2]) + float(ddtheta[1]) + float(ddtheta[2])):
+            raise ValueError("theta, dtheta, ddtheta: contain NaN or infinite values")
         cs = np.cos(np.array([t3, t2, t2 + t3]))
         sn = np.sin(np.array([t3, t2, t2 + t3]))
         c3, c2, c23 = cs
