@@ -92,9 +92,11 @@ def test_the_demo_identifies_only_when_asked(tmp_path, monkeypatch):
     assert core.controlled.damper.strain_model is sentinel
 
 
-def test_the_shipped_model_of_the_demos_plant_is_what_identification_gives(tmp_path):
-    """The package ships the default plant's model (the demo identifies nothing); it must be today's result."""
-    from tudorvision.lab.ch10 import CATCH_IDENTIFICATION, strain_model_key
+def test_the_shipped_model_of_the_demos_plant_names_this_code(tmp_path):
+    """The package ships the default plant's model (the demo identifies nothing); it names the code that identified
+    it, and that must be today's (the identification afresh, 1-2 min, is ``benchmarks/check_shipped_calibration.py``,
+    which ships it anew)."""
+    from tudorvision.lab.ch10 import CATCH_IDENTIFICATION, identification_code_hash, strain_model_key
     from tudorvision.lab.data_collection import PACKAGED_DIR, plant_config
 
     cfg = plant_config(DemoOptions().plant)
@@ -104,20 +106,85 @@ def test_the_shipped_model_of_the_demos_plant_is_what_identification_gives(tmp_p
     assert not list(tmp_path.iterdir())                                   # read from the package
     with np.load(shipped) as z:
         np.testing.assert_array_equal(model.chi, z["chi"])
-    from tudorvision.joint.identification import fit_with_validation
-    from tudorvision.lab.ch10 import collect_aprbs_run
+        code = str(z["code"]) if "code" in z.files else None
+    assert code == identification_code_hash(), (
+        f"the shipped strain model was identified by other code ({code}, today {identification_code_hash()}): "
+        "run .venv/bin/python benchmarks/check_shipped_calibration.py --ship")
 
-    o = CATCH_IDENTIFICATION
-    runs = [collect_aprbs_run(pl, o, cfg, seed=o.seed0 + k) for k, pl in enumerate(o.plates)]
-    fresh, _ = fit_with_validation(runs)                                  # identified again: the same model
-    # compared by what it predicts: the small coefficients of the least-squares fit move by up to 25 % between
-    # numpy / LAPACK builds (the fit is ill-conditioned there), the strains it predicts by 1e-4 of their RMS; a
-    # change to the plant or the identification moves them by far more
-    for r in runs:
-        a = fresh.predict(r["theta"], r["d"], r["dd"], r["m"])
-        b = model.predict(r["theta"], r["d"], r["dd"], r["m"])
-        rel = np.sqrt(np.mean((a - b) ** 2, axis=0)) / np.sqrt(np.mean(r["eps"] ** 2, axis=0))
-        assert np.all(rel < 1e-3), rel
+
+def test_the_identification_code_hash_covers_every_file_that_runs_in_an_identification(tmp_path):
+    """A short identification profiled: every package file with code that ran is in ``IDENTIFICATION_CODE_FILES``
+    (or exempt), so a change to any of them names other code and the shipped model is checked again."""
+    import cProfile
+    import pstats
+    from pathlib import Path
+
+    import tudorvision
+    from tudorvision.lab import ch10
+
+    root = Path(tudorvision.__file__).resolve().parent
+    prof = cProfile.Profile()
+    prof.enable()
+    try:
+        ch10.identified_strain_model(PlantConfig(), Ch10Options(seconds=10.0, plates=(1,)), cache_dir=tmp_path)
+    finally:
+        prof.disable()
+    ran = {Path(f).resolve().relative_to(root).as_posix() for f, _l, _n in pstats.Stats(prof).stats
+           if Path(f).resolve().is_relative_to(root)}
+    assert "sim/arm.py" in ran and "joint/identification.py" in ran       # the profile saw the identification
+    missing = ran - set(ch10.IDENTIFICATION_CODE_FILES) - set(ch10.IDENTIFICATION_CODE_EXEMPT)
+    assert not missing, f"files that run in an identification, not in IDENTIFICATION_CODE_FILES: {sorted(missing)}"
+    assert all((root / rel).is_file() for rel in ch10.IDENTIFICATION_CODE_FILES + ch10.IDENTIFICATION_CODE_EXEMPT)
+
+
+def test_the_maintainer_check_keeps_an_equal_model_and_replaces_another(tmp_path, monkeypatch):
+    """``check_shipped_strain_model`` with the package data in a scratch folder and synthetic runs (a known
+    payload-affine model, so no simulation): a shipped model that predicts other strains is reported and, with
+    ``ship``, replaced by the fresh fit; one that predicts the same keeps its coefficients, bit for bit; both get
+    today's code hash."""
+    import tudorvision.lab.ch10 as ch10
+    import tudorvision.lab.data_collection as dc
+
+    rng = np.random.default_rng(7)
+    truth = rng.normal(0.0, 1e-4, (2, 32))
+
+    def synthetic_run(plates, options, config, *, seed, params=None):
+        r = np.random.default_rng(seed)
+        n = 2000
+        th = np.c_[np.zeros(n), r.uniform(0.1, 3.0, n), r.uniform(-1.0, 1.0, n)]
+        d, dd = np.c_[np.zeros(n), r.normal(0, 1, (n, 2))], np.c_[np.zeros(n), r.normal(0, 3, (n, 2))]
+        m = np.full(n, 0.05 + 0.1 * plates)
+        eps = StrainDynamicsModel(chi=truth).predict(th, d, dd, m) + r.normal(0, 1e-6, (n, 2))
+        return {"t": np.arange(n) * 0.01, "theta": th, "d": d, "dd": dd, "eps": eps, "m": m, "plates": plates}
+
+    monkeypatch.setattr(dc, "PACKAGED_DIR", tmp_path)
+    monkeypatch.setattr(ch10, "collect_aprbs_run", synthetic_run)
+    cfg, opts = PlantConfig(), Ch10Options(seconds=20.0, plates=(0, 2, 4))
+    path = tmp_path / f"strain_model_{ch10.strain_model_key(cfg, opts)}.npz"
+    assert ch10.check_shipped_strain_model(cfg, opts)["shipped"] is False      # nothing shipped
+    other = 1.5 * truth
+    np.savez(path, chi=other, code=np.array("0123456789abcdef"))
+    res = ch10.check_shipped_strain_model(cfg, opts)                            # compare only
+    assert res["shipped"] and res["shipped_code"] == "0123456789abcdef" and not res["same"]
+    assert res["max_relative_rms"] > 0.1 and res["shipped_to"] is None
+    with np.load(path) as z:
+        np.testing.assert_array_equal(z["chi"], other)                         # untouched without ship
+    res = ch10.check_shipped_strain_model(cfg, opts, ship=True)
+    assert not res["kept_coefficients"] and res["shipped_to"] == str(path)
+    with np.load(path) as z:
+        fresh = np.array(z["chi"])
+        assert str(z["code"]) == ch10.identification_code_hash()
+    run = synthetic_run(2, opts, cfg, seed=99)                                  # the fresh fit was shipped
+    a = StrainDynamicsModel(chi=fresh).predict(run["theta"], run["d"], run["dd"], run["m"])
+    b = StrainDynamicsModel(chi=truth).predict(run["theta"], run["d"], run["dd"], run["m"])
+    assert np.sqrt(np.mean((a - b) ** 2)) < 1e-2 * np.sqrt(np.mean(b ** 2))
+    nudged = fresh * (1.0 + 1e-9)                                               # the same model by its predictions
+    np.savez(path, chi=nudged, code=np.array("0123456789abcdef"))
+    res = ch10.check_shipped_strain_model(cfg, opts, ship=True)
+    assert res["same"] and res["kept_coefficients"] and res["max_relative_rms"] < 1e-6
+    with np.load(path) as z:
+        np.testing.assert_array_equal(z["chi"], nudged)                         # the shipped numbers stay
+        assert str(z["code"]) == ch10.identification_code_hash()
 
 
 def test_catch_cli_no_model_assist(tmp_path, capsys, monkeypatch):

@@ -33,7 +33,8 @@ import numpy as np
 
 __all__ = ["SEED_TABLE_10_1", "Ch10Options", "collect_aprbs_run", "reproduce_table_10_1", "summarize_table_10_1",
            "with_current_noise", "format_table_10_1", "reference_friction", "identified_strain_model",
-           "strain_model_key", "CATCH_IDENTIFICATION"]
+           "strain_model_key", "CATCH_IDENTIFICATION", "IDENTIFICATION_CODE_FILES", "IDENTIFICATION_CODE_EXEMPT",
+           "identification_code_hash", "check_shipped_strain_model"]
 
 _PAYLOADS_G = (0, 100, 200, 300, 400)
 
@@ -305,6 +306,100 @@ def identified_strain_model(config=None, options: Ch10Options = CATCH_IDENTIFICA
         with atomic_path(path) as tmp:
             np.savez_compressed(tmp, chi=model.chi)
     return model
+
+
+#: The sources (relative to the package) whose code decides an identification (:func:`identified_strain_model`):
+#: every file whose code runs in one (``tests/test_catch_damping_model.py`` profiles a short identification
+#: against this list) and the robot's parameter file. The shipped model of the catch demo's plant names this
+#: code (:func:`identification_code_hash`); :func:`check_shipped_strain_model` identifies it afresh.
+IDENTIFICATION_CODE_FILES = (
+    "joint/cascade.py", "joint/controlled.py", "joint/current_model.py", "joint/damping.py", "joint/damping_gains.py",
+    "joint/identification.py", "joint/metrics.py", "joint/planner.py", "joint/strain_dynamics.py", "lab/ch10.py",
+    "lab/ch8_experiments.py", "lab/data_collection.py", "robot/actuators.py", "robot/params.py",
+    "robot/data/tudor.yaml", "sim/arm.py", "sim/beam.py", "sim/joint_compliance.py", "sim/link_modes.py",
+    "sim/model.py")
+#: Files whose code runs in an identification but decides no number of it: checks, imports, file writes, the
+#: experiment runner's bookkeeping, the hash itself.
+IDENTIFICATION_CODE_EXEMPT = ("_checks.py", "_lazy.py", "io/__init__.py", "io/atomic.py", "lab/code_hash.py",
+                              "lab/provenance.py", "lab/runner.py", "lab/runner_progress.py")
+
+
+def identification_code_hash() -> str:
+    """A short hash of :data:`IDENTIFICATION_CODE_FILES` (:func:`tudorvision.lab.code_hash.source_hash`).
+
+    Returns
+    -------
+    str
+        16 hex digits.
+    """
+    from .code_hash import source_hash
+
+    return source_hash(IDENTIFICATION_CODE_FILES)
+
+
+def check_shipped_strain_model(config, options: Ch10Options = None, *, ship: bool = False,
+                               rtol: float = 1e-3) -> dict:
+    """Identify a plant's strain model afresh and compare it with the one the package ships (for maintainers).
+
+    The catch demo's plant ships its model (``tudorvision/catch/data/strain_model_<key>.npz``, named by the
+    plant and the runs, and holding the code hash it was identified with). Compared by what they predict:
+    the small coefficients of the least-squares fit move by up to 25 % between numpy / LAPACK builds (the
+    fit is ill-conditioned there) while the strains move by 1e-4 of their RMS; a change to the plant or the
+    identification moves them by far more. About 1-2 min on one core for :data:`CATCH_IDENTIFICATION`.
+
+    Parameters
+    ----------
+    config : PlantConfig
+        The plant (the demo's: ``plant_config(DemoOptions().plant)``).
+    options : Ch10Options, optional
+        The runs (default :data:`CATCH_IDENTIFICATION`).
+    ship : bool
+        Write the shipped file with today's code hash: the shipped coefficients where the fresh model
+        predicts the same strains within ``rtol`` (every recorded run's numbers stay, bit for bit), else
+        the fresh ones.
+    rtol : float
+        Largest RMS difference of the predicted root strains over the runs, relative to the strains' RMS,
+        that counts as the same model.
+
+    Returns
+    -------
+    dict
+        ``shipped`` (a file was shipped), ``code`` (this code's hash), ``shipped_code`` (the file's, or None),
+        ``max_relative_rms`` (None without a shipped file), ``same`` (within ``rtol``), ``shipped_to``
+        (the path written, or None), ``kept_coefficients`` (with ``ship``).
+    """
+    from ..io.atomic import atomic_path
+    from ..joint.identification import fit_with_validation
+    from ..joint.strain_dynamics import StrainDynamicsModel
+    from .data_collection import PACKAGED_DIR
+
+    options = CATCH_IDENTIFICATION if options is None else options
+    path = PACKAGED_DIR / f"strain_model_{strain_model_key(config, options)}.npz"
+    shipped_chi = shipped_code = None
+    if path.exists():
+        with np.load(path) as z:
+            shipped_chi = np.array(z["chi"])
+            shipped_code = str(z["code"]) if "code" in z.files else None
+    runs = [collect_aprbs_run(pl, options, config, seed=options.seed0 + k) for k, pl in enumerate(options.plates)]
+    fresh, _ = fit_with_validation(runs)
+    worst = None
+    if shipped_chi is not None:
+        old = StrainDynamicsModel(chi=shipped_chi)
+        worst = 0.0
+        for r in runs:
+            a = fresh.predict(r["theta"], r["d"], r["dd"], r["m"])
+            b = old.predict(r["theta"], r["d"], r["dd"], r["m"])
+            rel = np.sqrt(np.mean((a - b) ** 2, axis=0)) / np.sqrt(np.mean(r["eps"] ** 2, axis=0))
+            worst = max(worst, float(np.max(rel)))
+    code = identification_code_hash()
+    out = {"shipped": shipped_chi is not None, "code": code, "shipped_code": shipped_code,
+           "max_relative_rms": worst, "same": worst is not None and worst <= rtol, "shipped_to": None}
+    if ship:
+        keep = out["same"]
+        with atomic_path(path) as tmp:
+            np.savez_compressed(tmp, chi=shipped_chi if keep else fresh.chi, code=np.array(code))
+        out["shipped_to"], out["kept_coefficients"] = str(path), keep
+    return out
 
 
 def strain_model_key(config, options: Ch10Options) -> str:

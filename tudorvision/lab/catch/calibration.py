@@ -24,12 +24,13 @@ compares and ships it anew.
 """
 from __future__ import annotations
 
-import functools
 import hashlib
 import json
 from pathlib import Path
 
 import numpy as np
+
+from ..code_hash import source_hash
 
 __all__ = ["wall_camera_position_world", "calibrate_wall_camera", "wall_depth_sensor", "wall_depth_pattern",
            "WALL_CAMERA_AIM_HEIGHT_M", "CALIBRATION_METHODS", "SWEEP_THETA2_DEG", "YAW_THETA1_RANGE_DEG", "YAW_POSES",
@@ -67,25 +68,19 @@ CODE_FILES = ("rgbd/disc_track.py", "rgbd/disc3d.py", "rgbd/base_calib.py", "rgb
               "robot/data/tudor.yaml", "sim/_shape_core.py", "sim/arm.py", "sim/beam.py", "sim/camera.py",
               "sim/joint_compliance.py", "sim/lighting.py", "sim/link_modes.py", "sim/model.py", "sim/primitives.py",
               "sim/raycast.py", "sim/scenes.py", "sim/scenes_rgbd.py", "sim/shapes.py", "sim/solids.py")
-#: Files whose code runs in a calibration but decides no number of it: argument checks and file writes.
-CODE_EXEMPT = ("_checks.py", "io/atomic.py")
+#: Files whose code runs in a calibration but decides no number of it: argument checks, file writes, this hash.
+CODE_EXEMPT = ("_checks.py", "io/atomic.py", "lab/code_hash.py")
 
 
-@functools.lru_cache(maxsize=1)
 def calibration_code_hash() -> str:
     """A short hash of the calibration's sources (:data:`CODE_FILES`, line endings normalised; read once).
 
     Returns
     -------
     str
-        16 hex digits.
+        16 hex digits (:func:`tudorvision.lab.code_hash.source_hash`).
     """
-    root = Path(__file__).resolve().parents[2]
-    h = hashlib.sha1()
-    for rel in CODE_FILES:
-        h.update(rel.encode())
-        h.update((root / rel).read_bytes().replace(b"\r\n", b"\n"))
-    return h.hexdigest()[:16]
+    return source_hash(CODE_FILES)
 
 
 def wall_camera_position_world(options) -> np.ndarray:
