@@ -28,7 +28,7 @@ env: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/tudorvision demo --out out/demo
 
-# two worker processes (6.5-8 min on the two cores of an earlier development machine, 10.5-11 min on one twice as slow);
+# two worker processes (6.5-8 min on the two cores of an earlier development machine, 10.4-10.7 min on one twice as slow);
 # a file's tests stay on one worker
 # (module fixtures rendered once; tests/test_readme_commands.py runs its commands in order)
 test: $(STAMP)
