@@ -6,7 +6,6 @@ The shipped file itself is computed again (the full 2400-frame sweep, about 3 mi
 """
 import cProfile
 import json
-import pstats
 from pathlib import Path
 
 import numpy as np
@@ -126,10 +125,9 @@ def test_the_default_depth_pattern_is_shipped_for_this_code_and_read_without_ren
 def test_the_code_hash_covers_every_file_that_runs_in_a_calibration(tmp_path):
     """A short calibration profiled: every package file with code that ran is in ``CODE_FILES`` (or exempt: checks
     and file writes), so a change to any of them names other code and the shipped file is checked again."""
-    import tudorvision
     import tudorvision.lab.catch.calibration as cal
+    from tudorvision.lab.code_hash import PACKAGE_ROOT, files_run
 
-    root = Path(tudorvision.__file__).resolve().parent
     cal._MEMORY.clear()
     prof = cProfile.Profile()
     try:
@@ -137,15 +135,11 @@ def test_the_code_hash_covers_every_file_that_runs_in_a_calibration(tmp_path):
     finally:
         cal._MEMORY.clear()
     assert not rep["cached"]
-    ran = set()
-    for filename, _line, _name in pstats.Stats(prof).stats:
-        path = Path(filename).resolve()
-        if path.is_relative_to(root):
-            ran.add(path.relative_to(root).as_posix())
+    ran = files_run(prof)
     assert "rgbd/disc_track.py" in ran and "sim/raycast.py" in ran          # the profile saw the calibration
     missing = ran - set(cal.CODE_FILES) - set(cal.CODE_EXEMPT)
     assert not missing, f"files that run in a calibration but are not in CODE_FILES: {sorted(missing)}"
-    assert all((root / rel).is_file() for rel in cal.CODE_FILES + cal.CODE_EXEMPT)
+    assert all((PACKAGE_ROOT / rel).is_file() for rel in cal.CODE_FILES + cal.CODE_EXEMPT)
 
 
 def test_the_depth_pattern_is_read_back_from_the_cache_dir(tmp_path, monkeypatch):

@@ -116,25 +116,19 @@ def test_the_identification_code_hash_covers_every_file_that_runs_in_an_identifi
     """A short identification profiled: every package file with code that ran is in ``IDENTIFICATION_CODE_FILES``
     (or exempt), so a change to any of them names other code and the shipped model is checked again."""
     import cProfile
-    import pstats
-    from pathlib import Path
 
-    import tudorvision
     from tudorvision.lab import ch10
+    from tudorvision.lab.code_hash import PACKAGE_ROOT, files_run
 
-    root = Path(tudorvision.__file__).resolve().parent
     prof = cProfile.Profile()
-    prof.enable()
-    try:
-        ch10.identified_strain_model(PlantConfig(), Ch10Options(seconds=10.0, plates=(1,)), cache_dir=tmp_path)
-    finally:
-        prof.disable()
-    ran = {Path(f).resolve().relative_to(root).as_posix() for f, _l, _n in pstats.Stats(prof).stats
-           if Path(f).resolve().is_relative_to(root)}
+    prof.runcall(ch10.identified_strain_model, PlantConfig(), Ch10Options(seconds=10.0, plates=(1,)),
+                 cache_dir=tmp_path)
+    ran = files_run(prof)
     assert "sim/arm.py" in ran and "joint/identification.py" in ran       # the profile saw the identification
     missing = ran - set(ch10.IDENTIFICATION_CODE_FILES) - set(ch10.IDENTIFICATION_CODE_EXEMPT)
     assert not missing, f"files that run in an identification, not in IDENTIFICATION_CODE_FILES: {sorted(missing)}"
-    assert all((root / rel).is_file() for rel in ch10.IDENTIFICATION_CODE_FILES + ch10.IDENTIFICATION_CODE_EXEMPT)
+    assert all((PACKAGE_ROOT / rel).is_file()
+               for rel in ch10.IDENTIFICATION_CODE_FILES + ch10.IDENTIFICATION_CODE_EXEMPT)
 
 
 def test_the_maintainer_check_keeps_an_equal_model_and_replaces_another(tmp_path, monkeypatch):

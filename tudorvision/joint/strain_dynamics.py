@@ -162,10 +162,9 @@ class StrainDynamicsModel:
         t2, t3 = float(theta[1]), float(theta[2])
         if not math.isfinite(t2 + t3 + float(dtheta[1]) + float(dtheta[2]) + float(ddtheta[1]) + float(ddtheta[2])):
             raise ValueError("theta, dtheta, ddtheta: contain NaN or infinite values")
-        cs = np.cos(np.array([t3, t2, t2 + t3]))
-        sn = np.sin(np.array([t3, t2, t2 + t3]))
-        c3, c2, c23 = cs
-        s3, s2, s23 = sn
+        angles = np.array([t3, t2, t2 + t3])
+        c3, c2, c23 = np.cos(angles)
+        s3, s2, s23 = np.sin(angles)
         d2, d3 = np.float64(dtheta[1]), np.float64(dtheta[2])
         a2, a3 = np.float64(ddtheta[1]), np.float64(ddtheta[2])
         phi = np.array([a2, a3, c3 * a2, c3 * a3, s3 * d2 * d2, s3 * d2 * d3, s3 * d3 * d3,

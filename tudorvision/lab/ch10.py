@@ -31,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .code_hash import source_hash
+
 __all__ = ["SEED_TABLE_10_1", "Ch10Options", "collect_aprbs_run", "reproduce_table_10_1", "summarize_table_10_1",
            "with_current_noise", "format_table_10_1", "reference_friction", "identified_strain_model",
            "strain_model_key", "CATCH_IDENTIFICATION", "IDENTIFICATION_CODE_FILES", "IDENTIFICATION_CODE_EXEMPT",
@@ -332,12 +334,10 @@ def identification_code_hash() -> str:
     str
         16 hex digits.
     """
-    from .code_hash import source_hash
-
     return source_hash(IDENTIFICATION_CODE_FILES)
 
 
-def check_shipped_strain_model(config, options: Ch10Options = None, *, ship: bool = False,
+def check_shipped_strain_model(config, options: Ch10Options | None = None, *, ship: bool = False,
                                rtol: float = 1e-3) -> dict:
     """Identify a plant's strain model afresh and compare it with the one the package ships (for maintainers).
 

@@ -11,7 +11,7 @@ import functools
 import hashlib
 from pathlib import Path
 
-__all__ = ["source_hash", "PACKAGE_ROOT"]
+__all__ = ["source_hash", "files_run", "PACKAGE_ROOT"]
 
 #: The package folder; the files are named relative to it.
 PACKAGE_ROOT = Path(__file__).resolve().parents[1]
@@ -42,3 +42,37 @@ def source_hash(files: tuple) -> str:
         h.update(rel.encode())
         h.update((PACKAGE_ROOT / rel).read_bytes().replace(b"\r\n", b"\n"))
     return h.hexdigest()[:16]
+
+
+def files_run(profile) -> set:
+    """The package files whose code ran under a profile, named as in a hashed file list.
+
+    What a test compares with such a list: a file that ran and is not in it would change the artifact
+    without changing its hash.
+
+    Parameters
+    ----------
+    profile : cProfile.Profile
+        A profile that was enabled around the computation.
+
+    Returns
+    -------
+    set of str
+        Paths relative to the package folder, e.g. ``"sim/arm.py"``.
+
+    Examples
+    --------
+    >>> import cProfile
+    >>> prof = cProfile.Profile()
+    >>> _ = prof.runcall(source_hash.__wrapped__, ("geometry.py",))   # uncached: its body runs
+    >>> sorted(files_run(prof))
+    ['lab/code_hash.py']
+    """
+    import pstats
+
+    ran = set()
+    for filename, _line, _name in pstats.Stats(profile).stats:
+        path = Path(filename).resolve()
+        if path.is_relative_to(PACKAGE_ROOT):
+            ran.add(path.relative_to(PACKAGE_ROOT).as_posix())
+    return ran
