@@ -288,8 +288,10 @@ def test_shaded_pick_not_one_colour_is_capped_and_checked(monkeypatch):
     # a 12 px circle on the 9 px sphere: the capped model finds the sphere, but its circle is not the pick
     with pytest.raises(TudorVisionError, match="not one colour"):
         fit_color_model(img, centre, (172, 121))
-    monkeypatch.setattr(colormodel, "_fits_pick", lambda *args: True)     # without the stricter check
-    assert not fit_color_model(img, centre, (172, 121)).is_local
+    monkeypatch.setattr(colormodel, "fits_pick", lambda *args: True)     # without the stricter check
+    with pytest.raises(TudorVisionError, match="finds only part of the picked sphere"):   # the check on every pick
+        fit_color_model(img, centre, (172, 121))
+    assert not fit_color_model(img, centre, (172, 121), check_pick_circle=False).is_local
 
 
 def test_left_and_right_picks_of_different_colour_are_named(pick_frame):
@@ -423,3 +425,47 @@ def test_red_sphere_on_a_red_floor_is_still_refused(warm_scenes):
     scene = warm_scenes[24]
     with pytest.raises(TudorVisionError, match="does not single out the picked sphere .*nor in its neighbourhood"):
         fit_color_model(scene.pick_frames["right"], *_true_pick(scene, "right"))
+
+
+def _lit_sphere_on_its_shade(bg_shade: float, r: float = 20.0, centre=(160.3, 120.6), seed: int = 0) -> np.ndarray:
+    """A Lambertian red sphere lit from the upper left (ambient 0.15) on a background of its own albedo at
+    ``bg_shade`` (8 % texture, 1 % noise), 4x4 supersampled: the shaded limb is the background's colour."""
+    rng = np.random.default_rng(seed)
+    h, w, ss = 240, 320, 4
+    albedo = np.array([0.75, 0.16, 0.12])                      # RGB
+    light = np.array([-0.5, -0.6, -0.62]) / np.linalg.norm([-0.5, -0.6, -0.62])
+    yy, xx = np.mgrid[0:h, 0:w].astype(float)
+    shade_sum, cover = np.zeros((h, w)), np.zeros((h, w))
+    for k in range(ss * ss):
+        x = (xx + (k % ss + 0.5) / ss - 0.5 - centre[0]) / r
+        y = (yy + (k // ss + 0.5) / ss - 0.5 - centre[1]) / r
+        inside = x * x + y * y < 1.0
+        z = -np.sqrt(np.clip(1.0 - x * x - y * y, 0.0, 1.0))
+        shade_sum += inside * (0.15 + 0.85 * np.clip(x * light[0] + y * light[1] + z * light[2], 0.0, 1.0))
+        cover += inside
+    shade_sum, cover = shade_sum / ss ** 2, cover / ss ** 2
+    bg = bg_shade * albedo * (1.0 + 0.08 * rng.standard_normal((h, w, 1)))
+    rgb = shade_sum[..., None] * albedo + (1.0 - cover[..., None]) * bg
+    rgb = np.clip(rgb + 0.01 * rng.standard_normal(rgb.shape), 0.0, 1.0)
+    return np.ascontiguousarray((255 * rgb[..., ::-1]).astype(np.uint8))
+
+
+def test_a_sphere_found_as_its_lit_cap_is_refused_at_the_pick():
+    """A red sphere on a background of its own shaded colour (a red sphere on red wood): without the check
+    on every pick, the model's circle sits on the lit cap, 11-12 px towards the light on a 20 px sphere,
+    and would be tracked so in both cameras alike; with it the pick is refused in plain words. On a
+    darker background the same pick passes and is found within 1 px."""
+    from tudorvision.stereo.detection import segment_params_for_radius
+    from tudorvision.stereo.segment import detect_sphere
+    true_uv, pick, edge = np.array([160.3, 120.6]), (160, 121), (176, 121)       # edge at 80 % of 20 px
+    params = segment_params_for_radius(None, 16.0)
+    img = _lit_sphere_on_its_shade(0.35)
+    m = fit_color_model(img, pick, edge, check_pick_circle=False)
+    det = detect_sphere(img, m, params=params)
+    assert det.valid and np.hypot(*(np.asarray(det.uv) - true_uv)) > 8.0     # the lit cap: grossly off
+    with pytest.raises(TudorVisionError, match="finds only part of the picked sphere .*its centre 1[0-9].[0-9] px "
+                                               "from the picked one"):
+        fit_color_model(img, pick, edge)
+    dark = _lit_sphere_on_its_shade(0.2)
+    det = detect_sphere(dark, fit_color_model(dark, pick, edge), params=params)
+    assert det.valid and np.hypot(*(np.asarray(det.uv) - true_uv)) < 1.0

@@ -14,7 +14,11 @@ from tudorvision.stereo._colortables import CHANNELS, HUE_INDEX, HUE_LEVELS, Col
 from tudorvision.stereo.segment import log_odds_image
 
 __all__ = ["circular_hue_stats", "pick_stats", "reject_outlier_rows", "trim_highlights_rows", "calibrated_prior",
-           "pick_contrast"]
+           "pick_contrast", "fits_pick", "part_of_pick", "PICK_CHECK_MIN_RADIUS_PX"]
+
+#: Picks of at least this radius (pixels) must find the picked circle on their frame (:func:`part_of_pick`);
+#: below it a click's rounding and the rim's blur make a picked circle too coarse to judge a region by.
+PICK_CHECK_MIN_RADIUS_PX = 6.0
 
 
 def circular_hue_stats(hue) -> tuple[float, float]:
@@ -134,3 +138,49 @@ def calibrated_prior(model: ColorModel, img: np.ndarray, c: np.ndarray, r_core: 
         return model
     prior = 1.0 / (1.0 + math.exp(-(model.log_prior_odds + delta)))
     return replace(model, prior=min(prior, 0.5))
+
+
+def _det_radius(det) -> float:
+    """A detection's circle radius, or its region's area radius when it has no circle (pixels)."""
+    return det.circle_radius_px if math.isfinite(det.circle_radius_px) else math.sqrt(det.area_px / math.pi)
+
+
+def fits_pick(det, center_uv, radius: float) -> bool:
+    """Whether a detection on the pick frame is the picked circle: centre within 0.3 picked radii, radius 0.85-1.6.
+
+    The stricter check for a pick whose circle was not one colour (its model's spread capped): the
+    picked edge lies at about 80 % of the sphere's radius, so the sphere's circle is 1.0-1.5 times the
+    picked one; a region much smaller or off-centre is part of the sphere or something else.
+    """
+    if not det.valid:
+        return False
+    off = math.hypot(det.uv[0] - center_uv[0], det.uv[1] - center_uv[1])
+    return off <= 0.3 * radius and 0.85 * radius <= _det_radius(det) <= 1.6 * radius
+
+
+def part_of_pick(det, center_uv, radius: float) -> str:
+    """Why a valid detection on the pick frame is only part of the picked sphere, or "" when it is not.
+
+    The check on every pick of ``radius >= PICK_CHECK_MIN_RADIUS_PX``: the detection's circle (its area
+    radius without one) is shorter than 0.8 picked radii, or its centre lies more than half a picked
+    radius (and 1.5 px) from the picked centre. A sphere of the background's colour (a red sphere on red
+    wood) is then found as its lit cap, whose centre lies towards the light in both cameras alike, so
+    the stereo checks cannot tell: on the randomised sphere family such picks gave the 15-30 px bins'
+    gross 3D errors (docs/benchmarks.md). An invalid detection or a smaller pick gives "".
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as D
+    >>> part_of_pick(D(valid=True, uv=(50.0, 40.0), circle_radius_px=12.0, area_px=0.0), (50, 40), 10.0)
+    ''
+    >>> part_of_pick(D(valid=True, uv=(50.0, 34.0), circle_radius_px=7.0, area_px=0.0), (50, 40), 10.0)
+    'a circle of 7.0 px radius (0.70 of the picked 10.0 px), its centre 6.0 px from the picked one'
+    """
+    if not det.valid or radius < PICK_CHECK_MIN_RADIUS_PX:
+        return ""
+    r_det = _det_radius(det)
+    off = math.hypot(det.uv[0] - center_uv[0], det.uv[1] - center_uv[1])
+    if r_det >= 0.8 * radius and off <= max(0.5 * radius, 1.5):
+        return ""
+    return (f"a {'circle' if math.isfinite(det.circle_radius_px) else 'region'} of {r_det:.1f} px radius "
+            f"({r_det / radius:.2f} of the picked {radius:.1f} px), its centre {off:.1f} px from the picked one")

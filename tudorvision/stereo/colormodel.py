@@ -39,8 +39,8 @@ from tudorvision.stereo._localmodel import background_pmf, fit_local_model
 from tudorvision.stereo.detection import segment_params_for_radius
 from tudorvision.stereo.rim_edge import sphere_chroma
 from tudorvision.stereo.segment import detect_sphere
-from tudorvision.stereo._pick import (calibrated_prior, circular_hue_stats, pick_stats, reject_outlier_rows,
-                                     trim_highlights_rows)
+from tudorvision.stereo._pick import (calibrated_prior, circular_hue_stats, fits_pick, part_of_pick, pick_stats,
+                                     reject_outlier_rows, trim_highlights_rows)
 
 __all__ = [
     "CHANNELS",
@@ -79,7 +79,7 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
                     min_std=(6.0, 6.0, 6.0, 2.0, 8.0, 6.0), verify: bool = True,
                     verify_params=None, trim_highlights: bool = False, reject_outliers: bool = True,
                     calibrate_prior: bool = True, local_fallback: bool = True,
-                    capped_spread: bool = True) -> ColorModel:
+                    capped_spread: bool = True, check_pick_circle: bool = True) -> ColorModel:
     """Fit a sphere's colour model from a picked centre and edge pixel.
 
     Parameters
@@ -169,6 +169,11 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
         of the rim). Otherwise the "not one colour" error stands. On the
         randomised sphere family this accepts 12-14 of 600 picks more
         (seeds 0 / 3; docs/benchmarks.md).
+    check_pick_circle : bool
+        With ``verify``, a pick of 6 px radius or more whose model finds only part of it on the pick frame
+        (a circle under 0.8 picked radii, or centred over half a picked radius away:
+        :func:`~tudorvision.stereo._pick.part_of_pick`; the lit cap of a sphere of the background's
+        colour) is refused unless its local model finds the whole pick. False: the former check only.
 
     Returns
     -------
@@ -271,7 +276,7 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
             local, why_local = (fit_local_model(model, img, c, radius, r_in, background_margin * radius, vparams)
                                 if local_fallback else (None, ""))
             if local is not None and (not spread_error
-                                      or _fits_pick(detect_sphere(img, local, params=vparams), c, radius)):
+                                      or fits_pick(detect_sphere(img, local, params=vparams), c, radius)):
                 return local
             if spread_error:
                 raise TudorVisionError(spread_error)
@@ -282,23 +287,20 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
             raise TudorVisionError(
                 f"center_uv, edge_uv: the colour model does not single out the picked sphere ({why}"
                 f"{'; nor in its neighbourhood: ' + why_local if why_local else ''}); {hint}")
-        if spread_error and not _fits_pick(det, c, radius):
+        if spread_error and not fits_pick(det, c, radius):
             raise TudorVisionError(spread_error)
+        part = part_of_pick(det, c, radius) if check_pick_circle else ""
+        if part:
+            local = (fit_local_model(model, img, c, radius, r_in, background_margin * radius, vparams)[0]
+                     if local_fallback else None)
+            det_local = detect_sphere(img, local, params=vparams) if local is not None else det
+            if local is not None and det_local.valid and not part_of_pick(det_local, c, radius):
+                return local
+            raise TudorVisionError(
+                f"center_uv, edge_uv: the colour model finds only part of the picked sphere ({part}): its colour "
+                f"is close to the background's there (or the edge pixel is off the rim); pick it in a frame where "
+                f"it stands out, or use a sphere of another colour")
     return model
-
-
-def _fits_pick(det, center_uv, radius: float) -> bool:
-    """Whether a detection on the pick frame is the picked circle: centre within 0.3 picked radii, radius 0.85-1.6.
-
-    The stricter check for a pick whose circle was not one colour (its model's spread capped): the
-    picked edge lies at about 80 % of the sphere's radius, so the sphere's circle is 1.0-1.5 times the
-    picked one; a region much smaller or off-centre is part of the sphere or something else.
-    """
-    if not det.valid:
-        return False
-    r_det = det.circle_radius_px if math.isfinite(det.circle_radius_px) else math.sqrt(det.area_px / math.pi)
-    off = math.hypot(det.uv[0] - center_uv[0], det.uv[1] - center_uv[1])
-    return off <= 0.3 * radius and 0.85 * radius <= r_det <= 1.6 * radius
 
 
 @dataclass(frozen=True)
