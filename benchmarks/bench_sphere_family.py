@@ -11,8 +11,9 @@ link occlusion) this
   per axis, then rounded to an integer pixel as a click is); ``--user sees``: a
   click that would land on an occluder or the other sphere moves onto the
   seen part of the sphere (the lab's ``FamilyScene.sphere_masks``);
-- fits one colour model per pick (``fit_color_model``); a refused pick leaves
-  that sphere untracked in that set-up (counted as not found);
+- fits one colour model per pick (``fit_color_model``; ``--no-pick-check``:
+  without its check that the model finds the whole picked circle); a refused
+  pick leaves that sphere untracked in that set-up (counted as not found);
 - runs ``StereoPipeline`` (one frame, tracking mode as the CLI, so the first
   and only frame is a full-frame search with the per-radius segmentation; luma-edge rim
   refinement on for JPEG set-ups, as ``tudorvision track stereo`` does; the
@@ -141,13 +142,17 @@ def simulated_picks(scene, rng, user="issue"):
     return picks
 
 
+#: ``fit_color_model``'s check that a pick's model finds the whole picked circle (``--no-pick-check``: off)
+PICK_CIRCLE_CHECK = True
+
+
 def fit_models(scene, picks):
     """ColorModelSet of the spheres whose picks were accepted in both cameras, and the refusals."""
     models = {"left": {}, "right": {}}
     refused = []
     for cam, s, c, e in picks:
         try:
-            models[cam][s] = fit_color_model(scene.pick_frames[cam], c, e)
+            models[cam][s] = fit_color_model(scene.pick_frames[cam], c, e, check_pick_circle=PICK_CIRCLE_CHECK)
         except TudorVisionError as exc:
             refused.append(f"{cam}:{s}: {exc}")
     both = [s for s in SPHERES if s in models["left"] and s in models["right"]]
@@ -357,14 +362,18 @@ def main(argv=None) -> int:
                     help="the simulated user: 'issue' clicks the centre and an edge pixel wherever they fall "
                          "(default, as the issue describes); 'sees' moves a click that would land on an occluder "
                          "or the other sphere onto the part of the sphere that is seen")
+    ap.add_argument("--no-pick-check", action="store_true",
+                    help="fit_color_model(check_pick_circle=False): the former pick check, for comparison")
     args = ap.parse_args(argv)
+    global PICK_CIRCLE_CHECK
+    PICK_CIRCLE_CHECK = not args.no_pick_check
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
                             cwd=os.path.join(HERE, "..")).stdout.strip()
     dirty = subprocess.run(["git", "status", "--porcelain", "--", "tudorvision"], capture_output=True, text=True,
                            cwd=os.path.join(HERE, "..")).stdout.strip()
     print(f"machine: {cpu_model()}, nproc {os.cpu_count()}, Python {platform.python_version()}; commit {commit}"
           f"{' (tudorvision/ has uncommitted changes)' if dirty else ''}; family seed {args.seed}, n {args.n}, "
-          f"user {args.user}")
+          f"user {args.user}{'; pick check off' if args.no_pick_check else ''}")
     rows, notes, refusals = [], set(), []
     t_render = t_ours = t_peer = 0.0
     for params in sample_family(args.seed, args.n, textures=[] if args.procedural else None):

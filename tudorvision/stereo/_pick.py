@@ -14,11 +14,16 @@ from tudorvision.stereo._colortables import CHANNELS, HUE_INDEX, HUE_LEVELS, Col
 from tudorvision.stereo.segment import log_odds_image
 
 __all__ = ["circular_hue_stats", "pick_stats", "reject_outlier_rows", "trim_highlights_rows", "calibrated_prior",
-           "pick_contrast", "fits_pick", "part_of_pick", "PICK_CHECK_MIN_RADIUS_PX"]
+           "pick_contrast", "fits_pick", "part_of_pick", "PICK_CHECK_MIN_RADIUS_PX",
+           "PICK_CHECK_MAX_OFFSET_PX"]
 
 #: Picks of at least this radius (pixels) must find the picked circle on their frame (:func:`part_of_pick`);
 #: below it a click's rounding and the rim's blur make a picked circle too coarse to judge a region by.
 PICK_CHECK_MIN_RADIUS_PX = 6.0
+#: ... and centre their circle within this many pixels of the click (or a fifth of the picked radius): on the
+#: sphere family a click is 1-3 px off the centre of a well found sphere, the lit cap of one of the
+#: background's colour 4-15 px.
+PICK_CHECK_MAX_OFFSET_PX = 4.0
 
 
 def circular_hue_stats(hue) -> tuple[float, float]:
@@ -162,8 +167,8 @@ def part_of_pick(det, center_uv, radius: float) -> str:
     """Why a valid detection on the pick frame is only part of the picked sphere, or "" when it is not.
 
     The check on every pick of ``radius >= PICK_CHECK_MIN_RADIUS_PX``: the detection's circle (its area
-    radius without one) is shorter than 0.8 picked radii, or its centre lies more than half a picked
-    radius (and 1.5 px) from the picked centre. A sphere of the background's colour (a red sphere on red
+    radius without one) is shorter than 0.8 picked radii, or its centre lies more than
+    ``PICK_CHECK_MAX_OFFSET_PX`` (or a fifth of the picked radius) from the picked centre. A sphere of the background's colour (a red sphere on red
     wood) is then found as its lit cap, whose centre lies towards the light in both cameras alike, so
     the stereo checks cannot tell: on the randomised sphere family such picks gave the 15-30 px bins'
     gross 3D errors (docs/benchmarks.md). An invalid detection or a smaller pick gives "".
@@ -180,7 +185,7 @@ def part_of_pick(det, center_uv, radius: float) -> str:
         return ""
     r_det = _det_radius(det)
     off = math.hypot(det.uv[0] - center_uv[0], det.uv[1] - center_uv[1])
-    if r_det >= 0.8 * radius and off <= max(0.5 * radius, 1.5):
+    if r_det >= 0.8 * radius and off <= max(PICK_CHECK_MAX_OFFSET_PX, 0.2 * radius):
         return ""
     return (f"a {'circle' if math.isfinite(det.circle_radius_px) else 'region'} of {r_det:.1f} px radius "
             f"({r_det / radius:.2f} of the picked {radius:.1f} px), its centre {off:.1f} px from the picked one")

@@ -171,7 +171,7 @@ def fit_color_model(frame_bgr, center_uv, edge_uv, *, shrink: float = 0.8, min_p
         (seeds 0 / 3; docs/benchmarks.md).
     check_pick_circle : bool
         With ``verify``, a pick of 6 px radius or more whose model finds only part of it on the pick frame
-        (a circle under 0.8 picked radii, or centred over half a picked radius away:
+        (a circle under 0.8 picked radii, or centred over 4 px and a fifth of the picked radius away:
         :func:`~tudorvision.stereo._pick.part_of_pick`; the lit cap of a sphere of the background's
         colour) is refused unless its local model finds the whole pick. False: the former check only.
 
